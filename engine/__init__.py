@@ -1,0 +1,1 @@
+"""Infinitex engine: exemplar analysis (CPU) and deterministic synthesis (GLSL)."""

@@ -1,0 +1,437 @@
+"""Exemplar analysis (ALGORITHM.md section 2): CPU, numpy + scipy, cached on disk.
+
+For every level ``l = 0..L`` of the Gaussian stack this computes what the
+correction shaders read, all as small integers so that the GPU passes and the
+numpy oracle in ``tests/`` agree bit for bit on any driver:
+
+- ``stack[l]``: the filtered exemplar ``E_l`` (float, for display and export).
+- ``feat[l]``: the per-texel feature the runtime neighborhood is built from.
+  Appearance model (LH06): the appearance vector ``A_l[u]``, a Gaussian-weighted
+  5x5 neighborhood of ``E_l`` at spacing ``h_l``, PCA-reduced to 8 dims and
+  quantized to [-127, 127]. Color model (LH05): the colors of ``E_l`` in
+  [0, 127].
+- ``proj[l]``: the integer PCA matrix (taps*channels x 8) of the runtime
+  neighborhood and ``shift[l]`` its fixed-point scale (see ``fixed.py``).
+- ``nbhd[l]``: ``N_E(u)``, the projected exemplar neighborhood at each texel,
+  computed with exactly the integer formula the shader uses for ``N_S``, so a
+  perfectly coherent patch has error 0.
+- ``simset[l]``: similarity sets ``C_l^i(u)``, ``i = 1..k`` as (x, y).
+
+Nearest neighbors come from ``scipy.spatial.cKDTree``, the well-kept library for
+the job (the README says why scipy is a dependency).
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+import time
+import zipfile
+from dataclasses import dataclass, field, asdict
+from typing import Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import fixed
+from .exemplar import Exemplar
+
+ANALYSIS_VERSION = 3
+MODELS = ("appearance", "color")
+NDIM = fixed.NDIM
+
+ProgressFn = Callable[[float, str], None]
+
+
+class AnalysisCancelled(Exception):
+    """Raised (by a progress callback) to stop a running analysis."""
+
+
+@dataclass(frozen=True)
+class AnalysisSettings:
+    """What the analysis depends on besides the exemplar pixels."""
+
+    model: str = "appearance"      # "appearance" (LH06, default) or "color" (LH05)
+    k: int = 2                     # similarity-set size, 1..4
+    spacing: float = 0.05          # min distance between set entries, fraction of m
+    appearance_sigma: float = 1.5  # Gaussian weight of the 5x5 appearance taps, in taps
+
+    def validate(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(f"Unknown neighborhood model {self.model!r}; use 'appearance' or 'color'.")
+        if not 1 <= int(self.k) <= 4:
+            raise ValueError(f"k must be between 1 and 4, not {self.k}.")
+        if not 0.0 <= self.spacing < 0.5:
+            raise ValueError("spacing must be a fraction of the exemplar size in [0, 0.5).")
+
+
+@dataclass
+class LevelData:
+    stack: np.ndarray      # float32 (m, m, C): E_l
+    feat: np.ndarray       # int16 (m, m, F): A_l (F=8) or colors (F=C)
+    proj: np.ndarray       # int32 (T*F, 8): runtime neighborhood PCA, fixed point
+    shift: int             # right shift applied to the projection
+    nbhd: np.ndarray       # int16 (m, m, 8): N_E(u)
+    simset: np.ndarray     # int16 (m, m, k, 2): C^i(u) as (x, y)
+
+
+@dataclass
+class Analysis:
+    """Everything synthesis needs about one exemplar under one setting."""
+
+    size: int
+    channels: int
+    toroidal: bool
+    settings: AnalysisSettings
+    levels: list[LevelData] = field(repr=False)
+    key: str = ""
+    seconds: float = 0.0
+
+    @property
+    def L(self) -> int:
+        return self.size.bit_length() - 1
+
+    def h(self, level: int) -> int:
+        """Exemplar-coordinate spacing h_l = 2^(L-l) of level ``level``."""
+        return 1 << (self.L - level)
+
+    @property
+    def model(self) -> str:
+        return self.settings.model
+
+    @property
+    def k(self) -> int:
+        return self.settings.k
+
+
+# ----------------------------------------------------------------------------
+# Gaussian stack
+
+
+def augmented_period(pixels: np.ndarray, toroidal: bool) -> np.ndarray:
+    """The periodic image that extends the exemplar (LH05 3.2).
+
+    Toroidal: the exemplar itself (period m). Otherwise the 2m x 2m mirror
+    augmentation [E, flipx E; flipy E, flipxy E], whose periodic extension
+    reflects the exemplar at every border.
+    """
+    if toroidal:
+        return pixels
+    top = np.concatenate([pixels, pixels[:, ::-1]], axis=1)
+    return np.concatenate([top, top[::-1]], axis=0)
+
+
+def gaussian_stack(pixels: np.ndarray, toroidal: bool) -> list[np.ndarray]:
+    """E_0..E_L, each m x m: E_L = E, E_l blurred with sigma = h_l / 2, E_0 = mean.
+
+    Filtering is done on the periodic augmentation by FFT, so borders see the
+    wrapped or mirrored texture, never a zero pad.
+    """
+    m = pixels.shape[0]
+    L = m.bit_length() - 1
+    aug = augmented_period(pixels.astype(np.float64), toroidal)
+    n = aug.shape[0]
+    spectrum = np.fft.rfft2(aug, axes=(0, 1))
+    fy = np.fft.fftfreq(n)[:, None]
+    fx = np.fft.rfftfreq(n)[None, :]
+    f2 = fx * fx + fy * fy
+    out = []
+    for level in range(L + 1):
+        h = 1 << (L - level)
+        if level == 0:
+            e = np.broadcast_to(pixels.mean(axis=(0, 1), dtype=np.float64), pixels.shape)
+        elif h == 1:
+            e = pixels
+        else:
+            sigma = h / 2.0
+            gain = np.exp(-2.0 * (np.pi ** 2) * (sigma ** 2) * f2)[:, :, None]
+            e = np.fft.irfft2(spectrum * gain, s=(n, n), axes=(0, 1))[:m, :m]
+        out.append(np.ascontiguousarray(e, dtype=np.float32))
+    return out
+
+
+def _periodic_shift(img: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """img'[y, x] = img[(y + dy) mod n, (x + dx) mod n]."""
+    return np.roll(img, shift=(-dy, -dx), axis=(0, 1))
+
+
+# ----------------------------------------------------------------------------
+# Neighborhood features
+
+
+def _pca(x: np.ndarray, dims: int) -> np.ndarray:
+    """Top principal axes of the rows of x (columns of the result), sign-fixed."""
+    xc = x - x.mean(axis=0, keepdims=True)
+    cov = (xc.T @ xc) / max(1, xc.shape[0])
+    w, v = np.linalg.eigh(cov)
+    order = np.argsort(w)[::-1][:dims]
+    v = v[:, order]
+    if v.shape[1] < dims:
+        v = np.concatenate([v, np.zeros((v.shape[0], dims - v.shape[1]))], axis=1)
+    # Deterministic signs: largest-magnitude entry of each axis positive.
+    idx = np.argmax(np.abs(v), axis=0)
+    signs = np.sign(v[idx, np.arange(v.shape[1])])
+    signs[signs == 0] = 1
+    return v * signs
+
+
+def appearance_features(stack_aug: np.ndarray, m: int, h: int, sigma: float) -> np.ndarray:
+    """LH06 appearance vectors of one level, quantized to int16 in [-127, 127].
+
+    ``stack_aug`` is the level's periodic augmentation (m or 2m wide). Taps are
+    ``E_l[u + h*d]``, d in [-2, 2]^2, weighted by exp(-|d|^2 / 2 sigma^2).
+    """
+    taps = []
+    for dy in range(-2, 3):
+        for dx in range(-2, 3):
+            wgt = np.exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma))
+            taps.append(wgt * _periodic_shift(stack_aug, dx * h, dy * h)[:m, :m])
+    x = np.concatenate(taps, axis=2).reshape(m * m, -1)
+    axes = _pca(x, NDIM)
+    a = (x - x.mean(axis=0, keepdims=True)) @ axes
+    peak = np.abs(a).max()
+    scale = fixed.FEAT_MAX / peak if peak > 1e-12 else 0.0
+    return np.rint(a * scale).reshape(m, m, NDIM).astype(np.int16)
+
+
+def color_features(stack: np.ndarray) -> np.ndarray:
+    """LH05 color model: colors quantized to int16 in [0, 127]."""
+    return np.rint(np.clip(stack, 0.0, 1.0) * fixed.FEAT_MAX).astype(np.int16)
+
+
+def gather_exemplar_neighborhood(feat: np.ndarray, h: int, model: str) -> np.ndarray:
+    """The unprojected runtime neighborhood of every exemplar texel, int64 (m*m, T*F).
+
+    Appearance: 3 * A[u + h*d] for the 4 diagonals (the synthesized side sums 3
+    predictions). Color: E[u + h*d] for d in [-2, 2]^2. Reads wrap mod m, as
+    the shader's do.
+    """
+    m = feat.shape[0]
+    f64 = feat.astype(np.int64)
+    parts = [fixed.APPEARANCE_PREDICTIONS * _periodic_shift(f64, dx * h, dy * h) if model == "appearance"
+             else _periodic_shift(f64, dx * h, dy * h)
+             for dx, dy in fixed.taps(model)]
+    return np.concatenate(parts, axis=2).reshape(m * m, -1)
+
+
+def runtime_projection(n_raw: np.ndarray, feat_max_abs: int, model: str) -> tuple[np.ndarray, int]:
+    """Integer PCA matrix (T*F x 8) for the runtime neighborhood and its shift."""
+    axes = _pca(n_raw.astype(np.float64), NDIM)
+    proj = np.rint(axes * fixed.PROJ_ONE).astype(np.int64)
+    count = n_raw.shape[1]
+    mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
+    bound_n = mult * max(1, feat_max_abs) * np.sqrt(count)
+    return proj.astype(np.int32), fixed.choose_shift(proj, bound_n)
+
+
+# ----------------------------------------------------------------------------
+# Similarity sets
+
+
+def border_margin(m: int, h: int) -> int:
+    """Width of the band near a non-toroidal exemplar's border that no candidate
+    may use at a level with spacing h: the pixel's descendants (h/2) plus the
+    finest neighborhood (2), at most m/8 so coarse levels keep an interior."""
+    return int(min(h // 2 + 2, m // 8))
+
+
+def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
+                    spacing_frac: float) -> np.ndarray:
+    """C^1..C^k for every texel, int16 (m, m, k, 2) as (x, y).
+
+    C^1(u) = u, except near a non-toroidal border where it is the best interior
+    match. The others are the best matches at least ``spacing`` px from u, from
+    C^1 and from each other; missing entries repeat C^1.
+    """
+    ys, xs = np.mgrid[0:m, 0:m]
+    pos = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.int64)
+    desc = desc.reshape(m * m, -1).astype(np.float32)
+    if toroidal:
+        usable = np.ones(m * m, dtype=bool)
+    else:
+        b = border_margin(m, h)
+        usable = ((pos >= b) & (pos < m - b)).all(axis=1)
+    # Coarse levels are smooth: texels a few pixels apart look alike, so the
+    # tree holds a lattice of them (step <= h/4, so coordinates keep sub-h
+    # precision) and the nearest matches are not all next to u.
+    step = max(1, min(h // 4, int(spacing_frac * m) // 2))
+    lattice = ((pos % step) == 0).all(axis=1)
+    pool = np.nonzero(usable & lattice)[0]
+    if pool.size == 0:
+        pool = np.nonzero(usable)[0]
+    tree = cKDTree(desc[pool])
+    spacing = max(1.0, spacing_frac * m)
+
+    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        d = np.abs(a - b)
+        if toroidal:
+            d = np.minimum(d, m - d)
+        return np.sqrt((d * d).sum(axis=-1))
+
+    out = np.empty((m * m, k, 2), dtype=np.int64)
+    out[:, 0] = pos
+    if not toroidal:
+        bad = np.nonzero(~usable)[0]
+        if bad.size:
+            _, nn = tree.query(desc[bad], k=1, workers=-1)
+            out[bad, 0] = pos[pool[nn]]
+    if k == 1:
+        return out.reshape(m, m, 1, 2).astype(np.int16)
+
+    todo = np.arange(m * m)
+    chosen = np.repeat(out[:, :1], k - 1, axis=1)  # default: repeat C^1
+    for kq in (16, 64, 256):
+        if todo.size == 0:
+            break
+        kq = min(kq, pool.size)
+        _, nn = tree.query(desc[todo], k=kq, workers=-1)
+        nn = nn.reshape(todo.size, kq)
+        cand = pos[pool[nn]]                                   # (n, kq, 2)
+        ok = (dist(cand, pos[todo, None]) >= spacing) & (dist(cand, out[todo, None, 0]) >= spacing)
+        filled = np.zeros(todo.size, dtype=bool)
+        picks = []
+        for slot in range(k - 1):
+            first = np.argmax(ok, axis=1)
+            has = ok[np.arange(todo.size), first]
+            pick = cand[np.arange(todo.size), first]
+            picks.append((pick, has))
+            ok &= dist(cand, pick[:, None]) >= spacing
+            if slot == 0:
+                filled = has
+        for slot, (pick, has) in enumerate(picks):
+            rows = todo[has]
+            chosen[rows, slot] = pick[has]
+        todo = todo[~filled]
+    out[:, 1:] = chosen
+    return out.reshape(m, m, k, 2).astype(np.int16)
+
+
+# ----------------------------------------------------------------------------
+# Driver and cache
+
+
+def analysis_key(ex: Exemplar, settings: AnalysisSettings) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    h.update(ex.content_hash().encode())
+    h.update(json.dumps(asdict(settings), sort_keys=True).encode())
+    h.update(f"v{ANALYSIS_VERSION}".encode())
+    return h.hexdigest()[:32]
+
+
+def default_cache_dir() -> str:
+    env = os.environ.get("INFINITEX_CACHE")
+    if env:
+        return env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "infinitex", "analysis")
+
+
+def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | None) -> list[LevelData]:
+    m, L = ex.size, ex.levels
+    k = int(settings.k)
+    report = progress or (lambda f, msg: None)
+    report(0.0, "Gaussian stack")
+    stack = gaussian_stack(ex.pixels, ex.toroidal)
+    levels: list[LevelData] = []
+    # Work per level is roughly equal; the stack took ~5%.
+    for level in range(L + 1):
+        h = 1 << (L - level)
+        base = 0.05 + 0.95 * level / (L + 1)
+        step = 0.95 / (L + 1)
+        report(base, f"level {level}/{L}: neighborhoods")
+        if settings.model == "appearance":
+            aug = augmented_period(stack[level].astype(np.float64), ex.toroidal)
+            feat = appearance_features(aug, m, h, settings.appearance_sigma)
+        else:
+            feat = color_features(stack[level])
+        n_raw = gather_exemplar_neighborhood(feat, h, settings.model)
+        proj, shift = runtime_projection(n_raw, int(np.abs(feat).max()), settings.model)
+        nbhd = fixed.project(n_raw, proj, shift).reshape(m, m, NDIM).astype(np.int16)
+        report(base + 0.3 * step, f"level {level}/{L}: similarity sets")
+        if level == 0:
+            ys, xs = np.mgrid[0:m, 0:m]
+            ident = np.stack([xs, ys], axis=-1)[:, :, None, :]
+            sims = np.repeat(ident, k, axis=2).astype(np.int16)
+        else:
+            sims = similarity_sets(nbhd, m, h, k, ex.toroidal, settings.spacing)
+        levels.append(LevelData(stack=stack[level], feat=feat, proj=proj, shift=int(shift),
+                                nbhd=nbhd, simset=sims))
+    report(1.0, "done")
+    return levels
+
+
+def _save(path: str, an: Analysis) -> None:
+    arrays = {}
+    for i, lv in enumerate(an.levels):
+        for name in ("stack", "feat", "proj", "nbhd", "simset"):
+            arrays[f"{name}{i}"] = getattr(lv, name)
+        arrays[f"shift{i}"] = np.array(lv.shift)
+    meta = dict(size=an.size, channels=an.channels, toroidal=an.toroidal,
+                settings=asdict(an.settings), version=ANALYSIS_VERSION, key=an.key)
+    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _load(path: str, key: str, settings: AnalysisSettings, ex: Exemplar) -> Analysis | None:
+    """The cached analysis, or None if missing, foreign or damaged."""
+    if not os.path.exists(path):
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+            if meta.get("key") != key or meta.get("version") != ANALYSIS_VERSION:
+                return None
+            m, L = ex.size, ex.levels
+            levels = []
+            for i in range(L + 1):
+                lv = LevelData(stack=z[f"stack{i}"], feat=z[f"feat{i}"], proj=z[f"proj{i}"],
+                               shift=int(z[f"shift{i}"]), nbhd=z[f"nbhd{i}"], simset=z[f"simset{i}"])
+                if lv.stack.shape != (m, m, ex.channels) or lv.nbhd.shape != (m, m, NDIM) \
+                        or lv.simset.shape != (m, m, settings.k, 2):
+                    return None
+                levels.append(lv)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError,
+            UnicodeDecodeError, io.UnsupportedOperation):
+        return None
+    return Analysis(size=ex.size, channels=ex.channels, toroidal=ex.toroidal, settings=settings,
+                    levels=levels, key=key)
+
+
+def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
+            cache_dir: str | None = None, use_cache: bool = True,
+            progress: ProgressFn | None = None) -> Analysis:
+    """Analyze an exemplar, reusing the disk cache when it holds this exemplar
+    and these settings. A damaged cache entry is recomputed and replaced.
+    ``progress(fraction, message)`` is called as work proceeds; it may raise
+    :class:`AnalysisCancelled` to stop."""
+    settings = settings or AnalysisSettings()
+    settings.validate()
+    key = analysis_key(ex, settings)
+    path = os.path.join(cache_dir or default_cache_dir(), f"{key}.npz")
+    if use_cache:
+        cached = _load(path, key, settings, ex)
+        if cached is not None:
+            if progress:
+                progress(1.0, "loaded from cache")
+            return cached
+    t0 = time.perf_counter()
+    levels = _compute(ex, settings, progress)
+    an = Analysis(size=ex.size, channels=ex.channels, toroidal=ex.toroidal, settings=settings,
+                  levels=levels, key=key, seconds=time.perf_counter() - t0)
+    if use_cache:
+        try:
+            _save(path, an)
+        except OSError:
+            pass  # a read-only or full disk only costs a recomputation next time
+    return an

@@ -1,0 +1,113 @@
+"""The integer conventions shared by the analysis, the GLSL passes and the oracle.
+
+Everything the correction compares is an integer with a proven bound, so the
+GPU result does not depend on float rounding, fused multiply-adds or the
+driver: the same document gives the same texture on every machine.
+
+- Features (appearance vectors or colors) are in [-FEAT_MAX, FEAT_MAX].
+- A runtime neighborhood is the concatenation of T taps of F features; it is
+  projected to NDIM dims by an integer matrix scaled by PROJ_ONE, then shifted
+  right (floor) by a per-level ``shift`` chosen so every projected value lies
+  in [-NBHD_MAX, NBHD_MAX] (Cauchy-Schwarz bound).
+- A squared distance is at most 8 * (2 * NBHD_MAX)^2 < 2^29; it is clamped to
+  DIST_CLAMP and multiplied by psi in sixteenths (at most 80), < 2^32 unsigned.
+- Jitter: the hash gives H in [-1024, 1023] / 1024 per axis; r_l is stored in
+  1024ths; J = floor((h * H * r + 2^19) / 2^20), |h * H * r| <= 2^29.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+NDIM = 8
+FEAT_MAX = 127
+PROJ_ONE = 256
+NBHD_MAX = 4095
+APPEARANCE_PREDICTIONS = 3
+DIST_CLAMP = 1 << 25
+PSI_ONE = 16
+KAPPA_MAX = 4.0
+JITTER_ONE = 1024
+JITTER_SHIFT = 20
+SHIFT_BIAS = 1 << 30
+
+DIAGONALS = ((-1, -1), (1, -1), (-1, 1), (1, 1))
+COLOR_TAPS = tuple((dx, dy) for dy in range(-2, 3) for dx in range(-2, 3))
+# Candidate order of k-coherence (also the tie-break order): the 3x3 neighbors
+# in row-major order, then i = 1..k for each.
+CANDIDATE_OFFSETS = tuple((dx, dy) for dy in range(-1, 2) for dx in range(-1, 2))
+
+
+def taps(model: str) -> tuple[tuple[int, int], ...]:
+    return DIAGONALS if model == "appearance" else COLOR_TAPS
+
+
+def read_radius(model: str) -> int:
+    """How far (in level pixels) one correction reads around the pixel it writes."""
+    return 1 if model == "appearance" else 2
+
+
+def choose_shift(proj: np.ndarray, bound_n: float) -> int:
+    """Smallest right shift that keeps projected values within NBHD_MAX."""
+    col_norm = float(np.sqrt((proj.astype(np.float64) ** 2).sum(axis=0)).max())
+    bound = col_norm * bound_n
+    if bound >= SHIFT_BIAS // 2:
+        raise ValueError("neighborhood projection would overflow 32-bit integers")
+    shift = 0
+    while bound / (1 << shift) > NBHD_MAX:
+        shift += 1
+    return shift
+
+
+def project(n_raw: np.ndarray, proj: np.ndarray, shift: int) -> np.ndarray:
+    """floor((n_raw @ proj) / 2^shift) in int64, as the shaders compute it."""
+    return (n_raw.astype(np.int64) @ proj.astype(np.int64)) >> shift
+
+
+def psi_q(kappa: float) -> int:
+    """psi(i > 1) = 1 + kappa in sixteenths."""
+    kappa = float(kappa)
+    if not 0.0 <= kappa <= KAPPA_MAX:
+        raise ValueError(f"kappa must be in [0, {KAPPA_MAX}], not {kappa}.")
+    return int(round(PSI_ONE * (1.0 + kappa)))
+
+
+def jitter_q(r: float) -> int:
+    r = float(r)
+    if not 0.0 <= r <= 1.0:
+        raise ValueError(f"randomness must be in [0, 1], not {r}.")
+    return int(round(r * JITTER_ONE))
+
+
+def lowbias32(x: np.ndarray) -> np.ndarray:
+    """Chris Wellons' lowbias32 integer hash, on uint32 arrays."""
+    x = np.asarray(x, dtype=np.uint32).copy()
+    x ^= x >> np.uint32(16)
+    x *= np.uint32(0x7FEB352D)
+    x ^= x >> np.uint32(15)
+    x *= np.uint32(0x846CA68B)
+    x ^= x >> np.uint32(16)
+    return x
+
+
+def hash2(gx: np.ndarray, gy: np.ndarray, level: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """H(p, l, seed) in [-1024, 1023] per axis (divide by 1024 for [-1, 1))."""
+    with np.errstate(over="ignore"):
+        s = lowbias32(np.uint32(seed & 0xFFFFFFFF))
+        s = lowbias32(np.uint32(level) ^ s)
+        v = lowbias32(np.asarray(gy, dtype=np.int64).astype(np.uint32) ^ s)
+        v = lowbias32(np.asarray(gx, dtype=np.int64).astype(np.uint32) ^ v)
+    hx = (v & np.uint32(2047)).astype(np.int64) - 1024
+    hy = ((v >> np.uint32(11)) & np.uint32(2047)).astype(np.int64) - 1024
+    return hx, hy
+
+
+def jitter(gx: np.ndarray, gy: np.ndarray, level: int, seed: int, h: int, rq: int):
+    """J_l(p) = floor(h * H(p) * r + 1/2), exactly as the upsample shader computes it."""
+    hx, hy = hash2(gx, gy, level, seed)
+    half = 1 << (JITTER_SHIFT - 1)
+    return ((h * hx * rq + half) >> JITTER_SHIFT), ((h * hy * rq + half) >> JITTER_SHIFT)
+
+
+def child_offset(d: np.ndarray, h: int) -> np.ndarray:
+    """floor(h * (D - 1/2)) for D in {0, 1} (LH05 stack upsampling)."""
+    return d * h - ((h + 1) >> 1)

@@ -1,0 +1,143 @@
+"""OpenGL 3.3 core plumbing: context, shader programs, exemplar textures.
+
+Shaders live in ``engine/shaders/*.glsl`` / ``*.frag`` / ``*.vert``; a program
+is its files plus a few ``#define`` lines (subpass grid size, model), compiled
+once per context and cached.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from functools import cached_property
+
+import moderngl
+import numpy as np
+
+from . import fixed
+from .analysis import Analysis
+
+SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
+GLSL_VERSION = "#version 330 core"
+
+
+class GLUnavailable(RuntimeError):
+    """No usable OpenGL 3.3 context; the message says what was tried."""
+
+
+def create_context() -> moderngl.Context:
+    """A headless OpenGL 3.3+ core context (EGL on Linux, native elsewhere)."""
+    attempts = [dict(backend="egl"), {}] if sys.platform.startswith("linux") else [{}]
+    errors = []
+    for kwargs in attempts:
+        try:
+            return moderngl.create_standalone_context(require=330, **kwargs)
+        except Exception as exc:  # moderngl raises plain Exception subclasses
+            errors.append(f"{kwargs.get('backend', 'default')}: {exc}")
+    raise GLUnavailable("No usable OpenGL 3.3 context could be created ("
+                        + "; ".join(errors) + "). On Debian install libegl1 and libgl1.")
+
+
+def read_shader(name: str) -> str:
+    with open(os.path.join(SHADER_DIR, name), encoding="utf-8") as f:
+        return f.read()
+
+
+class Gpu:
+    """A moderngl context with the synthesis programs and a full-screen quad."""
+
+    def __init__(self, ctx: moderngl.Context | None = None):
+        self.ctx = ctx or create_context()
+        self._programs: dict[tuple, moderngl.Program] = {}
+        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        quad = np.array([-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1], dtype="f4")
+        self.quad = self.ctx.buffer(quad.tobytes())
+
+    @cached_property
+    def renderer(self) -> str:
+        info = self.ctx.info
+        return f"{info.get('GL_RENDERER', '?')} / {info.get('GL_VERSION', '?')}"
+
+    def program(self, frag: str, **defines) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        key = (frag, tuple(sorted(defines.items())))
+        if key not in self._programs:
+            head = GLSL_VERSION + "\n" + "".join(
+                f"#define {k} {'' if v is True else v}\n" for k, v in sorted(defines.items()))
+            vert = head + read_shader("fullscreen.vert")
+            src = head + read_shader("common.glsl") + read_shader(frag)
+            try:
+                prog = self.ctx.program(vertex_shader=vert, fragment_shader=src)
+            except moderngl.Error as exc:
+                raise GLUnavailable(f"The GPU driver rejected shader {frag}: {exc}") from None
+            self._programs[key] = prog
+            self._vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "in_pos")])
+        return self._programs[key], self._vaos[key]
+
+    def int_texture(self, size: tuple[int, int], components: int, data: np.ndarray | None = None):
+        tex = self.ctx.texture(size, components, None if data is None else
+                               np.ascontiguousarray(data, dtype=np.int16).tobytes(), dtype="i2")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.repeat_x = tex.repeat_y = False
+        return tex
+
+
+def _rgba(arr: np.ndarray) -> np.ndarray:
+    """(m, m, n<=4) int array to (m, m, 4) int16, zero-padded."""
+    out = np.zeros(arr.shape[:2] + (4,), dtype=np.int16)
+    out[:, :, :arr.shape[2]] = arr
+    return out
+
+
+class LevelTextures:
+    """The per-level analysis data the correction pass reads, as GL textures."""
+
+    def __init__(self, gpu: Gpu, an: Analysis, level: int):
+        lv = an.levels[level]
+        m = an.size
+        self.feat = [gpu.int_texture((m, m), 4, _rgba(lv.feat[:, :, i:i + 4]))
+                     for i in range(0, lv.feat.shape[2], 4)]
+        if len(self.feat) == 1:
+            self.feat.append(self.feat[0])
+        self.nbhd = [gpu.int_texture((m, m), 4, lv.nbhd[:, :, 0:4]),
+                     gpu.int_texture((m, m), 4, lv.nbhd[:, :, 4:8])]
+        sims = lv.simset.reshape(m, m, -1)
+        self.sim = [gpu.int_texture((m, m), 4, _rgba(sims[:, :, 0:4]) if sims.shape[2] >= 4
+                                    else _rgba(np.concatenate([sims[:, :, 0:2]] * 2, axis=2))),
+                    gpu.int_texture((m, m), 4, _rgba(sims[:, :, 4:8]))]
+        rows = lv.proj.shape[0]
+        proj = np.zeros((rows, 8), dtype=np.int32)
+        proj[:, :] = lv.proj
+        self.proj_rows = rows
+        self.proj = proj.tobytes()  # row r -> P[2r] (dims 0-3), P[2r+1] (dims 4-7)
+        self.shift = lv.shift
+
+    def release(self) -> None:
+        for t in self.feat + self.nbhd + self.sim:
+            t.release()
+
+
+class GpuAnalysis:
+    """An analysis uploaded to one context; level textures are uploaded on first use."""
+
+    def __init__(self, gpu: Gpu, an: Analysis):
+        self.gpu = gpu
+        self.analysis = an
+        self._levels: dict[int, LevelTextures] = {}
+
+    def level(self, level: int) -> LevelTextures:
+        if level not in self._levels:
+            self._levels[level] = LevelTextures(self.gpu, self.analysis, level)
+        return self._levels[level]
+
+    def correction_defines(self) -> dict:
+        an = self.analysis
+        d = dict(DIST_CLAMP=fixed.DIST_CLAMP, PSI_ONE=fixed.PSI_ONE)
+        if an.model == "appearance":
+            d.update(MODEL_APPEARANCE=True, PROJ_ROWS=4 * fixed.NDIM)
+        else:
+            d.update(MODEL_COLOR=True, NCH=an.channels, PROJ_ROWS=25 * an.channels)
+        return d
+
+    def release(self) -> None:
+        for lt in self._levels.values():
+            lt.release()
+        self._levels.clear()

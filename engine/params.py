@@ -1,0 +1,114 @@
+"""Synthesis parameters and the geometry that follows from them (LH05 3.3-3.4)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+from . import fixed
+
+DEFAULT_JITTER = 0.6
+FIRST_CORRECTED_LEVEL = 3  # LH05: correction is skipped on levels 0-2
+
+
+@dataclass(frozen=True)
+class SynthParams:
+    """Everything besides the analysis that decides the synthesized texture.
+
+    ``jitter`` holds r_l per level (coarse to fine, L+1 values in [0, 1]);
+    ``corrected`` lists the levels that get correction, None meaning LH05's
+    default (levels >= 3); ``period`` is 0 for the infinite canvas or n (a
+    power of two) for an n x n toroidal texture.
+    """
+
+    jitter: tuple[float, ...]
+    seed: int = 0
+    passes: int = 2            # c
+    subgrid: int = 2           # s: s^2 subpasses per pass
+    kappa: float = 0.5
+    corrected: tuple[int, ...] | None = None
+    period: int = 0
+
+    @classmethod
+    def default(cls, levels: int, **kw) -> "SynthParams":
+        """Defaults for an exemplar with finest level L = ``levels``."""
+        return cls(jitter=(DEFAULT_JITTER,) * (levels + 1), **kw)
+
+    def with_jitter(self, r: float) -> "SynthParams":
+        return replace(self, jitter=(float(r),) * len(self.jitter))
+
+    @property
+    def L(self) -> int:
+        return len(self.jitter) - 1
+
+    def corrected_levels(self) -> frozenset[int]:
+        if self.corrected is None:
+            return frozenset(range(FIRST_CORRECTED_LEVEL, self.L + 1))
+        return frozenset(self.corrected)
+
+    def validate(self, levels: int) -> None:
+        """Raise ValueError with a user-readable sentence if unusable."""
+        if len(self.jitter) != levels + 1:
+            raise ValueError(f"Expected {levels + 1} randomness values (one per level), got {len(self.jitter)}.")
+        for r in self.jitter:
+            fixed.jitter_q(r)
+        fixed.psi_q(self.kappa)
+        if not 0 <= self.passes <= 8:
+            raise ValueError("Correction passes must be between 0 and 8.")
+        if not 1 <= self.subgrid <= 4:
+            raise ValueError("The subpass grid size s must be between 1 and 4.")
+        bad = [l for l in self.corrected_levels() if not 0 <= l <= levels]
+        if bad:
+            raise ValueError(f"Corrected levels {bad} do not exist (levels are 0..{levels}).")
+        if self.period and (self.period & (self.period - 1) or not 32 <= self.period <= 4096):
+            raise ValueError("A toroidal texture size must be a power of two from 32 to 4096.")
+        if not 0 <= self.seed < 2 ** 32:
+            raise ValueError("The seed must be an integer in [0, 2^32).")
+
+    def level_period(self, level: int) -> int:
+        """n_l: the period at level l (0 = none); 1 means the level is constant."""
+        if not self.period:
+            return 0
+        return max(1, self.period >> (self.L - level))
+
+    def level_signature(self, level: int) -> tuple:
+        """What level ``level`` itself depends on (beyond coarser levels)."""
+        corr = level in self.corrected_levels()
+        return (self.jitter[level], self.seed, self.level_period(level), corr,
+                (self.passes, self.subgrid, self.kappa) if corr else None)
+
+
+def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:
+    """The phases (i, j) rewritten by each subpass of each pass.
+
+    For s = 2 this is LH05's order (chosen to reduce padding); otherwise a fixed
+    shuffle (a scanline order is worse, LH05 3.3)."""
+    if s == 2:
+        lh05 = [[(0, 0), (1, 1), (0, 1), (1, 0)], [(0, 1), (0, 0), (1, 1), (1, 0)]]
+        return [lh05[c % 2] for c in range(passes)]
+    phases = [(i, j) for j in range(s) for i in range(s)]
+    out = []
+    for c in range(passes):
+        keyed = sorted(phases, key=lambda ph: int(fixed.lowbias32(
+            (ph[0] * 73856093) ^ (ph[1] * 19349663) ^ (c * 83492791) ^ 0x5BD1E995)))
+        out.append(keyed)
+    return out
+
+
+def correction_margins(s: int, passes: int, radius: int) -> tuple[int, int, int, int]:
+    """Exact padding (left, right, top, bottom) a region needs so that after all
+    subpasses its interior is independent of what lies outside (LH05 3.4).
+
+    Tracks, per phase, how far from each side of the (s-aligned) buffer its
+    pixels are exact; a rewritten pixel is exact once everything it reads is.
+    """
+    phases = [(i, j) for j in range(s) for i in range(s)]
+    margin = {ph: [0, 0, 0, 0] for ph in phases}
+    foot = [(dx, dy) for dy in range(-radius, radius + 1) for dx in range(-radius, radius + 1)]
+    for order in subpass_order(s, passes):
+        for ph in order:
+            new = [0, 0, 0, 0]
+            for dx, dy in foot:
+                other = margin[((ph[0] + dx) % s, (ph[1] + dy) % s)]
+                new = [max(new[0], other[0] - dx), max(new[1], other[1] + dx),
+                       max(new[2], other[2] - dy), max(new[3], other[3] + dy)]
+            margin[ph] = new
+    return tuple(max(margin[ph][i] for ph in phases) for i in range(4))

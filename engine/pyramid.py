@@ -1,0 +1,357 @@
+"""The synthesis pyramid: exact windows of the infinite texture, updated incrementally.
+
+Each level ``l`` owns a persistent GPU buffer holding the *exact* coordinates
+``S_l`` over a rectangle ``valid[l]`` (global level-l pixels). A texel of
+global position ``g`` lives at ``(g - anchor) & mask``: in scrolling mode the
+buffer is a power of two and addressing wraps (a toroidal cache, so panning
+never copies), in fixed mode the buffer is exactly the rectangle.
+
+To make a view exact, :meth:`Pyramid.request` walks from the view's level to
+level 0 computing what each level must hold (``half(pad(K_l))``, LH05 3.4),
+then from coarse to fine synthesizes only the strips that are new: each strip
+is padded by the correction margins, upsampled from the parent buffer,
+jittered, corrected in quadrant-packed scratch buffers and its exact interior
+written back. A full window is the special case of one strip per level.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from . import fixed
+from .gpu import Gpu, GpuAnalysis
+from .params import SynthParams, correction_margins, subpass_order
+
+COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
+
+
+@dataclass(frozen=True)
+class Rect:
+    """Half-open integer rectangle [x0, x1) x [y0, y1)."""
+
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+
+    @classmethod
+    def of(cls, x: int, y: int, w: int, h: int) -> "Rect":
+        return cls(int(x), int(y), int(x) + int(w), int(y) + int(h))
+
+    @property
+    def w(self) -> int:
+        return self.x1 - self.x0
+
+    @property
+    def h(self) -> int:
+        return self.y1 - self.y0
+
+    @property
+    def empty(self) -> bool:
+        return self.w <= 0 or self.h <= 0
+
+    def contains(self, o: "Rect") -> bool:
+        return self.x0 <= o.x0 and self.y0 <= o.y0 and o.x1 <= self.x1 and o.y1 <= self.y1
+
+    def intersect(self, o: "Rect") -> "Rect":
+        return Rect(max(self.x0, o.x0), max(self.y0, o.y0), min(self.x1, o.x1), min(self.y1, o.y1))
+
+    def pad(self, left: int, right: int, top: int, bottom: int) -> "Rect":
+        return Rect(self.x0 - left, self.y0 - top, self.x1 + right, self.y1 + bottom)
+
+    def align(self, a: int) -> "Rect":
+        """Smallest enclosing rectangle whose edges are multiples of a."""
+        return Rect((self.x0 // a) * a, (self.y0 // a) * a, -((-self.x1) // a) * a, -((-self.y1) // a) * a)
+
+    def half(self) -> "Rect":
+        """The parent-level pixels whose children cover this rectangle."""
+        return Rect(self.x0 // 2, self.y0 // 2, (self.x1 - 1) // 2 + 1, (self.y1 - 1) // 2 + 1)
+
+    def minus(self, o: "Rect") -> list["Rect"]:
+        """self \\ o as at most 4 disjoint rectangles."""
+        i = self.intersect(o)
+        if i.empty:
+            return [] if self.empty else [self]
+        out = [Rect(self.x0, self.y0, self.x1, i.y0), Rect(self.x0, i.y1, self.x1, self.y1),
+               Rect(self.x0, i.y0, i.x0, i.y1), Rect(i.x1, i.y0, self.x1, i.y1)]
+        return [r for r in out if not r.empty]
+
+
+class SynthesisError(ValueError):
+    """A request the synthesis cannot serve (e.g. coordinates out of range)."""
+
+
+def _next_pow2(n: int) -> int:
+    return 1 << max(0, (int(n) - 1).bit_length())
+
+
+class _LevelBuffer:
+    def __init__(self, gpu: Gpu, size: tuple[int, int], scrolling: bool, anchor: tuple[int, int]):
+        self.size = size
+        self.scrolling = scrolling
+        self.anchor = (0, 0) if scrolling else anchor
+        self.mask = (size[0] - 1, size[1] - 1) if scrolling else (-1, -1)
+        self.tex = gpu.int_texture(size, 2)
+        self.fbo = gpu.ctx.framebuffer(color_attachments=[self.tex])
+        self.valid: Rect | None = None
+
+    def texel(self, gx: int, gy: int) -> tuple[int, int]:
+        return (gx - self.anchor[0]) & self.mask[0], (gy - self.anchor[1]) & self.mask[1]
+
+    def fits(self, r: Rect) -> bool:
+        if self.scrolling:
+            return r.w <= self.size[0] and r.h <= self.size[1]
+        return Rect.of(*self.anchor, *self.size).contains(r)
+
+    def release(self) -> None:
+        self.fbo.release()
+        self.tex.release()
+
+
+class Pyramid:
+    """Per-level exact coordinate buffers for one analysis and parameter set.
+
+    ``scrolling=True`` keeps power-of-two wrap-around buffers with a prefetch
+    border of ``prefetch`` pixels, for views that pan; ``False`` allocates each
+    level exactly for a one-off window (export, CLI).
+    """
+
+    def __init__(self, gpu: Gpu, gan: GpuAnalysis, params: SynthParams, *,
+                 scrolling: bool = True, prefetch: int = 16, chunk: int = 16):
+        self.gpu = gpu
+        self.gan = gan
+        self.an = gan.analysis
+        self.scrolling = scrolling
+        self.prefetch = prefetch if scrolling else 0
+        self.chunk = chunk if scrolling else 1
+        self.buffers: list[_LevelBuffer | None] = [None] * (self.an.L + 1)
+        self._scratch: dict[tuple[int, int], tuple] = {}
+        self.pixels_synthesized = 0  # level pixels upsampled by the last request
+        self.params = params
+        self.set_params(params)
+
+    # -- parameters ---------------------------------------------------------
+
+    def set_params(self, params: SynthParams) -> None:
+        """Adopt new parameters, keeping every level they do not change."""
+        params.validate(self.an.L)
+        old = getattr(self, "_signatures", None)
+        self.params = params
+        self._signatures = [params.level_signature(l) for l in range(self.an.L + 1)]
+        radius = fixed.read_radius(self.an.model)
+        m = correction_margins(params.subgrid, params.passes, radius)
+        self.margins = [m if l in params.corrected_levels() and params.passes > 0 else (0, 0, 0, 0)
+                        for l in range(self.an.L + 1)]
+        if old is None:
+            return
+        first = next((l for l in range(self.an.L + 1) if old[l] != self._signatures[l]), None)
+        if first is not None:
+            self.invalidate(first)
+
+    def invalidate(self, first_level: int = 0) -> None:
+        """Forget the contents of levels >= first_level."""
+        for l in range(first_level, self.an.L + 1):
+            if self.buffers[l] is not None:
+                self.buffers[l].valid = None
+
+    # -- geometry -----------------------------------------------------------
+
+    def padded(self, level: int, r: Rect) -> Rect:
+        """The region a strip is synthesized on: r plus correction margins, s-aligned."""
+        return r.pad(*self.margins[level]).align(self.params.subgrid)
+
+    def plan(self, level: int, rect: Rect) -> list[Rect]:
+        """The rectangle each level 0..level must hold exactly for ``rect``."""
+        need = [Rect(0, 0, 0, 0)] * (level + 1)
+        cur = rect
+        for l in range(level, -1, -1):
+            need[l] = cur
+            cur = self.padded(l, cur).half()
+        return need
+
+    def _target(self, l: int, need: Rect) -> Rect:
+        """What level l will hold: its current rectangle while that still covers
+        ``need`` (hysteresis), else ``need`` plus prefetch, snapped to chunks."""
+        buf = self.buffers[l]
+        if buf is not None and buf.valid is not None and buf.valid.contains(need):
+            return buf.valid
+        p = self.prefetch >> (self.an.L - l) if self.scrolling else 0
+        p = max(p, 2 if self.scrolling else 0)
+        return need.pad(p, p, p, p).align(self.chunk)
+
+    # -- synthesis ----------------------------------------------------------
+
+    def request(self, level: int, rect: Rect) -> int:
+        """Make level ``level`` exact over ``rect`` (and its ancestors as needed).
+
+        Returns the number of level pixels synthesized (0 when all was cached).
+        """
+        if not 0 <= level <= self.an.L:
+            raise SynthesisError(f"Level {level} does not exist (0..{self.an.L}).")
+        if rect.empty:
+            return 0
+        lim = COORD_LIMIT >> (self.an.L - level)
+        if min(rect.x0, rect.y0) < -lim or max(rect.x1, rect.y1) > lim:
+            raise SynthesisError(f"Canvas positions must stay within +-{lim} at level {level}.")
+        need = self.plan(level, rect)
+        targets = []
+        # Decide every level's rectangle first (fine to coarse: a level's target
+        # decides its parent's need), then synthesize coarse to fine.
+        for l in range(level, -1, -1):
+            t = self._target(l, need[l])
+            targets.append((l, t))
+            if l > 0:
+                need[l - 1] = self.padded(l, t).half()
+        total = 0
+        for l, target in reversed(targets):
+            total += self._update_level(l, target)
+        self.pixels_synthesized = total
+        return total
+
+    def _ensure_buffer(self, l: int, target: Rect) -> _LevelBuffer:
+        buf = self.buffers[l]
+        if buf is not None and buf.fits(target):
+            return buf
+        if buf is not None:
+            buf.release()
+        if self.scrolling:
+            slack = 2 * self.chunk + 2 * (self.prefetch >> (self.an.L - l)) + 4
+            size = (_next_pow2(target.w + slack), _next_pow2(target.h + slack))
+        else:
+            size = (target.w, target.h)
+        buf = _LevelBuffer(self.gpu, size, self.scrolling, (target.x0, target.y0))
+        self.buffers[l] = buf
+        return buf
+
+    def _update_level(self, l: int, target: Rect) -> int:
+        buf = self._ensure_buffer(l, target)
+        strips = [target] if buf.valid is None else target.minus(buf.valid)
+        count = 0
+        for strip in strips:
+            count += self._synthesize_strip(l, strip, buf)
+        buf.valid = target
+        return count
+
+    def _scratch_pair(self, w: int, h: int):
+        key = (w, h)
+        if key not in self._scratch:
+            if len(self._scratch) > 24:
+                for a, fa, b, fb in self._scratch.values():
+                    for o in (fa, fb, a, b):
+                        o.release()
+                self._scratch.clear()
+            a = self.gpu.int_texture((w, h), 2)
+            b = self.gpu.int_texture((w, h), 2)
+            self._scratch[key] = (a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b]))
+        return self._scratch[key]
+
+    def _synthesize_strip(self, l: int, strip: Rect, buf: _LevelBuffer) -> int:
+        p = self.params
+        s = p.subgrid
+        an = self.an
+        region = self.padded(l, strip)
+        qdims = (region.w // s, region.h // s)
+        a, fa, b, fb = self._scratch_pair(region.w, region.h)
+        h = an.h(l)
+
+        # Upsample + jitter into scratch a.
+        prog, vao = self.gpu.program("upsample.frag", SUB_S=s)
+        if l > 0:
+            parent = self.buffers[l - 1]
+            assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
+            parent.tex.use(0)
+            prog["parent"].value = 0
+            prog["parent_anchor"].value = parent.anchor
+            prog["parent_mask"].value = parent.mask
+        prog["has_parent"].value = int(l > 0)
+        prog["origin"].value = (region.x0, region.y0)
+        prog["qdims"].value = qdims
+        prog["h"].value = h
+        prog["m"].value = an.size
+        prog["level"].value = l
+        prog["seed"].value = p.seed
+        prog["rq"].value = fixed.jitter_q(p.jitter[l])
+        prog["period"].value = p.level_period(l)
+        fa.use()
+        fa.viewport = (0, 0, region.w, region.h)
+        vao.render(moderngl.TRIANGLES)
+
+        # Correction subpasses, ping-ponging a <-> b.
+        if l in p.corrected_levels() and p.passes > 0:
+            lt = self.gan.level(l)
+            prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
+            for unit, tex in enumerate(lt.feat + lt.nbhd + lt.sim, start=1):
+                tex.use(unit)
+            for name, unit in (("feat0", 1), ("feat1", 2), ("nbhd0", 3), ("nbhd1", 4),
+                               ("sim01", 5), ("sim23", 6)):
+                prog[name].value = unit
+            prog["dims"].value = (region.w, region.h)
+            prog["qdims"].value = qdims
+            prog["k"].value = an.k
+            prog["h"].value = h
+            prog["m"].value = an.size
+            prog["shift"].value = lt.shift
+            prog["psi"].value = fixed.psi_q(p.kappa)
+            prog["P"].write(lt.proj)
+            prog["src"].value = 0
+            for order in subpass_order(s, p.passes):
+                for phase in order:
+                    a.use(0)
+                    prog["active_phase"].value = phase
+                    fb.use()
+                    fb.viewport = (0, 0, region.w, region.h)
+                    vao.render(moderngl.TRIANGLES)
+                    a, fa, b, fb = b, fb, a, fa
+
+        # Write the exact strip back, split where the buffer wraps.
+        prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
+        a.use(0)
+        prog["src"].value = 0
+        prog["qdims"].value = qdims
+        prog["src_origin"].value = (region.x0, region.y0)
+        prog["dest_mask"].value = buf.mask
+        buf.fbo.use()
+        for piece in self._texel_pieces(buf, strip):
+            g0, t0, w, hh = piece
+            prog["region_g0"].value = g0
+            prog["region_t0"].value = t0
+            buf.fbo.viewport = (t0[0], t0[1], w, hh)
+            vao.render(moderngl.TRIANGLES)
+        return region.w * region.h
+
+    @staticmethod
+    def _texel_pieces(buf: _LevelBuffer, r: Rect):
+        """Split r into pieces contiguous in the destination texture."""
+        xs, ys = [], []
+        for lo, hi, axis, out in ((r.x0, r.x1, 0, xs), (r.y0, r.y1, 1, ys)):
+            g = lo
+            while g < hi:
+                t = (g - buf.anchor[axis]) & buf.mask[axis]
+                n = min(hi - g, buf.size[axis] - t)
+                out.append((g, t, n))
+                g += n
+        return [((gx, gy), (tx, ty), nx, ny) for gx, tx, nx in xs for gy, ty, ny in ys]
+
+    # -- reading ------------------------------------------------------------
+
+    def read(self, level: int, rect: Rect) -> np.ndarray:
+        """Exemplar coordinates (H, W, 2) int32 as (x, y) over ``rect``; must be valid."""
+        buf = self.buffers[level]
+        if buf is None or buf.valid is None or not buf.valid.contains(rect):
+            raise SynthesisError(f"Level {level} does not hold {rect}; request it first.")
+        data = np.frombuffer(buf.tex.read(alignment=1), dtype=np.int16).reshape(buf.size[1], buf.size[0], 2)
+        tx = (np.arange(rect.x0, rect.x1) - buf.anchor[0]) & buf.mask[0]
+        ty = (np.arange(rect.y0, rect.y1) - buf.anchor[1]) & buf.mask[1]
+        return data[ty[:, None], tx[None, :]].astype(np.int32)
+
+    def release(self) -> None:
+        for buf in self.buffers:
+            if buf is not None:
+                buf.release()
+        self.buffers = [None] * (self.an.L + 1)
+        for a, fa, b, fb in self._scratch.values():
+            for o in (fa, fb, a, b):
+                o.release()
+        self._scratch.clear()

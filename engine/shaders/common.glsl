@@ -1,0 +1,36 @@
+// Shared integer helpers. Prepended to every pass after the #version line and
+// the #defines (SUB_S: subpass grid size s; MODEL_APPEARANCE or MODEL_COLOR).
+// Integer conventions: engine/fixed.py.
+
+const int SHIFT_BIAS = 1 << 30;
+
+// Chris Wellons' lowbias32: a well-mixed 32-bit integer hash.
+uint lowbias32(uint x) {
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+
+// H(p, l, seed) in [-1024, 1023] per axis (1024ths of [-1, 1)).
+ivec2 hash2(ivec2 g, int level, uint seed) {
+    uint s = lowbias32(seed);
+    s = lowbias32(uint(level) ^ s);
+    uint v = lowbias32(uint(g.y) ^ s);
+    v = lowbias32(uint(g.x) ^ v);
+    return ivec2(int(v & 2047u) - 1024, int((v >> 11) & 2047u) - 1024);
+}
+
+// floor(x / 2^s) without relying on the sign behaviour of >> (|x| < 2^30).
+ivec4 floor_shift(ivec4 x, int s) {
+    return ((x + ivec4(SHIFT_BIAS)) >> s) - ivec4(SHIFT_BIAS >> s);
+}
+
+// Scratch buffers are quadrant-packed (LH05 3.6): local pixel p of phase
+// p mod s lives in block (p mod s) at offset p div s, so each subpass
+// rewrites one contiguous block. p must be non-negative.
+ivec2 packed_texel(ivec2 p, ivec2 qdims) {
+    return (p % SUB_S) * qdims + p / SUB_S;
+}

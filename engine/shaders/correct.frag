@@ -1,0 +1,106 @@
+// One correction subpass (LH05 3.1, 3.3; LH06 4) over a quadrant-packed
+// scratch buffer: pixels of phase `active_phase` are rewritten, all others copied.
+// For each rewritten pixel p:
+//   N_S(p) = projected synthesized neighborhood
+//     MODEL_APPEARANCE: for each diagonal d, sum over d' in {d, (d.x,0), (0,d.y)}
+//                       of A_l[S[p+d'] + h (d - d')]   (3x the LH06 average)
+//     MODEL_COLOR:      E_l[S[p+d]], d in [-2,2]^2     (LH05)
+//   candidates u = C^i(S[p+d] - h d), d in [-1,1]^2, i = 1..k
+//   keep the u minimizing psi(i) ||N_S(p) - N_E(u)||^2, first one on ties.
+// All arithmetic is integer (engine/fixed.py), so results are exact.
+
+uniform isampler2D src;       // current state, packed
+uniform ivec2 dims;           // scratch size in pixels (multiple of s)
+uniform ivec2 qdims;          // dims / s
+uniform ivec2 active_phase;         // phase being corrected
+uniform isampler2D feat0;     // appearance dims 0-3, or colors
+uniform isampler2D feat1;     // appearance dims 4-7
+uniform isampler2D nbhd0;     // N_E dims 0-3
+uniform isampler2D nbhd1;     // N_E dims 4-7
+uniform isampler2D sim01;     // C^1(u).xy, C^2(u).xy
+uniform isampler2D sim23;     // C^3(u).xy, C^4(u).xy
+uniform int k;
+uniform int h;
+uniform int m;
+uniform int shift;
+uniform int psi;              // (1 + kappa) in sixteenths
+uniform ivec4 P[2 * PROJ_ROWS];
+
+out ivec4 result;
+
+ivec2 fetch_s(ivec2 p) {
+    return texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0).xy;
+}
+
+void add_tap(int row, int value, inout ivec4 lo, inout ivec4 hi) {
+    lo += value * P[2 * row];
+    hi += value * P[2 * row + 1];
+}
+
+void main() {
+    ivec2 X = ivec2(gl_FragCoord.xy);
+    ivec2 phase = X / qdims;
+    ivec4 here = texelFetch(src, X, 0);
+    if (phase != active_phase) {
+        result = here;
+        return;
+    }
+    ivec2 p = (X - phase * qdims) * SUB_S + phase;
+    int wrap = m - 1;
+
+    ivec2 S[9];  // 3x3 neighbors, row-major, S[4] = here
+    for (int j = 0; j < 9; ++j) {
+        ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
+        S[j] = j == 4 ? here.xy : fetch_s(p + d);
+    }
+
+    ivec4 lo = ivec4(0);
+    ivec4 hi = ivec4(0);
+#ifdef MODEL_APPEARANCE
+    for (int t = 0; t < 4; ++t) {
+        ivec2 d = ivec2((t & 1) * 2 - 1, (t >> 1) * 2 - 1);     // DIAGONALS order
+        ivec2 u1 = S[(d.y + 1) * 3 + d.x + 1] & wrap;            // d' = d
+        ivec2 u2 = (S[4 + d.x] + ivec2(0, h * d.y)) & wrap;      // d' = (d.x, 0)
+        ivec2 u3 = (S[4 + 3 * d.y] + ivec2(h * d.x, 0)) & wrap;  // d' = (0, d.y)
+        ivec4 a0 = texelFetch(feat0, u1, 0) + texelFetch(feat0, u2, 0) + texelFetch(feat0, u3, 0);
+        ivec4 a1 = texelFetch(feat1, u1, 0) + texelFetch(feat1, u2, 0) + texelFetch(feat1, u3, 0);
+        for (int c = 0; c < 4; ++c) {
+            add_tap(t * 8 + c, a0[c], lo, hi);
+            add_tap(t * 8 + 4 + c, a1[c], lo, hi);
+        }
+    }
+#else
+    for (int t = 0; t < 25; ++t) {
+        ivec2 d = ivec2(t % 5 - 2, t / 5 - 2);                   // COLOR_TAPS order
+        ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p + d)) & wrap;
+        ivec4 col = texelFetch(feat0, u, 0);
+        for (int c = 0; c < NCH; ++c) {
+            add_tap(t * NCH + c, col[c], lo, hi);
+        }
+    }
+#endif
+    lo = floor_shift(lo, shift);
+    hi = floor_shift(hi, shift);
+
+    uint best = 0xffffffffu;
+    ivec2 best_u = here.xy;
+    for (int j = 0; j < 9; ++j) {
+        ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
+        ivec2 base = (S[j] - h * d) & wrap;
+        ivec4 s01 = texelFetch(sim01, base, 0);
+        ivec4 s23 = k > 2 ? texelFetch(sim23, base, 0) : ivec4(0);
+        for (int i = 0; i < k; ++i) {
+            ivec2 u = i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw));
+            ivec4 e0 = texelFetch(nbhd0, u, 0) - lo;
+            ivec4 e1 = texelFetch(nbhd1, u, 0) - hi;
+            ivec4 sq = e0 * e0 + e1 * e1;
+            int dist = min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP);
+            uint cost = uint(dist) * uint(i == 0 ? PSI_ONE : psi);
+            if (cost < best) {
+                best = cost;
+                best_u = u;
+            }
+        }
+    }
+    result = ivec4(best_u, 0, 0);
+}

@@ -1,0 +1,40 @@
+// Upsample + jitter (LH05 3.1-3.2) of one padded region of level l into a
+// quadrant-packed scratch buffer:
+//   S_l[p] = (S_{l-1}[floor(p/2)] + floor(h (D - 1/2)) + J_l(p)) mod m,
+//   J_l(p) = floor(h H(p, l, seed) r_l + 1/2).
+// Level 0 starts from the exemplar centre m/2 (the upsampled S_{-1} = 0).
+// With a period n_l (toroidal output), jitter and child offsets use p mod n_l.
+
+uniform isampler2D parent;      // level l-1, persistent buffer (toroidal addressing)
+uniform ivec2 parent_anchor;    // texel = (g - anchor) & mask
+uniform ivec2 parent_mask;
+uniform int has_parent;
+uniform ivec2 origin;           // global level-l position of scratch pixel (0, 0)
+uniform ivec2 qdims;            // quadrant size: scratch size / s
+uniform int h;
+uniform int m;
+uniform int level;
+uniform uint seed;
+uniform int rq;                 // r_l in 1024ths
+uniform int period;             // n_l (a power of two), or 0 for the infinite canvas
+
+out ivec4 result;
+
+void main() {
+    ivec2 X = ivec2(gl_FragCoord.xy);
+    ivec2 phase = X / qdims;
+    ivec2 local = (X - phase * qdims) * SUB_S + phase;
+    ivec2 g = origin + local;
+    ivec2 gm = period > 0 ? (g & (period - 1)) : g;
+    ivec2 u;
+    if (has_parent != 0) {
+        ivec2 gp = (g - (g & 1)) / 2;  // exact division: floor(g / 2) for any sign
+        ivec2 t = (gp - parent_anchor) & parent_mask;
+        u = texelFetch(parent, t, 0).xy + (gm & 1) * h - ((h + 1) >> 1);
+    } else {
+        u = ivec2(m / 2);
+    }
+    ivec2 H = hash2(gm, level, seed);
+    ivec2 J = ((h * H * rq + (1 << 19) + SHIFT_BIAS) >> 20) - (SHIFT_BIAS >> 20);
+    result = ivec4((u + J) & (m - 1), 0, 0);
+}

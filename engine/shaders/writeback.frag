@@ -1,0 +1,17 @@
+// Copy the exact part of a corrected scratch region into a level's
+// persistent buffer, whose texel of global position g is (g - anchor) & mask.
+
+uniform isampler2D src;       // quadrant-packed scratch
+uniform ivec2 qdims;
+uniform ivec2 src_origin;     // global position of scratch pixel (0, 0)
+uniform ivec2 region_g0;      // global position of the first written texel
+uniform ivec2 region_t0;      // its texel in the destination
+uniform ivec2 dest_mask;
+
+out ivec4 result;
+
+void main() {
+    ivec2 T = ivec2(gl_FragCoord.xy);
+    ivec2 g = region_g0 + ((T - region_t0) & dest_mask);
+    result = texelFetch(src, packed_texel(g - src_origin, qdims), 0);
+}
