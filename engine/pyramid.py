@@ -286,7 +286,8 @@ class Pyramid:
                 tex.use(unit)
             for name, unit in (("feat0", 1), ("feat1", 2), ("nbhd0", 3), ("nbhd1", 4),
                                ("sim01", 5), ("sim23", 6)):
-                prog[name].value = unit
+                if name in prog:  # the color model has no feat1; k <= 2 may drop sim23
+                    prog[name].value = unit
             prog["dims"].value = (region.w, region.h)
             prog["qdims"].value = qdims
             prog["k"].value = an.k

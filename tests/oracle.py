@@ -1,0 +1,123 @@
+"""A small numpy oracle of the synthesis passes (ALGORITHM.md section 3).
+
+Written independently of the GL pyramid: one padded window per level with the
+naive padding c * s^2 * radius (larger than the engine's exact margins), plain
+row-major arrays, clamped reads at the window border. Its exact interior must
+equal the GL result bit for bit.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from engine import fixed
+from engine.analysis import Analysis
+from engine.params import SynthParams, subpass_order
+
+
+def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: tuple[int, int],
+             shape: tuple[int, int], an: Analysis, params: SynthParams, level: int) -> np.ndarray:
+    h, m = an.h(level), an.size
+    H, W = shape
+    gy, gx = np.mgrid[origin[1]:origin[1] + H, origin[0]:origin[0] + W].astype(np.int64)
+    n = params.level_period(level)
+    gmx, gmy = (gx & (n - 1), gy & (n - 1)) if n else (gx, gy)
+    if parent is None:
+        ux = np.full(gx.shape, m // 2, dtype=np.int64)
+        uy = ux.copy()
+    else:
+        px, py = (gx >> 1) - parent_origin[0], (gy >> 1) - parent_origin[1]
+        assert px.min() >= 0 and py.min() >= 0 and px.max() < parent.shape[1] and py.max() < parent.shape[0]
+        ux = parent[py, px, 0] + fixed.child_offset(gmx & 1, h)
+        uy = parent[py, px, 1] + fixed.child_offset(gmy & 1, h)
+    jx, jy = fixed.jitter(gmx, gmy, level, params.seed, h, fixed.jitter_q(params.jitter[level]))
+    return np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
+
+
+def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis,
+                             level: int) -> np.ndarray:
+    """Projected N_S(p) for the pixels (ys, xs) of S (reads clamped to S)."""
+    lv = an.levels[level]
+    h, m = an.h(level), an.size
+    H, W = S.shape[:2]
+
+    def at(dx, dy):
+        return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
+
+    feat = lv.feat.astype(np.int64)
+    parts = []
+    if an.model == "appearance":
+        for dx, dy in fixed.DIAGONALS:
+            acc = 0
+            for (ddx, ddy) in ((dx, dy), (dx, 0), (0, dy)):
+                u = at(ddx, ddy)
+                ux = (u[:, 0] + h * (dx - ddx)) & (m - 1)
+                uy = (u[:, 1] + h * (dy - ddy)) & (m - 1)
+                acc = acc + feat[uy, ux]
+            parts.append(acc)
+    else:
+        for dx, dy in fixed.COLOR_TAPS:
+            u = at(dx, dy) & (m - 1)
+            parts.append(feat[u[:, 1], u[:, 0]])
+    return fixed.project(np.concatenate(parts, axis=1), lv.proj, lv.shift)
+
+
+def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
+                    params: SynthParams, level: int) -> np.ndarray:
+    s = params.subgrid
+    lv = an.levels[level]
+    h, m = an.h(level), an.size
+    H, W = S.shape[:2]
+    ys, xs = np.mgrid[0:H, 0:W]
+    sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
+    ys, xs = ys[sel], xs[sel]
+    ns = synthesized_neighborhood(S, ys, xs, an, level)
+    nbhd = lv.nbhd.astype(np.int64)
+    best = np.full(len(ys), np.iinfo(np.int64).max)
+    best_u = S[ys, xs].astype(np.int64)
+    psi = fixed.psi_q(params.kappa)
+    for dx, dy in fixed.CANDIDATE_OFFSETS:
+        nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
+        bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
+        for i in range(an.k):
+            u = lv.simset[by, bx, i].astype(np.int64)
+            e = nbhd[u[:, 1], u[:, 0]] - ns
+            dist = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP)
+            cost = dist * (fixed.PSI_ONE if i == 0 else psi)
+            better = cost < best
+            best = np.where(better, cost, best)
+            best_u = np.where(better[:, None], u, best_u)
+    out = S.copy()
+    out[ys, xs] = best_u
+    return out
+
+
+def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int,
+               level: int | None = None, uncorrected_level: int | None = None) -> np.ndarray:
+    """Exact coordinates (h, w, 2) of the window at ``level`` (default finest).
+
+    ``uncorrected_level`` skips correction on that one level (to measure what
+    correction does there)."""
+    level = an.L if level is None else level
+    s = params.subgrid
+    pad = params.passes * s * s * fixed.read_radius(an.model)
+    # Window needed at each level, fine to coarse; origins aligned to 2s.
+    wins = {}
+    x0, y0, x1, y1 = x, y, x + w, y + h
+    for l in range(level, -1, -1):
+        p = pad if l in params.corrected_levels() else 0
+        a = 2 * s
+        wx0, wy0 = ((x0 - p) // a) * a, ((y0 - p) // a) * a
+        wx1, wy1 = -((-(x1 + p)) // a) * a, -((-(y1 + p)) // a) * a
+        wins[l] = (wx0, wy0, wx1, wy1)
+        x0, y0, x1, y1 = wx0 // 2, wy0 // 2, (wx1 - 1) // 2 + 1, (wy1 - 1) // 2 + 1
+    parent, porigin = None, (0, 0)
+    for l in range(0, level + 1):
+        wx0, wy0, wx1, wy1 = wins[l]
+        S = upsample(parent, porigin, (wx0, wy0), (wy1 - wy0, wx1 - wx0), an, params, l)
+        if l != uncorrected_level and l in params.corrected_levels():
+            for order in subpass_order(s, params.passes):
+                for phase in order:
+                    S = correct_subpass(S, phase, (wx0, wy0), an, params, l)
+        parent, porigin = S, (wx0, wy0)
+    wx0, wy0 = wins[level][:2]
+    return parent[y - wy0:y - wy0 + h, x - wx0:x - wx0 + w].astype(np.int32)
