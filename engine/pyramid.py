@@ -83,6 +83,13 @@ class SynthesisError(ValueError):
     """A request the synthesis cannot serve (e.g. coordinates out of range)."""
 
 
+def set_uniforms(prog: moderngl.Program, **values) -> None:
+    """Set uniforms by name, skipping those the compiler optimized out."""
+    for name, value in values.items():
+        if name in prog:
+            prog[name].value = value
+
+
 def _next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
 
@@ -262,18 +269,10 @@ class Pyramid:
             parent = self.buffers[l - 1]
             assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
             parent.tex.use(0)
-            prog["parent"].value = 0
-            prog["parent_anchor"].value = parent.anchor
-            prog["parent_mask"].value = parent.mask
-        prog["has_parent"].value = int(l > 0)
-        prog["origin"].value = (region.x0, region.y0)
-        prog["qdims"].value = qdims
-        prog["h"].value = h
-        prog["m"].value = an.size
-        prog["level"].value = l
-        prog["seed"].value = p.seed
-        prog["rq"].value = fixed.jitter_q(p.jitter[l])
-        prog["period"].value = p.level_period(l)
+            set_uniforms(prog, parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
+        set_uniforms(prog, has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
+                     m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
+                     period=p.level_period(l))
         fa.use()
         fa.viewport = (0, 0, region.w, region.h)
         vao.render(moderngl.TRIANGLES)
@@ -284,23 +283,14 @@ class Pyramid:
             prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
             for unit, tex in enumerate(lt.feat + lt.nbhd + lt.sim, start=1):
                 tex.use(unit)
-            for name, unit in (("feat0", 1), ("feat1", 2), ("nbhd0", 3), ("nbhd1", 4),
-                               ("sim01", 5), ("sim23", 6)):
-                if name in prog:  # the color model has no feat1; k <= 2 may drop sim23
-                    prog[name].value = unit
-            prog["dims"].value = (region.w, region.h)
-            prog["qdims"].value = qdims
-            prog["k"].value = an.k
-            prog["h"].value = h
-            prog["m"].value = an.size
-            prog["shift"].value = lt.shift
-            prog["psi"].value = fixed.psi_q(p.kappa)
+            set_uniforms(prog, src=0, feat0=1, feat1=2, nbhd0=3, nbhd1=4, sim01=5, sim23=6,
+                         dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,
+                         shift=lt.shift, psi=fixed.psi_q(p.kappa))
             prog["P"].write(lt.proj)
-            prog["src"].value = 0
             for order in subpass_order(s, p.passes):
                 for phase in order:
                     a.use(0)
-                    prog["active_phase"].value = phase
+                    set_uniforms(prog, active_phase=phase)
                     fb.use()
                     fb.viewport = (0, 0, region.w, region.h)
                     vao.render(moderngl.TRIANGLES)
@@ -309,15 +299,11 @@ class Pyramid:
         # Write the exact strip back, split where the buffer wraps.
         prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
         a.use(0)
-        prog["src"].value = 0
-        prog["qdims"].value = qdims
-        prog["src_origin"].value = (region.x0, region.y0)
-        prog["dest_mask"].value = buf.mask
+        set_uniforms(prog, src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask)
         buf.fbo.use()
         for piece in self._texel_pieces(buf, strip):
             g0, t0, w, hh = piece
-            prog["region_g0"].value = g0
-            prog["region_t0"].value = t0
+            set_uniforms(prog, region_g0=g0, region_t0=t0)
             buf.fbo.viewport = (t0[0], t0[1], w, hh)
             vao.render(moderngl.TRIANGLES)
         return region.w * region.h

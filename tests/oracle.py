@@ -121,3 +121,17 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]
     return parent[y - wy0:y - wy0 + h, x - wx0:x - wx0 + w].astype(np.int32)
+
+
+def neighborhood_error(an: Analysis, level: int, S: np.ndarray) -> float:
+    """Mean ||N_S(p) - N_E(S[p])||^2 over the pixels whose reads stay inside S:
+    how far each synthesized neighborhood is from the exemplar neighborhood of
+    the coordinate it claims."""
+    r = fixed.read_radius(an.model)
+    H, W = S.shape[:2]
+    ys, xs = np.mgrid[r:H - r, r:W - r]
+    ys, xs = ys.ravel(), xs.ravel()
+    ns = synthesized_neighborhood(S, ys, xs, an, level)
+    u = S[ys, xs].astype(np.int64)
+    ne = an.levels[level].nbhd.astype(np.int64)[u[:, 1], u[:, 0]]
+    return float(((ns - ne) ** 2).sum(axis=1).mean())

@@ -1,0 +1,55 @@
+import os
+import sys
+import tempfile
+
+import numpy as np
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+# A private analysis cache per test session: tests never see a stale one.
+os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
+
+from engine.analysis import AnalysisSettings, analyze  # noqa: E402
+from engine.exemplar import from_array, load_exemplar  # noqa: E402
+from engine.gpu import Gpu  # noqa: E402
+
+ASSETS = os.path.join(ROOT, "assets")
+
+
+@pytest.fixture(scope="session")
+def gpu():
+    return Gpu()
+
+
+@pytest.fixture(scope="session")
+def gravel():
+    return load_exemplar(os.path.join(ASSETS, "gravel.png"))
+
+
+def periodic_noise(m: int, channels: int = 3, seed: int = 1) -> np.ndarray:
+    """A smooth random image that tiles exactly (filtered in the Fourier domain)."""
+    rng = np.random.default_rng(seed)
+    f = np.fft.fft2(rng.standard_normal((m, m, channels)), axes=(0, 1))
+    fy, fx = np.fft.fftfreq(m)[:, None], np.fft.fftfreq(m)[None, :]
+    f *= np.exp(-(fx ** 2 + fy ** 2) * (m / 6.0) ** 2)[:, :, None]
+    img = np.real(np.fft.ifft2(f, axes=(0, 1)))
+    img = (img - img.min()) / (img.max() - img.min())
+    return img.astype(np.float32)
+
+
+@pytest.fixture(scope="session")
+def toroidal_ex():
+    return from_array(periodic_noise(32), toroidal=True)
+
+
+@pytest.fixture(scope="session")
+def analyses(gravel, toroidal_ex):
+    """Analyses shared by the synthesis tests, keyed by name."""
+    return {
+        "gravel-appearance": analyze(gravel, AnalysisSettings(model="appearance")),
+        "gravel-color": analyze(gravel, AnalysisSettings(model="color")),
+        "torus-appearance": analyze(toroidal_ex, AnalysisSettings(model="appearance")),
+        "torus-color-k3": analyze(toroidal_ex, AnalysisSettings(model="color", k=3)),
+    }

@@ -1,0 +1,188 @@
+"""Synthesis properties: spatial determinism, oracle agreement, tiling, correction."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import oracle
+from engine.params import SynthParams, correction_margins
+from engine.pyramid import Rect, SynthesisError
+from engine.synth import Synthesizer
+
+FAR = 2 ** 30
+
+
+@pytest.fixture(scope="module")
+def synths(analyses, gpu):
+    return {name: Synthesizer(an, gpu=gpu) for name, an in analyses.items()}
+
+
+@pytest.mark.parametrize("name", ["gravel-appearance", "gravel-color"])
+@pytest.mark.parametrize("ox, oy", [(0, 0), (-37, 11), (FAR - 200, -FAR + 50), (-FAR + 3, FAR - 300)])
+def test_overlapping_windows_agree(synths, name, ox, oy):
+    synth = synths[name]
+    big = synth.window(Rect.of(ox, oy, 120, 100))
+    small = synth.window(Rect.of(ox + 37, oy + 21, 50, 61))
+    assert np.array_equal(small, big[21:82, 37:87])
+    # A window that overlaps only partly, computed in another order.
+    shifted = synth.window(Rect.of(ox + 90, oy - 40, 64, 64))
+    assert np.array_equal(shifted[40:64, 0:30], big[0:24, 90:120])
+
+
+def test_different_places_differ(synths):
+    synth = synths["gravel-appearance"]
+    a = synth.window(Rect.of(0, 0, 64, 64))
+    b = synth.window(Rect.of(5000, -7000, 64, 64))
+    assert (a != b).any(axis=-1).mean() > 0.9
+
+
+@pytest.mark.parametrize("name", ["gravel-appearance", "gravel-color", "torus-color-k3"])
+def test_gl_matches_numpy_oracle(synths, analyses, name):
+    synth = synths[name]
+    for x, y in [(3, -5), (-FAR + 17, FAR - 64)]:
+        gl = synth.window(Rect.of(x, y, 24, 20))
+        ref = oracle.synthesize(analyses[name], synth.params, x, y, 24, 20)
+        assert np.array_equal(gl, ref), f"GL and oracle differ at origin {(x, y)}"
+
+
+@pytest.mark.parametrize("subgrid, passes", [(1, 2), (3, 1)])
+def test_oracle_agreement_other_subpass_grids(analyses, gpu, subgrid, passes):
+    an = analyses["gravel-appearance"]
+    params = replace(SynthParams.default(an.L), subgrid=subgrid, passes=passes, seed=9)
+    synth = Synthesizer(an, params, gpu=gpu)
+    gl = synth.window(Rect.of(-11, 7, 20, 18))
+    assert np.array_equal(gl, oracle.synthesize(an, params, -11, 7, 20, 18))
+
+
+def test_zero_jitter_on_toroidal_exemplar_is_exact_tiling(analyses, gpu):
+    an = analyses["torus-appearance"]
+    synth = Synthesizer(an, SynthParams(jitter=(0.0,) * (an.L + 1)), gpu=gpu)
+    for x, y in [(0, 0), (-77, 1234), (FAR - 100, -FAR)]:
+        s = synth.window(Rect.of(x, y, 70, 50))
+        gy, gx = np.mgrid[y:y + 50, x:x + 70]
+        assert np.array_equal(s[..., 0], gx % an.size)
+        assert np.array_equal(s[..., 1], gy % an.size)
+
+
+def test_toroidal_output_is_one_period_of_a_periodic_texture(synths):
+    synth = synths["gravel-appearance"]
+    n = 64
+    tile = synth.toroidal(n)
+    assert tile.shape == (n, n, 2)
+    periodic = replace(synth.params, period=n)
+    saved, synth.params = synth.params, periodic
+    try:
+        wide = synth.window(Rect.of(-n // 2, -n, 2 * n, 2 * n))
+    finally:
+        synth.params = saved
+    expected = np.tile(tile, (3, 3, 1))[n:3 * n, n // 2:n // 2 + 2 * n]
+    assert np.array_equal(wide, expected)
+
+
+def test_toroidal_seam_is_no_worse_than_interior(synths):
+    synth = synths["gravel-appearance"]
+    img = synth.colors(synth.toroidal(128))[..., 0].astype(np.float64)
+    inner_x = np.abs(np.diff(img, axis=1)).mean()
+    inner_y = np.abs(np.diff(img, axis=0)).mean()
+    seam_x = np.abs(img[:, 0] - img[:, -1]).mean()
+    seam_y = np.abs(img[0, :] - img[-1, :]).mean()
+    assert seam_x <= 1.15 * inner_x and seam_y <= 1.15 * inner_y
+    # Contrast: an ordinary window is not periodic.
+    win = synth.colors(synth.window(Rect.of(0, 0, 128, 128)))[..., 0].astype(np.float64)
+    assert np.abs(win[:, 0] - win[:, -1]).mean() > 1.15 * np.abs(np.diff(win, axis=1)).mean()
+
+
+def _pan_path(rng, steps):
+    x, y = 0, 0
+    for i in range(steps):
+        if i == steps // 2:
+            x, y = x + 100_000, y - 3_000  # a jump: nothing reusable
+        else:
+            x += int(rng.integers(-40, 41))
+            y += int(rng.integers(-40, 41))
+        yield x, y
+
+
+def test_viewport_pan_path_matches_full_recompute(synths):
+    synth = synths["gravel-appearance"]
+    vp = synth.viewport()
+    rng = np.random.default_rng(3)
+    w, h = 96, 80
+    counts = []
+    try:
+        for x, y in _pan_path(rng, 14):
+            counts.append(vp.show(Rect.of(x, y, w, h)))
+        final = vp.read(Rect.of(x, y, w, h))
+        assert np.array_equal(final, synth.window(Rect.of(x, y, w, h)))
+        # Incremental: a small move costs much less than the first frame.
+        small_moves = [c for i, c in enumerate(counts[1:], 1) if i != 7]
+        assert np.median(small_moves) < 0.5 * counts[0]
+        # Moving back inside the held region costs nothing.
+        assert vp.show(Rect.of(x + 2, y - 2, w, h)) == 0
+    finally:
+        vp.release()
+
+
+def test_viewport_follows_parameter_changes(synths, analyses, gpu):
+    an = analyses["gravel-appearance"]
+    synth = Synthesizer(an, gpu=gpu)
+    vp = synth.viewport()
+    rect = Rect.of(10, 20, 64, 48)
+    try:
+        vp.show(rect)
+        before = vp.read(rect)
+        jit = list(synth.params.jitter)
+        jit[an.L - 1] = 0.0  # only a fine level changes: coarse levels are kept
+        vp.set_params(replace(synth.params, jitter=tuple(jit)))
+        assert vp.pyramid.buffers[an.L - 2].valid is not None
+        vp.show(rect)
+        after = vp.read(rect)
+        assert not np.array_equal(before, after)
+        assert np.array_equal(after, synth.window(rect))
+    finally:
+        vp.release()
+
+
+def test_zoomed_out_view_is_the_coarser_level(synths):
+    synth = synths["gravel-appearance"]
+    vp = synth.viewport()
+    try:
+        rect = Rect.of(-20, 30, 40, 32)
+        vp.show(rect, zoom_out=2)
+        assert vp.pyramid.buffers[synth.L] is None  # finest level never computed
+        assert np.array_equal(vp.read(rect, zoom_out=2), synth.window(rect, level=synth.L - 2))
+    finally:
+        vp.release()
+
+
+def test_correction_lowers_neighborhood_error_at_every_corrected_level(analyses, gpu):
+    for name in ("gravel-appearance", "gravel-color"):
+        an = analyses[name]
+        base = SynthParams.default(an.L)
+        for level in sorted(base.corrected_levels()):
+            rect = Rect.of(0, 0, 48, 48)
+            synth = Synthesizer(an, base, gpu=gpu)
+            corrected = synth.window(rect, level=level)
+            synth.set_params(replace(base, corrected=tuple(sorted(base.corrected_levels() - {level}))))
+            uncorrected = synth.window(rect, level=level)
+            e_corr = oracle.neighborhood_error(an, level, corrected)
+            e_unc = oracle.neighborhood_error(an, level, uncorrected)
+            assert e_corr < 0.8 * e_unc, f"{name} level {level}: {e_corr} vs {e_unc}"
+
+
+def test_exact_margins_are_what_lh05_reports():
+    # LH05 3.4: their subpass order needs 10 and 11 pixels instead of 2cs^2 = 16.
+    assert sorted(correction_margins(2, 2, 2)) == [10, 10, 11, 11]
+
+
+def test_bad_requests_are_rejected(synths, analyses):
+    synth = synths["gravel-appearance"]
+    with pytest.raises(SynthesisError):
+        synth.window(Rect.of(2 ** 31 - 10, 0, 64, 64))
+    with pytest.raises(SynthesisError):
+        synth.toroidal(100)
+    an = analyses["gravel-appearance"]
+    for bad in (dict(jitter=(0.5,) * 3), dict(jitter=(1.5,) * (an.L + 1)),
+                dict(jitter=(0.5,) * (an.L + 1), kappa=-1), dict(jitter=(0.5,) * (an.L + 1), corrected=(99,))):
+        with pytest.raises(ValueError):
+            SynthParams(**bad).validate(an.L)
