@@ -72,6 +72,11 @@ class Gpu:
             self._vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "in_pos")])
         return self._programs[key], self._vaos[key]
 
+    def uint_texture(self, size: tuple[int, int], data: np.ndarray):
+        tex = self.ctx.texture(size, 4, np.ascontiguousarray(data, dtype=np.uint32).tobytes(), dtype="u4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return tex
+
     def int_texture(self, size: tuple[int, int], components: int, data: np.ndarray | None = None):
         tex = self.ctx.texture(size, components, None if data is None else
                                np.ascontiguousarray(data, dtype=np.int16).tobytes(), dtype="i2")
@@ -87,18 +92,25 @@ def _rgba(arr: np.ndarray) -> np.ndarray:
     return out
 
 
+def pack8(arr: np.ndarray) -> np.ndarray:
+    """(m, m, 8) values in int16 range to (m, m, 4) uint32: texel component c
+    holds dim c in its low 16 bits and dim c + 4 in its high 16 bits, each
+    offset by 32768 (unpacked in correct.frag without signed shifts)."""
+    a = arr.astype(np.int64) + 32768
+    return (a[:, :, :4] | (a[:, :, 4:] << 16)).astype(np.uint32)
+
+
 class LevelTextures:
     """The per-level analysis data the correction pass reads, as GL textures."""
 
     def __init__(self, gpu: Gpu, an: Analysis, level: int):
         lv = an.levels[level]
         m = an.size
-        self.feat = [gpu.int_texture((m, m), 4, _rgba(lv.feat[:, :, i:i + 4]))
-                     for i in range(0, lv.feat.shape[2], 4)]
-        if len(self.feat) == 1:
-            self.feat.append(self.feat[0])
-        self.nbhd = [gpu.int_texture((m, m), 4, lv.nbhd[:, :, 0:4]),
-                     gpu.int_texture((m, m), 4, lv.nbhd[:, :, 4:8])]
+        if an.model == "appearance":
+            self.feat = gpu.uint_texture((m, m), pack8(lv.feat))
+        else:
+            self.feat = gpu.int_texture((m, m), 4, _rgba(lv.feat))
+        self.nbhd = gpu.uint_texture((m, m), pack8(lv.nbhd))
         sims = lv.simset.reshape(m, m, -1)
         self.sim = [gpu.int_texture((m, m), 4, _rgba(sims[:, :, 0:4]) if sims.shape[2] >= 4
                                     else _rgba(np.concatenate([sims[:, :, 0:2]] * 2, axis=2))),
@@ -111,7 +123,7 @@ class LevelTextures:
         self.shift = lv.shift
 
     def release(self) -> None:
-        for t in self.feat + self.nbhd + self.sim:
+        for t in [self.feat, self.nbhd] + self.sim:
             t.release()
 
 

@@ -281,9 +281,9 @@ class Pyramid:
         if l in p.corrected_levels() and p.passes > 0:
             lt = self.gan.level(l)
             prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
-            for unit, tex in enumerate(lt.feat + lt.nbhd + lt.sim, start=1):
+            for unit, tex in enumerate([lt.feat, lt.nbhd] + lt.sim, start=1):
                 tex.use(unit)
-            set_uniforms(prog, src=0, feat0=1, feat1=2, nbhd0=3, nbhd1=4, sim01=5, sim23=6,
+            set_uniforms(prog, src=0, feat=1, nbhd=2, sim01=3, sim23=4,
                          dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,
                          shift=lt.shift, psi=fixed.psi_q(p.kappa))
             prog["P"].write(lt.proj)

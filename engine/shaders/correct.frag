@@ -13,10 +13,12 @@ uniform isampler2D src;       // current state, packed
 uniform ivec2 dims;           // scratch size in pixels (multiple of s)
 uniform ivec2 qdims;          // dims / s
 uniform ivec2 active_phase;         // phase being corrected
-uniform isampler2D feat0;     // appearance dims 0-3, or colors
-uniform isampler2D feat1;     // appearance dims 4-7
-uniform isampler2D nbhd0;     // N_E dims 0-3
-uniform isampler2D nbhd1;     // N_E dims 4-7
+#ifdef MODEL_APPEARANCE
+uniform usampler2D feat;      // A_l, 8 dims packed in 4 (gpu.pack8)
+#else
+uniform isampler2D feat;      // colors
+#endif
+uniform usampler2D nbhd;      // N_E, 8 dims packed in 4
 uniform isampler2D sim01;     // C^1(u).xy, C^2(u).xy
 uniform isampler2D sim23;     // C^3(u).xy, C^4(u).xy
 uniform int k;
@@ -30,6 +32,12 @@ out ivec4 result;
 
 ivec2 fetch_s(ivec2 p) {
     return texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0).xy;
+}
+
+// Unpack gpu.pack8: dims 0-3 (lo) and 4-7 (hi) of an 8-dim int16 vector.
+void unpack8(uvec4 v, out ivec4 lo, out ivec4 hi) {
+    lo = ivec4(v & 0xffffu) - 32768;
+    hi = ivec4(v >> 16) - 32768;
 }
 
 void add_tap(int row, int value, inout ivec4 lo, inout ivec4 hi) {
@@ -62,8 +70,12 @@ void main() {
         ivec2 u1 = S[(d.y + 1) * 3 + d.x + 1] & wrap;            // d' = d
         ivec2 u2 = (S[4 + d.x] + ivec2(0, h * d.y)) & wrap;      // d' = (d.x, 0)
         ivec2 u3 = (S[4 + 3 * d.y] + ivec2(h * d.x, 0)) & wrap;  // d' = (0, d.y)
-        ivec4 a0 = texelFetch(feat0, u1, 0) + texelFetch(feat0, u2, 0) + texelFetch(feat0, u3, 0);
-        ivec4 a1 = texelFetch(feat1, u1, 0) + texelFetch(feat1, u2, 0) + texelFetch(feat1, u3, 0);
+        ivec4 a0, a1, b0, b1, c0, c1;
+        unpack8(texelFetch(feat, u1, 0), a0, a1);
+        unpack8(texelFetch(feat, u2, 0), b0, b1);
+        unpack8(texelFetch(feat, u3, 0), c0, c1);
+        a0 += b0 + c0;
+        a1 += b1 + c1;
         for (int c = 0; c < 4; ++c) {
             add_tap(t * 8 + c, a0[c], lo, hi);
             add_tap(t * 8 + 4 + c, a1[c], lo, hi);
@@ -73,7 +85,7 @@ void main() {
     for (int t = 0; t < 25; ++t) {
         ivec2 d = ivec2(t % 5 - 2, t / 5 - 2);                   // COLOR_TAPS order
         ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p + d)) & wrap;
-        ivec4 col = texelFetch(feat0, u, 0);
+        ivec4 col = texelFetch(feat, u, 0);
         for (int c = 0; c < NCH; ++c) {
             add_tap(t * NCH + c, col[c], lo, hi);
         }
@@ -91,8 +103,10 @@ void main() {
         ivec4 s23 = k > 2 ? texelFetch(sim23, base, 0) : ivec4(0);
         for (int i = 0; i < k; ++i) {
             ivec2 u = i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw));
-            ivec4 e0 = texelFetch(nbhd0, u, 0) - lo;
-            ivec4 e1 = texelFetch(nbhd1, u, 0) - hi;
+            ivec4 e0, e1;
+            unpack8(texelFetch(nbhd, u, 0), e0, e1);
+            e0 -= lo;
+            e1 -= hi;
             ivec4 sq = e0 * e0 + e1 * e1;
             int dist = min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP);
             uint cost = uint(dist) * uint(i == 0 ? PSI_ONE : psi);

@@ -1,0 +1,99 @@
+"""Analysis: stack, similarity-set rules, cache behaviour, progress and cancel."""
+import os
+
+import numpy as np
+import pytest
+
+from conftest import periodic_noise
+from engine.analysis import (AnalysisCancelled, AnalysisSettings, analysis_key, analyze,
+                             border_margin, gaussian_stack)
+from engine.exemplar import from_array
+
+
+@pytest.fixture(scope="module")
+def small_ex():
+    return from_array(periodic_noise(64, channels=1, seed=5), toroidal=False)
+
+
+def test_gaussian_stack_levels(small_ex):
+    stack = gaussian_stack(small_ex.pixels, small_ex.toroidal)
+    assert len(stack) == small_ex.levels + 1
+    assert all(s.shape == small_ex.pixels.shape for s in stack)
+    np.testing.assert_allclose(stack[0], small_ex.pixels.mean(), rtol=1e-5)
+    assert np.array_equal(stack[-1], small_ex.pixels)
+    # Coarser levels are smoother.
+    rough = [np.abs(np.diff(s, axis=1)).mean() for s in stack[1:]]
+    assert all(a < b for a, b in zip(rough, rough[1:]))
+
+
+@pytest.mark.parametrize("toroidal", [True, False])
+def test_similarity_set_rules(tmp_path, small_ex, toroidal):
+    ex = from_array(small_ex.pixels, toroidal=toroidal)
+    an = analyze(ex, AnalysisSettings(k=3), cache_dir=str(tmp_path))
+    m = ex.size
+    spacing = 0.05 * m
+    for level in range(1, an.L + 1):
+        sims = an.levels[level].simset.astype(np.int64)
+        assert sims.shape == (m, m, 3, 2)
+        ys, xs = np.mgrid[0:m, 0:m]
+        u = np.stack([xs, ys], axis=-1)
+        first = sims[:, :, 0]
+        for i in (1, 2):
+            other = sims[:, :, i]
+            moved = (other != first).any(-1)
+            d = np.abs(other - u)
+            if toroidal:
+                d = np.minimum(d, m - d)
+            dist = np.sqrt((d ** 2).sum(-1))
+            assert (dist[moved] >= spacing - 1e-9).all(), f"level {level}: entry {i} too close"
+        if toroidal:
+            assert np.array_equal(first, u)
+        else:
+            b = border_margin(m, an.h(level))
+            inside = (sims >= b) & (sims < m - b)
+            assert inside.all(), f"level {level}: candidate in the border band"
+            interior = ((u >= b) & (u < m - b)).all(-1)
+            assert np.array_equal(first[interior], u[interior])
+
+
+def test_cache_hit_and_corrupt_entry(tmp_path, small_ex):
+    calls = []
+    first = analyze(small_ex, cache_dir=str(tmp_path), progress=lambda f, m: calls.append(f))
+    assert calls[0] == 0.0 and calls[-1] == 1.0 and calls == sorted(calls)
+    path = os.path.join(tmp_path, analysis_key(small_ex, AnalysisSettings()) + ".npz")
+    assert os.path.exists(path)
+    msgs = []
+    again = analyze(small_ex, cache_dir=str(tmp_path), progress=lambda f, m: msgs.append(m))
+    assert msgs == ["loaded from cache"]
+    for a, b in zip(first.levels, again.levels):
+        assert np.array_equal(a.nbhd, b.nbhd) and np.array_equal(a.simset, b.simset)
+    with open(path, "wb") as f:
+        f.write(b"garbage" * 100)
+    msgs.clear()
+    fixed = analyze(small_ex, cache_dir=str(tmp_path), progress=lambda f, m: msgs.append(m))
+    assert "loaded from cache" not in msgs
+    assert np.array_equal(fixed.levels[-1].simset, first.levels[-1].simset)
+    assert analyze(small_ex, cache_dir=str(tmp_path)).levels[-1].nbhd.shape == (64, 64, 8)
+
+
+def test_cache_key_depends_on_content_and_settings(small_ex):
+    other = from_array(small_ex.pixels[::-1], toroidal=small_ex.toroidal)
+    k = analysis_key(small_ex, AnalysisSettings())
+    assert k != analysis_key(other, AnalysisSettings())
+    assert k != analysis_key(small_ex, AnalysisSettings(model="color"))
+    assert k != analysis_key(small_ex, AnalysisSettings(k=3))
+
+
+def test_cancel(tmp_path, small_ex):
+    def stop(fraction, message):
+        if fraction > 0.3:
+            raise AnalysisCancelled()
+    with pytest.raises(AnalysisCancelled):
+        analyze(small_ex, cache_dir=str(tmp_path), progress=stop)
+    assert not [f for f in os.listdir(tmp_path) if f.endswith(".npz")]
+
+
+def test_bad_settings_rejected(small_ex):
+    for bad in (AnalysisSettings(k=5), AnalysisSettings(k=0), AnalysisSettings(model="fft")):
+        with pytest.raises(ValueError):
+            analyze(small_ex, bad, use_cache=False)

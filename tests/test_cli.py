@@ -1,0 +1,70 @@
+"""The synth command: outputs, coordinate maps, one-line errors."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+GRAVEL = os.path.join(ROOT, "assets", "gravel.png")
+
+
+def run(*args):
+    return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), "synth", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_synth_writes_image_and_coords(tmp_path):
+    out, coords = str(tmp_path / "o.png"), str(tmp_path / "c.npy")
+    r = run(GRAVEL, "-o", out, "--size", "96", "64", "--origin", "-5000", "123456", "--seed", "7",
+            "--coords", coords, "-q")
+    assert r.returncode == 0, r.stderr
+    img = np.asarray(Image.open(out))
+    c = np.load(coords)
+    assert img.shape == (64, 96) and c.shape == (64, 96, 2) and c.dtype == np.int32
+    ex = np.asarray(Image.open(GRAVEL))
+    assert np.array_equal(img, ex[c[..., 1], c[..., 0]])  # pixel = E[S[p]]
+    # Same arguments, same bytes; another seed, another texture.
+    out2 = str(tmp_path / "o2.png")
+    assert run(GRAVEL, "-o", out2, "--size", "96", "64", "--origin", "-5000", "123456", "--seed", "7",
+               "-q").returncode == 0
+    assert np.array_equal(np.asarray(Image.open(out2)), img)
+    run(GRAVEL, "-o", out2, "--size", "96", "64", "--origin", "-5000", "123456", "--seed", "8", "-q")
+    assert not np.array_equal(np.asarray(Image.open(out2)), img)
+
+
+def test_synth_toroidal_and_per_level_jitter(tmp_path):
+    out = str(tmp_path / "t.png")
+    r = run(GRAVEL, "-o", out, "--size", "64", "64", "--toroidal", "--jitter", "1,1,1,0.5,0.5,0.2,0.2,0", "-q")
+    assert r.returncode == 0, r.stderr
+    assert np.asarray(Image.open(out)).shape == (64, 64)
+
+
+def test_zero_jitter_color_model(tmp_path):
+    out, coords = str(tmp_path / "z.png"), str(tmp_path / "z.npy")
+    r = run(GRAVEL, "-o", out, "--size", "40", "40", "--jitter", "0", "--model", "color",
+            "--coords", coords, "-q")
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("args, words", [
+    (["/no/such.png", "-o", "X"], "No such file"),
+    ([__file__, "-o", "X"], "not an image format"),
+    ([GRAVEL, "-o", "X", "--jitter", "0.1,0.2"], "one per level"),
+    ([GRAVEL, "-o", "X", "--toroidal", "--size", "100", "100"], "power-of-two"),
+    ([GRAVEL, "-o", "/no/such/dir/o.png"], "does not exist"),
+    ([GRAVEL, "-o", "X", "--size", "0", "10"], "--size"),
+    ([GRAVEL, "-o", "X", "--origin", "2147483000", "0"], "within"),
+    ([GRAVEL, "-o", "X", "--kappa", "-3"], "kappa"),
+    ([GRAVEL, "-o", "X", "--jitter", "abc"], "not a number"),
+])
+def test_bad_input_one_line_no_traceback(tmp_path, args, words):
+    args = [a if a != "X" else str(tmp_path / "x.png") for a in args]
+    r = run(*args, "-q")
+    assert r.returncode != 0
+    assert "Traceback" not in r.stderr
+    assert words in r.stderr
+    assert len([ln for ln in r.stderr.splitlines() if ln.startswith("error") or "error:" in ln]) == 1
+    assert not os.path.exists(tmp_path / "x.png")
