@@ -9,6 +9,7 @@ import argparse
 import os
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -87,9 +88,8 @@ def run_synth(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     from engine.analysis import AnalysisSettings, analyze
     from engine.exemplar import load_exemplar
-    from engine.gpu import GLUnavailable
     from engine.params import SynthParams
-    from engine.pyramid import Rect, SynthesisError
+    from engine.pyramid import Rect
     from engine.synth import Synthesizer
     from PIL import Image
 
@@ -115,7 +115,6 @@ def run_synth(argv: list[str]) -> int:
     else:
         raise CliError(f"--jitter needs 1 value or {an.L + 1} (one per level of this "
                        f"{an.size}x{an.size} exemplar), not {len(jit)}.", EXIT_USAGE)
-    from dataclasses import replace
     try:
         params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa)
         params.validate(an.L)

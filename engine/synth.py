@@ -11,6 +11,8 @@ any two windows agree where they overlap.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .analysis import Analysis
@@ -51,7 +53,6 @@ class Synthesizer:
         """Coordinates of an n x n texture that tiles seamlessly (LH05 section 6)."""
         if n & (n - 1) or not 32 <= n <= 4096:
             raise SynthesisError("A toroidal texture size must be a power of two from 32 to 4096.")
-        from dataclasses import replace
         saved = self.params
         self.params = replace(saved, period=n)
         try:
