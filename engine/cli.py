@@ -29,7 +29,7 @@ def _jitter_arg(text: str) -> list[float]:
     try:
         vals = [float(v) for v in text.split(",") if v.strip() != ""]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number or a comma-separated list of numbers")
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number or a comma-separated list of numbers") from None
     if not vals or any(not 0.0 <= v <= 1.0 for v in vals):
         raise argparse.ArgumentTypeError("randomness values must be in [0, 1]")
     return vals
@@ -39,7 +39,7 @@ def _int32(text: str) -> int:
     try:
         return int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer")
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -119,7 +119,7 @@ def run_synth(argv: list[str]) -> int:
         params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa)
         params.validate(an.L)
     except ValueError as exc:
-        raise CliError(str(exc), EXIT_USAGE)
+        raise CliError(str(exc), EXIT_USAGE) from None
     synth = Synthesizer(an, params)
     t0 = time.perf_counter()
     coords = synth.toroidal(w) if args.toroidal else synth.window(Rect.of(args.origin[0], args.origin[1], w, h))

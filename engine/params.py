@@ -1,7 +1,7 @@
 """Synthesis parameters and the geometry that follows from them (LH05 3.3-3.4)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from . import fixed
 

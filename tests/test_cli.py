@@ -68,3 +68,18 @@ def test_bad_input_one_line_no_traceback(tmp_path, args, words):
     assert words in r.stderr
     assert len([ln for ln in r.stderr.splitlines() if ln.startswith("error") or "error:" in ln]) == 1
     assert not os.path.exists(tmp_path / "x.png")
+
+
+def test_no_gl_gives_a_clear_message(tmp_path, monkeypatch, capsys):
+    import moderngl
+
+    from engine import cli
+
+    def broken(*args, **kwargs):
+        raise Exception("libEGL.so not loaded")
+    monkeypatch.setattr(moderngl, "create_standalone_context", broken)
+    code = cli.main([GRAVEL, "-o", str(tmp_path / "o.png"), "-q"])
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_GL
+    assert "No usable OpenGL 3.3" in err and "libegl1" in err and "Traceback" not in err
+    assert not (tmp_path / "o.png").exists()
