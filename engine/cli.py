@@ -35,7 +35,7 @@ def _jitter_arg(text: str) -> list[float]:
     return vals
 
 
-def _int32(text: str) -> int:
+def _integer(text: str) -> int:
     try:
         return int(text)
     except ValueError:
@@ -47,10 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Synthesize a window of the infinite texture of an exemplar.")
     p.add_argument("exemplar", help="exemplar image (PNG, JPEG, BMP, TIFF, WebP...)")
     p.add_argument("-o", "--output", required=True, help="output PNG")
-    p.add_argument("--size", nargs=2, type=_int32, default=[256, 256], metavar=("W", "H"))
-    p.add_argument("--origin", nargs=2, type=_int32, default=[0, 0], metavar=("X", "Y"),
+    p.add_argument("--size", nargs=2, type=_integer, default=[256, 256], metavar=("W", "H"))
+    p.add_argument("--origin", nargs=2, type=_integer, default=[0, 0], metavar=("X", "Y"),
                    help="canvas position of the top-left pixel (any 32-bit integers)")
-    p.add_argument("--seed", type=_int32, default=0)
+    p.add_argument("--seed", type=_integer, default=0)
     p.add_argument("--jitter", type=_jitter_arg, default=None, metavar="R|r0,r1,...",
                    help="randomness: one value for every level, or one per level (coarse to fine)")
     p.add_argument("--toroidal", action="store_true", help="make a W x W texture that tiles seamlessly")

@@ -115,11 +115,8 @@ class LevelTextures:
         self.sim = [gpu.int_texture((m, m), 4, _rgba(sims[:, :, 0:4]) if sims.shape[2] >= 4
                                     else _rgba(np.concatenate([sims[:, :, 0:2]] * 2, axis=2))),
                     gpu.int_texture((m, m), 4, _rgba(sims[:, :, 4:8]))]
-        rows = lv.proj.shape[0]
-        proj = np.zeros((rows, 8), dtype=np.int32)
-        proj[:, :] = lv.proj
-        self.proj_rows = rows
-        self.proj = proj.tobytes()  # row r -> P[2r] (dims 0-3), P[2r+1] (dims 4-7)
+        # Row r of the projection -> uniform P[2r] (dims 0-3), P[2r+1] (dims 4-7).
+        self.proj = np.ascontiguousarray(lv.proj, dtype=np.int32).tobytes()
         self.shift = lv.shift
 
     def release(self) -> None:

@@ -136,7 +136,6 @@ class Pyramid:
         self.buffers: list[_LevelBuffer | None] = [None] * (self.an.L + 1)
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
-        self.params = params
         self.set_params(params)
 
     # -- parameters ---------------------------------------------------------
@@ -147,10 +146,10 @@ class Pyramid:
         old = getattr(self, "_signatures", None)
         self.params = params
         self._signatures = [params.level_signature(l) for l in range(self.an.L + 1)]
+        self.corrected = params.corrected_levels() if params.passes > 0 else frozenset()
         radius = fixed.read_radius(self.an.model)
         m = correction_margins(params.subgrid, params.passes, radius)
-        self.margins = [m if l in params.corrected_levels() and params.passes > 0 else (0, 0, 0, 0)
-                        for l in range(self.an.L + 1)]
+        self.margins = [m if l in self.corrected else (0, 0, 0, 0) for l in range(self.an.L + 1)]
         if old is None:
             return
         first = next((l for l in range(self.an.L + 1) if old[l] != self._signatures[l]), None)
@@ -278,7 +277,7 @@ class Pyramid:
         vao.render(moderngl.TRIANGLES)
 
         # Correction subpasses, ping-ponging a <-> b.
-        if l in p.corrected_levels() and p.passes > 0:
+        if l in self.corrected:
             lt = self.gan.level(l)
             prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
             for unit, tex in enumerate([lt.feat, lt.nbhd] + lt.sim, start=1):

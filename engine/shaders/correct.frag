@@ -12,7 +12,7 @@
 uniform isampler2D src;       // current state, packed
 uniform ivec2 dims;           // scratch size in pixels (multiple of s)
 uniform ivec2 qdims;          // dims / s
-uniform ivec2 active_phase;         // phase being corrected
+uniform ivec2 active_phase;   // phase being corrected
 #ifdef MODEL_APPEARANCE
 uniform usampler2D feat;      // A_l, 8 dims packed in 4 (gpu.pack8)
 #else
