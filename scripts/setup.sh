@@ -10,6 +10,12 @@ if command -v dpkg >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
   for pkg in libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
   done
+  # Debian's python3 ships without venv/ensurepip unless python3-venv is installed.
+  if ! command -v "${PYTHON:-python3}" >/dev/null 2>&1; then
+    missing+=(python3 python3-venv)
+  elif ! "${PYTHON:-python3}" -c "import venv, ensurepip" >/dev/null 2>&1; then
+    missing+=(python3-venv)
+  fi
   if [ ${#missing[@]} -gt 0 ]; then
     echo "setup: installing Debian packages: ${missing[*]}"
     sudo_cmd=""
