@@ -20,6 +20,7 @@ channels; 16-bit and float images keep their precision up to that point.
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 from dataclasses import dataclass, field
 
@@ -185,8 +186,20 @@ def load_exemplar(path: str | os.PathLike, *, fit: str = "resize",
         raise ExemplarError(f"{path} is a folder, not an image.")
     if os.path.getsize(path) == 0:
         raise ExemplarError(f"{name} is empty (0 bytes).")
+    return _decode(path, name, fit, toroidal, path)
+
+
+def load_exemplar_bytes(data: bytes, *, name: str = "exemplar", fit: str = "resize",
+                        toroidal: bool | None = None) -> Exemplar:
+    """Decode an image held in memory (e.g. embedded in a project file)."""
+    if not data:
+        raise ExemplarError(f"{name} is empty (0 bytes).")
+    return _decode(io.BytesIO(data), name, fit, toroidal, name)
+
+
+def _decode(src, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
     try:
-        with Image.open(path) as img:
+        with Image.open(src) as img:
             w, h = img.size
             if w * h > MAX_INPUT_PIXELS:
                 raise ExemplarError(
@@ -203,4 +216,4 @@ def load_exemplar(path: str | os.PathLike, *, fit: str = "resize",
         raise ExemplarError(f"{name} is not an image format Pillow can read.") from None
     except (OSError, SyntaxError, ValueError, EOFError) as exc:
         raise ExemplarError(f"{name} could not be read: the file looks damaged ({exc}).") from None
-    return from_array(arr, fit=fit, toroidal=toroidal, source=path)
+    return from_array(arr, fit=fit, toroidal=toroidal, source=source)

@@ -185,7 +185,13 @@ class Pyramid:
             return buf.valid
         p = self.prefetch >> (self.an.L - l) if self.scrolling else 0
         p = max(p, 2 if self.scrolling else 0)
-        return need.pad(p, p, p, p).align(self.chunk)
+        t = need.pad(p, p, p, p).align(self.chunk)
+        if buf is not None and buf.valid is not None and self.scrolling:
+            v = buf.valid
+            union = Rect(min(v.x0, t.x0), min(v.y0, t.y0), max(v.x1, t.x1), max(v.y1, t.y1))
+            if buf.fits(union):  # grow what is held rather than drop it
+                return union
+        return t
 
     # -- synthesis ----------------------------------------------------------
 
@@ -220,16 +226,33 @@ class Pyramid:
         buf = self.buffers[l]
         if buf is not None and buf.fits(target):
             return buf
-        if buf is not None:
-            buf.release()
         if self.scrolling:
             slack = 2 * self.chunk + 2 * (self.prefetch >> (self.an.L - l)) + 4
             size = (_next_pow2(target.w + slack), _next_pow2(target.h + slack))
+            if buf is not None:  # grow, never shrink: a view that grew once will again
+                size = (max(size[0], buf.size[0]), max(size[1], buf.size[1]))
         else:
             size = (target.w, target.h)
-        buf = _LevelBuffer(self.gpu, size, self.scrolling, (target.x0, target.y0))
-        self.buffers[l] = buf
-        return buf
+        new = _LevelBuffer(self.gpu, size, self.scrolling, (target.x0, target.y0))
+        if buf is not None:
+            keep = buf.valid.intersect(target) if buf.valid is not None else None
+            if keep is not None and not keep.empty and new.fits(keep):
+                self._copy(buf, new, keep)
+                new.valid = keep
+            buf.release()
+        self.buffers[l] = new
+        return new
+
+    def _copy(self, src: _LevelBuffer, dest: _LevelBuffer, r: Rect) -> None:
+        """Copy the exact texels of ``r`` from one level buffer to another."""
+        prog, vao = self.gpu.program("remap.frag", SUB_S=self.params.subgrid)
+        src.tex.use(0)
+        set_uniforms(prog, src=0, src_anchor=src.anchor, src_mask=src.mask, dest_mask=dest.mask)
+        dest.fbo.use()
+        for g0, t0, w, hh in self._texel_pieces(dest, r):
+            set_uniforms(prog, region_g0=g0, region_t0=t0)
+            dest.fbo.viewport = (t0[0], t0[1], w, hh)
+            vao.render(moderngl.TRIANGLES)
 
     def _update_level(self, l: int, target: Rect) -> int:
         buf = self._ensure_buffer(l, target)

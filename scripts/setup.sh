@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 
 if command -v dpkg >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
   missing=()
-  for pkg in libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri; do
+  # xvfb + xauth: the editor runs (and its tests drive it) on a virtual display.
+  for pkg in libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri xvfb xauth; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
   done
   # Debian's python3 ships without venv/ensurepip unless python3-venv is installed.

@@ -1,0 +1,181 @@
+"""Canvas drawing: synthesized coordinates to screen pixels, on the GPU.
+
+The canvas is rendered into its own RGBA8 texture (shown by the UI with
+``imgui.image``). Each frame draws the finest pyramid level that covers the
+view, then any finer level that is only partly refined on top of it, so the
+texture appears coarse first and sharpens band by band.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import moderngl
+import numpy as np
+from PIL import Image
+
+from engine.gpu import Gpu, read_shader
+from engine.pyramid import Pyramid, set_uniforms
+
+from ..document import Display, View
+from ..session import Frame, level_rect
+
+SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
+MODES = {"color": 0, "coords": 1, "patches": 2, "level": 3, "relief": 4}
+MAX_HIRES = 4096
+
+
+class Canvas:
+    def __init__(self, gpu: Gpu):
+        self.gpu = gpu
+        ctx = gpu.ctx
+        with open(os.path.join(SHADER_DIR, "canvas.frag"), encoding="utf-8") as f:
+            frag = f.read()
+        head = "#version 330 core\n"
+        self.prog = ctx.program(vertex_shader=head + read_shader("fullscreen.vert"), fragment_shader=head + frag)
+        self.vao = ctx.vertex_array(self.prog, [(gpu.quad, "2f", "in_pos")])
+        self.size = (0, 0)
+        self.tex: moderngl.Texture | None = None
+        self.fbo: moderngl.Framebuffer | None = None
+        self.stack_tex: moderngl.TextureArray | None = None
+        self.hires_tex: moderngl.Texture | None = None
+        self.generation = -1
+        self.m = 0
+        self.channels = 3
+        self.toroidal = False
+
+    # -- exemplar textures ----------------------------------------------------
+
+    def set_exemplar(self, stack_u8: np.ndarray, toroidal: bool, hires: np.ndarray | None, generation: int) -> None:
+        """Upload the uint8 stack (L+1, m, m, C) and, if given, the float hires exemplar."""
+        self._release_exemplar()
+        n, m = stack_u8.shape[0], stack_u8.shape[1]
+        rgba = _to_rgba(stack_u8)
+        ctx = self.gpu.ctx
+        self.stack_tex = ctx.texture_array((m, m, n), 4, np.ascontiguousarray(rgba).tobytes())
+        self.stack_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.stack_tex.repeat_x = self.stack_tex.repeat_y = bool(toroidal)
+        if hires is not None:
+            hi = np.clip(np.rint(hires * 255.0), 0, 255).astype(np.uint8)
+            if hi.shape[0] > MAX_HIRES:
+                img = Image.fromarray(hi[..., 0] if hi.shape[2] == 1 else hi)
+                hi = np.asarray(img.resize((MAX_HIRES, MAX_HIRES), Image.LANCZOS)).reshape(MAX_HIRES, MAX_HIRES, -1)
+            hi = _to_rgba(hi[None])[0]
+            self.hires_tex = ctx.texture((hi.shape[1], hi.shape[0]), 4, np.ascontiguousarray(hi).tobytes())
+            self.hires_tex.build_mipmaps()
+            self.hires_tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            self.hires_tex.repeat_x = self.hires_tex.repeat_y = bool(toroidal)
+        self.generation = generation
+        self.m = m
+        self.channels = stack_u8.shape[3]
+        self.toroidal = bool(toroidal)
+
+    @property
+    def has_hires(self) -> bool:
+        return self.hires_tex is not None
+
+    # -- drawing --------------------------------------------------------------
+
+    def ensure_size(self, w: int, h: int) -> None:
+        w, h = max(1, int(w)), max(1, int(h))
+        if (w, h) == self.size and self.tex is not None:
+            return
+        if self.tex is not None:
+            self.fbo.release()
+            self.tex.release()
+        self.tex = self.gpu.ctx.texture((w, h), 4)
+        self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.fbo = self.gpu.ctx.framebuffer([self.tex])
+        self.size = (w, h)
+
+    def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display) -> int:
+        """Draw into the canvas texture; returns the coarsest level drawn (-1: none)."""
+        self.fbo.use()
+        self.fbo.viewport = (0, 0, *self.size)
+        self.gpu.ctx.clear(0.16, 0.16, 0.17, 1.0)
+        if pyramid is None or frame is None or self.stack_tex is None:
+            return -1
+        levels = []
+        for l in range(frame.level, -1, -1):
+            buf = pyramid.buffers[l]
+            if buf is None or buf.valid is None:
+                continue
+            want = level_rect(frame.want, frame.level, l)
+            inter = want.intersect(buf.valid)
+            if inter.empty:
+                continue
+            levels.append(l)
+            if buf.valid.contains(want):
+                break
+        if not levels:
+            return -1
+        L = len(pyramid.buffers) - 1
+        tlx, tly = frame.tl
+        ix, iy = math.floor(tlx), math.floor(tly)
+        mode = MODES.get(display.mode, 0)
+        p = self.prog
+        self.stack_tex.use(1)
+        if self.hires_tex is not None:
+            self.hires_tex.use(2)
+        for i, l in enumerate(reversed(levels)):  # coarse first, finer partial levels on top
+            buf = pyramid.buffers[l]
+            k = L - l
+            buf.tex.use(0)
+            texel_px = view.zoom * (1 << k)
+            exact = texel_px == 1.0 and tlx == ix and tly == iy and (ix % (1 << k)) == 0 and (iy % (1 << k)) == 0
+            # Synthesis magnification where the finest level is enlarged; a coarser
+            # level standing in while the view refines is drawn as plain texels (cheap).
+            magnify = int(display.magnify != "nearest" and l == frame.level and texel_px > 1.0)
+            self.gpu.ctx.scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, view.zoom)
+            use_hires = int(self.hires_tex is not None and display.magnify == "hires" and l == L and texel_px > 1.0)
+            set_uniforms(p, coords=0, stack=1, hires=2, anchor=buf.anchor, cmask=buf.mask,
+                         vlo=(buf.valid.x0, buf.valid.y0), vhi=(buf.valid.x1, buf.valid.y1),
+                         tl_i=(ix, iy), tl_f=(tlx - ix, tly - iy), zoom=float(view.zoom), k=k, m=self.m,
+                         layer=l, use_hires=use_hires, mode=mode, magnify=magnify, exact=int(exact),
+                         toroidal=int(self.toroidal), has_alpha=int(self.channels in (2, 4)),
+                         relief_strength=float(self.m) / 8.0)
+            self.vao.render(moderngl.TRIANGLES)
+        self.gpu.ctx.scissor = None
+        return levels[-1]
+
+    def _screen_box(self, r, k: int, tlx: float, tly: float, zoom: float):
+        """Canvas pixels covered by level-(L-k) rectangle r: (x, y, w, h), clipped."""
+        s = 1 << k
+        x0 = max(0, math.floor((r.x0 * s - tlx) * zoom))
+        y0 = max(0, math.floor((r.y0 * s - tly) * zoom))
+        x1 = min(self.size[0], math.ceil((r.x1 * s - tlx) * zoom))
+        y1 = min(self.size[1], math.ceil((r.y1 * s - tly) * zoom))
+        return (x0, y0, max(0, x1 - x0), max(0, y1 - y0))
+
+    def read(self) -> np.ndarray:
+        """The canvas as uint8 (H, W, 3), row 0 at the top."""
+        data = self.fbo.read(components=3, alignment=1)
+        return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3).copy()
+
+    def _release_exemplar(self) -> None:
+        for t in (self.stack_tex, self.hires_tex):
+            if t is not None:
+                t.release()
+        self.stack_tex = self.hires_tex = None
+
+    def release(self) -> None:
+        self._release_exemplar()
+        if self.tex is not None:
+            self.fbo.release()
+            self.tex.release()
+            self.tex = self.fbo = None
+
+
+def _to_rgba(a: np.ndarray) -> np.ndarray:
+    """uint8 (..., C) with C in 1..4 to (..., 4): gray to RGB, alpha 255 if none."""
+    c = a.shape[-1]
+    if c == 4:
+        return a
+    out = np.full(a.shape[:-1] + (4,), 255, dtype=np.uint8)
+    if c in (1, 2):
+        out[..., :3] = a[..., :1]
+        if c == 2:
+            out[..., 3] = a[..., 1]
+    else:
+        out[..., :3] = a
+    return out

@@ -1,0 +1,121 @@
+// Draw one pyramid level's synthesized coordinates onto the canvas.
+//
+// Screen pixel q (origin at the canvas' top-left, y down) shows finest-level
+// canvas position tl_i + tl_f + (q + 0.5) / zoom. At level l = L - k that is
+// the continuous level position base + frac, with the integer part kept
+// exact for far-away origins. Texels outside [vlo, vhi) are left to the
+// coarser level drawn before (progressive refinement).
+
+uniform isampler2D coords;    // level buffer: texel of position g is (g - anchor) & cmask
+uniform ivec2 anchor;
+uniform ivec2 cmask;
+uniform ivec2 vlo;
+uniform ivec2 vhi;
+uniform ivec2 tl_i;
+uniform vec2 tl_f;
+uniform float zoom;
+uniform int k;                // L - l: one level texel is 2^k finest pixels
+uniform int m;                // exemplar size
+uniform int layer;            // stack layer (= level)
+uniform sampler2DArray stack; // uint8 Gaussian stack, RGBA
+uniform sampler2D hires;      // high-resolution exemplar (mipmapped)
+uniform int use_hires;
+uniform int mode;             // 0 color, 1 coords, 2 patches, 3 level (nearest color), 4 relief
+uniform int magnify;          // 0 nearest, 1 LH05 synthesis magnification
+uniform int exact;            // texels are exactly one screen pixel: fetch, no filtering
+uniform int toroidal;
+uniform int has_alpha;
+uniform float relief_strength;
+
+out vec4 color;
+
+ivec2 S(ivec2 g) {
+    g = clamp(g, vlo, vhi - 1);
+    return texelFetch(coords, (g - anchor) & cmask, 0).xy;
+}
+
+vec4 fetch(ivec2 u) {
+    return texelFetch(stack, ivec3(u, layer), 0);
+}
+
+float luma(vec4 c) {
+    return dot(c.rgb, vec3(0.2126, 0.7152, 0.0722));
+}
+
+vec3 hue(uint h) {
+    h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;
+    vec3 c = vec3(float(h & 255u), float((h >> 8) & 255u), float((h >> 16) & 255u)) / 255.0;
+    return 0.35 + 0.65 * c;
+}
+
+bool coherent(ivec2 g, ivec2 e) {
+    int h = 1 << k;
+    ivec2 d = S(g + e) - S(g) - h * e;
+    if (toroidal != 0) d = d & (m - 1);
+    return d == ivec2(0);
+}
+
+// LH05 section 5: extrapolate each of the 4 nearest texels' coordinates to
+// this point, sample the exemplar there, blend bilinearly.
+vec4 magnified(ivec2 base, vec2 frac) {
+    vec2 F = frac - 0.5;
+    vec2 fb = floor(F);
+    vec2 t = F - fb;
+    float h = float(1 << k);
+    vec4 acc = vec4(0.0);
+    float d = 1.0 / (zoom * float(m));
+    for (int j = 0; j < 2; j++) {
+        for (int i = 0; i < 2; i++) {
+            ivec2 c = ivec2(i, j);
+            ivec2 u = S(base + ivec2(fb) + c);
+            vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
+            vec4 s = use_hires != 0 ? textureGrad(hires, uv, vec2(d, 0.0), vec2(0.0, d))
+                                    : texture(stack, vec3(uv, float(layer)));
+            float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
+            acc += w * s;
+        }
+    }
+    return acc;
+}
+
+void main() {
+    vec2 q = gl_FragCoord.xy;
+    vec2 P = tl_f + q / zoom;                       // finest level, relative to tl_i
+    int s = 1 << k;
+    ivec2 base = tl_i >> k;                          // floor division (sign-extending shift)
+    vec2 frac = (vec2(tl_i - (base << k)) + P) / float(s);
+    ivec2 g = base + ivec2(floor(frac));
+    if (any(lessThan(g, vlo)) || any(greaterThanEqual(g, vhi))) discard;
+    ivec2 u = S(g);
+    vec4 c;
+    if (mode == 1) {
+        c = vec4((vec2(u) + 0.5) / float(m), 0.25, 1.0);
+    } else if (mode == 4) {
+        float hx = luma(fetch(S(g + ivec2(1, 0)))) - luma(fetch(S(g - ivec2(1, 0))));
+        float hy = luma(fetch(S(g + ivec2(0, 1)))) - luma(fetch(S(g - ivec2(0, 1))));
+        float st = relief_strength / float(s);
+        vec3 n = normalize(vec3(-hx * st, -hy * st, 1.0));
+        float shade = 0.2 + 0.8 * max(dot(n, normalize(vec3(-0.6, -0.6, 0.55))), 0.0);
+        c = vec4(vec3(shade), 1.0);
+    } else if (mode == 3 || mode == 2 || exact != 0 || magnify == 0) {
+        c = fetch(u);
+    } else {
+        c = magnified(base, frac);
+    }
+    if (has_alpha != 0 && (mode == 0 || mode == 3)) {
+        ivec2 chk = ivec2(q) / 8;
+        float bg = ((chk.x + chk.y) & 1) == 0 ? 0.8 : 0.6;
+        c = vec4(mix(vec3(bg), c.rgb, c.a), 1.0);
+    }
+    if (mode == 2) {
+        ivec2 off = (u - g * s) & (m - 1);
+        c.rgb = mix(c.rgb, hue(uint(off.x) * 7919u + uint(off.y) * 104729u), 0.45);
+        float texel_px = zoom * float(s);
+        vec2 f = fract(frac);
+        bool right = (1.0 - f.x) * texel_px <= 1.0;
+        bool below = (1.0 - f.y) * texel_px <= 1.0;
+        if ((right && !coherent(g, ivec2(1, 0))) || (below && !coherent(g, ivec2(0, 1))))
+            c.rgb = vec3(0.05);
+    }
+    color = vec4(c.rgb, 1.0);
+}

@@ -1,0 +1,436 @@
+"""The engine side of an open document: analysis in the background, the view's
+synthesis pyramid refined progressively under a time budget, and exports.
+
+A :class:`Session` lives on one GL context (the editor's window, or a headless
+EGL context for the CLI and tests). It never imports imgui; it turns a
+:class:`~app.document.Document` into engine objects and keeps them in step
+with it (``sync``), so undo/redo, opening a project and editing a slider all
+go through the same path.
+"""
+from __future__ import annotations
+
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from PIL import Image
+
+from engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
+from engine.exemplar import Exemplar, ExemplarError, load_exemplar_bytes
+from engine.gpu import Gpu
+from engine.params import SynthParams
+from engine.pyramid import Pyramid, Rect, SynthesisError
+from engine.synth import Synthesizer
+
+from .document import Document, View
+
+MAX_EXPORT_PIXELS = 64 * 1024 * 1024
+MAX_EXPORT_SIDE = 16384
+MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
+
+
+def stack_u8(analysis: Analysis) -> np.ndarray:
+    """The Gaussian stack as uint8 (L+1, m, m, C): exactly what is displayed and exported."""
+    return np.stack([np.clip(np.rint(lv.stack * 255.0), 0, 255).astype(np.uint8) for lv in analysis.levels])
+
+
+def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
+    """uint8 (H, W, C) colors of exemplar coordinates (H, W, 2) at ``level``."""
+    return stack[level][coords[..., 1], coords[..., 0]]
+
+
+# -- analysis in the background ----------------------------------------------
+
+
+class AnalysisJob:
+    """Decode the exemplar and analyze it on a worker thread (numpy and scipy
+    release the GIL for the heavy parts); poll ``done``; ``cancel()`` stops it."""
+
+    def __init__(self, doc: Document, cache_dir: str | None = None):
+        self.doc = doc
+        self.key = doc.analysis_key()
+        self.cache_dir = cache_dir
+        self.progress = 0.0
+        self.message = "Reading the exemplar"
+        self.exemplar: Exemplar | None = None
+        self.analysis: Analysis | None = None
+        self.error: str | None = None
+        self.cancelled = False
+        self.started = time.monotonic()
+        self._cancel = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="analysis", daemon=True)
+        self._thread.start()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        self._thread.join(timeout)
+        return self.done
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def _progress(self, frac: float, msg: str) -> None:
+        if self._cancel.is_set():
+            raise AnalysisCancelled()
+        self.progress = 0.05 + 0.95 * float(frac)
+        self.message = msg
+
+    def _run(self) -> None:
+        d = self.doc
+        try:
+            ex = load_exemplar_bytes(d.exemplar.data, name=d.exemplar.name, fit=d.fit, toroidal=d.toroidal)
+            self._progress(0.0, "Analyzing")
+            an = analyze(ex, AnalysisSettings(model=d.model, k=d.k), cache_dir=self.cache_dir,
+                         progress=self._progress)
+            self.exemplar, self.analysis = ex, an
+        except AnalysisCancelled:
+            self.cancelled = True
+        except ExemplarError as exc:
+            self.error = str(exc)
+        except MemoryError:
+            self.error = f"Not enough memory to analyze {d.exemplar.name}."
+        except Exception as exc:  # noqa: BLE001 - reported to the user, the editor keeps running
+            self.error = f"Analyzing {d.exemplar.name} failed: {exc}"
+
+
+# -- progressive refinement --------------------------------------------------
+
+
+@dataclass
+class Frame:
+    """What the canvas needs this frame: the level shown and the texels it covers."""
+
+    level: int            # display level ld
+    want: Rect            # level-ld texels covering the canvas (plus a 1-texel border)
+    tl: tuple[float, float]  # canvas position (finest level) of the canvas' top-left
+
+
+def frame_for(view: View, w: int, h: int, L: int, level: int | None = None) -> Frame:
+    """The display level for the view's zoom (coarser levels when zoomed out:
+    the pyramid is the mipmap) and the rectangle of it the canvas covers."""
+    k = 0 if view.zoom >= 1.0 else min(L, int(round(-math.log2(view.zoom))))
+    ld = L - k
+    if level is not None:
+        ld = max(0, min(ld, level))
+    k = L - ld
+    tlx, tly = view.top_left(w, h)
+    brx, bry = tlx + w / view.zoom, tly + h / view.zoom
+    s = 1 << k
+    want = Rect(math.floor(tlx / s) - 1, math.floor(tly / s) - 1, math.floor(brx / s) + 2, math.floor(bry / s) + 2)
+    return Frame(ld, want, (tlx, tly))
+
+
+def level_rect(want: Rect, from_level: int, to_level: int) -> Rect:
+    r = want
+    for _ in range(from_level - to_level):
+        r = r.half()
+    return r.pad(1, 1, 1, 1) if to_level < from_level else r
+
+
+class Refiner:
+    """Brings a scrolling pyramid to a frame coarse level first, within a time
+    budget per call; a level too big for the budget grows in row bands."""
+
+    def __init__(self, pyramid: Pyramid, gpu: Gpu):
+        self.pyramid = pyramid
+        self.gpu = gpu
+        L = pyramid.an.L
+        self.cost = [2e-6] * (L + 1)  # seconds per synthesized pixel, learned per level
+        self.last_pixels = 0
+        self.last_ms = 0.0
+        self.version = 0  # bumps whenever pixels were synthesized
+
+    def holds(self, level: int, rect: Rect) -> bool:
+        buf = self.pyramid.buffers[level]
+        return buf is not None and buf.valid is not None and buf.valid.contains(rect)
+
+    def complete_level(self, frame: Frame) -> int:
+        """The finest level <= frame.level that covers the frame, or -1."""
+        for l in range(frame.level, -1, -1):
+            if self.holds(l, level_rect(frame.want, frame.level, l)):
+                return l
+        return -1
+
+    def step(self, frame: Frame, budget_s: float) -> bool:
+        """Synthesize for at most about ``budget_s``; True when the frame is exact."""
+        t0 = time.perf_counter()
+        pixels = 0
+        finished = True
+        plan = self.pyramid.plan(frame.level, frame.want)
+        for l in range(frame.level + 1):
+            # Coarser levels get everything the finest one will read, so that
+            # refining it band by band never sends them back for more.
+            want = plan[l]
+            if self.holds(l, want):
+                continue
+            remaining = budget_s - (time.perf_counter() - t0)
+            if remaining <= 0 and pixels:
+                finished = False
+                break
+            buf = self.pyramid.buffers[l]
+            valid = buf.valid if buf is not None else None
+            have = want.intersect(valid) if valid is not None else Rect(0, 0, 0, 0)
+            missing = want.w * want.h - (0 if have.empty else have.w * have.h)
+            rect = want
+            if missing * self.cost[l] > max(remaining, 0.25 * budget_s) and want.h > 16:
+                grow = (valid is not None and valid.x0 <= want.x0 and valid.x1 >= want.x1
+                        and valid.y0 <= want.y0 < valid.y1)
+                start = valid.y1 if grow else want.y0
+                rows = int(max(remaining, 0.25 * budget_s) / (self.cost[l] * (want.w + 24)))
+                rows = max(MIN_BAND, rows)
+                rect = Rect(want.x0, want.y0, want.x1, min(want.y1, start + rows))
+            t1 = time.perf_counter()
+            n = self.pyramid.request(l, rect)
+            self.gpu.ctx.finish()
+            dt = time.perf_counter() - t1
+            if n > 256:
+                self.cost[l] = 0.5 * self.cost[l] + 0.5 * dt / n
+            pixels += n
+            if rect != want:
+                finished = False
+                break
+        self.last_pixels = pixels
+        self.version += bool(pixels)
+        self.last_ms = (time.perf_counter() - t0) * 1000.0
+        return finished
+
+
+# -- the session -------------------------------------------------------------
+
+
+class Session:
+    """The engine objects realizing one document on one GL context."""
+
+    def __init__(self, gpu: Gpu, cache_dir: str | None = None):
+        self.gpu = gpu
+        self.cache_dir = cache_dir
+        self.key: tuple | None = None          # analysis key installed
+        self.exemplar: Exemplar | None = None
+        self.analysis: Analysis | None = None
+        self.synth: Synthesizer | None = None
+        self.pyramid: Pyramid | None = None
+        self.refiner: Refiner | None = None
+        self.stack: np.ndarray | None = None   # uint8 (L+1, m, m, C)
+        self.job: AnalysisJob | None = None
+        self.generation = 0                    # bumps when a new analysis is installed
+        self.params: SynthParams | None = None
+        self.failed: dict[tuple, str] = {}     # analysis keys that could not be loaded
+
+    @property
+    def ready(self) -> bool:
+        return self.synth is not None
+
+    @property
+    def L(self) -> int:
+        return self.analysis.L if self.analysis else 0
+
+    # -- documents ----------------------------------------------------------
+
+    def load(self, doc: Document) -> AnalysisJob:
+        """Start analyzing ``doc``'s exemplar (cancelling a job for another key)."""
+        key = doc.analysis_key()
+        if self.job is not None and not self.job.done:
+            if self.job.key == key:
+                return self.job
+            self.job.cancel()
+        self.job = AnalysisJob(doc, self.cache_dir)
+        return self.job
+
+    def sync(self, doc: Document) -> None:
+        """Keep the engine in step with ``doc``: new analysis key -> analyze;
+        new parameters -> the pyramid drops only the levels they change."""
+        key = doc.analysis_key()
+        if key != self.key:
+            if (self.job is None or self.job.key != key) and key not in self.failed:
+                self.load(doc)
+            return
+        params = doc.params(self.L)
+        if params != self.params:
+            self.params = params
+            self.synth.set_params(params)
+            self.pyramid.set_params(params)
+
+    def poll(self) -> AnalysisJob | None:
+        """Install a finished job; returns it once when it ends (success or not)."""
+        job = self.job
+        if job is None or not job.done:
+            return None
+        self.job = None
+        if job.analysis is not None:
+            self.install(job.doc, job.exemplar, job.analysis)
+        elif job.error:
+            self.failed[job.key] = job.error
+        return job
+
+    def install(self, doc: Document, ex: Exemplar, an: Analysis) -> None:
+        self.release_synthesis()
+        self.exemplar, self.analysis = ex, an
+        self.params = doc.params(an.L)
+        self.synth = Synthesizer(an, self.params, self.gpu)
+        self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16)
+        self.refiner = Refiner(self.pyramid, self.gpu)
+        self.stack = stack_u8(an)
+        self.key = doc.analysis_key()
+        self.generation += 1
+
+    def load_now(self, doc: Document) -> None:
+        """Analyze and install synchronously (CLI, tests); raises on failure."""
+        job = self.load(doc)
+        job.wait()
+        self.poll()
+        if job.error:
+            raise ExemplarError(job.error)
+        if job.cancelled:
+            raise AnalysisCancelled()
+
+    # -- synthesis ----------------------------------------------------------
+
+    def refine(self, frame: Frame, budget_s: float) -> bool:
+        if self.refiner is None:
+            return False
+        return self.refiner.step(frame, budget_s)
+
+    def release_synthesis(self) -> None:
+        if self.pyramid is not None:
+            self.pyramid.release()
+        if self.synth is not None:
+            self.synth.release()
+        self.synth = self.pyramid = self.refiner = None
+
+    def release(self) -> None:
+        if self.job is not None:
+            self.job.cancel()
+        self.release_synthesis()
+
+
+# -- exports -----------------------------------------------------------------
+
+
+class ExportCancelled(Exception):
+    pass
+
+
+class ExportJob:
+    """Synthesize a rectangle (or a toroidal tile) tile by tile, within a time
+    budget per ``step`` so the editor stays live; then write PNGs atomically.
+
+    The result does not depend on the tile size or order (the engine is
+    order-independent), so the UI and the CLI produce the same file.
+    """
+
+    def __init__(self, session: Session, rect: Rect, out_path: str, *, toroidal: int = 0,
+                 coords_path: str | None = None, tile: int = 128):
+        if session.synth is None:
+            raise SynthesisError("Nothing to export yet: the exemplar is still being analyzed.")
+        if rect.empty:
+            raise SynthesisError("The export rectangle is empty.")
+        if rect.w > MAX_EXPORT_SIDE or rect.h > MAX_EXPORT_SIDE or rect.w * rect.h > MAX_EXPORT_PIXELS:
+            raise SynthesisError(f"Exports are limited to {MAX_EXPORT_SIDE} px a side and "
+                                 f"{MAX_EXPORT_PIXELS // 2**20} Mpixels; {rect.w}x{rect.h} is too large.")
+        self.session = session
+        self.rect = rect
+        self.out_path = out_path
+        self.coords_path = coords_path
+        an = session.analysis
+        params = session.params
+        if toroidal:
+            params = replace(params, period=int(toroidal))
+            params.validate(an.L)
+        self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16)
+        self.stack = session.stack
+        self.L = an.L
+        self.coords = np.zeros((rect.h, rect.w, 2), dtype=np.int32)
+        self.tiles = [Rect(x, y, min(x + tile, rect.x1), min(y + tile, rect.y1))
+                      for y in range(rect.y0, rect.y1, tile) for x in range(rect.x0, rect.x1, tile)]
+        self.index = 0
+        self.done = False
+        self.cancelled = False
+        self.error: str | None = None
+        self.started = time.monotonic()
+
+    @property
+    def progress(self) -> float:
+        return self.index / max(1, len(self.tiles))
+
+    def cancel(self) -> None:
+        self.cancelled = True
+        self._close()
+
+    def step(self, budget_s: float = 0.03) -> bool:
+        """Do some tiles; True when finished (written, failed or cancelled)."""
+        if self.done or self.cancelled:
+            return True
+        t0 = time.perf_counter()
+        try:
+            while self.index < len(self.tiles):
+                t = self.tiles[self.index]
+                self.pyramid.request(self.L, t)
+                c = self.pyramid.read(self.L, t)
+                self.coords[t.y0 - self.rect.y0:t.y1 - self.rect.y0, t.x0 - self.rect.x0:t.x1 - self.rect.x0] = c
+                self.index += 1
+                if time.perf_counter() - t0 > budget_s:
+                    return False
+            self._write()
+        except (OSError, SynthesisError, ValueError) as exc:
+            self.error = str(exc)
+        self.done = True
+        self._close()
+        return True
+
+    def run(self, progress=None) -> None:
+        """Run to the end (CLI); ``progress(fraction)`` may raise to cancel."""
+        while not self.step(0.25):
+            if progress:
+                progress(self.progress)
+        if progress and not self.cancelled:
+            progress(1.0)
+        if self.error:
+            raise SynthesisError(self.error)
+
+    def image(self) -> np.ndarray:
+        return colors_u8(self.stack, self.coords, self.L)
+
+    def _write(self) -> None:
+        write_png(self.out_path, self.image())
+        if self.coords_path:
+            write_png(self.coords_path, encode_coords(self.coords))
+
+    def _close(self) -> None:
+        if self.pyramid is not None:
+            self.pyramid.release()
+            self.pyramid = None
+
+
+def encode_coords(coords: np.ndarray) -> np.ndarray:
+    """Exemplar coordinates as an exact RGB8 image: R = x mod 256, G = y mod 256,
+    B = (x >> 8) + 16 * (y >> 8). Decode: x = R + 256 * (B & 15), y = G + 256 * (B >> 4)."""
+    x, y = coords[..., 0], coords[..., 1]
+    return np.stack([x & 255, y & 255, (x >> 8) + 16 * (y >> 8)], axis=-1).astype(np.uint8)
+
+
+def decode_coords(rgb: np.ndarray) -> np.ndarray:
+    rgb = rgb.astype(np.int32)
+    return np.stack([rgb[..., 0] + 256 * (rgb[..., 2] & 15), rgb[..., 1] + 256 * (rgb[..., 2] >> 4)], axis=-1)
+
+
+def write_png(path: str, pixels: np.ndarray) -> None:
+    """Write a PNG atomically (temporary file, then rename)."""
+    mode = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[pixels.shape[2]]
+    arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
+    folder = os.path.dirname(os.path.abspath(path))
+    tmp = os.path.join(folder, f".tmp-{os.getpid()}-{os.path.basename(path)}")
+    try:
+        Image.fromarray(np.ascontiguousarray(arr), mode=mode).save(tmp, format="PNG")
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise OSError(f"Writing {os.path.basename(path)} failed: {exc.strerror or exc}.") from None

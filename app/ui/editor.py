@@ -1,0 +1,465 @@
+"""The editor: an imgui-bundle (hello_imgui) application around one document.
+
+Per frame: install a finished analysis, keep the session in step with the
+document, refine the view's synthesis within a time budget, draw the canvas
+texture, then the panels. Nothing blocks: analysis runs on a thread, synthesis
+and exports are sliced into budgeted steps.
+"""
+from __future__ import annotations
+
+import math
+import os
+import random
+import time
+from dataclasses import replace
+
+from imgui_bundle import hello_imgui, imgui, immapp  # imported before glfw (bundled libglfw)
+
+from engine.gpu import GLUnavailable, Gpu
+from engine.pyramid import Rect, SynthesisError
+
+from ..document import (PROJECT_SUFFIX, Autosave, Display, Document, ExemplarSource, History, Project,
+                        ProjectError, View, is_project_file, load_project, save_project)
+from ..render.canvas import Canvas
+from ..session import ExportJob, Frame, Session, frame_for
+from . import panels
+from .dialogs import IMAGE_FILTER, PNG_FILTER, PROJECT_FILTER, Dialogs
+
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
+DEFAULT_EXEMPLAR = os.path.join(ASSETS, "gravel.png")
+FRAME_BUDGET_S = 0.030       # synthesis time per frame: keeps the UI above 15 fps on llvmpipe
+PANEL_WIDTH = 340
+
+
+class Editor:
+    def __init__(self, path: str | None = None, *, screenshot: str | None = None, frames: int = 10,
+                 window_size: tuple[int, int] = (1280, 800), recover: bool = True):
+        self.start_path = path
+        self.screenshot = screenshot
+        self.min_frames = frames
+        self.window_size = window_size
+        self.offer_recovery = recover and screenshot is None
+        self.history: History | None = None
+        self.view = View()
+        self.display = Display()
+        self.project_path: str | None = None
+        self.gpu: Gpu | None = None
+        self.session: Session | None = None
+        self.canvas: Canvas | None = None
+        self.dialogs = Dialogs()
+        self.autosave = Autosave()
+        self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
+        self.export_job: ExportJob | None = None
+        self.export_rect = [0, 0, 2048, 2048]
+        self.tile_size = 1024
+        self.write_coords = False
+        self.goto = [0, 0]
+        self.frame: Frame | None = None
+        self.canvas_size = (1, 1)
+        self.refined = False
+        self.frame_count = 0
+        self.fps = 0.0
+        self._fps_t = time.perf_counter()
+        self._fps_n = 0
+        self.update_ms = 0.0
+        self.pixels = 0
+        self.cursor: tuple[float, float] | None = None
+        self.cursor_uv: tuple[int, int] | None = None
+        self.fatal: str | None = None
+        self._dropped: list[str] = []
+        self.quit_requested = False
+        self.canvas_request = False
+        self.canvas_pixels = None      # last canvas read back on request (tests)
+        self._canvas_key = None
+        self.exemplar_tex = None
+        self.exemplar_gen = -1
+        self.panels = panels.Panels(self)
+
+    # -- running ------------------------------------------------------------
+
+    def runner_params(self) -> hello_imgui.RunnerParams:
+        p = hello_imgui.RunnerParams()
+        p.app_window_params.window_title = "Infinitex"
+        p.app_window_params.window_geometry.size = self.window_size
+        p.imgui_window_params.default_imgui_window_type = hello_imgui.DefaultImGuiWindowType.no_default_window
+        p.ini_disable = True
+        p.fps_idling.fps_idle = 20.0
+        p.callbacks.post_init = self.post_init
+        p.callbacks.show_gui = self.gui
+        p.callbacks.before_exit = self.before_exit
+        self.params = p
+        return p
+
+    def run(self) -> int:
+        immapp.run(self.runner_params(), immapp.AddOnsParams())
+        if self.screenshot:
+            import numpy as np
+            from PIL import Image
+            shot = hello_imgui.final_app_window_screenshot()
+            if shot is None or not getattr(shot, "size", 0):
+                print("infinitex: the screenshot could not be taken.")
+                return 1
+            img = np.asarray(shot)
+            Image.fromarray(img[..., :3] if img.shape[-1] == 4 else img).save(self.screenshot)
+        return 1 if self.fatal else 0
+
+    def post_init(self) -> None:
+        import moderngl
+        try:
+            ctx = moderngl.create_context()
+            self.gpu = Gpu(ctx)
+            self.screen_fbo = ctx.detect_framebuffer()  # where imgui draws: restored after our passes
+            self.session = Session(self.gpu)
+            self.canvas = Canvas(self.gpu)
+        except (GLUnavailable, Exception) as exc:  # noqa: BLE001 - shown in the window
+            self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
+                          "on Linux install libgl1 and a Mesa driver.")
+            return
+        self._install_drop_callback()
+        recovered = self.autosave.pending() if self.offer_recovery else None
+        if self.start_path:
+            self.open_path(self.start_path, first=True)
+        else:
+            self.new_document()
+        if recovered is not None:
+            t = self.autosave.pending_time()
+            when = time.strftime("%Y-%m-%d %H:%M", time.localtime(t)) if t else "an earlier session"
+            self.dialogs.ask(
+                "Recover unsaved work",
+                f"Infinitex did not close normally. Unsaved work from {when} was kept.\n"
+                "Recover it?",
+                [("Recover", lambda: self._recover(recovered)), ("Discard", self.autosave.clear)])
+
+    def _install_drop_callback(self) -> None:
+        try:
+            import glfw
+            from imgui_bundle import glfw_utils
+            win = glfw_utils.glfw_window_hello_imgui()
+            glfw.set_drop_callback(win, lambda _w, paths: self._dropped.extend(paths))
+        except Exception:  # noqa: BLE001 - no drag and drop is not fatal
+            pass
+
+    def before_exit(self) -> None:
+        if self.history is not None and self.history.dirty:
+            try:
+                self.autosave.tick(self.project(), True, force=True)  # keep unsaved work for recovery
+            except ProjectError:
+                pass
+        else:
+            self.autosave.clear()
+        if self.export_job is not None:
+            self.export_job.cancel()
+        if self.session is not None:
+            self.session.release()
+        if self.canvas is not None:
+            self.canvas.release()
+
+    # -- documents ----------------------------------------------------------
+
+    @property
+    def doc(self) -> Document | None:
+        return self.history.current if self.history else None
+
+    def project(self) -> Project:
+        return Project(self.doc, self.view, self.display)
+
+    def new_document(self) -> None:
+        try:
+            src = ExemplarSource.from_file(DEFAULT_EXEMPLAR)
+        except OSError as exc:
+            self.dialogs.message("Error", f"The default exemplar could not be read: {exc}")
+            return
+        self._begin_load("new", Document(src), None, None)
+
+    def open_path(self, path: str, first: bool = False) -> None:
+        """Open an exemplar image (replaces the exemplar, undoable) or a project."""
+        path = os.path.expanduser(path)
+        try:
+            if os.path.isfile(path) and is_project_file(path):
+                proj = load_project(path)
+                self._begin_load("project", proj.document, proj, path)
+                return
+            if not os.path.exists(path):
+                raise ProjectError(f"No such file: {path}.")
+            if os.path.isdir(path):
+                raise ProjectError(f"{path} is a folder, not an image or project.")
+            src = ExemplarSource.from_file(path)
+        except ProjectError as exc:
+            self._open_failed(str(exc), first)
+            return
+        except OSError as exc:
+            self._open_failed(f"{os.path.basename(path)} could not be read: {exc.strerror or exc}.", first)
+            return
+        base = self.doc if self.doc is not None else Document(src)
+        self._begin_load("exemplar", replace(base, exemplar=src, toroidal=None), None, path)
+
+    def _open_failed(self, msg: str, first: bool) -> None:
+        self.dialogs.message("Could not open", msg)
+        if first and self.history is None:
+            self.new_document()
+
+    def _begin_load(self, kind: str, doc: Document, proj: Project | None, path: str | None) -> None:
+        self.pending = (kind, doc, proj, path)
+        self.session.load(doc)
+
+    def _finish_load(self, job) -> None:
+        kind, doc, proj, path = self.pending
+        self.pending = None
+        if job.error or job.cancelled:
+            if job.error:
+                self.dialogs.message("Could not open", job.error)
+            if self.history is None:
+                if kind != "new":
+                    self.new_document()
+                else:
+                    self.fatal = job.error or "The default exemplar could not be loaded."
+            return
+        if kind == "exemplar" and self.history is not None:
+            self.edit(doc, "Load exemplar")
+            return
+        self.history = History(doc)
+        if kind == "project":
+            self.view, self.display = proj.view, proj.display
+            self.project_path = path if path != self.autosave.path else None
+        else:
+            self.view, self.display = View(), Display()
+            self.project_path = None
+        if kind == "recovered":
+            self.history.saved = None
+
+    def _recover(self, proj: Project) -> None:
+        self._begin_load("recovered", proj.document, proj, None)
+
+    def edit(self, doc: Document, label: str, group: object = None) -> None:
+        """Apply an edit (one undo step; same ``group`` = same step)."""
+        if self.history is None:
+            return
+        try:
+            self.history.apply(doc, label, group)
+        except ProjectError as exc:
+            self.dialogs.message("Invalid setting", str(exc))
+
+    def undo(self) -> None:
+        if self.history and self.history.undo():
+            pass
+
+    def redo(self) -> None:
+        if self.history and self.history.redo():
+            pass
+
+    def save(self, path: str | None = None) -> bool:
+        path = path or self.project_path
+        if path is None:
+            self.save_as()
+            return False
+        if not os.path.splitext(path)[1]:
+            path += PROJECT_SUFFIX
+        try:
+            save_project(path, self.project())
+        except ProjectError as exc:
+            self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
+            return False
+        self.project_path = path
+        self.history.mark_saved()
+        self.autosave.clear()
+        return True
+
+    def save_as(self) -> None:
+        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, self.save,
+                              default=self.project_path or "untitled" + PROJECT_SUFFIX)
+
+    def confirm_discard(self, action) -> None:
+        if self.history is not None and self.history.dirty:
+            self.dialogs.ask("Unsaved changes", "The project has unsaved changes. Discard them?",
+                             [("Discard", action), ("Cancel", None)])
+        else:
+            action()
+
+    def request_quit(self) -> None:
+        def quit_now():
+            self.history.saved = self.history.current if self.history else None
+            self.quit_requested = True
+        self.confirm_discard(quit_now)
+
+    # -- export -------------------------------------------------------------
+
+    def view_rect(self) -> Rect:
+        w, h = self.canvas_size
+        x0, y0 = self.view.top_left(w, h)
+        return Rect(math.floor(x0), math.floor(y0), math.ceil(x0 + w / self.view.zoom), math.ceil(y0 + h / self.view.zoom))
+
+    def start_export(self, path: str, rect: Rect, toroidal: int = 0) -> None:
+        if not path.lower().endswith(".png"):
+            path += ".png"
+        coords = os.path.splitext(path)[0] + "_coords.png" if self.write_coords else None
+        try:
+            self.export_job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords)
+        except (SynthesisError, ValueError) as exc:
+            self.dialogs.message("Export", str(exc))
+
+    # -- the frame ----------------------------------------------------------
+
+    def gui(self) -> None:
+        self.frame_count += 1
+        self._tick_fps()
+        vp = imgui.get_main_viewport()
+        imgui.set_next_window_pos(vp.work_pos)
+        imgui.set_next_window_size(vp.work_size)
+        flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_move | imgui.WindowFlags_.menu_bar
+                 | imgui.WindowFlags_.no_bring_to_front_on_focus | imgui.WindowFlags_.no_saved_settings
+                 | imgui.WindowFlags_.no_background)
+        imgui.push_style_var(imgui.StyleVar_.window_padding, (6, 4))
+        imgui.begin("Infinitex", None, flags)
+        imgui.pop_style_var()
+        if self.fatal:
+            imgui.text_wrapped(self.fatal)
+            if imgui.button("Quit"):
+                self.params.app_shall_exit = True
+            imgui.end()
+            return
+        self._update_engine()
+        self.panels.menu_bar()
+        self._shortcuts()
+        status_h = imgui.get_frame_height_with_spacing() + 4
+        avail = imgui.get_content_region_avail()
+        imgui.begin_child("Panels", (PANEL_WIDTH, avail.y - status_h), imgui.ChildFlags_.borders)
+        self.panels.side_panels()
+        imgui.end_child()
+        imgui.same_line()
+        imgui.begin_child("Canvas", (0, avail.y - status_h), imgui.ChildFlags_.borders,
+                          imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
+                          | imgui.WindowFlags_.no_background)
+        self._canvas()
+        imgui.end_child()
+        self.panels.status_bar()
+        self.dialogs.draw()
+        self.panels.progress_modals()
+        imgui.end()
+        self._after_frame()
+
+    def _tick_fps(self) -> None:
+        self._fps_n += 1
+        now = time.perf_counter()
+        if now - self._fps_t >= 0.5:
+            self.fps = self._fps_n / (now - self._fps_t)
+            self._fps_t, self._fps_n = now, 0
+
+    def _update_engine(self) -> None:
+        s = self.session
+        while self._dropped:
+            self.open_path(self._dropped.pop(0))
+        job = s.poll()
+        if job is not None and self.pending is not None and job.key == self.pending[1].analysis_key():
+            self._finish_load(job)
+        elif job is not None and job.error:
+            self.dialogs.message("Analysis failed", job.error)
+        if self.doc is not None and (self.pending is None or s.job is None):
+            s.sync(self.doc)
+        if self.canvas.generation != s.generation and s.ready:
+            self.canvas.set_exemplar(s.stack, s.analysis.toroidal, s.exemplar.hires, s.generation)
+            self.panels.exemplar_changed()
+        if self.export_job is not None:
+            self.export_job.step(FRAME_BUDGET_S)
+            self.screen_fbo.use()
+            if self.export_job.done or self.export_job.cancelled:
+                job, self.export_job = self.export_job, None
+                if job.error:
+                    self.dialogs.message("Export failed", job.error)
+        if self.doc is not None and self.history is not None:
+            try:
+                self.autosave.tick(self.project(), self.history.dirty)
+            except ProjectError:
+                pass
+
+    def _shortcuts(self) -> None:
+        if self.dialogs.busy or imgui.get_io().want_text_input:
+            return
+        ctrl = imgui.Key.mod_ctrl
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.z) or imgui.is_key_chord_pressed(ctrl | imgui.Key.y):
+            self.redo()
+        elif imgui.is_key_chord_pressed(ctrl | imgui.Key.z):
+            self.undo()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.s):
+            self.save()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.s):
+            self.save_as()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.o):
+            self.panels.open_dialog()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.q):
+            self.request_quit()
+
+    def _canvas(self) -> None:
+        avail = imgui.get_content_region_avail()
+        w, h = max(16, int(avail.x)), max(16, int(avail.y))
+        self.canvas_size = (w, h)
+        s = self.session
+        p0 = imgui.get_cursor_screen_pos()
+        if s.ready and self.doc is not None:
+            level = None
+            if self.display.mode == "level":
+                level = s.L if self.display.level < 0 else min(self.display.level, s.L)
+            self.frame = frame_for(self.view, w, h, s.L, level)
+            t0 = time.perf_counter()
+            try:
+                self.refined = s.refine(self.frame, FRAME_BUDGET_S)
+            except SynthesisError as exc:
+                self.view = View(0, 0, self.view.zoom)
+                self.dialogs.message("Synthesis", str(exc))
+            self.update_ms = (time.perf_counter() - t0) * 1000.0
+            self.pixels = s.refiner.last_pixels if s.refiner else 0
+            self.canvas.ensure_size(w, h)
+            key = (s.generation, s.params, s.refiner.version, self.frame, self.view, self.display, (w, h))
+            if key != self._canvas_key or self.canvas_request:
+                self.canvas.render(s.pyramid, self.frame, self.view, self.display)
+                self._canvas_key = key
+            if self.canvas_request:
+                self.canvas_pixels = self.canvas.read()
+                self.canvas_request = False
+        else:
+            self.canvas.ensure_size(w, h)
+            self.canvas.render(None, None, self.view, self.display)
+            self._canvas_key = None
+            self.refined = False
+        self.screen_fbo.use()
+        imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
+        imgui.set_cursor_screen_pos(p0)
+        imgui.invisible_button("canvas", (w, h), imgui.ButtonFlags_.mouse_button_left
+                               | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
+        io = imgui.get_io()
+        hovered = imgui.is_item_hovered()
+        if imgui.is_item_active():
+            d = io.mouse_delta
+            if d.x or d.y:
+                if (imgui.is_mouse_down(imgui.MouseButton_.right) or imgui.is_mouse_down(imgui.MouseButton_.middle)
+                        or imgui.is_mouse_down(imgui.MouseButton_.left)):
+                    self.view = self.view.panned(d.x, d.y)
+        if hovered and io.mouse_wheel:
+            mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
+            self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mx, my, w, h)
+        if hovered:
+            mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
+            x0, y0 = self.view.top_left(w, h)
+            self.cursor = (x0 + mx / self.view.zoom, y0 + my / self.view.zoom)
+        else:
+            self.cursor = None
+        if s.ready and self.doc is not None:
+            self.panels.canvas_overlay(p0, w, h)
+
+    def _after_frame(self) -> None:
+        busy = (not self.refined or self.export_job is not None or self.pending is not None
+                or (self.session is not None and self.session.job is not None))
+        self.params.fps_idling.enable_idling = not busy
+        if self.quit_requested:
+            self.params.app_shall_exit = True
+        if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not self.dialogs.busy)
+                                or self.frame_count >= self.min_frames + 3000):
+            self.params.app_shall_exit = True
+
+    # -- small helpers for panels -----------------------------------------
+
+    def new_seed(self) -> None:
+        self.edit(replace(self.doc, seed=random.randrange(1, 2 ** 31)), "New seed")
+
+
+def run_editor(path: str | None = None, screenshot: str | None = None, frames: int = 10) -> int:
+    return Editor(path, screenshot=screenshot, frames=frames).run()

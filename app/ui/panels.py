@@ -1,0 +1,349 @@
+"""The editor's menus, side panels, status bar and progress windows."""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import replace
+
+import numpy as np
+from imgui_bundle import imgui
+
+from engine.params import DEFAULT_JITTER, FIRST_CORRECTED_LEVEL
+from engine.pyramid import Rect
+
+from ..document import DISPLAY_MODES, Display, View
+from .dialogs import IMAGE_FILTER, PNG_FILTER, PROJECT_FILTER
+
+MODE_LABELS = {"color": "Color", "coords": "Coordinate map", "patches": "Patch boundaries",
+               "level": "Single pyramid level", "relief": "Shaded relief"}
+MAGNIFY_LABELS = [("hires", "Synthesis magnification, hi-res exemplar"),
+                  ("bilinear", "Synthesis magnification, bilinear"), ("nearest", "Nearest (texel blocks)")]
+FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square")]
+TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
+TILE_SIZES = [64, 128, 256, 512, 1024, 2048, 4096]
+
+
+class Panels:
+    def __init__(self, ed):
+        self.ed = ed
+        self.overall = DEFAULT_JITTER
+        self.show_about = False
+
+    # -- menu ---------------------------------------------------------------
+
+    def open_dialog(self) -> None:
+        ed = self.ed
+        ed.confirm_discard(lambda: ed.dialogs.ask_path("Open exemplar or project", False, IMAGE_FILTER, ed.open_path))
+
+    def menu_bar(self) -> None:
+        ed = self.ed
+        if not imgui.begin_menu_bar():
+            return
+        if imgui.begin_menu("File"):
+            if imgui.menu_item_simple("New"):
+                ed.confirm_discard(ed.new_document)
+            if imgui.menu_item_simple("Open...", "Ctrl+O"):
+                self.open_dialog()
+            imgui.separator()
+            if imgui.menu_item_simple("Save", "Ctrl+S", enabled=ed.doc is not None):
+                ed.save()
+            if imgui.menu_item_simple("Save As...", "Ctrl+Shift+S", enabled=ed.doc is not None):
+                ed.save_as()
+            imgui.separator()
+            if imgui.menu_item_simple("Export view as PNG...", enabled=ed.session.ready):
+                self.export_view()
+            if imgui.menu_item_simple("Export toroidal tile...", enabled=ed.session.ready):
+                self.export_tile()
+            imgui.separator()
+            if imgui.menu_item_simple("Quit", "Ctrl+Q"):
+                ed.request_quit()
+            imgui.end_menu()
+        if imgui.begin_menu("Edit"):
+            h = ed.history
+            if imgui.menu_item_simple(f"Undo {h.undo_label() if h else ''}".strip(), "Ctrl+Z",
+                                      enabled=bool(h and h.can_undo())):
+                ed.undo()
+            if imgui.menu_item_simple(f"Redo {h.redo_label() if h else ''}".strip(), "Ctrl+Shift+Z",
+                                      enabled=bool(h and h.can_redo())):
+                ed.redo()
+            imgui.end_menu()
+        if imgui.begin_menu("View"):
+            if imgui.menu_item_simple("Go to origin"):
+                ed.view = View(0.0, 0.0, ed.view.zoom)
+            if imgui.menu_item_simple("Go to coordinates..."):
+                self._goto_open = True
+            if imgui.menu_item_simple("Actual size (1:1)"):
+                ed.view = View(ed.view.x, ed.view.y, 1.0)
+            imgui.end_menu()
+        imgui.end_menu_bar()
+        if getattr(self, "_goto_open", False):
+            imgui.open_popup("Go to coordinates")
+            self._goto_open = False
+        if imgui.begin_popup("Go to coordinates"):
+            imgui.text("Canvas position (finest-level pixels):")
+            imgui.set_next_item_width(220)
+            _, ed.goto = imgui.input_int2("x, y", ed.goto)
+            if imgui.button("Go", (100, 0)):
+                ed.view = View(float(ed.goto[0]), float(ed.goto[1]), ed.view.zoom).clamped()
+                imgui.close_current_popup()
+            imgui.end_popup()
+
+    # -- side panels --------------------------------------------------------
+
+    def exemplar_changed(self) -> None:
+        ed = self.ed
+        s = ed.session
+        if ed.exemplar_tex is not None:
+            ed.exemplar_tex.release()
+        px = s.stack[-1]
+        from ..render.canvas import _to_rgba
+        rgba = _to_rgba(px[None])[0]
+        ed.exemplar_tex = ed.gpu.ctx.texture((px.shape[1], px.shape[0]), 4, np.ascontiguousarray(rgba).tobytes())
+
+    def side_panels(self) -> None:
+        ed = self.ed
+        if ed.doc is None or not ed.session.ready:
+            self._loading()
+            return
+        flags = imgui.TreeNodeFlags_.default_open
+        if imgui.collapsing_header("Exemplar", flags):
+            self.exemplar_panel()
+        if imgui.collapsing_header("Randomness", flags):
+            self.randomness_panel()
+        if imgui.collapsing_header("Synthesis", flags):
+            self.synthesis_panel()
+        if imgui.collapsing_header("Display", flags):
+            self.display_panel()
+        if imgui.collapsing_header("Export"):
+            self.export_panel()
+
+    def _loading(self) -> None:
+        job = self.ed.session.job
+        imgui.text("Opening the exemplar...")
+        if job is not None:
+            imgui.progress_bar(job.progress, (-1, 0), job.message)
+            if imgui.button("Cancel"):
+                job.cancel()
+
+    def exemplar_panel(self) -> None:
+        ed = self.ed
+        doc, s = ed.doc, ed.session
+        ex, an = s.exemplar, s.analysis
+        if ed.exemplar_tex is not None:
+            size = min(PANEL_IMAGE, imgui.get_content_region_avail().x)
+            imgui.image(imgui.ImTextureRef(ed.exemplar_tex.glo), (size, size))
+        imgui.text(doc.exemplar.name)
+        ow, oh = ex.original_size
+        chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
+        imgui.text_disabled(f"{ow}x{oh} -> {ex.size}x{ex.size}, {chans}, {an.L + 1} levels")
+        if ex.hires is not None:
+            imgui.text_disabled(f"hi-res {ex.hires.shape[1]}x{ex.hires.shape[0]} kept for magnification")
+        if imgui.button("Open image...", (-1, 0)):
+            ed.dialogs.ask_path("Open exemplar", False, IMAGE_FILTER, ed.open_path)
+        fits = [f for f, _ in FIT_LABELS]
+        changed, i = imgui.combo("Import", fits.index(doc.fit), [lbl for _, lbl in FIT_LABELS])
+        if changed:
+            ed.edit(replace(doc, fit=fits[i]), "Import fit")
+        cur = 0 if doc.toroidal is None else (1 if doc.toroidal else 2)
+        labels = list(TOROIDAL_LABELS)
+        labels[0] = f"Auto (guess: {'tiles' if ex.toroidal_guess else 'does not tile'})"
+        changed, i = imgui.combo("Toroidal", cur, labels)
+        if changed:
+            ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
+        job = s.job
+        if job is not None:
+            imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
+            if imgui.button("Cancel analysis"):
+                job.cancel()
+
+    def randomness_panel(self) -> None:
+        ed = self.ed
+        doc, L = ed.doc, ed.session.L
+        jit = doc.jitter_for(L)
+        imgui.push_item_width(-90)
+        self.overall = sum(jit) / len(jit)
+        changed, v = imgui.slider_float("All levels", self.overall, 0.0, 1.0, "%.2f")
+        if changed:
+            ed.edit(doc.with_all_jitter(L, v), "Randomness (all levels)", group="jitter-all")
+        if imgui.is_item_deactivated():
+            ed.history.end_group()
+        for l in range(L + 1):
+            size = 1 << (L - l)
+            changed, v = imgui.slider_float(f"{size} px##jit{l}", jit[l], 0.0, 1.0, "%.2f")
+            if imgui.is_item_hovered():
+                imgui.set_tooltip(f"Level {l}: moves features about {size} exemplar pixels across")
+            if changed:
+                ed.edit(ed.doc.with_jitter(L, l, v), f"Randomness of level {l}", group=("jitter", l))
+            if imgui.is_item_deactivated():
+                ed.history.end_group()
+        imgui.pop_item_width()
+        if imgui.button("Reset"):
+            ed.edit(replace(doc, jitter=()), "Reset randomness")
+        imgui.same_line()
+        imgui.set_next_item_width(120)
+        changed, seed = imgui.input_int("Seed", doc.seed, 1, 100, imgui.InputTextFlags_.enter_returns_true)
+        if changed:
+            ed.edit(replace(ed.doc, seed=int(seed) % (2 ** 32)), "Seed")
+        imgui.same_line()
+        if imgui.button("New seed"):
+            ed.new_seed()
+
+    def synthesis_panel(self) -> None:
+        ed = self.ed
+        doc, L = ed.doc, ed.session.L
+        imgui.push_item_width(-150)
+        changed, v = imgui.slider_int("Correction passes", doc.passes, 0, 4)
+        if changed:
+            ed.edit(replace(doc, passes=v), "Correction passes", group="passes")
+        if imgui.is_item_deactivated():
+            ed.history.end_group()
+        changed, v = imgui.slider_int("Subpasses (s x s)", doc.subgrid, 1, 4)
+        if changed:
+            ed.edit(replace(ed.doc, subgrid=v), "Subpasses", group="subgrid")
+        if imgui.is_item_deactivated():
+            ed.history.end_group()
+        changed, v = imgui.slider_float("Coherence kappa", doc.kappa, 0.0, 2.0, "%.2f")
+        if changed:
+            ed.edit(replace(ed.doc, kappa=round(v, 3)), "Coherence", group="kappa")
+        if imgui.is_item_deactivated():
+            ed.history.end_group()
+        changed, v = imgui.slider_int("Candidates k", doc.k, 1, 4)
+        if changed:
+            ed.edit(replace(ed.doc, k=v), "Candidates k", group="k")
+        if imgui.is_item_deactivated():
+            ed.history.end_group()
+        models = ["appearance", "color"]
+        changed, i = imgui.combo("Neighborhoods", models.index(doc.model),
+                                 ["Appearance space (LH06)", "Colors 5x5 (LH05)"])
+        if changed:
+            ed.edit(replace(ed.doc, model=models[i]), "Neighborhood model")
+        imgui.pop_item_width()
+        imgui.text("Corrected levels:")
+        cur = ed.doc.params(L).corrected_levels()
+        for l in range(L + 1):
+            if l % 6:
+                imgui.same_line()
+            on = l in cur
+            changed, on = imgui.checkbox(f"{l}##corr{l}", on)
+            if changed:
+                new = set(cur) | {l} if on else set(cur) - {l}
+                ed.edit(replace(ed.doc, corrected=tuple(sorted(new))), f"Correct level {l}")
+        if imgui.small_button("Default levels"):
+            ed.edit(replace(ed.doc, corrected=None), "Default corrected levels")
+        imgui.same_line()
+        imgui.text_disabled(f"(levels {FIRST_CORRECTED_LEVEL}..{L})")
+
+    def display_panel(self) -> None:
+        ed = self.ed
+        d = ed.display
+        L = ed.session.L
+        for mode in DISPLAY_MODES:
+            if imgui.radio_button(MODE_LABELS[mode], d.mode == mode):
+                ed.display = replace(d, mode=mode)
+        if ed.display.mode == "level":
+            lvl = L if d.level < 0 else min(d.level, L)
+            changed, v = imgui.slider_int("Level", lvl, 0, L)
+            if changed:
+                ed.display = replace(ed.display, level=v)
+        keys = [k for k, _ in MAGNIFY_LABELS]
+        labels = [lbl if k != "hires" or ed.canvas.has_hires else lbl + " (none: same as bilinear)"
+                  for k, lbl in MAGNIFY_LABELS]
+        imgui.set_next_item_width(-70)
+        changed, i = imgui.combo("Zoom in", keys.index(d.magnify), labels)
+        if changed:
+            ed.display = replace(ed.display, magnify=keys[i])
+        imgui.text(f"Zoom {_zoom_text(ed.view.zoom)}")
+        imgui.same_line()
+        if imgui.small_button("1:1"):
+            ed.view = View(ed.view.x, ed.view.y, 1.0)
+        imgui.same_line()
+        if imgui.small_button("Origin"):
+            ed.view = View(0.0, 0.0, ed.view.zoom)
+
+    def export_panel(self) -> None:
+        ed = self.ed
+        _, ed.write_coords = imgui.checkbox("Also write the coordinate map", ed.write_coords)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("NAME_coords.png: x = R + 256 (B & 15), y = G + 256 (B >> 4)")
+        if imgui.button("Export view as PNG...", (-1, 0)):
+            self.export_view()
+        imgui.set_next_item_width(-90)
+        _, ed.export_rect = imgui.input_int4("x y w h", ed.export_rect)
+        if imgui.button("Export rectangle as PNG...", (-1, 0)):
+            x, y, w, h = ed.export_rect
+            r = Rect.of(x, y, w, h)
+            ed.dialogs.ask_path("Export rectangle", True, PNG_FILTER, lambda p: ed.start_export(p, r),
+                                default="rectangle.png")
+        imgui.set_next_item_width(-90)
+        sizes = [str(s) for s in TILE_SIZES]
+        changed, i = imgui.combo("Tile size", TILE_SIZES.index(ed.tile_size), sizes)
+        if changed:
+            ed.tile_size = TILE_SIZES[i]
+        if imgui.button("Export toroidal tile...", (-1, 0)):
+            self.export_tile()
+
+    def export_view(self) -> None:
+        ed = self.ed
+        r = ed.view_rect()
+        ed.dialogs.ask_path("Export view", True, PNG_FILTER, lambda p: ed.start_export(p, r), default="view.png")
+
+    def export_tile(self) -> None:
+        ed = self.ed
+        n = ed.tile_size
+        ed.dialogs.ask_path("Export toroidal tile", True, PNG_FILTER,
+                            lambda p: ed.start_export(p, Rect(0, 0, n, n), toroidal=n), default=f"tile{n}.png")
+
+    # -- status and overlays --------------------------------------------------
+
+    def status_bar(self) -> None:
+        ed = self.ed
+        imgui.separator()
+        s = ed.session
+        parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.fps:5.1f} fps"]
+        if ed.cursor is not None:
+            cx, cy = ed.cursor
+            parts.append(f"x {int(np.floor(cx))}  y {int(np.floor(cy))}")
+        parts.append(f"zoom {_zoom_text(ed.view.zoom)}")
+        if ed.frame is not None:
+            parts.append(f"level {ed.frame.level}/{s.L}")
+        title = os.path.basename(ed.project_path) if ed.project_path else "untitled"
+        if ed.history is not None and ed.history.dirty:
+            title += " *"
+        parts.append(title)
+        imgui.text("   |   ".join(parts))
+
+    def canvas_overlay(self, p0, w, h) -> None:
+        ed = self.ed
+        if not ed.refined:
+            dl = imgui.get_window_draw_list()
+            dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 118, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
+            dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), "Refining...")
+
+    def progress_modals(self) -> None:
+        ed = self.ed
+        job = ed.export_job
+        if job is None:
+            return
+        name = "Exporting###export"
+        if not imgui.is_popup_open(name):
+            imgui.open_popup(name)
+        vp = imgui.get_main_viewport()
+        imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 3), imgui.Cond_.always, (0.5, 0.5))
+        imgui.set_next_window_size((420, 0))
+        opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+        if opened:
+            imgui.text(f"{os.path.basename(job.out_path)}: {job.rect.w} x {job.rect.h}")
+            elapsed = time.monotonic() - job.started
+            imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
+            if imgui.button("Cancel", (120, 0)):
+                job.cancel()
+                ed.export_job = None
+                imgui.close_current_popup()
+            imgui.end_popup()
+
+
+PANEL_IMAGE = 160
+
+
+def _zoom_text(z: float) -> str:
+    return f"{z * 100:.0f}%" if z >= 0.1 else f"1/{1 / z:.0f}"
