@@ -41,9 +41,9 @@ class ExemplarSource:
     """The exemplar as the user gave it: the original file's bytes and name."""
 
     name: str
-    data: bytes = field(repr=False)
+    data: bytes = field(repr=False, compare=False)  # equality is by content hash
     sha256: str = ""
-    path: str | None = None  # where it was loaded from, if anywhere
+    path: str | None = field(default=None, compare=False)  # where it was loaded from, if anywhere
 
     @classmethod
     def from_bytes(cls, data: bytes, name: str, path: str | None = None) -> "ExemplarSource":

@@ -157,6 +157,36 @@ class Refiner:
                 return l
         return -1
 
+    def preview(self, frame: Frame, budget_s: float, min_level: int = 2) -> int:
+        """While the user drags a control: complete whole levels, coarse to fine,
+        as long as the next one fits in the budget (no bands: a preview is
+        consistent everywhere). Returns the finest complete level."""
+        t0 = time.perf_counter()
+        plan = self.pyramid.plan(frame.level, frame.want)
+        pixels = 0
+        done = -1
+        for l in range(frame.level + 1):
+            want = plan[l]
+            if not self.holds(l, want):
+                buf = self.pyramid.buffers[l]
+                valid = buf.valid if buf is not None else None
+                have = want.intersect(valid) if valid is not None else Rect(0, 0, 0, 0)
+                missing = want.w * want.h - (0 if have.empty else have.w * have.h)
+                spent = time.perf_counter() - t0
+                if l > min_level and spent + missing * self.cost[l] > budget_s:
+                    break
+                t1 = time.perf_counter()
+                n = self.pyramid.request(l, want)
+                self.gpu.ctx.finish()
+                if n > 256:
+                    self.cost[l] = 0.5 * self.cost[l] + 0.5 * (time.perf_counter() - t1) / n
+                pixels += n
+            done = l
+        self.last_pixels = pixels
+        self.version += bool(pixels)
+        self.last_ms = (time.perf_counter() - t0) * 1000.0
+        return done
+
     def step(self, frame: Frame, budget_s: float) -> bool:
         """Synthesize for at most about ``budget_s``; True when the frame is exact."""
         t0 = time.perf_counter()
@@ -178,6 +208,9 @@ class Refiner:
             have = want.intersect(valid) if valid is not None else Rect(0, 0, 0, 0)
             missing = want.w * want.h - (0 if have.empty else have.w * have.h)
             rect = want
+            if pixels and missing * self.cost[l] > remaining:
+                finished = False  # do not start a big piece late in the frame
+                break
             if missing * self.cost[l] > max(remaining, 0.25 * budget_s) and want.h > 16:
                 grow = (valid is not None and valid.x0 <= want.x0 and valid.x1 >= want.x1
                         and valid.y0 <= want.y0 < valid.y1)

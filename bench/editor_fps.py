@@ -37,8 +37,11 @@ def main(argv=None) -> int:
     stamps: list[float] = []
     orig_gui = ed.gui
 
+    docs: list = []
+
     def gui():
         stamps.append(time.perf_counter())
+        docs.append(ed.doc)
         orig_gui()
 
     params = ed.runner_params()
@@ -70,10 +73,12 @@ def main(argv=None) -> int:
             step += 1
         ctx.mouse_up(0)
         frames = [b - a for a, b in zip(stamps[n0:-1], stamps[n0 + 1:])]
+        edits = sum(1 for a, b in zip(docs[n0:-1], docs[n0 + 1:]) if a is not b)
         t1 = time.perf_counter()
         wait_refined(ctx, 2000)
         results[name] = {
             "frames": len(frames),
+            "frames_with_an_edit": edits,
             "fps_mean": len(frames) / max(1e-9, sum(frames)),
             "frame_ms_median": 1000 * statistics.median(frames),
             "frame_ms_p90": 1000 * sorted(frames)[int(0.9 * (len(frames) - 1))],
@@ -92,10 +97,10 @@ def main(argv=None) -> int:
     testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
     print(f"Editor frame rate while dragging a randomness slider (canvas {results['canvas'][0]}x{results['canvas'][1]}, "
           f"{results['renderer']})")
-    print(f"{'slider':<14}{'frames':>8}{'fps':>8}{'median ms':>11}{'p90 ms':>9}{'max ms':>9}{'refine s':>10}")
+    print(f"{'slider':<14}{'frames':>8}{'edits':>7}{'fps':>8}{'median ms':>11}{'p90 ms':>9}{'max ms':>9}{'refine s':>10}")
     for k, v in results.items():
         if isinstance(v, dict):
-            print(f"{k:<14}{v['frames']:>8}{v['fps_mean']:>8.1f}{v['frame_ms_median']:>11.1f}"
+            print(f"{k:<14}{v['frames']:>8}{v['frames_with_an_edit']:>7}{v['fps_mean']:>8.1f}{v['frame_ms_median']:>11.1f}"
                   f"{v['frame_ms_p90']:>9.1f}{v['frame_ms_max']:>9.1f}{v['refine_after_release_s']:>10.2f}")
     if args.json:
         with open(args.json, "w") as f:

@@ -110,7 +110,7 @@ class Canvas:
         if not levels:
             return -1
         L = len(pyramid.buffers) - 1
-        tlx, tly = frame.tl
+        tlx, tly = view.top_left(*self.size)
         ix, iy = math.floor(tlx), math.floor(tly)
         mode = MODES.get(display.mode, 0)
         p = self.prog

@@ -28,6 +28,9 @@ from .dialogs import IMAGE_FILTER, PNG_FILTER, PROJECT_FILTER, Dialogs
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
 DEFAULT_EXEMPLAR = os.path.join(ASSETS, "gravel.png")
 FRAME_BUDGET_S = 0.030       # synthesis time per frame: keeps the UI above 15 fps on llvmpipe
+REST_BUDGET_S = 0.060        # refining at rest: more work per frame, still a live UI
+PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
+INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
 
 
@@ -71,6 +74,8 @@ class Editor:
         self.canvas_request = False
         self.canvas_pixels = None      # last canvas read back on request (tests)
         self._canvas_key = None
+        self._last_doc = None
+        self._last_edit = 0.0
         self.exemplar_tex = None
         self.exemplar_gen = -1
         self.panels = panels.Panels(self)
@@ -399,18 +404,32 @@ class Editor:
             if self.display.mode == "level":
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
             self.frame = frame_for(self.view, w, h, s.L, level)
+            if self.doc is not self._last_doc:
+                self._last_doc = self.doc
+                self._last_edit = time.monotonic()
+            interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
             t0 = time.perf_counter()
+            scale = 1
             try:
-                self.refined = s.refine(self.frame, FRAME_BUDGET_S)
+                if interactive:
+                    # A control is being dragged: a complete coarser preview every
+                    # frame, drawn at its own resolution, keeps the editor fluid.
+                    c = s.refiner.preview(self.frame, PREVIEW_BUDGET_S)
+                    self.refined = False
+                    texel_px = self.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
+                    scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
+                else:
+                    self.refined = s.refine(self.frame, REST_BUDGET_S)
             except SynthesisError as exc:
                 self.view = View(0, 0, self.view.zoom)
                 self.dialogs.message("Synthesis", str(exc))
             self.update_ms = (time.perf_counter() - t0) * 1000.0
             self.pixels = s.refiner.last_pixels if s.refiner else 0
-            self.canvas.ensure_size(w, h)
-            key = (s.generation, s.params, s.refiner.version, self.frame, self.view, self.display, (w, h))
+            self.canvas.ensure_size(w // scale, h // scale)
+            view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
+            key = (s.generation, s.params, s.refiner.version, self.frame, view, self.display, (w, h))
             if key != self._canvas_key or self.canvas_request:
-                self.canvas.render(s.pyramid, self.frame, self.view, self.display)
+                self.canvas.render(s.pyramid, self.frame, view, self.display)
                 self._canvas_key = key
             if self.canvas_request:
                 self.canvas_pixels = self.canvas.read()
@@ -451,7 +470,7 @@ class Editor:
         self.params.fps_idling.enable_idling = not busy
         if self.quit_requested:
             self.params.app_shall_exit = True
-        if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not self.dialogs.busy)
+        if self.screenshot and ((self.frame_count >= self.min_frames and not busy)
                                 or self.frame_count >= self.min_frames + 3000):
             self.params.app_shall_exit = True
 

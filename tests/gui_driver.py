@@ -1,0 +1,134 @@
+"""Drive the real editor with the imgui test engine (run under Xvfb by test_editor.py).
+
+    xvfb-run -a python tests/gui_driver.py OUT_DIR
+
+Each check writes a line "ok NAME" or "FAIL NAME: why" to OUT_DIR/report.txt;
+the canvas is read back exactly (RGB) by the editor itself on request.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, HERE)
+
+from imgui_bundle import imgui  # noqa: E402
+from imgui_bundle.immapp import testing  # noqa: E402
+
+from app.ui.editor import Editor  # noqa: E402
+
+
+def main(out: str) -> int:
+    os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+    ed = Editor(recover=False, window_size=(1000, 700))
+    report: list[str] = []
+
+    def check(name: str, cond: bool, why: str = "") -> None:
+        report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
+
+    def settle(ctx, limit=3000) -> None:
+        for _ in range(limit):
+            ctx.yield_()
+            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
+                    and ed.pending is None and ed.session.job is None):
+                return
+        raise RuntimeError("the editor did not settle")
+
+    def canvas(ctx) -> np.ndarray:
+        settle(ctx)
+        ed.canvas_request = True
+        while ed.canvas_request:
+            ctx.yield_()
+        return ed.canvas_pixels
+
+    def test(ctx) -> None:
+        settle(ctx)
+        a = canvas(ctx)
+        check("canvas shows texture", a.std() > 5, f"std {a.std():.2f}")
+
+        # A randomness slider changes the canvas; undo restores it exactly.
+        L = ed.session.L
+        ctx.item_input_value(f"//**/16 px##jit{L - 4}", 0.1)
+        b = canvas(ctx)
+        check("slider edits the document", abs(ed.doc.jitter_for(L)[L - 4] - 0.1) < 1e-6,
+              str(ed.doc.jitter_for(L)))
+        check("slider changes the canvas", not np.array_equal(a, b), "identical canvas")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        c = canvas(ctx)
+        check("undo restores the canvas exactly", np.array_equal(a, c), "canvas differs after undo")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.mod_shift | imgui.Key.z)
+        d = canvas(ctx)
+        check("redo brings the edit back", np.array_equal(b, d), "canvas differs after redo")
+
+        # Pan by dragging with the right button, zoom with the wheel.
+        v0 = ed.view
+        r = ctx.item_info("//**/canvas").rect_full
+        cx, cy = (r.min.x + r.max.x) / 2, (r.min.y + r.max.y) / 2
+        ctx.mouse_move_to_pos((cx, cy))
+        ctx.mouse_down(1)
+        ctx.mouse_move_to_pos((cx + 120, cy + 80))
+        ctx.mouse_up(1)
+        check("right-drag pans", (ed.view.x, ed.view.y) != (v0.x, v0.y), f"{v0} -> {ed.view}")
+        e = canvas(ctx)
+        check("panned canvas differs", not np.array_equal(d, e), "same canvas after pan")
+        ctx.mouse_move_to_pos((cx, cy))
+        ctx.mouse_wheel_y(-4)
+        settle(ctx)
+        check("wheel zooms out", ed.view.zoom < 1.0, f"zoom {ed.view.zoom}")
+        ctx.mouse_wheel_y(4)
+        settle(ctx)
+        check("wheel zooms back", abs(ed.view.zoom - 1.0) < 1e-9, f"zoom {ed.view.zoom}")
+
+        # Save, change things, reopen: the canvas is identical to the saved one.
+        saved_view = ed.view
+        f = canvas(ctx)
+        path = os.path.join(out, "project.itex")
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Save As...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", path)  # typed, then Enter: the prompt closes
+        ctx.yield_(2)
+        check("save writes the project", os.path.isfile(path), "no file")
+        check("save clears the dirty flag", not ed.history.dirty, "still dirty")
+        ctx.item_click("//**/New seed")
+        g = canvas(ctx)
+        check("new seed changes the canvas", not np.array_equal(f, g), "same canvas")
+        ed.history.mark_saved()  # so reopening does not ask to discard
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Open...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", path)  # typed, then Enter: the prompt closes
+        ctx.yield_(2)
+        h = canvas(ctx)
+        check("reopened view", ed.view == saved_view, f"{ed.view} vs {saved_view}")
+        check("reopened canvas is identical", np.array_equal(f, h), "canvas differs after reopening")
+
+        # A broken file gives a message and changes nothing.
+        bad = os.path.join(out, "broken.itex")
+        with open(bad, "w") as fh:
+            fh.write("{ not json")
+        before = ed.doc
+        ed.open_path(bad)
+        ctx.yield_(3)
+        check("broken project leaves the document", ed.doc is before, "document changed")
+        check("broken project shows a message", any("not an Infinitex project" in m.body
+                                                    for m in ed.dialogs.modals), "no message")
+        ctx.item_click("//**/OK")
+        check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
+        testing.capture(ctx, os.path.join(out, "final.png"))
+
+    try:
+        testing.run(test_function=test, runner_params=ed.runner_params(),
+                    run_speed=testing.TestRunSpeed.fast)
+    except Exception as exc:  # noqa: BLE001 - reported to the pytest side
+        report.append(f"FAIL driver: {exc}")
+    with open(os.path.join(out, "report.txt"), "w") as fh:
+        fh.write("\n".join(report) + "\n")
+    return 0 if report and all(r.startswith("ok") for r in report) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))

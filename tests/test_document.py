@@ -1,0 +1,160 @@
+"""The document model, project files, undo/redo and autosave: no GL, no window."""
+import json
+import os
+import sys
+from dataclasses import replace
+
+import pytest
+
+from app.document import (EMBED_LIMIT, Autosave, Display, Document, ExemplarSource, History, Project,
+                          ProjectError, View, load_project, project_to_json, save_project)
+
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets")
+
+
+@pytest.fixture
+def doc():
+    return Document(ExemplarSource.from_file(os.path.join(ASSETS, "gravel.png")))
+
+
+def test_document_model_imports_neither_gl_nor_imgui():
+    import subprocess
+    code = ("import sys, app.document; "
+            "bad = [m for m in sys.modules if m.split('.')[0] in ('moderngl', 'imgui_bundle', 'glfw')]; "
+            "print(bad); sys.exit(1 if bad else 0)")
+    root = os.path.dirname(ASSETS)
+    assert subprocess.run([sys.executable, "-c", code], cwd=root).returncode == 0
+
+
+def test_undo_redo_and_slider_drag_is_one_step(doc):
+    h = History(doc)
+    assert not h.dirty and not h.can_undo()
+    for v in (0.1, 0.2, 0.3):  # one drag: three values, one group
+        h.apply(doc.with_jitter(7, 3, v), "Randomness", group=("jitter", 3))
+    h.end_group()
+    h.apply(replace(h.current, seed=5), "Seed")
+    assert len(h.undo_stack) == 2 and h.dirty
+    assert h.undo() and h.current.seed == 0 and h.current.jitter_for(7)[3] == pytest.approx(0.3)
+    assert h.undo() and h.current == doc and not h.dirty
+    assert not h.undo()
+    assert h.redo() and h.redo() and h.current.seed == 5
+    assert not h.redo()
+    h.undo()
+    h.apply(replace(h.current, seed=9), "Seed")  # a new edit clears redo
+    assert not h.can_redo()
+
+
+def test_identical_edit_is_not_a_step_and_invalid_edit_is_refused(doc):
+    h = History(doc)
+    assert not h.apply(doc, "nothing")
+    with pytest.raises(ProjectError):
+        h.apply(replace(doc, passes=99), "bad")
+    assert h.current == doc and not h.can_undo()
+
+
+def test_jitter_is_matched_by_feature_size_across_exemplar_sizes(doc):
+    d = doc.with_jitter(7, 7, 0.1).with_jitter(7, 0, 0.9)   # finest and coarsest of 8 levels
+    assert d.jitter_for(7)[7] == 0.1 and d.jitter_for(7)[0] == 0.9
+    j = d.jitter_for(8)                                        # a 256^2 exemplar: one more coarse level
+    assert j[8] == 0.1 and j[1] == 0.9 and j[0] == 0.6
+
+
+def test_project_round_trip_embedded(doc, tmp_path):
+    d = replace(doc.with_all_jitter(7, 0.25), seed=42, passes=3, kappa=0.75, corrected=(4, 5, 6, 7), toroidal=True)
+    proj = Project(d, View(123.5, -4.25, 0.5), Display("patches", 3, "nearest"))
+    path = tmp_path / "p.itex"
+    save_project(str(path), proj)
+    back = load_project(str(path))
+    assert back == proj
+    assert json.loads(path.read_text())["exemplar"]["embedded"]
+
+
+def test_project_referencing_a_large_exemplar_checks_its_hash(doc, tmp_path):
+    img = tmp_path / "ex.png"
+    img.write_bytes(doc.exemplar.data)
+    d = replace(doc, exemplar=ExemplarSource.from_file(str(img)))
+    path = tmp_path / "p.itex"
+    save_project(str(path), Project(d), embed=False)
+    data = json.loads(path.read_text())
+    assert data["exemplar"]["embedded"] is None and data["exemplar"]["path"] == "ex.png"
+    assert load_project(str(path)).document.exemplar.sha256 == d.exemplar.sha256
+    img.write_bytes(doc.exemplar.data + b"changed")
+    with pytest.raises(ProjectError, match="does not match"):
+        load_project(str(path))
+    img.unlink()
+    with pytest.raises(ProjectError, match="cannot be found"):
+        load_project(str(path))
+    assert EMBED_LIMIT >= 1 << 20
+
+
+@pytest.mark.parametrize("content, words", [
+    (b"", "not an Infinitex project"),
+    (b"\x00\xff garbage", "not an Infinitex project"),
+    (b"[1, 2]", "not an Infinitex project"),
+    (b'{"format": "something-else"}', "not an Infinitex project"),
+    (b'{"format": "infinitex-project", "version": 99}', "newer version"),
+    (b'{"format": "infinitex-project", "version": 1}', "lacks project.exemplar"),
+])
+def test_broken_or_foreign_files_are_refused(tmp_path, content, words):
+    p = tmp_path / "x.itex"
+    p.write_bytes(content)
+    with pytest.raises(ProjectError, match=words):
+        load_project(str(p))
+
+
+def test_damaged_fields_are_refused(doc, tmp_path):
+    good = project_to_json(Project(doc))
+    cases = [("synthesis", "passes", 99, "passes"), ("synthesis", "jitter", ["a"], "jitter"),
+             ("analysis", "model", "neural", "model"), ("exemplar", "sha256", "0" * 64, "does not match"),
+             ("exemplar", "embedded", "!!!", "damaged"), ("synthesis", "seed", True, "wrong type")]
+    for section, key, value, words in cases:
+        d = json.loads(json.dumps(good))
+        d[section][key] = value
+        p = tmp_path / "x.itex"
+        p.write_text(json.dumps(d))
+        with pytest.raises(ProjectError, match=words):
+            load_project(str(p))
+    with pytest.raises(ProjectError, match="No such file"):
+        load_project(str(tmp_path / "missing.itex"))
+
+
+def test_failed_save_keeps_the_previous_file(doc, tmp_path, monkeypatch):
+    path = tmp_path / "p.itex"
+    save_project(str(path), Project(doc))
+    before = path.read_bytes()
+
+    def boom(*a, **k):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(ProjectError, match="No space left"):
+        save_project(str(path), Project(replace(doc, seed=7)))
+    assert path.read_bytes() == before
+    assert [f.name for f in tmp_path.iterdir()] == ["p.itex"]  # no temporary file left behind
+    with pytest.raises(ProjectError):
+        save_project(str(tmp_path / "no" / "such" / "dir.itex"), Project(doc))
+
+
+def test_autosave_recovers_after_a_crash(doc, tmp_path):
+    a = Autosave(str(tmp_path / "auto.itex"), interval=0.0)
+    assert a.pending() is None
+    assert not a.tick(Project(doc), dirty=False)
+    edited = Project(replace(doc, seed=3), View(10, 20, 2.0))
+    assert a.tick(edited, dirty=True)
+    assert not a.tick(edited, dirty=True)  # unchanged: not rewritten
+    # A new session (after a crash) finds it:
+    assert Autosave(a.path).pending() == edited
+    a.clear()
+    assert Autosave(a.path).pending() is None
+
+
+def test_view_zoom_keeps_the_point_under_the_cursor():
+    v = View(100.0, 50.0, 1.0)
+    w, h, sx, sy = 800, 600, 123.0, 456.0
+    x0, y0 = v.x - w / 2, v.y - h / 2
+    before = (x0 + sx / v.zoom, y0 + sy / v.zoom)
+    z = v.zoom_at(2.0 ** 0.25, sx, sy, w, h)
+    after = (z.x - w / (2 * z.zoom) + sx / z.zoom, z.y - h / (2 * z.zoom) + sy / z.zoom)
+    assert after == pytest.approx(before)
+    assert View(0, 0, 1.0).zoom_at(1e-6, 0, 0, w, h).zoom == 1 / 64
+    assert View(0, 0, 1.0).zoom_at(1e6, 0, 0, w, h).zoom == 16
+    assert View(0.3, 0.7, 1.0).top_left(101, 51) == (-50, -25)  # 1:1 snaps to whole pixels

@@ -1,0 +1,131 @@
+"""The editor's engine side on a headless context: what the canvas shows is
+exactly what the engine and the export produce, whatever the refinement path."""
+import os
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from app.document import Display, Document, ExemplarSource, Project, View, save_project
+from app.render.canvas import Canvas
+from app.session import (ExportJob, Session, colors_u8, decode_coords, encode_coords, frame_for)
+from engine.pyramid import Rect, SynthesisError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@pytest.fixture(scope="module")
+def session(gpu):
+    s = Session(gpu)
+    s.load_now(Document(ExemplarSource.from_file(os.path.join(ROOT, "assets", "gravel.png"))))
+    yield s
+    s.release()
+
+
+def _refine(session, frame, budget=0.01):
+    for _ in range(10000):
+        if session.refine(frame, budget):
+            return
+    raise AssertionError("refinement did not finish")
+
+
+def _rgb(a):
+    return np.repeat(a, 3, axis=2) if a.shape[2] == 1 else a[..., :3]
+
+
+@pytest.mark.parametrize("zoom", [1.0, 0.25])
+def test_canvas_equals_the_engine_window(session, gpu, zoom):
+    canvas = Canvas(gpu)
+    canvas.set_exemplar(session.stack, session.analysis.toroidal, None, session.generation)
+    W, H = 200, 120
+    canvas.ensure_size(W, H)
+    view = View(-123456.4, 98765.2, zoom)
+    frame = frame_for(view, W, H, session.L)
+    _refine(session, frame)
+    canvas.render(session.pyramid, frame, view, Display())
+    shown = canvas.read()
+    s = round(1 / zoom)
+    tlx, tly = view.top_left(W, H)
+    rect = Rect.of(int(tlx) // s, int(tly) // s, W, H)
+    coords = session.synth.window(rect, level=frame.level)
+    assert np.array_equal(shown, _rgb(colors_u8(session.stack, coords, frame.level)))
+    canvas.release()
+
+
+def test_progressive_refinement_equals_one_shot(session, gpu):
+    """A tiny budget (many bands, a pan in the middle) ends bit-identical."""
+    W, H = 150, 100
+    v1, v2 = View(5000.0, -7000.0, 1.0), View(5037.0, -6990.0, 1.0)
+    for v in (v1, v2):
+        for _ in range(3):
+            session.refine(frame_for(v, W, H, session.L), 0.002)
+    frame = frame_for(v2, W, H, session.L)
+    _refine(session, frame, 0.002)
+    got = session.pyramid.read(frame.level, frame.want)
+    assert np.array_equal(got, session.synth.window(frame.want))
+
+
+def test_preview_completes_whole_levels(session):
+    session.pyramid.invalidate(0)
+    frame = frame_for(View(0.0, 0.0, 1.0), 300, 200, session.L)
+    done = session.refiner.preview(frame, 0.0, min_level=2)
+    assert done == 2
+    assert session.refiner.holds(2, session.pyramid.plan(frame.level, frame.want)[2])
+
+
+def test_export_is_independent_of_tiles_and_matches_the_window(session, tmp_path):
+    rect = Rect.of(-70, 33, 150, 97)
+    a = ExportJob(session, rect, str(tmp_path / "a.png"), tile=64, coords_path=str(tmp_path / "a_coords.png"))
+    a.run()
+    b = ExportJob(session, rect, str(tmp_path / "b.png"), tile=512)
+    b.run()
+    ia, ib = np.asarray(Image.open(tmp_path / "a.png")), np.asarray(Image.open(tmp_path / "b.png"))
+    assert np.array_equal(ia, ib)
+    coords = session.synth.window(rect)
+    assert np.array_equal(decode_coords(np.asarray(Image.open(tmp_path / "a_coords.png"))), coords)
+    assert np.array_equal(ia, colors_u8(session.stack, coords, session.L)[..., 0])
+
+
+def test_toroidal_export_wraps_seamlessly(session, tmp_path):
+    job = ExportJob(session, Rect(0, 0, 64, 64), str(tmp_path / "t.png"), toroidal=64, tile=48)
+    job.run()
+    tile = job.coords
+    assert np.array_equal(tile, session.synth.toroidal(64))
+
+
+def test_export_cancel_and_limits(session, tmp_path):
+    job = ExportJob(session, Rect(0, 0, 400, 400), str(tmp_path / "c.png"), tile=64)
+    job.step(0.0)
+    job.cancel()
+    assert job.step() and job.cancelled and not (tmp_path / "c.png").exists()
+    with pytest.raises(SynthesisError, match="limited"):
+        ExportJob(session, Rect(0, 0, 20000, 10), str(tmp_path / "x.png"))
+    with pytest.raises(SynthesisError, match="empty"):
+        ExportJob(session, Rect(0, 0, 0, 10), str(tmp_path / "x.png"))
+
+
+def test_coordinate_map_encoding_is_exact():
+    rng = np.random.default_rng(0)
+    c = rng.integers(0, 4096, size=(20, 30, 2)).astype(np.int32)
+    assert np.array_equal(decode_coords(encode_coords(c)), c)
+
+
+def test_export_cli_matches_the_editor_export(session, tmp_path):
+    doc = Document(ExemplarSource.from_file(os.path.join(ROOT, "assets", "gravel.png")))
+    doc = replace(doc, seed=0)
+    proj = tmp_path / "p.itex"
+    save_project(str(proj), Project(doc, View(10.0, 20.0, 1.0)))
+    out = tmp_path / "cli.png"
+    r = subprocess.run([sys.executable, "main.py", "export", str(proj), "-o", str(out), "--rect", "-5", "7", "90", "60",
+                        "--coords", "-q"], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    job = ExportJob(session, Rect.of(-5, 7, 90, 60), str(tmp_path / "ed.png"))
+    job.run()
+    assert np.array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(tmp_path / "ed.png")))
+    assert (tmp_path / "cli_coords.png").exists()
+    bad = subprocess.run([sys.executable, "main.py", "export", str(tmp_path / "nope.itex"), "-o", str(out)],
+                         cwd=ROOT, capture_output=True, text=True)
+    assert bad.returncode != 0 and "error:" in bad.stderr and "Traceback" not in bad.stderr
