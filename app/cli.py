@@ -9,7 +9,13 @@ import argparse
 import sys
 import time
 
-from engine.cli import EXIT_CANCELLED, EXIT_GL, EXIT_INPUT, EXIT_USAGE, CliError, _integer
+from engine.cli import (
+    EXIT_CANCELLED,
+    EXIT_GL,
+    EXIT_INPUT,
+    CliError,
+    _integer,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

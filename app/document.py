@@ -46,11 +46,11 @@ class ExemplarSource:
     path: str | None = field(default=None, compare=False)  # where it was loaded from, if anywhere
 
     @classmethod
-    def from_bytes(cls, data: bytes, name: str, path: str | None = None) -> "ExemplarSource":
+    def from_bytes(cls, data: bytes, name: str, path: str | None = None) -> ExemplarSource:
         return cls(name=name, data=bytes(data), sha256=hashlib.sha256(data).hexdigest(), path=path)
 
     @classmethod
-    def from_file(cls, path: str) -> "ExemplarSource":
+    def from_file(cls, path: str) -> ExemplarSource:
         with open(path, "rb") as f:
             data = f.read()
         return cls.from_bytes(data, os.path.basename(path), os.path.abspath(path))
@@ -91,12 +91,12 @@ class Document:
         return SynthParams(jitter=self.jitter_for(L), seed=self.seed, passes=self.passes,
                            subgrid=self.subgrid, kappa=self.kappa, corrected=corrected)
 
-    def with_jitter(self, L: int, level: int, value: float) -> "Document":
+    def with_jitter(self, L: int, level: int, value: float) -> Document:
         j = list(self.jitter_for(L))
         j[level] = _clamp01(value)
         return replace(self, jitter=tuple(j))
 
-    def with_all_jitter(self, L: int, value: float) -> "Document":
+    def with_all_jitter(self, L: int, value: float) -> Document:
         return replace(self, jitter=(_clamp01(value),) * (L + 1))
 
     def validate(self) -> None:
@@ -131,7 +131,7 @@ class View:
     y: float = 0.0
     zoom: float = 1.0
 
-    def clamped(self) -> "View":
+    def clamped(self) -> View:
         lim = 2.0 ** 30
         return View(min(lim, max(-lim, self.x)), min(lim, max(-lim, self.y)),
                     min(MAX_ZOOM, max(MIN_ZOOM, self.zoom)))
@@ -146,7 +146,7 @@ class View:
             x, y = math.floor(x / s + 0.5) * s, math.floor(y / s + 0.5) * s
         return x, y
 
-    def zoom_at(self, factor: float, sx: float, sy: float, w: int, h: int) -> "View":
+    def zoom_at(self, factor: float, sx: float, sy: float, w: int, h: int) -> View:
         """Zoom by ``factor`` keeping the canvas point under screen (sx, sy) fixed."""
         z1 = min(MAX_ZOOM, max(MIN_ZOOM, self.zoom * factor))
         # Snap to powers of two when close, so 1:1 and exact mip levels are easy to hit.
@@ -158,7 +158,7 @@ class View:
         nx0, ny0 = px - sx / z1, py - sy / z1
         return View(nx0 + w / (2 * z1), ny0 + h / (2 * z1), z1).clamped()
 
-    def panned(self, dx_screen: float, dy_screen: float) -> "View":
+    def panned(self, dx_screen: float, dy_screen: float) -> View:
         return View(self.x - dx_screen / self.zoom, self.y - dy_screen / self.zoom, self.zoom).clamped()
 
 

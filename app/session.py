@@ -95,7 +95,7 @@ class AnalysisJob:
             self.error = str(exc)
         except MemoryError:
             self.error = f"Not enough memory to analyze {d.exemplar.name}."
-        except Exception as exc:  # noqa: BLE001 - reported to the user, the editor keeps running
+        except Exception as exc:
             self.error = f"Analyzing {d.exemplar.name} failed: {exc}"
 
 

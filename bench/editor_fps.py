@@ -21,10 +21,9 @@ import time
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, HERE)
 
-from imgui_bundle import imgui  # noqa: E402
-from imgui_bundle.immapp import testing  # noqa: E402
+from imgui_bundle.immapp import testing
 
-from app.ui.editor import Editor  # noqa: E402
+from app.ui.editor import Editor
 
 
 def main(argv=None) -> int:
@@ -92,7 +91,7 @@ def main(argv=None) -> int:
         drag(ctx, "//**/1 px##jit" + str(ed.session.L), "finest_level")
         drag(ctx, "//**/16 px##jit" + str(ed.session.L - 4), "level_L-4")
         results["canvas"] = list(ed.canvas_size)
-        results["renderer"] = ed.gpu.renderer
+        results["renderer"] = ed.renderer
 
     testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
     print(f"Editor frame rate while dragging a randomness slider (canvas {results['canvas'][0]}x{results['canvas'][1]}, "

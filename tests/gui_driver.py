@@ -15,10 +15,10 @@ import numpy as np
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, HERE)
 
-from imgui_bundle import imgui  # noqa: E402
-from imgui_bundle.immapp import testing  # noqa: E402
+from imgui_bundle import imgui
+from imgui_bundle.immapp import testing
 
-from app.ui.editor import Editor  # noqa: E402
+from app.ui.editor import Editor
 
 
 def main(out: str) -> int:
@@ -123,7 +123,7 @@ def main(out: str) -> int:
     try:
         testing.run(test_function=test, runner_params=ed.runner_params(),
                     run_speed=testing.TestRunSpeed.fast)
-    except Exception as exc:  # noqa: BLE001 - reported to the pytest side
+    except Exception as exc:
         report.append(f"FAIL driver: {exc}")
     with open(os.path.join(out, "report.txt"), "w") as fh:
         fh.write("\n".join(report) + "\n")

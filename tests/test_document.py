@@ -6,8 +6,20 @@ from dataclasses import replace
 
 import pytest
 
-from app.document import (EMBED_LIMIT, Autosave, Display, Document, ExemplarSource, History, Project,
-                          ProjectError, View, load_project, project_to_json, save_project)
+from app.document import (
+    EMBED_LIMIT,
+    Autosave,
+    Display,
+    Document,
+    ExemplarSource,
+    History,
+    Project,
+    ProjectError,
+    View,
+    load_project,
+    project_to_json,
+    save_project,
+)
 
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets")
 

@@ -11,7 +11,14 @@ from PIL import Image
 
 from app.document import Display, Document, ExemplarSource, Project, View, save_project
 from app.render.canvas import Canvas
-from app.session import (ExportJob, Session, colors_u8, decode_coords, encode_coords, frame_for)
+from app.session import (
+    ExportJob,
+    Session,
+    colors_u8,
+    decode_coords,
+    encode_coords,
+    frame_for,
+)
 from engine.pyramid import Rect, SynthesisError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

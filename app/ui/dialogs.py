@@ -10,10 +10,11 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
-from imgui_bundle import imgui, portable_file_dialogs as pfd
+from imgui_bundle import imgui
+from imgui_bundle import portable_file_dialogs as pfd
 
 IMAGE_FILTER = ["Images and projects", "*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp *.itex",
                 "All files", "*"]
@@ -66,7 +67,7 @@ class Dialogs:
             try:
                 req.native = (pfd.save_file(title, default, filters) if save
                               else pfd.open_file(title, default, filters))
-            except Exception:  # noqa: BLE001 - fall back to the in-window prompt
+            except Exception:
                 req.native = None
         self.path_request = req
 

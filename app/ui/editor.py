@@ -13,17 +13,33 @@ import random
 import time
 from dataclasses import replace
 
-from imgui_bundle import hello_imgui, imgui, immapp  # imported before glfw (bundled libglfw)
+from imgui_bundle import (  # imported before glfw (bundled libglfw)
+    hello_imgui,
+    imgui,
+    immapp,
+)
 
 from engine.gpu import GLUnavailable, Gpu
 from engine.pyramid import Rect, SynthesisError
 
-from ..document import (PROJECT_SUFFIX, Autosave, Display, Document, ExemplarSource, History, Project,
-                        ProjectError, View, is_project_file, load_project, save_project)
+from ..document import (
+    PROJECT_SUFFIX,
+    Autosave,
+    Display,
+    Document,
+    ExemplarSource,
+    History,
+    Project,
+    ProjectError,
+    View,
+    is_project_file,
+    load_project,
+    save_project,
+)
 from ..render.canvas import Canvas
 from ..session import ExportJob, Frame, Session, frame_for
 from . import panels
-from .dialogs import IMAGE_FILTER, PNG_FILTER, PROJECT_FILTER, Dialogs
+from .dialogs import PROJECT_FILTER, Dialogs
 
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
 DEFAULT_EXEMPLAR = os.path.join(ASSETS, "gravel.png")
@@ -47,6 +63,7 @@ class Editor:
         self.display = Display()
         self.project_path: str | None = None
         self.gpu: Gpu | None = None
+        self.renderer = ""
         self.session: Session | None = None
         self.canvas: Canvas | None = None
         self.dialogs = Dialogs()
@@ -88,6 +105,7 @@ class Editor:
         p.app_window_params.window_geometry.size = self.window_size
         p.imgui_window_params.default_imgui_window_type = hello_imgui.DefaultImGuiWindowType.no_default_window
         p.ini_disable = True
+        p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
         p.fps_idling.fps_idle = 20.0
         p.callbacks.post_init = self.post_init
         p.callbacks.show_gui = self.gui
@@ -114,9 +132,10 @@ class Editor:
             ctx = moderngl.create_context()
             self.gpu = Gpu(ctx)
             self.screen_fbo = ctx.detect_framebuffer()  # where imgui draws: restored after our passes
+            self.renderer = self.gpu.renderer
             self.session = Session(self.gpu)
             self.canvas = Canvas(self.gpu)
-        except (GLUnavailable, Exception) as exc:  # noqa: BLE001 - shown in the window
+        except (GLUnavailable, Exception) as exc:
             self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
                           "on Linux install libgl1 and a Mesa driver.")
             return
@@ -141,7 +160,7 @@ class Editor:
             from imgui_bundle import glfw_utils
             win = glfw_utils.glfw_window_hello_imgui()
             glfw.set_drop_callback(win, lambda _w, paths: self._dropped.extend(paths))
-        except Exception:  # noqa: BLE001 - no drag and drop is not fatal
+        except Exception:
             pass
 
     def before_exit(self) -> None:

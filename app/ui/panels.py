@@ -11,8 +11,8 @@ from imgui_bundle import imgui
 from engine.params import DEFAULT_JITTER, FIRST_CORRECTED_LEVEL
 from engine.pyramid import Rect
 
-from ..document import DISPLAY_MODES, Display, View
-from .dialogs import IMAGE_FILTER, PNG_FILTER, PROJECT_FILTER
+from ..document import DISPLAY_MODES, View
+from .dialogs import IMAGE_FILTER, PNG_FILTER
 
 MODE_LABELS = {"color": "Color", "coords": "Coordinate map", "patches": "Patch boundaries",
                "level": "Single pyramid level", "relief": "Shaded relief"}
