@@ -106,6 +106,29 @@ def main(out: str) -> int:
         check("reopened view", ed.view == saved_view, f"{ed.view} vs {saved_view}")
         check("reopened canvas is identical", np.array_equal(f, h), "canvas differs after reopening")
 
+        # Export a toroidal tile through the Export panel, with its coordinate map.
+        ed.tile_size = 64
+        ed.write_coords = True
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Export toroidal tile...")
+        ctx.yield_(2)
+        tile_path = os.path.join(out, "tile.png")
+        ctx.item_input_value("//**/##path", tile_path)
+        for _ in range(2000):
+            ctx.yield_()
+            if ed.export_job is None:
+                break
+        ctx.yield_(3)
+        ok = os.path.isfile(tile_path) and os.path.isfile(os.path.join(out, "tile_coords.png"))
+        check("toroidal tile exported", ok, "missing files")
+        if ok:
+            from PIL import Image
+            from app.session import decode_coords
+            coords = decode_coords(np.asarray(Image.open(os.path.join(out, "tile_coords.png"))))
+            check("tile coordinates are exemplar positions", coords.shape == (64, 64, 2)
+                  and coords.min() >= 0 and coords.max() < ed.session.analysis.size, str(coords.shape))
+        check("export window closed", not ed.panels._export_popup, "still open")
+
         # A broken file gives a message and changes nothing.
         bad = os.path.join(out, "broken.itex")
         with open(bad, "w") as fh:

@@ -27,7 +27,7 @@ class Panels:
     def __init__(self, ed):
         self.ed = ed
         self.overall = DEFAULT_JITTER
-        self.show_about = False
+        self._export_popup = False
 
     # -- menu ---------------------------------------------------------------
 
@@ -322,11 +322,18 @@ class Panels:
     def progress_modals(self) -> None:
         ed = self.ed
         job = ed.export_job
-        if job is None:
-            return
         name = "Exporting###export"
-        if not imgui.is_popup_open(name):
+        if job is None:
+            if self._export_popup:  # the export ended: close its window
+                opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+                if opened:
+                    imgui.close_current_popup()
+                    imgui.end_popup()
+                self._export_popup = False
+            return
+        if not self._export_popup:
             imgui.open_popup(name)
+            self._export_popup = True
         vp = imgui.get_main_viewport()
         imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 3), imgui.Cond_.always, (0.5, 0.5))
         imgui.set_next_window_size((420, 0))
