@@ -123,6 +123,7 @@ def main(out: str) -> int:
         check("toroidal tile exported", ok, "missing files")
         if ok:
             from PIL import Image
+
             from app.session import decode_coords
             coords = decode_coords(np.asarray(Image.open(os.path.join(out, "tile_coords.png"))))
             check("tile coordinates are exemplar positions", coords.shape == (64, 64, 2)

@@ -133,7 +133,7 @@ class Canvas:
                          tl_i=(ix, iy), tl_f=(tlx - ix, tly - iy), zoom=float(view.zoom), k=k, m=self.m,
                          layer=l, use_hires=use_hires, mode=mode, magnify=magnify, exact=int(exact),
                          toroidal=int(self.toroidal), has_alpha=int(self.channels in (2, 4)),
-                         relief_strength=float(self.m) / 8.0)
+                         relief_strength=float(self.m) / 24.0)
             self.vao.render(moderngl.TRIANGLES)
         self.gpu.ctx.scissor = None
         return levels[-1]
