@@ -9,13 +9,7 @@ import argparse
 import sys
 import time
 
-from engine.cli import (
-    EXIT_CANCELLED,
-    EXIT_GL,
-    EXIT_INPUT,
-    CliError,
-    _integer,
-)
+from engine.cli import EXIT_INPUT, CliError, _integer, guarded
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -92,26 +86,5 @@ def run_export(argv: list[str]) -> int:
 
 
 def main(argv: list[str]) -> int:
-    from engine.analysis import AnalysisCancelled
-    from engine.exemplar import ExemplarError
-    from engine.gpu import GLUnavailable
-    from engine.pyramid import SynthesisError
-
     from .document import ProjectError
-    try:
-        return run_export(argv)
-    except CliError as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return exc.code
-    except (ExemplarError, SynthesisError, ProjectError, ValueError) as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return EXIT_INPUT
-    except GLUnavailable as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return EXIT_GL
-    except (KeyboardInterrupt, AnalysisCancelled):
-        sys.stderr.write("\ncancelled\n")
-        return EXIT_CANCELLED
-    except OSError as exc:
-        sys.stderr.write(f"error: {exc.strerror or exc}\n")
-        return EXIT_INPUT
+    return guarded(run_export, argv, (ProjectError, ValueError))

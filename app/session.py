@@ -9,8 +9,8 @@ go through the same path.
 """
 from __future__ import annotations
 
+import io
 import math
-import os
 import threading
 import time
 from dataclasses import dataclass, replace
@@ -25,7 +25,7 @@ from engine.params import SynthParams
 from engine.pyramid import Pyramid, Rect, SynthesisError
 from engine.synth import Synthesizer
 
-from .document import Document, View
+from .document import Document, ProjectError, View, atomic_write
 
 MAX_EXPORT_PIXELS = 64 * 1024 * 1024
 MAX_EXPORT_SIDE = 16384
@@ -456,14 +456,9 @@ def write_png(path: str, pixels: np.ndarray) -> None:
     """Write a PNG atomically (temporary file, then rename)."""
     mode = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[pixels.shape[2]]
     arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
-    folder = os.path.dirname(os.path.abspath(path))
-    tmp = os.path.join(folder, f".tmp-{os.getpid()}-{os.path.basename(path)}")
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(arr), mode=mode).save(buf, format="PNG")
     try:
-        Image.fromarray(np.ascontiguousarray(arr), mode=mode).save(tmp, format="PNG")
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise OSError(f"Writing {os.path.basename(path)} failed: {exc.strerror or exc}.") from None
+        atomic_write(path, buf.getvalue())
+    except ProjectError as exc:
+        raise OSError(str(exc)) from None

@@ -86,12 +86,13 @@ def _progress(quiet: bool):
 
 def run_synth(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
+    from PIL import Image
+
     from engine.analysis import AnalysisSettings, analyze
     from engine.exemplar import load_exemplar
     from engine.params import SynthParams
     from engine.pyramid import Rect
     from engine.synth import Synthesizer
-    from PIL import Image
 
     w, h = args.size
     if not (1 <= w <= 16384 and 1 <= h <= 16384):
@@ -136,17 +137,19 @@ def run_synth(argv: list[str]) -> int:
     return 0
 
 
-def main(argv: list[str]) -> int:
+def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
+    """Run a command, turning every expected failure into one line on stderr
+    and an exit code (never a traceback)."""
     from engine.analysis import AnalysisCancelled
     from engine.exemplar import ExemplarError
     from engine.gpu import GLUnavailable
     from engine.pyramid import SynthesisError
     try:
-        return run_synth(argv)
+        return run(argv)
     except CliError as exc:
         sys.stderr.write(f"error: {exc}\n")
         return exc.code
-    except (ExemplarError, SynthesisError) as exc:
+    except (ExemplarError, SynthesisError, *input_errors) as exc:
         sys.stderr.write(f"error: {exc}\n")
         return EXIT_INPUT
     except GLUnavailable as exc:
@@ -158,3 +161,7 @@ def main(argv: list[str]) -> int:
     except OSError as exc:
         sys.stderr.write(f"error: {exc.strerror or exc}: {exc.filename or ''}\n")
         return EXIT_INPUT
+
+
+def main(argv: list[str]) -> int:
+    return guarded(run_synth, argv)
