@@ -136,6 +136,7 @@ class Pyramid:
         self.buffers: list[_LevelBuffer | None] = [None] * (self.an.L + 1)
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
+        self.grow = True  # True: a level's rectangle grows to hold new requests (while it fits)
         self.set_params(params)
 
     # -- parameters ---------------------------------------------------------
@@ -186,7 +187,7 @@ class Pyramid:
         p = self.prefetch >> (self.an.L - l) if self.scrolling else 0
         p = max(p, 2 if self.scrolling else 0)
         t = need.pad(p, p, p, p).align(self.chunk)
-        if buf is not None and buf.valid is not None and self.scrolling:
+        if buf is not None and buf.valid is not None and self.scrolling and self.grow:
             v = buf.valid
             union = Rect(min(v.x0, t.x0), min(v.y0, t.y0), max(v.x1, t.x1), max(v.y1, t.y1))
             if buf.fits(union):  # grow what is held rather than drop it
@@ -207,15 +208,23 @@ class Pyramid:
         lim = COORD_LIMIT >> (self.an.L - level)
         if min(rect.x0, rect.y0) < -lim or max(rect.x1, rect.y1) > lim:
             raise SynthesisError(f"Canvas positions must stay within +-{lim} at level {level}.")
-        need = self.plan(level, rect)
         targets = []
-        # Decide every level's rectangle first (fine to coarse: a level's target
-        # decides its parent's need), then synthesize coarse to fine.
+        # Decide every level's rectangle first, fine to coarse: a level needs of
+        # its parent only what its *new* strips read; then synthesize coarse to fine.
+        need: Rect | None = rect
         for l in range(level, -1, -1):
-            t = self._target(l, need[l])
+            if need is None:
+                break
+            t = self._target(l, need)
             targets.append((l, t))
-            if l > 0:
-                need[l - 1] = self.padded(l, t).half()
+            buf = self.buffers[l]
+            valid = buf.valid if buf is not None else None
+            strips = [t] if valid is None else t.minus(valid)
+            need = None
+            for s in strips:
+                r = self.padded(l, s).half()
+                need = r if need is None else Rect(min(need.x0, r.x0), min(need.y0, r.y0),
+                                                   max(need.x1, r.x1), max(need.y1, r.y1))
         total = 0
         for l, target in reversed(targets):
             total += self._update_level(l, target)
