@@ -1,0 +1,145 @@
+"""Texture quality measures (numpy + scipy, no downloaded weights).
+
+All images are float arrays in [0, 1], (H, W) or (H, W, C); coordinate maps
+are int (H, W, 2) exemplar (x, y). Read the figures together: neighborhood
+energy alone rewards copying (a tiled exemplar scores 0), so it comes with
+coverage, verbatim-copy size and repetition.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage, sparse, stats
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+PATCH = 5
+PCA_DIMS = 10
+
+
+def _chan(img: np.ndarray) -> np.ndarray:
+    img = np.asarray(img, dtype=np.float64)
+    return img[:, :, None] if img.ndim == 2 else img
+
+
+def _patches(img: np.ndarray, step: int = 1) -> np.ndarray:
+    """All PATCH x PATCH neighborhoods (valid positions, every ``step`` px) as rows."""
+    w = np.lib.stride_tricks.sliding_window_view(img, (PATCH, PATCH), axis=(0, 1))
+    w = w[::step, ::step]
+    return w.reshape(w.shape[0] * w.shape[1], -1)
+
+
+def _down(img: np.ndarray, s: int, mode: str = "reflect") -> np.ndarray:
+    if s == 1:
+        return img
+    blurred = ndimage.gaussian_filter(img, sigma=(s / 2, s / 2, 0), mode=mode)
+    return blurred[::s, ::s]
+
+
+def neighborhood_energy(exemplar: np.ndarray, output: np.ndarray, scales=(1, 2, 4),
+                        samples: int = 4000, seed: int = 0, periodic: bool = False) -> tuple[float, float]:
+    """(energy, completeness): mean squared distance per value of output
+    neighborhoods to their nearest exemplar neighborhood, and of exemplar
+    neighborhoods to their nearest output neighborhood, averaged over scales
+    (Gaussian-filtered and subsampled by 1, 2, 4); 5x5 neighborhoods, matched
+    in their 10 leading PCA dimensions (outputs over 300^2 use every other
+    neighborhood as match candidates for completeness)."""
+    ex, out = _chan(exemplar), _chan(output)
+    rng = np.random.default_rng(seed)
+    energy, complete = [], []
+    for s in scales:
+        mode = "wrap" if periodic else "reflect"  # how images are extended for the blur
+        e, o = _down(ex, s, mode), _down(out, s, mode)
+        if periodic:  # the exemplar's neighborhoods include those across its wrap
+            e = np.pad(e, ((0, PATCH - 1), (0, PATCH - 1), (0, 0)), mode="wrap")
+        if min(e.shape[:2]) < PATCH + 2 or min(o.shape[:2]) < PATCH + 2:
+            continue
+        pe, po = _patches(e), _patches(o, step=1 if o.shape[0] * o.shape[1] <= 300 ** 2 else 2)
+        d = pe.shape[1]
+        # Search in the exemplar patches' leading PCA dimensions (kd-trees are
+        # slow in 75-D), then measure the true distance to the match found.
+        mean = pe.mean(axis=0)
+        _, _, vt = np.linalg.svd(pe - mean, full_matrices=False)
+        basis = vt[:PCA_DIMS].T
+        ze, zo = (pe - mean) @ basis, (po - mean) @ basis
+        so = rng.choice(len(po), min(samples, len(po)), replace=False)
+        _, j = cKDTree(ze).query(zo[so], workers=-1)
+        energy.append(np.mean(np.sum((po[so] - pe[j]) ** 2, axis=1)) / d)
+        se = rng.choice(len(pe), min(samples, len(pe)), replace=False)
+        _, j = cKDTree(zo).query(ze[se], workers=-1)
+        complete.append(np.mean(np.sum((pe[se] - po[j]) ** 2, axis=1)) / d)
+    return float(np.mean(energy)), float(np.mean(complete))
+
+
+def coverage(coords: np.ndarray, m: int) -> tuple[float, float]:
+    """(evenness, used): normalized entropy of how often each exemplar pixel is
+    used (1 = perfectly even), and the fraction of exemplar pixels used at all."""
+    idx = (coords[..., 1].astype(np.int64) % m) * m + (coords[..., 0] % m)
+    counts = np.bincount(idx.ravel(), minlength=m * m).astype(np.float64)
+    p = counts / counts.sum()
+    nz = p[p > 0]
+    evenness = float(-(nz * np.log(nz)).sum() / np.log(m * m))
+    return evenness, float((counts > 0).mean())
+
+
+def verbatim_regions(coords: np.ndarray, m: int, toroidal: bool = False) -> tuple[float, int]:
+    """(mean, max) size in pixels of verbatim-copied regions: connected pixels
+    whose coordinates continue each other (S[p + e] = S[p] + e, mod m for a
+    toroidal exemplar). The mean is area-weighted: the region size a random
+    output pixel belongs to."""
+    h, w = coords.shape[:2]
+    c = coords.astype(np.int64)
+    ids = np.arange(h * w).reshape(h, w)
+    rows, cols = [], []
+    for axis, e in ((1, np.array([1, 0])), (0, np.array([0, 1]))):
+        a = c[:, :-1] if axis == 1 else c[:-1]
+        b = c[:, 1:] if axis == 1 else c[1:]
+        d = b - a - e
+        if toroidal:
+            d %= m
+        same = np.all(d == 0, axis=-1)
+        ia = ids[:, :-1] if axis == 1 else ids[:-1]
+        ib = ids[:, 1:] if axis == 1 else ids[1:]
+        rows.append(ia[same])
+        cols.append(ib[same])
+    r, q = np.concatenate(rows), np.concatenate(cols)
+    g = sparse.coo_matrix((np.ones(len(r), dtype=np.int8), (r, q)), shape=(h * w, h * w))
+    _, labels = csgraph.connected_components(g, directed=False)
+    sizes = np.bincount(labels)
+    return float((sizes.astype(np.float64) ** 2).sum() / sizes.sum()), int(sizes.max())
+
+
+def repetition(output: np.ndarray, exclude: int = 8) -> float:
+    """Highest normalized autocorrelation peak away from the origin (shifts of
+    ``exclude`` px or more, up to half the image): about 1 for a tiled image,
+    about 0 for noise."""
+    img = _chan(output).mean(axis=2)
+    img = img - img.mean()
+    h, w = img.shape
+    f = np.fft.rfft2(img, s=(2 * h, 2 * w))
+    ac = np.fft.irfft2(f * np.conj(f), s=(2 * h, 2 * w))
+    ones = np.fft.rfft2(np.ones((h, w)), s=(2 * h, 2 * w))
+    overlap = np.fft.irfft2(ones * np.conj(ones), s=(2 * h, 2 * w))
+    ac = ac / np.maximum(overlap, 1.0)
+    ac /= max(ac[0, 0], 1e-12)
+    dy = np.fft.fftfreq(2 * h, 1.0 / (2 * h))[:, None]
+    dx = np.fft.fftfreq(2 * w, 1.0 / (2 * w))[None, :]
+    mask = (np.maximum(np.abs(dx), np.abs(dy)) >= exclude) & (np.abs(dx) <= w // 2) & (np.abs(dy) <= h // 2)
+    return float(ac[mask].max())
+
+
+def histogram_distance(exemplar: np.ndarray, output: np.ndarray) -> float:
+    """Mean over channels of the 1-D Wasserstein distance between value
+    distributions (0 = same histogram; values in [0, 1])."""
+    ex, out = _chan(exemplar), _chan(output)
+    return float(np.mean([stats.wasserstein_distance(ex[..., c].ravel(), out[..., c].ravel())
+                          for c in range(ex.shape[2])]))
+
+
+def all_measures(exemplar, output, coords=None, m=None, toroidal=False) -> dict:
+    energy, complete = neighborhood_energy(exemplar, output)
+    d = {"energy": energy, "completeness": complete, "repetition": repetition(output),
+         "histogram": histogram_distance(exemplar, output)}
+    if coords is not None:
+        d["coverage"], d["used"] = coverage(coords, m)
+        d["verbatim_mean_px"], d["verbatim_max_px"] = verbatim_regions(coords, m, toroidal)
+    return d

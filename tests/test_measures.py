@@ -1,0 +1,66 @@
+"""The quality measures of bench/ on cases with known answers."""
+import os
+
+import numpy as np
+from PIL import Image
+
+from bench.measures import coverage, histogram_distance, neighborhood_energy, repetition, verbatim_regions
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _gravel():
+    return np.asarray(Image.open(os.path.join(ROOT, "assets", "gravel.png")), dtype=np.float64) / 255.0
+
+
+def test_tiled_exemplar_has_near_zero_energy_and_maximal_repetition():
+    from conftest import periodic_noise
+    ex = periodic_noise(64, channels=1, seed=3)[..., 0]  # tiles seamlessly: no seam neighborhoods
+    tiled = np.tile(ex, (4, 4))
+    energy, complete = neighborhood_energy(ex, tiled, periodic=True)
+    shuffled = np.random.default_rng(0).permutation(tiled.ravel()).reshape(tiled.shape)
+    e_shuf, _ = neighborhood_energy(ex, shuffled, periodic=True)
+    assert energy < 1e-6 and complete < 1e-6 and e_shuf > 1e-3
+    assert repetition(tiled) > 0.95
+    assert repetition(shuffled) < 0.1
+
+
+def test_pixel_shuffle_has_high_energy_but_the_same_histogram():
+    ex = _gravel()
+    shuffled = np.random.default_rng(1).permutation(ex.ravel()).reshape(ex.shape)
+    energy, _ = neighborhood_energy(ex, shuffled)
+    tiled_energy, _ = neighborhood_energy(ex, np.tile(ex, (2, 2)))
+    assert energy > 0.003 and energy > 20 * tiled_energy
+    assert histogram_distance(ex, shuffled) < 1e-12
+    assert histogram_distance(ex, np.clip(ex + 0.2, 0, 1)) > 0.1
+
+
+def test_a_coordinate_map_copying_one_block_has_a_large_verbatim_region():
+    m = 128
+    rng = np.random.default_rng(2)
+    coords = rng.integers(0, m, size=(100, 100, 2))
+    mean_noise, max_noise = verbatim_regions(coords, m)
+    assert max_noise < 5
+    yy, xx = np.mgrid[20:70, 10:70]
+    coords[20:70, 10:70, 0] = xx + 5
+    coords[20:70, 10:70, 1] = yy + 3
+    mean_block, max_block = verbatim_regions(coords, m)
+    assert max_block == 50 * 60
+    assert mean_block > 0.25 * 50 * 60 * (50 * 60) / 10000
+
+
+def test_toroidal_continuation_counts_across_the_wrap():
+    m = 32
+    yy, xx = np.mgrid[0:64, 0:64]
+    coords = np.stack([xx % m, yy % m], axis=-1)
+    assert verbatim_regions(coords, m, toroidal=True)[1] == 64 * 64
+    assert verbatim_regions(coords, m, toroidal=False)[1] == m * m
+
+
+def test_coverage_even_and_single_pixel():
+    m = 16
+    yy, xx = np.mgrid[0:64, 0:64]
+    even, used = coverage(np.stack([xx % m, yy % m], axis=-1), m)
+    assert abs(even - 1.0) < 1e-9 and used == 1.0
+    one, used1 = coverage(np.zeros((64, 64, 2), dtype=int), m)
+    assert one == 0.0 and used1 == 1 / (m * m)
