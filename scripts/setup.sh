@@ -4,6 +4,9 @@
 # the Python dependencies. Safe to run again; it only installs what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# --bench: also install the benchmark-only packages (requirements-bench.txt: the G'MIC peer).
+BENCH=0
+if [ "${1:-}" = "--bench" ]; then BENCH=1; fi
 
 if command -v dpkg >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
   missing=()
@@ -41,4 +44,13 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   .venv/bin/python -m pip install -q --upgrade pip
   .venv/bin/python -m pip install -q -r requirements.txt
   echo "$want" > "$stamp"
+fi
+if [ "$BENCH" = 1 ]; then
+  bstamp=.venv/.requirements-bench.sha
+  bwant=$(sha256sum requirements-bench.txt | cut -d' ' -f1)
+  if [ ! -f "$bstamp" ] || [ "$(cat "$bstamp")" != "$bwant" ]; then
+    echo "setup: installing benchmark packages"
+    .venv/bin/python -m pip install -q -r requirements-bench.txt
+    echo "$bwant" > "$bstamp"
+  fi
 fi

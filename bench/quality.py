@@ -1,0 +1,183 @@
+"""Quality and speed side by side: this project, the exemplar tiled, and G'MIC.
+
+    python -m bench.quality [--json OUT.json] [--sheet OUT.png] [--sizes 256 512] [--exemplars DIR]
+
+For every exemplar (default ``../shared/exemplars``) and output size it measures
+(bench/measures.py):
+
+- ``energy`` / ``completeness``: multi-scale 5x5 neighborhood matching, output
+  to exemplar and back (mean squared difference per value; lower is better);
+- ``coverage`` (0..1, 1 = every exemplar pixel used equally often) and ``used``
+  (fraction of exemplar pixels used), from the coordinate map (ours, tiled);
+- ``verbatim_mean_px`` (area-weighted mean size of regions copied verbatim)
+  and ``verbatim_max_px``, from the coordinate map;
+- ``repetition``: highest autocorrelation peak away from the origin (1 = tiled);
+- ``histogram``: mean 1-D Wasserstein distance of the value histograms.
+
+for ``ours`` (default settings, a window at canvas position (10007, -20011)),
+``tiled`` (the exemplar repeated) and ``peer`` (G'MIC ``syntexturize_matchpatch``,
+``pip install gmic``: a benchmark-only dependency, see requirements-bench.txt).
+Times: ``warm_s`` (ours: a window call with the analysis cached and shaders
+compiled; peer: a second in-process ``gmic.run``) and ``cold_s`` (each as a
+whole command in a fresh process with a cold analysis cache), with
+``peer / ours`` ratios. Writes a contact sheet (exemplar | ours | tiled | peer).
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+from PIL import Image
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from bench.measures import all_measures  # noqa: E402
+from engine.analysis import analyze  # noqa: E402
+from engine.exemplar import load_exemplar  # noqa: E402
+from engine.pyramid import Rect  # noqa: E402
+from engine.synth import Synthesizer  # noqa: E402
+
+ORIGIN = (10007, -20011)
+
+
+def _u8(a: np.ndarray) -> np.ndarray:
+    return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
+
+
+def _save(path: str, a: np.ndarray) -> None:
+    a = _u8(a)
+    Image.fromarray(a[..., 0] if a.shape[2] == 1 else a).save(path)
+
+
+def _load_as(path: str, channels: int) -> np.ndarray:
+    img = Image.open(path)
+    img = img.convert({1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[channels])
+    a = np.asarray(img, dtype=np.float32) / 255.0
+    return a[..., None] if a.ndim == 2 else a
+
+
+def _timed(cmd: list[str], env: dict) -> float:
+    t = time.perf_counter()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {r.stderr[-500:]}")
+    return time.perf_counter() - t
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--sheet", metavar="OUT.png", default=os.path.join(ROOT, "out", "contact-sheet.png"))
+    ap.add_argument("--sizes", nargs="+", type=int, default=[256, 512])
+    ap.add_argument("--exemplars", default=os.path.join(os.path.dirname(ROOT), "shared", "exemplars"))
+    args = ap.parse_args(argv)
+    try:
+        import gmic
+    except ImportError:
+        sys.stderr.write("bench.quality needs the peer: run `bash scripts/setup.sh --bench` "
+                         "(or .venv/bin/pip install -r requirements-bench.txt)\n")
+        return 2
+    paths = sorted(p for p in glob.glob(os.path.join(args.exemplars, "*"))
+                   if p.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")))
+    if not paths:
+        sys.stderr.write(f"no exemplars in {args.exemplars}\n")
+        return 2
+    tmp = tempfile.mkdtemp(prefix="infinitex-quality-")
+    results: dict = {"sizes": args.sizes, "origin": list(ORIGIN), "exemplars": {}}
+    sheet_rows = []
+    renderer = None
+    for path in paths:
+        name = os.path.splitext(os.path.basename(path))[0]
+        ex = load_exemplar(path)
+        an = analyze(ex)
+        synth = Synthesizer(an)
+        renderer = synth.gpu.renderer
+        m = ex.size
+        ex_png = os.path.join(tmp, f"{name}.png")
+        _save(ex_png, ex.pixels)  # the peer gets exactly the exemplar we use
+        entry = {"size": m, "channels": ex.channels}
+        for n in args.sizes:
+            rect = Rect.of(ORIGIN[0], ORIGIN[1], n, n)
+            synth.window(Rect.of(0, 0, 32, 32))  # shaders compiled, textures uploaded
+            t = time.perf_counter()
+            coords = synth.window(rect)
+            ours = synth.colors(coords)
+            ours_warm = time.perf_counter() - t
+            yy, xx = np.mgrid[0:n, 0:n]
+            tiled_coords = np.stack([xx % m, yy % m], axis=-1)
+            tiled = ex.pixels[tiled_coords[..., 1], tiled_coords[..., 0]]
+            peer_png = os.path.join(tmp, f"{name}-peer-{n}.png")
+            cmd = f"{ex_png} syntexturize_matchpatch {n},{n} cut 0,255 output {peer_png}"
+            gmic.run(cmd)
+            t = time.perf_counter()
+            gmic.run(cmd)
+            peer_warm = time.perf_counter() - t
+            peer = _load_as(peer_png, ex.channels)
+            env = dict(os.environ, INFINITEX_CACHE=tempfile.mkdtemp(prefix="cold-cache-"))
+            ours_cold = _timed([sys.executable, "main.py", "synth", path, "-o", os.path.join(tmp, "o.png"),
+                                "--size", str(n), str(n), "--origin", *map(str, ORIGIN), "-q"], env)
+            peer_cold = _timed([sys.executable, "-c", f"import gmic; gmic.run({cmd!r})"], env)
+            row = {
+                "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal),
+                "tiled": all_measures(ex.pixels, tiled, tiled_coords, m, an.toroidal),
+                "peer": all_measures(ex.pixels, peer),
+                "time": {"ours_warm_s": ours_warm, "peer_warm_s": peer_warm, "ours_cold_s": ours_cold,
+                         "peer_cold_s": peer_cold, "warm_ratio_peer_over_ours": peer_warm / ours_warm,
+                         "cold_ratio_peer_over_ours": peer_cold / ours_cold},
+            }
+            entry[str(n)] = row
+            print(f"{name:<13}{n:>5}  ours {ours_warm * 1000:7.0f} ms  peer {peer_warm * 1000:7.0f} ms  "
+                  f"(cold {ours_cold:5.1f} s / {peer_cold:5.1f} s)", flush=True)
+            if n == args.sizes[0]:
+                ex_big = np.asarray(Image.fromarray(_u8(np.tile(ex.pixels, (1, 1, 1)))[..., :3].squeeze())
+                                    .resize((n, n), Image.NEAREST))
+                cells = [ex_big, _u8(ours), _u8(tiled), _u8(peer)]
+                cells = [np.repeat(c[..., None] if c.ndim == 2 else c, 3, axis=2)[..., :3]
+                         if (c.ndim == 2 or c.shape[2] == 1) else c[..., :3] for c in cells]
+                sheet_rows.append(np.concatenate(cells, axis=1))
+        results["exemplars"][name] = entry
+        synth.release()
+    results["renderer"] = renderer
+    _print_table(results)
+    os.makedirs(os.path.dirname(os.path.abspath(args.sheet)), exist_ok=True)
+    gap = 4
+    rows = [np.pad(r, ((0, gap), (0, 0), (0, 0)), constant_values=255) for r in sheet_rows]
+    Image.fromarray(np.concatenate(rows, axis=0)).save(args.sheet)
+    print(f"contact sheet (exemplar | ours | tiled | peer): {args.sheet}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=1)
+    return 0
+
+
+def _print_table(results: dict) -> None:
+    print(f"\nrenderer: {results['renderer']}")
+    hdr = (f"{'exemplar':<13}{'size':>5} {'method':<6}{'energy':>9}{'complete':>9}{'cover':>7}{'used':>6}"
+           f"{'verb.mean':>10}{'verb.max':>9}{'repeat':>7}{'hist':>7}")
+    print(hdr)
+    for name, entry in results["exemplars"].items():
+        for n in results["sizes"]:
+            row = entry[str(n)]
+            for method in ("ours", "tiled", "peer"):
+                d = row[method]
+                cov = f"{d['coverage']:7.3f}{d['used']:6.2f}" if "coverage" in d else f"{'-':>7}{'-':>6}"
+                verb = f"{d['verbatim_mean_px']:10.0f}{d['verbatim_max_px']:9d}" if "verbatim_max_px" in d \
+                    else f"{'-':>10}{'-':>9}"
+                print(f"{name:<13}{n:>5} {method:<6}{d['energy']:9.5f}{d['completeness']:9.5f}{cov}{verb}"
+                      f"{d['repetition']:7.2f}{d['histogram']:7.3f}")
+            t = row["time"]
+            print(f"{'':<19}time: ours {t['ours_warm_s'] * 1000:.0f} ms warm, {t['ours_cold_s']:.1f} s cold; "
+                  f"peer {t['peer_warm_s'] * 1000:.0f} ms warm, {t['peer_cold_s']:.1f} s cold; "
+                  f"peer/ours {t['warm_ratio_peer_over_ours']:.1f}x warm, {t['cold_ratio_peer_over_ours']:.1f}x cold")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
