@@ -141,6 +141,15 @@ def main(out: str) -> int:
         check("broken project shows a message", any("not an Infinitex project" in m.body
                                                     for m in ed.dialogs.modals), "no message")
         ctx.item_click("//**/OK")
+        # Quitting with unsaved edits asks; Cancel keeps the editor running.
+        ctx.item_click("//**/New seed")
+        ctx.yield_(2)
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.q)
+        ctx.yield_(3)
+        check("quit with unsaved edits asks", any("unsaved" in m.body for m in ed.dialogs.modals), "no question")
+        ctx.item_click("//**/Cancel")
+        ctx.yield_(3)
+        check("cancel keeps the editor", not ed.quit_requested and not ed.dialogs.modals, "quitting")
         check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
         testing.capture(ctx, os.path.join(out, "final.png"))
 

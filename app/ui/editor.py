@@ -88,6 +88,7 @@ class Editor:
         self.fatal: str | None = None
         self._dropped: list[str] = []
         self.quit_requested = False
+        self._close_requested = False
         self.canvas_request = False
         self.canvas_pixels = None      # last canvas read back on request (tests)
         self._canvas_key = None
@@ -110,6 +111,7 @@ class Editor:
         p.callbacks.post_init = self.post_init
         p.callbacks.show_gui = self.gui
         p.callbacks.before_exit = self.before_exit
+        p.callbacks.confirm_exit = self._confirm_exit
         self.params = p
         return p
 
@@ -300,10 +302,27 @@ class Editor:
             action()
 
     def request_quit(self) -> None:
+        """Quit, asking first when there are unsaved edits (menu, Ctrl+Q, window close)."""
         def quit_now():
-            self.history.saved = self.history.current if self.history else None
+            if self.history is not None:
+                self.history.saved = self.history.current
             self.quit_requested = True
-        self.confirm_discard(quit_now)
+
+        def save_and_quit():
+            if self.save():
+                quit_now()
+        if self.history is not None and self.history.dirty:
+            self.dialogs.ask("Unsaved changes", "The project has unsaved changes. Save them before quitting?",
+                             [("Save", save_and_quit), ("Discard", quit_now), ("Cancel", None)])
+        else:
+            quit_now()
+
+    def _confirm_exit(self) -> bool:
+        # Called by the runner outside the frame (no imgui calls here): defer to a modal.
+        if self.history is not None and self.history.dirty and not self.screenshot:
+            self._close_requested = True
+            return False
+        return True
 
     # -- export -------------------------------------------------------------
 
@@ -342,6 +361,9 @@ class Editor:
             imgui.end()
             return
         self._update_engine()
+        if self._close_requested:
+            self._close_requested = False
+            self.request_quit()
         self.panels.menu_bar()
         self._shortcuts()
         status_h = imgui.get_frame_height_with_spacing() + 4
