@@ -314,10 +314,17 @@ class Panels:
 
     def canvas_overlay(self, p0, w, h) -> None:
         ed = self.ed
-        if not ed.refined:
+        job = ed.session.job
+        text = None
+        if job is not None:
+            text = f"Analyzing {job.doc.exemplar.name}: {job.progress * 100:.0f}%  {job.message}"
+        elif not ed.refined:
+            text = "Refining..."
+        if text:
             dl = imgui.get_window_draw_list()
-            dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 118, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
-            dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), "Refining...")
+            tw = imgui.calc_text_size(text).x
+            dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 24 + tw, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
+            dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), text)
 
     def progress_modals(self) -> None:
         ed = self.ed
