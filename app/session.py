@@ -19,7 +19,13 @@ import numpy as np
 from PIL import Image
 
 from engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
-from engine.exemplar import Exemplar, ExemplarError, load_exemplar_bytes
+from engine.exemplar import (
+    PIL_MODES,
+    Exemplar,
+    ExemplarError,
+    load_exemplar_bytes,
+    to_u8,
+)
 from engine.gpu import Gpu
 from engine.params import SynthParams
 from engine.pyramid import Pyramid, Rect, SynthesisError
@@ -34,7 +40,7 @@ MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they s
 
 def stack_u8(analysis: Analysis) -> np.ndarray:
     """The Gaussian stack as uint8 (L+1, m, m, C): exactly what is displayed and exported."""
-    return np.stack([np.clip(np.rint(lv.stack * 255.0), 0, 255).astype(np.uint8) for lv in analysis.levels])
+    return np.stack([to_u8(lv.stack) for lv in analysis.levels])
 
 
 def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
@@ -108,7 +114,6 @@ class Frame:
 
     level: int            # display level ld
     want: Rect            # level-ld texels covering the canvas (plus a 1-texel border)
-    tl: tuple[float, float]  # canvas position (finest level) of the canvas' top-left
 
 
 def frame_for(view: View, w: int, h: int, L: int, level: int | None = None) -> Frame:
@@ -123,7 +128,7 @@ def frame_for(view: View, w: int, h: int, L: int, level: int | None = None) -> F
     brx, bry = tlx + w / view.zoom, tly + h / view.zoom
     s = 1 << k
     want = Rect(math.floor(tlx / s) - 1, math.floor(tly / s) - 1, math.floor(brx / s) + 2, math.floor(bry / s) + 2)
-    return Frame(ld, want, (tlx, tly))
+    return Frame(ld, want)
 
 
 def level_rect(want: Rect, from_level: int, to_level: int) -> Rect:
@@ -135,7 +140,11 @@ def level_rect(want: Rect, from_level: int, to_level: int) -> Rect:
 
 class Refiner:
     """Brings a scrolling pyramid to a frame coarse level first, within a time
-    budget per call; a level too big for the budget grows in row bands."""
+    budget per call; a level too big for the budget grows in row bands.
+
+    Every level is refined to ``plan[l]``: everything the frame's level will
+    read, so refining that level band by band never sends a coarser one back
+    for more."""
 
     def __init__(self, pyramid: Pyramid, gpu: Gpu):
         self.pyramid = pyramid
@@ -146,16 +155,33 @@ class Refiner:
         self.last_ms = 0.0
         self.version = 0  # bumps whenever pixels were synthesized
 
-    def holds(self, level: int, rect: Rect) -> bool:
+    def _valid(self, level: int) -> Rect | None:
         buf = self.pyramid.buffers[level]
-        return buf is not None and buf.valid is not None and buf.valid.contains(rect)
+        return buf.valid if buf is not None else None
 
-    def complete_level(self, frame: Frame) -> int:
-        """The finest level <= frame.level that covers the frame, or -1."""
-        for l in range(frame.level, -1, -1):
-            if self.holds(l, level_rect(frame.want, frame.level, l)):
-                return l
-        return -1
+    def holds(self, level: int, rect: Rect) -> bool:
+        valid = self._valid(level)
+        return valid is not None and valid.contains(rect)
+
+    def _missing(self, level: int, want: Rect) -> int:
+        """Pixels of ``want`` the level does not hold yet."""
+        valid = self._valid(level)
+        have = want.intersect(valid) if valid is not None else Rect(0, 0, 0, 0)
+        return want.w * want.h - (0 if have.empty else have.w * have.h)
+
+    def _request(self, level: int, rect: Rect) -> int:
+        """Synthesize, wait for the GPU, and learn the level's cost per pixel."""
+        t = time.perf_counter()
+        n = self.pyramid.request(level, rect)
+        self.gpu.ctx.finish()
+        if n > 256:
+            self.cost[level] = 0.5 * self.cost[level] + 0.5 * (time.perf_counter() - t) / n
+        return n
+
+    def _done(self, t0: float, pixels: int) -> None:
+        self.last_pixels = pixels
+        self.version += bool(pixels)
+        self.last_ms = (time.perf_counter() - t0) * 1000.0
 
     def preview(self, frame: Frame, budget_s: float, min_level: int = 2) -> int:
         """While the user drags a control: complete whole levels, coarse to fine,
@@ -165,26 +191,14 @@ class Refiner:
         plan = self.pyramid.plan(frame.level, frame.want)
         pixels = 0
         done = -1
-        for l in range(frame.level + 1):
-            want = plan[l]
+        for l, want in enumerate(plan):
             if not self.holds(l, want):
-                buf = self.pyramid.buffers[l]
-                valid = buf.valid if buf is not None else None
-                have = want.intersect(valid) if valid is not None else Rect(0, 0, 0, 0)
-                missing = want.w * want.h - (0 if have.empty else have.w * have.h)
                 spent = time.perf_counter() - t0
-                if l > min_level and spent + missing * self.cost[l] > budget_s:
+                if l > min_level and spent + self._missing(l, want) * self.cost[l] > budget_s:
                     break
-                t1 = time.perf_counter()
-                n = self.pyramid.request(l, want)
-                self.gpu.ctx.finish()
-                if n > 256:
-                    self.cost[l] = 0.5 * self.cost[l] + 0.5 * (time.perf_counter() - t1) / n
-                pixels += n
+                pixels += self._request(l, want)
             done = l
-        self.last_pixels = pixels
-        self.version += bool(pixels)
-        self.last_ms = (time.perf_counter() - t0) * 1000.0
+        self._done(t0, pixels)
         return done
 
     def step(self, frame: Frame, budget_s: float) -> bool:
@@ -192,45 +206,27 @@ class Refiner:
         t0 = time.perf_counter()
         pixels = 0
         finished = True
-        plan = self.pyramid.plan(frame.level, frame.want)
-        for l in range(frame.level + 1):
-            # Coarser levels get everything the finest one will read, so that
-            # refining it band by band never sends them back for more.
-            want = plan[l]
+        for l, want in enumerate(self.pyramid.plan(frame.level, frame.want)):
             if self.holds(l, want):
                 continue
             remaining = budget_s - (time.perf_counter() - t0)
-            if remaining <= 0 and pixels:
-                finished = False
-                break
-            buf = self.pyramid.buffers[l]
-            valid = buf.valid if buf is not None else None
-            have = want.intersect(valid) if valid is not None else Rect(0, 0, 0, 0)
-            missing = want.w * want.h - (0 if have.empty else have.w * have.h)
-            rect = want
-            if pixels and missing * self.cost[l] > remaining:
+            cost = self._missing(l, want) * self.cost[l]
+            if pixels and cost > remaining:
                 finished = False  # do not start a big piece late in the frame
                 break
-            if missing * self.cost[l] > max(remaining, 0.25 * budget_s) and want.h > 16:
+            rect = want
+            if cost > max(remaining, 0.25 * budget_s) and want.h > 16:
+                valid = self._valid(l)
                 grow = (valid is not None and valid.x0 <= want.x0 and valid.x1 >= want.x1
                         and valid.y0 <= want.y0 < valid.y1)
                 start = valid.y1 if grow else want.y0
                 rows = int(max(remaining, 0.25 * budget_s) / (self.cost[l] * (want.w + 24)))
-                rows = max(MIN_BAND, rows)
-                rect = Rect(want.x0, want.y0, want.x1, min(want.y1, start + rows))
-            t1 = time.perf_counter()
-            n = self.pyramid.request(l, rect)
-            self.gpu.ctx.finish()
-            dt = time.perf_counter() - t1
-            if n > 256:
-                self.cost[l] = 0.5 * self.cost[l] + 0.5 * dt / n
-            pixels += n
+                rect = Rect(want.x0, want.y0, want.x1, min(want.y1, start + max(MIN_BAND, rows)))
+            pixels += self._request(l, rect)
             if rect != want:
                 finished = False
                 break
-        self.last_pixels = pixels
-        self.version += bool(pixels)
-        self.last_ms = (time.perf_counter() - t0) * 1000.0
+        self._done(t0, pixels)
         return finished
 
 
@@ -454,7 +450,7 @@ def decode_coords(rgb: np.ndarray) -> np.ndarray:
 
 def write_png(path: str, pixels: np.ndarray) -> None:
     """Write a PNG atomically (temporary file, then rename)."""
-    mode = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[pixels.shape[2]]
+    mode = PIL_MODES[pixels.shape[2]]
     arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
     buf = io.BytesIO()
     Image.fromarray(np.ascontiguousarray(arr), mode=mode).save(buf, format="PNG")

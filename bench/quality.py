@@ -41,25 +41,27 @@ sys.path.insert(0, ROOT)
 
 from bench.measures import all_measures  # noqa: E402
 from engine.analysis import analyze  # noqa: E402
-from engine.exemplar import load_exemplar  # noqa: E402
+from engine.exemplar import PIL_MODES, load_exemplar, to_u8  # noqa: E402
 from engine.pyramid import Rect  # noqa: E402
 from engine.synth import Synthesizer  # noqa: E402
 
 ORIGIN = (10007, -20011)
 
 
-def _u8(a: np.ndarray) -> np.ndarray:
-    return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
-
-
 def _save(path: str, a: np.ndarray) -> None:
-    a = _u8(a)
+    a = to_u8(a)
     Image.fromarray(a[..., 0] if a.shape[2] == 1 else a).save(path)
+
+
+def _rgb(a: np.ndarray) -> np.ndarray:
+    """uint8 (H, W, 3) for the contact sheet (gray repeated, alpha dropped)."""
+    u = to_u8(a)
+    return u[..., :3] if u.shape[2] >= 3 else np.repeat(u[..., :1], 3, axis=2)
 
 
 def _load_as(path: str, channels: int) -> np.ndarray:
     img = Image.open(path)
-    img = img.convert({1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[channels])
+    img = img.convert(PIL_MODES[channels])
     a = np.asarray(img, dtype=np.float32) / 255.0
     return a[..., None] if a.ndim == 2 else a
 
@@ -137,11 +139,8 @@ def main(argv=None) -> int:
             print(f"{name:<13}{n:>5}  ours {ours_warm * 1000:7.0f} ms  peer {peer_warm * 1000:7.0f} ms  "
                   f"(cold {ours_cold:5.1f} s / {peer_cold:5.1f} s)", flush=True)
             if n == args.sizes[0]:
-                ex_big = np.asarray(Image.fromarray(_u8(np.tile(ex.pixels, (1, 1, 1)))[..., :3].squeeze())
-                                    .resize((n, n), Image.NEAREST))
-                cells = [ex_big, _u8(ours), _u8(tiled), _u8(peer)]
-                cells = [np.repeat(c[..., None] if c.ndim == 2 else c, 3, axis=2)[..., :3]
-                         if (c.ndim == 2 or c.shape[2] == 1) else c[..., :3] for c in cells]
+                ex_big = np.asarray(Image.fromarray(_rgb(ex.pixels)).resize((n, n), Image.NEAREST))
+                cells = [ex_big, _rgb(ours), _rgb(tiled), _rgb(peer)]
                 sheet_rows.append(np.concatenate(cells, axis=1))
         results["exemplars"][name] = entry
         synth.release()

@@ -28,7 +28,7 @@ import os
 import tempfile
 import time
 import zipfile
-from dataclasses import dataclass, field, asdict
+from dataclasses import asdict, dataclass, field
 from typing import Callable
 
 import numpy as np

@@ -89,7 +89,7 @@ def run_synth(argv: list[str]) -> int:
     from PIL import Image
 
     from engine.analysis import AnalysisSettings, analyze
-    from engine.exemplar import load_exemplar
+    from engine.exemplar import PIL_MODES, load_exemplar, to_u8
     from engine.params import SynthParams
     from engine.pyramid import Rect
     from engine.synth import Synthesizer
@@ -126,8 +126,8 @@ def run_synth(argv: list[str]) -> int:
     coords = synth.toroidal(w) if args.toroidal else synth.window(Rect.of(args.origin[0], args.origin[1], w, h))
     dt = time.perf_counter() - t0
     colors = synth.colors(coords)
-    img = np.clip(np.rint(colors * 255.0), 0, 255).astype(np.uint8)
-    mode = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}[img.shape[2]]
+    img = to_u8(colors)
+    mode = PIL_MODES[img.shape[2]]
     Image.fromarray(img[:, :, 0] if mode == "L" else img, mode=mode).save(args.output)
     if args.coords:
         np.save(args.coords, coords.astype(np.int32))

@@ -31,6 +31,12 @@ MIN_SIZE = 32
 MAX_SIZE = 512
 MAX_INPUT_PIXELS = 64 * 1024 * 1024  # 8192^2: bigger inputs are refused up front
 FIT_MODES = ("resize", "crop")
+PIL_MODES = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}  # channels -> Pillow mode
+
+
+def to_u8(a: np.ndarray) -> np.ndarray:
+    """[0, 1] floats to uint8, rounded: the one quantization used for display and export."""
+    return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
 
 
 class ExemplarError(ValueError):
@@ -75,7 +81,7 @@ class Exemplar:
         return h.hexdigest()
 
     def to_uint8(self) -> np.ndarray:
-        return np.clip(np.rint(self.pixels * 255.0), 0, 255).astype(np.uint8)
+        return to_u8(self.pixels)
 
 
 def _is_pow2(n: int) -> bool:

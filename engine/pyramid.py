@@ -136,7 +136,6 @@ class Pyramid:
         self.buffers: list[_LevelBuffer | None] = [None] * (self.an.L + 1)
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
-        self.grow = True  # True: a level's rectangle grows to hold new requests (while it fits)
         self.set_params(params)
 
     # -- parameters ---------------------------------------------------------
@@ -187,7 +186,7 @@ class Pyramid:
         p = self.prefetch >> (self.an.L - l) if self.scrolling else 0
         p = max(p, 2 if self.scrolling else 0)
         t = need.pad(p, p, p, p).align(self.chunk)
-        if buf is not None and buf.valid is not None and self.scrolling and self.grow:
+        if buf is not None and buf.valid is not None and self.scrolling:
             v = buf.valid
             union = Rect(min(v.x0, t.x0), min(v.y0, t.y0), max(v.x1, t.x1), max(v.y1, t.y1))
             if buf.fits(union):  # grow what is held rather than drop it

@@ -3,10 +3,16 @@ import os
 
 import numpy as np
 import pytest
-
 from conftest import periodic_noise
-from engine.analysis import (AnalysisCancelled, AnalysisSettings, analysis_key, analyze,
-                             border_margin, gaussian_stack)
+
+from engine.analysis import (
+    AnalysisCancelled,
+    AnalysisSettings,
+    analysis_key,
+    analyze,
+    border_margin,
+    gaussian_stack,
+)
 from engine.exemplar import from_array
 
 

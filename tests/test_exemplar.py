@@ -5,9 +5,9 @@ import zlib
 
 import numpy as np
 import pytest
+from conftest import periodic_noise
 from PIL import Image
 
-from conftest import periodic_noise
 from engine.exemplar import ExemplarError, from_array, guess_toroidal, load_exemplar
 
 

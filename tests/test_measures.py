@@ -4,7 +4,13 @@ import os
 import numpy as np
 from PIL import Image
 
-from bench.measures import coverage, histogram_distance, neighborhood_energy, repetition, verbatim_regions
+from bench.measures import (
+    coverage,
+    histogram_distance,
+    neighborhood_energy,
+    repetition,
+    verbatim_regions,
+)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

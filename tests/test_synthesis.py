@@ -2,9 +2,9 @@
 from dataclasses import replace
 
 import numpy as np
+import oracle
 import pytest
 
-import oracle
 from engine.params import SynthParams, correction_margins
 from engine.pyramid import Rect, SynthesisError
 from engine.synth import Synthesizer

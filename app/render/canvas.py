@@ -14,6 +14,7 @@ import moderngl
 import numpy as np
 from PIL import Image
 
+from engine.exemplar import to_u8
 from engine.gpu import Gpu, read_shader
 from engine.pyramid import Pyramid, set_uniforms
 
@@ -39,6 +40,7 @@ class Canvas:
         self.fbo: moderngl.Framebuffer | None = None
         self.stack_tex: moderngl.TextureArray | None = None
         self.hires_tex: moderngl.Texture | None = None
+        self.exemplar_tex: moderngl.Texture | None = None
         self.generation = -1
         self.m = 0
         self.channels = 3
@@ -55,8 +57,9 @@ class Canvas:
         self.stack_tex = ctx.texture_array((m, m, n), 4, np.ascontiguousarray(rgba).tobytes())
         self.stack_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.stack_tex.repeat_x = self.stack_tex.repeat_y = bool(toroidal)
+        self.exemplar_tex = ctx.texture((m, m), 4, np.ascontiguousarray(rgba[-1]).tobytes())  # panel thumbnail
         if hires is not None:
-            hi = np.clip(np.rint(hires * 255.0), 0, 255).astype(np.uint8)
+            hi = to_u8(hires)
             if hi.shape[0] > MAX_HIRES:
                 img = Image.fromarray(hi[..., 0] if hi.shape[2] == 1 else hi)
                 hi = np.asarray(img.resize((MAX_HIRES, MAX_HIRES), Image.LANCZOS)).reshape(MAX_HIRES, MAX_HIRES, -1)
@@ -153,10 +156,10 @@ class Canvas:
         return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3).copy()
 
     def _release_exemplar(self) -> None:
-        for t in (self.stack_tex, self.hires_tex):
+        for t in (self.stack_tex, self.hires_tex, self.exemplar_tex):
             if t is not None:
                 t.release()
-        self.stack_tex = self.hires_tex = None
+        self.stack_tex = self.hires_tex = self.exemplar_tex = None
 
     def release(self) -> None:
         self._release_exemplar()

@@ -94,8 +94,6 @@ class Editor:
         self._canvas_key = None
         self._last_doc = None
         self._last_edit = 0.0
-        self.exemplar_tex = None
-        self.exemplar_gen = -1
         self.panels = panels.Panels(self)
 
     # -- running ------------------------------------------------------------
@@ -266,12 +264,12 @@ class Editor:
             self.dialogs.message("Invalid setting", str(exc))
 
     def undo(self) -> None:
-        if self.history and self.history.undo():
-            pass
+        if self.history:
+            self.history.undo()
 
     def redo(self) -> None:
-        if self.history and self.history.redo():
-            pass
+        if self.history:
+            self.history.redo()
 
     def save(self, path: str | None = None) -> bool:
         path = path or self.project_path
@@ -403,7 +401,6 @@ class Editor:
             s.sync(self.doc)
         if self.canvas.generation != s.generation and s.ready:
             self.canvas.set_exemplar(s.stack, s.analysis.toroidal, s.exemplar.hires, s.generation)
-            self.panels.exemplar_changed()
         if self.export_job is not None:
             self.export_job.step(FRAME_BUDGET_S)
             self.screen_fbo.use()

@@ -90,16 +90,6 @@ class Panels:
 
     # -- side panels --------------------------------------------------------
 
-    def exemplar_changed(self) -> None:
-        ed = self.ed
-        s = ed.session
-        if ed.exemplar_tex is not None:
-            ed.exemplar_tex.release()
-        px = s.stack[-1]
-        from ..render.canvas import _to_rgba
-        rgba = _to_rgba(px[None])[0]
-        ed.exemplar_tex = ed.gpu.ctx.texture((px.shape[1], px.shape[0]), 4, np.ascontiguousarray(rgba).tobytes())
-
     def side_panels(self) -> None:
         ed = self.ed
         if ed.doc is None or not ed.session.ready:
@@ -129,9 +119,9 @@ class Panels:
         ed = self.ed
         doc, s = ed.doc, ed.session
         ex, an = s.exemplar, s.analysis
-        if ed.exemplar_tex is not None:
+        if ed.canvas.exemplar_tex is not None:
             size = min(PANEL_IMAGE, imgui.get_content_region_avail().x)
-            imgui.image(imgui.ImTextureRef(ed.exemplar_tex.glo), (size, size))
+            imgui.image(imgui.ImTextureRef(ed.canvas.exemplar_tex.glo), (size, size))
         imgui.text(doc.exemplar.name)
         ow, oh = ex.original_size
         chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
