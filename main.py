@@ -27,9 +27,13 @@ def editor_main(argv: list[str]) -> int:
     p.add_argument("--screenshot", metavar="OUT.png", help="save a PNG of the window once refined, then exit")
     p.add_argument("--frames", type=int, default=10, metavar="N", help="with --screenshot: run at least N frames")
     args = p.parse_args(argv)
-    if args.screenshot and not os.path.isdir(os.path.dirname(os.path.abspath(args.screenshot))):
-        sys.stderr.write(f"error: the folder of {args.screenshot} does not exist\n")
-        return 2
+    if args.screenshot:
+        from engine.safeio import WriteError, check_output
+        try:
+            check_output(args.screenshot, (".png",), "screenshot")
+        except WriteError as exc:
+            sys.stderr.write(f"error: {exc}\n")
+            return 2
     try:
         from app.ui.editor import run_editor
     except ImportError as exc:

@@ -1,66 +1,97 @@
 """``python main.py export PROJECT -o OUT.png``: render a project headless.
 
 Shares the editor's export code (``app.session.ExportJob``), so the file is
-identical to what File > Export writes. Progress on stderr; Ctrl+C cancels.
+identical to what File > Export writes. Every argument is checked before any
+work; progress on stderr; Ctrl+C cancels.
 """
 from __future__ import annotations
 
-import argparse
+import os
 import sys
 import time
 
-from engine.cli import EXIT_INPUT, CliError, _integer, guarded
+from engine.cli import (
+    EXIT_INPUT,
+    EXIT_USAGE,
+    CliError,
+    Parser,
+    _integer,
+    check_toroidal,
+    check_window,
+    guarded,
+)
+from engine.safeio import ReadError, check_output, printable
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="main.py export",
-                                description="Export a project's texture (a rectangle, its view, or a toroidal tile).")
+def build_parser() -> Parser:
+    p = Parser(prog="main.py export",
+               description="Export a project's texture (a rectangle, its view, or a toroidal tile).")
     p.add_argument("project", help="an .itex project file (or an exemplar image: default settings)")
-    p.add_argument("-o", "--output", required=True, help="output PNG")
+    p.add_argument("-o", "--output", required=True, help="output PNG (.png)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--rect", nargs=4, type=_integer, metavar=("X", "Y", "W", "H"),
                    help="canvas rectangle in finest-level pixels")
-    g.add_argument("--toroidal", type=_integer, metavar="N", help="an N x N tile that wraps seamlessly")
-    p.add_argument("--size", nargs=2, type=_integer, default=[1024, 1024], metavar=("W", "H"),
-                   help="without --rect/--toroidal: a W x H window centered on the project's view")
+    g.add_argument("--toroidal", type=_integer, metavar="N",
+                   help="an N x N tile that wraps seamlessly (N a power of two, 32 to 4096)")
+    p.add_argument("--size", nargs=2, type=_integer, default=None, metavar=("W", "H"),
+                   help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
     p.add_argument("--coords", action="store_true", help="also write OUT_coords.png (exact exemplar coordinates)")
+    p.add_argument("--allow-outside-exemplar", action="store_true",
+                   help="read an exemplar the project refers to outside the project's folder")
     p.add_argument("-q", "--quiet", action="store_true")
     return p
 
 
 def run_export(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
-    import os
-
-    from engine.gpu import Gpu
     from engine.pyramid import Rect
 
-    from .document import Document, ExemplarSource, is_project_file, load_project
-    from .session import ExportJob, Session
+    from .document import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
 
-    if os.path.isfile(args.project) and is_project_file(args.project):
-        proj = load_project(args.project)
+    # Arguments first: nothing is read or computed before they are all good.
+    if args.size is not None and (args.rect or args.toroidal is not None):
+        raise CliError("--size goes with neither --rect nor --toroidal.", EXIT_USAGE)
+    if args.rect:
+        x, y, w, h = args.rect
+        check_window(x, y, w, h, "--rect")
+    elif args.toroidal is not None:
+        check_toroidal(args.toroidal)
+    else:
+        w, h = args.size or (1024, 1024)
+        check_window(0, 0, w, h, "--size")
+    check_output(args.output, (".png",), "output image")
+    coords_path = None
+    if args.coords:
+        coords_path = os.path.splitext(args.output)[0] + "_coords.png"
+        check_output(coords_path, (".png",), "coordinate map")
+
+    if is_project_file(args.project):
+        try:
+            proj = load_project(args.project, allow_outside=args.allow_outside_exemplar)
+        except ExemplarOutside as exc:
+            raise CliError(f"{exc} Pass --allow-outside-exemplar to read it.", EXIT_INPUT) from None
         doc, view = proj.document, proj.view
     else:
         try:
             doc, view = Document(ExemplarSource.from_file(args.project)), None
-        except OSError as exc:
-            raise CliError(f"{args.project}: {exc.strerror or exc}.", EXIT_INPUT) from None
+        except ReadError as exc:
+            raise CliError(str(exc), EXIT_INPUT) from None
     if args.rect:
-        x, y, w, h = args.rect
         rect, tor = Rect.of(x, y, w, h), 0
-    elif args.toroidal:
+    elif args.toroidal is not None:
         n = args.toroidal
         rect, tor = Rect(0, 0, n, n), n
     else:
-        w, h = args.size
         cx, cy = (view.x, view.y) if view else (0.0, 0.0)
         rect, tor = Rect.of(int(cx - w / 2), int(cy - h / 2), w, h), 0
+        check_window(rect.x0, rect.y0, w, h, "--size")
+
+    from engine.gpu import Gpu
+
+    from .session import ExportJob, Session
     session = Session(Gpu())
     session.load_now(doc)
-    base = os.path.splitext(args.output)[0]
-    job = ExportJob(session, rect, args.output, toroidal=tor,
-                    coords_path=base + "_coords.png" if args.coords else None, tile=512)
+    job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512)
     t0 = time.perf_counter()
     last = [0.0]
 
@@ -79,7 +110,7 @@ def run_export(argv: list[str]) -> int:
         job.cancel()
         raise
     if not args.quiet:
-        sys.stderr.write(f"{args.output}: {rect.w}x{rect.h} in {time.perf_counter() - t0:.1f} s "
+        sys.stderr.write(f"{printable(args.output)}: {rect.w}x{rect.h} in {time.perf_counter() - t0:.1f} s "
                          f"({session.gpu.renderer})\n")
     session.release()
     return 0

@@ -6,6 +6,13 @@ analysis settings, and the synthesis parameters. Edits make new documents;
 :class:`History` keeps them for undo/redo. The view and display settings are
 saved with a project but are not edits (panning is not undone).
 
+Project files are untrusted input: they are read only if they are regular
+files of at most :data:`MAX_PROJECT_BYTES`, their JSON nesting and numbers are
+bounded before and while parsing, every field is type- and range-checked, and
+an exemplar they refer to by path is read only from the project's own folder
+(anything else must be allowed explicitly: the editor asks, ``export`` needs
+``--allow-outside-exemplar``). Every failure is a :class:`ProjectError`.
+
 This module imports neither GL nor imgui: it is tested without any window.
 """
 from __future__ import annotations
@@ -15,18 +22,25 @@ import hashlib
 import json
 import math
 import os
-import tempfile
+import re
 import time
 from dataclasses import asdict, dataclass, field, replace
 
+import numpy as np
+
 from engine.analysis import MODELS
-from engine.exemplar import FIT_MODES
+from engine.exemplar import FIT_MODES, MAX_FILE_BYTES
 from engine.params import DEFAULT_JITTER, SynthParams
+from engine.safeio import ReadError, WriteError, atomic_write, printable, read_head, read_limited
 
 FORMAT = "infinitex-project"
 VERSION = 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
+MAX_PROJECT_BYTES = 32 * 1024 * 1024  # an embedded 16 MB exemplar is 21.4 MB of base64
+MAX_JSON_DEPTH = 8              # our files nest 3 deep
+MAX_INT_DIGITS = 18             # no field needs more; 10^309 or 5,000 digits are refused while parsing
+MAX_LEVELS = 13                 # jitter / corrected lists hold at most one entry per level
 MIN_ZOOM, MAX_ZOOM = 1.0 / 64.0, 16.0
 DISPLAY_MODES = ("color", "coords", "patches", "level", "relief")
 MAGNIFY_FILTERS = ("hires", "bilinear", "nearest")
@@ -51,8 +65,8 @@ class ExemplarSource:
 
     @classmethod
     def from_file(cls, path: str) -> ExemplarSource:
-        with open(path, "rb") as f:
-            data = f.read()
+        """Read an image file (a regular file of at most MAX_FILE_BYTES; else ReadError)."""
+        data = read_limited(path, MAX_FILE_BYTES, "image")
         return cls.from_bytes(data, os.path.basename(path), os.path.abspath(path))
 
 
@@ -292,29 +306,67 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
 
 
 def save_project(path: str, project: Project, embed: bool | None = None) -> None:
-    """Write atomically: a temporary file in the same folder, then a rename."""
+    """Write atomically (engine.safeio.atomic_write); failures are ProjectError."""
     text = json.dumps(project_to_json(project, path, embed), indent=1)
-    atomic_write(path, text.encode("utf-8"))
+    try:
+        atomic_write(path, text.encode("utf-8"))
+    except WriteError as exc:
+        raise ProjectError(str(exc)) from None
 
 
-def atomic_write(path: str, data: bytes) -> None:
-    folder = os.path.dirname(os.path.abspath(path))
+class ExemplarOutside(ProjectError):
+    """The project refers to an exemplar file outside its own folder; it is read
+    only when the user allows it (``load_project(..., allow_outside=...)``)."""
+
+    def __init__(self, path: str, project_name: str):
+        self.path = path
+        super().__init__(f"The project {project_name} uses the exemplar file {printable(path)}, "
+                         "which is outside the project's folder.")
+
+
+_JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"')
+
+
+def _json_depth(text: str) -> int:
+    """How deeply the JSON text nests (strings are skipped), without parsing it."""
+    b = np.frombuffer(_JSON_STRING.sub('""', text).encode("utf-8", "replace"), dtype=np.uint8)
+    if b.size == 0:
+        return 0
+    delta = ((b == 0x5B) | (b == 0x7B)).astype(np.int32) - ((b == 0x5D) | (b == 0x7D))
+    return int(np.cumsum(delta).max())
+
+
+def _parse_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+        raise ProjectError("The project holds a number too large for any setting.")
+    return int(text)
+
+
+def _parse_float(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v) or len(text) > 64:
+        raise ProjectError("The project holds a number too large for any setting.")
+    return v
+
+
+def _parse_constant(text: str):
+    raise ProjectError(f"The project holds {text}, which is not a number any setting can take.")
+
+
+def parse_project_json(raw: bytes, name: str = "The file") -> object:
+    """Decode untrusted project JSON with bounded nesting and numbers."""
     try:
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=folder)
-    except OSError as exc:
-        raise ProjectError(f"Cannot write in {folder}: {exc.strerror or exc}.") from None
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ProjectError(f"{name} is not an Infinitex project (not readable as JSON).") from None
+    if _json_depth(text) > MAX_JSON_DEPTH:
+        raise ProjectError(f"{name} is not an Infinitex project (its JSON nests too deeply).")
     try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise ProjectError(f"Saving {os.path.basename(path)} failed: {exc.strerror or exc}.") from None
+        return json.loads(text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant)
+    except ProjectError:
+        raise
+    except (json.JSONDecodeError, RecursionError, ValueError):
+        raise ProjectError(f"{name} is not an Infinitex project (not readable as JSON).") from None
 
 
 def _get(d: dict, key: str, types, where: str, optional: bool = False):
@@ -332,17 +384,68 @@ def _get(d: dict, key: str, types, where: str, optional: bool = False):
     return v
 
 
-def project_from_json(d: object, path: str | None = None) -> Project:
-    """Parse and check a project dict; raise ProjectError with a clear sentence."""
+def _number(v: object) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _int_in(d: dict, key: str, where: str, lo: int, hi: int) -> int:
+    v = _get(d, key, int, where)
+    if not lo <= v <= hi:
+        raise ProjectError(f"{where}.{key} must be an integer from {lo} to {hi}.")
+    return v
+
+
+def _read_reference(ref: str, path: str | None, name: str, allow_outside) -> tuple[bytes, str]:
+    """Bytes and real path of an exemplar referenced by ``ref`` from the project
+    at ``path``: relative paths start at the project's folder; a file outside
+    that folder is read only if ``allow_outside`` is True or holds its real path."""
+    if not ref or "\x00" in ref or len(ref) > 4096:
+        raise ProjectError("exemplar.path is not a usable file path.")
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(path))) if path else None
+    base = folder or os.getcwd()
+    real = os.path.realpath(os.path.join(base, os.path.expanduser(ref)) if not os.path.isabs(ref) else ref)
+    inside = folder is not None and os.path.commonpath([real, folder]) == folder
+    allowed = allow_outside is True or (allow_outside not in (None, False) and real in allow_outside)
+    if not inside and not allowed:
+        raise ExemplarOutside(real, name)
+    if not os.path.lexists(real):
+        raise ProjectError(f"The project refers to exemplar {printable(ref)}, which cannot be found.")
+    try:
+        return read_limited(real, MAX_FILE_BYTES, "image"), real
+    except ReadError as exc:
+        raise ProjectError(f"The project's exemplar cannot be read: {exc}") from None
+
+
+def project_from_json(d: object, path: str | None = None, allow_outside=False) -> Project:
+    """Parse and check a project dict; raise ProjectError with a clear sentence.
+
+    ``allow_outside``: True, or a collection of real paths, of referenced
+    exemplar files outside the project's folder that may be read."""
+    try:
+        return _project_from_json(d, path, allow_outside)
+    except ProjectError:
+        raise
+    except (TypeError, ValueError, OverflowError, RecursionError, KeyError, AttributeError) as exc:
+        raise ProjectError(f"The project file is damaged ({type(exc).__name__}).") from None
+
+
+def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
+    name = printable(os.path.basename(path)) if path else "project"
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise ProjectError("This is not an Infinitex project file.")
     version = d.get("version")
-    if not isinstance(version, int) or version > VERSION:
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise ProjectError("The project file has no valid format version.")
+    if version > VERSION:
         raise ProjectError(f"This project was written by a newer version (format {version}); "
                            "update Infinitex to open it.")
     e = _get(d, "exemplar", dict, "project")
-    name = _get(e, "name", str, "exemplar")
+    ex_name = _get(e, "name", str, "exemplar")
+    if not ex_name or len(ex_name) > 1024:
+        raise ProjectError("exemplar.name must be a file name of 1 to 1024 characters.")
     sha = _get(e, "sha256", str, "exemplar")
+    if not re.fullmatch(r"[0-9a-f]{64}", sha):
+        raise ProjectError("exemplar.sha256 is not a SHA-256 digest.")
     embedded = _get(e, "embedded", str, "exemplar", optional=True)
     ref = _get(e, "path", str, "exemplar", optional=True)
     if embedded is not None:
@@ -352,91 +455,75 @@ def project_from_json(d: object, path: str | None = None) -> Project:
             raise ProjectError("The exemplar embedded in the project is damaged.") from None
         src_path = None
     elif ref is not None:
-        candidates = [ref]
-        if path and not os.path.isabs(ref):
-            candidates.insert(0, os.path.join(os.path.dirname(os.path.abspath(path)), ref))
-        found = next((c for c in candidates if os.path.isfile(c)), None)
-        if found is None:
-            raise ProjectError(f"The project refers to exemplar {ref}, which cannot be found.")
-        with open(found, "rb") as f:
-            data = f.read()
-        src_path = os.path.abspath(found)
+        data, src_path = _read_reference(ref, path, name, allow_outside)
     else:
         raise ProjectError("The project holds neither an embedded exemplar nor a path to one.")
     if hashlib.sha256(data).hexdigest() != sha:
-        raise ProjectError(f"The exemplar {name} does not match the project (its content changed), "
+        raise ProjectError(f"The exemplar {printable(ex_name)} does not match the project (its content changed), "
                            "so the texture could not be reproduced.")
-    source = ExemplarSource(name=name, data=data, sha256=sha, path=src_path)
+    source = ExemplarSource(name=ex_name, data=data, sha256=sha, path=src_path)
 
     a = _get(d, "analysis", dict, "project")
     s = _get(d, "synthesis", dict, "project")
     jitter = _get(s, "jitter", list, "synthesis")
-    if not all(isinstance(r, (int, float)) and not isinstance(r, bool) and math.isfinite(r) for r in jitter):
-        raise ProjectError("synthesis.jitter must be a list of numbers.")
+    if len(jitter) > MAX_LEVELS or not all(_number(r) and 0.0 <= r <= 1.0 for r in jitter):
+        raise ProjectError(f"synthesis.jitter must be a list of at most {MAX_LEVELS} numbers from 0 to 1.")
     corrected = _get(s, "corrected", list, "synthesis", optional=True)
-    if corrected is not None and not all(isinstance(c, int) and not isinstance(c, bool) for c in corrected):
-        raise ProjectError("synthesis.corrected must be a list of level numbers.")
+    if corrected is not None and (len(corrected) > MAX_LEVELS or not all(
+            isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 12 for c in corrected)):
+        raise ProjectError("synthesis.corrected must be a list of level numbers from 0 to 12.")
+    kappa = _get(s, "kappa", (int, float), "synthesis")
+    if not _number(kappa) or not 0.0 <= kappa <= 100.0:
+        raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
     toroidal = _get(e, "toroidal", bool, "exemplar", optional=True)
     doc = Document(
         exemplar=source,
         fit=_get(e, "fit", str, "exemplar"),
         toroidal=toroidal,
         model=_get(a, "model", str, "analysis"),
-        k=_get(a, "k", int, "analysis"),
+        k=_int_in(a, "k", "analysis", 1, 4),
         jitter=tuple(float(r) for r in jitter),
-        seed=_get(s, "seed", int, "synthesis"),
-        passes=_get(s, "passes", int, "synthesis"),
-        subgrid=_get(s, "subgrid", int, "synthesis"),
-        kappa=float(_get(s, "kappa", (int, float), "synthesis")),
+        seed=_int_in(s, "seed", "synthesis", 0, 2 ** 32 - 1),
+        passes=_int_in(s, "passes", "synthesis", 0, 8),
+        subgrid=_int_in(s, "subgrid", "synthesis", 1, 4),
+        kappa=float(kappa),
         corrected=None if corrected is None else tuple(corrected),
     )
     doc.validate()
     view, display = View(), Display()
     v = d.get("view")
-    if isinstance(v, dict):
-        try:
-            view = View(float(v["x"]), float(v["y"]), float(v["zoom"]))
-            if not all(math.isfinite(c) for c in (view.x, view.y, view.zoom)):
-                raise ValueError
-            view = view.clamped()
-        except (KeyError, TypeError, ValueError):
-            raise ProjectError("The project's view is damaged.") from None
+    if v is not None:
+        if not isinstance(v, dict) or not all(_number(v.get(k)) for k in ("x", "y", "zoom")):
+            raise ProjectError("The project's view is damaged.")
+        view = View(float(v["x"]), float(v["y"]), float(v["zoom"])).clamped()
     g = d.get("display")
-    if isinstance(g, dict):
+    if g is not None:
+        if not isinstance(g, dict):
+            raise ProjectError("The project's display settings are damaged.")
         mode, level, mag = g.get("mode", "color"), g.get("level", -1), g.get("magnify", "hires")
-        if mode not in DISPLAY_MODES or mag not in MAGNIFY_FILTERS or not isinstance(level, int):
+        if (not isinstance(mode, str) or mode not in DISPLAY_MODES or not isinstance(mag, str)
+                or mag not in MAGNIFY_FILTERS or not isinstance(level, int) or isinstance(level, bool)
+                or not -1 <= level <= 12):
             raise ProjectError("The project's display settings are damaged.")
         display = Display(mode, level, mag)
     return Project(doc, view, display)
 
 
-def load_project(path: str) -> Project:
-    name = os.path.basename(path)
+def load_project(path: str, allow_outside=False) -> Project:
+    """Read a project file (untrusted); see :func:`project_from_json` for ``allow_outside``."""
+    name = printable(os.path.basename(path))
     try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except FileNotFoundError:
-        raise ProjectError(f"No such file: {path}.") from None
-    except IsADirectoryError:
-        raise ProjectError(f"{path} is a folder, not a project.") from None
-    except OSError as exc:
-        raise ProjectError(f"{name} could not be read: {exc.strerror or exc}.") from None
-    try:
-        d = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        raise ProjectError(f"{name} is not an Infinitex project (not readable as JSON).") from None
-    return project_from_json(d, path)
+        raw = read_limited(path, MAX_PROJECT_BYTES, "project file")
+    except ReadError as exc:
+        raise ProjectError(str(exc)) from None
+    return project_from_json(parse_project_json(raw, name), path, allow_outside)
 
 
 def is_project_file(path: str) -> bool:
     """True when the file starts like a project (JSON with our format tag)."""
     if path.lower().endswith(PROJECT_SUFFIX):
         return True
-    try:
-        with open(path, "rb") as f:
-            head = f.read(64).lstrip()
-    except OSError:
-        return False
+    head = read_head(path, 64).lstrip()
     return head.startswith(b"{") and FORMAT.encode() in head
 
 
@@ -463,14 +550,34 @@ class Autosave:
         self.interval = interval
         self._last = time.monotonic()
         self._written: Document | None = None
+        self.set_aside: tuple[str, str] | None = None  # (new path, reason) of a broken autosave
 
     def pending(self) -> Project | None:
-        if not os.path.isfile(self.path):
+        """The autosaved project left by a session that did not end cleanly.
+
+        Never raises: a broken autosave file (or anything else at its path) is
+        set aside, renamed ``autosave-broken-TIME.itex`` next to it, and
+        ``set_aside`` says where and why; start-up then goes on as usual."""
+        if not os.path.lexists(self.path):
             return None
         try:
-            return load_project(self.path)
-        except ProjectError:
+            return load_project(self.path)  # never allowed to read outside its folder
+        except ProjectError as exc:
+            self._set_aside(str(exc))
             return None
+
+    def _set_aside(self, reason: str) -> None:
+        folder = os.path.dirname(self.path)
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        for i in range(100):
+            target = os.path.join(folder, f"autosave-broken-{stamp}{'-' + str(i) if i else ''}{PROJECT_SUFFIX}")
+            if not os.path.lexists(target):
+                break
+        try:
+            os.rename(self.path, target)
+            self.set_aside = (target, reason)
+        except OSError as exc:
+            self.set_aside = (self.path, f"{reason} (it could not be renamed: {exc.strerror or exc})")
 
     def pending_time(self) -> float | None:
         try:
@@ -486,7 +593,10 @@ class Autosave:
         self._last = now
         if not dirty or project.document == self._written:
             return False
-        os.makedirs(os.path.dirname(self.path), exist_ok=True)
+        try:
+            os.makedirs(os.path.dirname(self.path), exist_ok=True)
+        except OSError as exc:
+            raise ProjectError(f"The autosave folder cannot be made: {exc.strerror or exc}.") from None
         save_project(self.path, project, embed=True)
         self._written = project.document
         return True

@@ -9,32 +9,30 @@ go through the same path.
 """
 from __future__ import annotations
 
-import io
 import math
 import threading
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
-from PIL import Image
 
 from engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
 from engine.exemplar import (
-    PIL_MODES,
     Exemplar,
     ExemplarError,
     load_exemplar_bytes,
     to_u8,
+    write_png,
 )
 from engine.gpu import Gpu
 from engine.params import SynthParams
 from engine.pyramid import Pyramid, Rect, SynthesisError
+from engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
+from engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
 from engine.synth import Synthesizer
 
-from .document import Document, ProjectError, View, atomic_write
+from .document import Document, View
 
-MAX_EXPORT_PIXELS = 64 * 1024 * 1024
-MAX_EXPORT_SIDE = 16384
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
 
 
@@ -446,15 +444,3 @@ def encode_coords(coords: np.ndarray) -> np.ndarray:
 def decode_coords(rgb: np.ndarray) -> np.ndarray:
     rgb = rgb.astype(np.int32)
     return np.stack([rgb[..., 0] + 256 * (rgb[..., 2] & 15), rgb[..., 1] + 256 * (rgb[..., 2] >> 4)], axis=-1)
-
-
-def write_png(path: str, pixels: np.ndarray) -> None:
-    """Write a PNG atomically (temporary file, then rename)."""
-    mode = PIL_MODES[pixels.shape[2]]
-    arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
-    buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(arr), mode=mode).save(buf, format="PNG")
-    try:
-        atomic_write(path, buf.getvalue())
-    except ProjectError as exc:
-        raise OSError(str(exc)) from None

@@ -25,7 +25,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import tempfile
 import time
 import zipfile
 from dataclasses import asdict, dataclass, field
@@ -36,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from . import fixed
 from .exemplar import Exemplar
+from .safeio import atomic_write
 
 ANALYSIS_VERSION = 4
 MODELS = ("appearance", "color")
@@ -375,15 +375,7 @@ def _save(path: str, an: Analysis) -> None:
                 settings=asdict(an.settings), version=ANALYSIS_VERSION, key=an.key)
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write(path, writer=lambda f: np.savez(f, **arrays))
 
 
 def _load(path: str, key: str, settings: AnalysisSettings, ex: Exemplar) -> Analysis | None:

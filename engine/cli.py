@@ -1,17 +1,24 @@
 """Headless command line: ``python main.py synth EXEMPLAR -o OUT.png ...``.
 
 Bad input gives a one-line message on stderr and a non-zero exit, never a
-traceback. Long analyses show progress on stderr; Ctrl+C cancels cleanly.
+traceback: arguments (output names and extensions, sizes, ranges) are all
+checked before any work, names are printed escaped on one line, and outputs
+are written atomically. Long analyses show progress on stderr; Ctrl+C cancels.
 """
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
 from dataclasses import replace
 
 import numpy as np
+
+from .pyramid import COORD_LIMIT
+from .safeio import WriteError, atomic_write, check_output, printable
+from .synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
 
 EXIT_USAGE = 2
 EXIT_INPUT = 3
@@ -25,29 +32,63 @@ class CliError(Exception):
         self.code = code
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse whose errors are a CliError (one line, exit 2), not usage + exit."""
+
+    def error(self, message: str):
+        raise CliError(f"{message} (see {self.prog} --help)", EXIT_USAGE)
+
+
 def _jitter_arg(text: str) -> list[float]:
     try:
         vals = [float(v) for v in text.split(",") if v.strip() != ""]
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number or a comma-separated list of numbers") from None
-    if not vals or any(not 0.0 <= v <= 1.0 for v in vals):
+    if not vals or len(vals) > 16 or any(not 0.0 <= v <= 1.0 for v in vals):
         raise argparse.ArgumentTypeError("randomness values must be in [0, 1]")
     return vals
 
 
 def _integer(text: str) -> int:
     try:
+        if len(text) > 24:
+            raise ValueError
         return int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        raise argparse.ArgumentTypeError(f"{printable(text, 40)!r} is not an integer") from None
+
+
+def _number(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{printable(text, 40)!r} is not a finite number")
+    return v
+
+
+def check_window(x: int, y: int, w: int, h: int, what: str) -> None:
+    """A canvas rectangle the engine can make in memory (before any work)."""
+    if not (1 <= w <= MAX_WINDOW_SIDE and 1 <= h <= MAX_WINDOW_SIDE) or w * h > MAX_WINDOW_PIXELS:
+        raise CliError(f"{what} must be between 1 and {MAX_WINDOW_SIDE} in each dimension and at most "
+                       f"{MAX_WINDOW_PIXELS >> 20} Mpixels, not {w}x{h}.", EXIT_USAGE)
+    if min(x, y) < -COORD_LIMIT or max(x + w, y + h) > COORD_LIMIT:
+        raise CliError(f"Canvas positions must stay within +-{COORD_LIMIT}.", EXIT_USAGE)
+
+
+def check_toroidal(n: int, flag: str = "--toroidal") -> None:
+    if n & (n - 1) or not 32 <= n <= 4096:
+        raise CliError(f"{flag} needs a power-of-two size from 32 to 4096, not {n}.", EXIT_USAGE)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="main.py synth",
+    p = Parser(prog="main.py synth",
                                 description="Synthesize a window of the infinite texture of an exemplar.")
     p.add_argument("exemplar", help="exemplar image (PNG, JPEG, BMP, TIFF, WebP...)")
-    p.add_argument("-o", "--output", required=True, help="output PNG")
-    p.add_argument("--size", nargs=2, type=_integer, default=[256, 256], metavar=("W", "H"))
+    p.add_argument("-o", "--output", required=True, help="output PNG (.png)")
+    p.add_argument("--size", nargs=2, type=_integer, default=[256, 256], metavar=("W", "H"),
+                   help=f"output size, at most {MAX_WINDOW_SIDE} a side and {MAX_WINDOW_PIXELS >> 20} Mpixels")
     p.add_argument("--origin", nargs=2, type=_integer, default=[0, 0], metavar=("X", "Y"),
                    help="canvas position of the top-left pixel (any 32-bit integers)")
     p.add_argument("--seed", type=_integer, default=0)
@@ -58,8 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", choices=("appearance", "color"), default="appearance",
                    help="neighborhood model: appearance space (LH06) or 5x5 colors (LH05)")
     p.add_argument("--k", type=int, default=2, choices=(1, 2, 3, 4), help="similarity-set size")
-    p.add_argument("--passes", type=int, default=2, help="correction passes c")
-    p.add_argument("--kappa", type=float, default=0.5, help="coherence penalty")
+    p.add_argument("--passes", type=_integer, default=2, help="correction passes c (0 to 8)")
+    p.add_argument("--kappa", type=_number, default=0.5, help="coherence penalty (0 to 4)")
     p.add_argument("--fit", choices=("resize", "crop"), default="resize",
                    help="how a non power-of-two or non-square image becomes the exemplar")
     p.add_argument("--exemplar-toroidal", choices=("auto", "yes", "no"), default="auto",
@@ -86,22 +127,26 @@ def _progress(quiet: bool):
 
 def run_synth(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
-    from PIL import Image
-
     from engine.analysis import AnalysisSettings, analyze
-    from engine.exemplar import PIL_MODES, load_exemplar, to_u8
+    from engine.exemplar import load_exemplar, to_u8, write_png
     from engine.params import SynthParams
     from engine.pyramid import Rect
     from engine.synth import Synthesizer
 
+    # Everything the arguments decide is checked before any work.
     w, h = args.size
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise CliError("--size must be between 1 and 16384 in each dimension.", EXIT_USAGE)
+    check_window(args.origin[0], args.origin[1], w, h, "--size")
     if args.toroidal and (w != h or w & (w - 1) or not 32 <= w <= 4096):
-        raise CliError("--toroidal needs a square power-of-two --size from 32 to 4096.", EXIT_USAGE)
-    out_dir = os.path.dirname(os.path.abspath(args.output))
-    if not os.path.isdir(out_dir):
-        raise CliError(f"The output folder {out_dir} does not exist.", EXIT_USAGE)
+        raise CliError(f"--toroidal needs a square power-of-two --size from 32 to 4096, not {w}x{h}.", EXIT_USAGE)
+    try:
+        SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes, kappa=args.kappa).validate(0)
+    except ValueError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
+    check_output(args.output, (".png",), "output image")
+    if args.coords:
+        check_output(args.coords, (".npy",), "coordinate map")
+        if os.path.realpath(args.coords) == os.path.realpath(args.output):
+            raise CliError("--coords and -o name the same file.", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
     ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
     an = analyze(ex, AnalysisSettings(model=args.model, k=args.k), use_cache=not args.no_cache,
@@ -125,15 +170,13 @@ def run_synth(argv: list[str]) -> int:
     t0 = time.perf_counter()
     coords = synth.toroidal(w) if args.toroidal else synth.window(Rect.of(args.origin[0], args.origin[1], w, h))
     dt = time.perf_counter() - t0
-    colors = synth.colors(coords)
-    img = to_u8(colors)
-    mode = PIL_MODES[img.shape[2]]
-    Image.fromarray(img[:, :, 0] if mode == "L" else img, mode=mode).save(args.output)
+    write_png(args.output, to_u8(synth.colors(coords)))
     if args.coords:
-        np.save(args.coords, coords.astype(np.int32))
+        c = coords.astype(np.int32)
+        atomic_write(args.coords, writer=lambda f: np.save(f, c))
     if not args.quiet:
-        sys.stderr.write(f"{args.output}: {w}x{h} from a {an.size}x{an.size} exemplar in {dt * 1000:.0f} ms"
-                         f" ({synth.gpu.renderer})\n")
+        sys.stderr.write(f"{printable(args.output)}: {w}x{h} from a {an.size}x{an.size} exemplar in "
+                         f"{dt * 1000:.0f} ms ({synth.gpu.renderer})\n")
     return 0
 
 
@@ -144,23 +187,24 @@ def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
     from engine.exemplar import ExemplarError
     from engine.gpu import GLUnavailable
     from engine.pyramid import SynthesisError
+    def fail(message: object, code: int) -> int:
+        sys.stderr.write(f"error: {printable(message, 1000)}\n")
+        return code
     try:
         return run(argv)
     except CliError as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return exc.code
-    except (ExemplarError, SynthesisError, *input_errors) as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return EXIT_INPUT
+        return fail(exc, exc.code)
+    except (ExemplarError, SynthesisError, WriteError, *input_errors) as exc:
+        return fail(exc, EXIT_INPUT)
     except GLUnavailable as exc:
-        sys.stderr.write(f"error: {exc}\n")
-        return EXIT_GL
+        return fail(exc, EXIT_GL)
     except (KeyboardInterrupt, AnalysisCancelled):
         sys.stderr.write("\ncancelled\n")
         return EXIT_CANCELLED
+    except MemoryError:
+        return fail("not enough memory", EXIT_INPUT)
     except OSError as exc:
-        sys.stderr.write(f"error: {exc.strerror or exc}: {exc.filename or ''}\n")
-        return EXIT_INPUT
+        return fail(f"{exc.strerror or exc}: {exc.filename or ''}", EXIT_INPUT)
 
 
 def main(argv: list[str]) -> int:

@@ -16,20 +16,38 @@ user and never applied silently:
 
 Pixel values become float32 in [0, 1] with 1 (L), 2 (LA), 3 (RGB) or 4 (RGBA)
 channels; 16-bit and float images keep their precision up to that point.
+
+Image files are untrusted input. Only the raster decoders in :data:`DECODERS`
+are given to Pillow (none of them starts a program: no EPS/Ghostscript), files
+are read only if they are regular files of at most :data:`MAX_FILE_BYTES`, the
+cost of an import is computed from the header and refused above
+:data:`IMPORT_BUDGET` (JPEGs far larger than needed are decoded at 1/2 to 1/8
+scale instead), the image is cropped before it is converted to floats, and
+then converted one channel at a time. Every failure is an :class:`ExemplarError`.
 """
 from __future__ import annotations
 
 import hashlib
 import io
+import math
 import os
 from dataclasses import dataclass, field
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
+from .safeio import ReadError, printable, read_limited
+
 MIN_SIZE = 32
 MAX_SIZE = 512
 MAX_INPUT_PIXELS = 64 * 1024 * 1024  # 8192^2: bigger inputs are refused up front
+MAX_FILE_BYTES = 512 * 1024 * 1024   # image files larger than this are not read
+IMPORT_BUDGET = 1024 * 1024 * 1024   # bytes an import may use at its peak (file + decoded + floats)
+HIRES_MAX = 2048                     # side of the full-resolution copy kept for magnification
+# Pillow's pure raster decoders we accept (Pillow format IDs). Nothing that runs
+# a program (EPS runs Ghostscript) or is a container of other formats.
+DECODERS = ("PNG", "JPEG", "BMP", "TIFF", "WEBP", "TGA", "GIF", "PPM", "QOI", "SGI", "PCX")
+FORMAT_NAMES = "PNG, JPEG, BMP, TIFF, WebP, TGA, GIF, PNM, QOI, SGI or PCX"
 FIT_MODES = ("resize", "crop")
 PIL_MODES = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}  # channels -> Pillow mode
 
@@ -37,6 +55,14 @@ PIL_MODES = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}  # channels -> Pillow mode
 def to_u8(a: np.ndarray) -> np.ndarray:
     """[0, 1] floats to uint8, rounded: the one quantization used for display and export."""
     return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
+
+
+def write_png(path: str, pixels: np.ndarray) -> None:
+    """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
+    from .safeio import atomic_write
+    arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
+    img = Image.fromarray(np.ascontiguousarray(arr), mode=PIL_MODES[pixels.shape[2]])
+    atomic_write(path, writer=lambda f: img.save(f, format="PNG"))
 
 
 class ExemplarError(ValueError):
@@ -88,34 +114,6 @@ def _is_pow2(n: int) -> bool:
     return n > 0 and (n & (n - 1)) == 0
 
 
-def _to_float(img: Image.Image) -> np.ndarray:
-    """Pillow image of any common mode to float32 (H, W, C) in [0, 1]."""
-    mode = img.mode
-    if mode == "P":
-        img = img.convert("RGBA" if "transparency" in img.info else "RGB")
-        mode = img.mode
-    if mode in ("1", "CMYK", "YCbCr", "LAB", "HSV", "PA", "La", "RGBa", "RGBX"):
-        img = img.convert("RGBA" if "A" in mode or "a" in mode else ("L" if mode == "1" else "RGB"))
-        mode = img.mode
-    if mode in ("L", "LA", "RGB", "RGBA"):
-        arr = np.asarray(img, dtype=np.float32) / 255.0
-    elif mode.startswith("I;16") or mode == "I":
-        raw = np.asarray(img).astype(np.float64)
-        hi = 65535.0 if (mode.startswith("I;16") or raw.max() <= 65535) else raw.max()
-        arr = (np.clip(raw, 0, hi) / hi).astype(np.float32)
-    elif mode == "F":
-        raw = np.asarray(img, dtype=np.float64)
-        lo, hi = float(np.nanmin(raw)), float(np.nanmax(raw))
-        if not np.isfinite(lo) or not np.isfinite(hi):
-            raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
-        arr = ((raw - lo) / (hi - lo if hi > lo else 1.0)).astype(np.float32)
-    else:
-        raise ExemplarError(f"Images in Pillow mode {mode!r} are not supported.")
-    if arr.ndim == 2:
-        arr = arr[:, :, None]
-    return np.ascontiguousarray(arr)
-
-
 def guess_toroidal(pixels: np.ndarray, tolerance: float = 1.6) -> bool:
     """True when the wrap-around seams differ no more than interior neighbors.
 
@@ -136,28 +134,67 @@ def _nearest_pow2(n: int) -> int:
     return int(min(max(2 ** k, MIN_SIZE), MAX_SIZE))
 
 
-def fit_square(arr: np.ndarray, fit: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """Apply the documented fit rule; returns (exemplar, hires or None)."""
+def _crop_box(w: int, h: int, fit: str) -> tuple[int, int, int]:
+    """(x0, y0, side) of the square the fit rule starts from."""
     if fit not in FIT_MODES:
         raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
-    h, w = arr.shape[:2]
     if h == w and _is_pow2(w) and MIN_SIZE <= w <= MAX_SIZE:
-        return arr, None
+        return 0, 0, w
     side = min(h, w)
     if fit == "crop":
-        target = min(MAX_SIZE, 1 << (side.bit_length() - 1))
-        y0, x0 = (h - target) // 2, (w - target) // 2
-        return np.ascontiguousarray(arr[y0:y0 + target, x0:x0 + target]), None
-    y0, x0 = (h - side) // 2, (w - side) // 2
-    square = np.ascontiguousarray(arr[y0:y0 + side, x0:x0 + side])
-    target = _nearest_pow2(side)
-    if target == side:
-        return square, None
-    resized = np.stack(
-        [np.asarray(Image.fromarray(square[:, :, c], mode="F").resize((target, target), Image.LANCZOS))
-         for c in range(square.shape[2])], axis=2)
-    resized = np.clip(resized, 0.0, 1.0).astype(np.float32)
-    return np.ascontiguousarray(resized), (square if side > target else None)
+        side = min(MAX_SIZE, 1 << (side.bit_length() - 1))
+    return (w - side) // 2, (h - side) // 2, side
+
+
+_U8_TO_FLOAT = [float(np.float32(i) / np.float32(255.0)) for i in range(256)]  # = float32(i) / 255
+
+
+def _f_image(plane: np.ndarray) -> Image.Image:
+    """A float32 (h, w) array as a Pillow "F" image (a copy)."""
+    plane = np.ascontiguousarray(plane, dtype=np.float32)
+    return Image.frombuffer("F", (plane.shape[1], plane.shape[0]), plane, "raw", "F", 0, 1)
+
+
+def _lanczos(plane: Image.Image, size: int) -> np.ndarray:
+    return np.clip(np.asarray(plane.resize((size, size), Image.LANCZOS)), 0.0, 1.0).astype(np.float32)
+
+
+def _fit_planes(planes, side: int, fit: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Apply the resample part of the fit rule one channel at a time.
+
+    ``planes`` yields Pillow "F" images (side x side) in [0, 1]; returns the
+    exemplar (m, m, C) and the hires copy (at most HIRES_MAX a side) or None.
+    """
+    target = _nearest_pow2(side) if fit == "resize" else side
+    out, hires = [], []
+    for plane in planes:
+        if target == side:
+            out.append(np.asarray(plane, dtype=np.float32))
+            continue
+        out.append(_lanczos(plane, target))
+        if side > target:
+            hires.append(np.asarray(plane, dtype=np.float32) if side <= HIRES_MAX else _lanczos(plane, HIRES_MAX))
+        del plane
+    px = np.ascontiguousarray(np.stack(out, axis=2), dtype=np.float32)
+    hi = np.ascontiguousarray(np.stack(hires, axis=2), dtype=np.float32) if hires else None
+    return px, hi
+
+
+def fit_square(arr: np.ndarray, fit: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Apply the documented fit rule; returns (exemplar, hires or None)."""
+    h, w = arr.shape[:2]
+    x0, y0, side = _crop_box(w, h, fit)
+    sq = arr[y0:y0 + side, x0:x0 + side]
+    return _fit_planes((_f_image(sq[:, :, c]) for c in range(sq.shape[2])), side, fit)
+
+
+def _finish(px: np.ndarray, hires, fit: str, toroidal: bool | None, source: str,
+            size: tuple[int, int]) -> Exemplar:
+    if not np.all(np.isfinite(px)):
+        raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
+    guess = guess_toroidal(px)
+    return Exemplar(pixels=px, toroidal=guess if toroidal is None else bool(toroidal),
+                    toroidal_guess=guess, source=source, fit=fit, original_size=size, hires=hires)
 
 
 def from_array(arr: np.ndarray, *, fit: str = "resize", toroidal: bool | None = None,
@@ -176,50 +213,163 @@ def from_array(arr: np.ndarray, *, fit: str = "resize", toroidal: bool | None = 
     if not np.all(np.isfinite(arr)):
         raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
     px, hires = fit_square(np.clip(arr, 0.0, 1.0), fit)
-    guess = guess_toroidal(px)
-    return Exemplar(pixels=px, toroidal=guess if toroidal is None else bool(toroidal),
-                    toroidal_guess=guess, source=source, fit=fit, original_size=(w, h), hires=hires)
+    return _finish(px, hires, fit, toroidal, source, (w, h))
 
 
 def load_exemplar(path: str | os.PathLike, *, fit: str = "resize",
                   toroidal: bool | None = None) -> Exemplar:
     """Read an image file as an exemplar, or raise :class:`ExemplarError`."""
     path = os.fspath(path)
-    name = os.path.basename(path)
-    if not os.path.exists(path):
-        raise ExemplarError(f"No such file: {path}.")
-    if os.path.isdir(path):
-        raise ExemplarError(f"{path} is a folder, not an image.")
-    if os.path.getsize(path) == 0:
+    name = printable(os.path.basename(path) or path)
+    try:
+        data = read_limited(path, MAX_FILE_BYTES, "image")
+    except ReadError as exc:
+        raise ExemplarError(str(exc)) from None
+    if not data:
         raise ExemplarError(f"{name} is empty (0 bytes).")
-    return _decode(path, name, fit, toroidal, path)
+    return _decode(data, name, fit, toroidal, path)
 
 
 def load_exemplar_bytes(data: bytes, *, name: str = "exemplar", fit: str = "resize",
                         toroidal: bool | None = None) -> Exemplar:
     """Decode an image held in memory (e.g. embedded in a project file)."""
+    name = printable(name)
     if not data:
         raise ExemplarError(f"{name} is empty (0 bytes).")
-    return _decode(io.BytesIO(data), name, fit, toroidal, name)
+    if len(data) > MAX_FILE_BYTES:
+        raise ExemplarError(f"{name} is larger than the {MAX_FILE_BYTES // 2**20} MB an image may be.")
+    return _decode(data, name, fit, toroidal, name)
 
 
-def _decode(src, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
+# Pillow modes -> the mode the channels are read in.
+_CANONICAL = {"1": "L", "P": None, "PA": "RGBA", "La": "LA", "RGBa": "RGBA", "RGBX": "RGB",
+              "CMYK": "RGB", "YCbCr": "RGB", "LAB": "RGB", "HSV": "RGB"}
+_CHANNELS = {"L": 1, "LA": 2, "RGB": 3, "RGBA": 4, "I": 1, "F": 1}
+
+
+def _pixel_bytes(mode: str) -> int:
+    """Bytes per pixel Pillow uses in memory for ``mode`` (multi-band modes use 4)."""
+    if mode in ("1", "L", "P"):
+        return 1
+    if mode.startswith("I;16"):
+        return 2
+    return 4
+
+
+# Peak memory of a decoder relative to the decoded image (measured): Pillow's
+# WebP decoder holds libwebp's canvas and a copy of each frame besides the image.
+_DECODE_FACTOR = {"WEBP": 4}
+
+
+def import_cost(w: int, h: int, mode: str, file_bytes: int, fit: str, fmt: str = "") -> int:
+    """An upper bound of the bytes an import of a w x h image needs at its peak:
+    the file, the decoder's peak, the cropped square and its mode conversion, one channel (8/16-bit and
+    float), Lanczos' intermediate and the hires copy."""
+    _x0, _y0, side = _crop_box(w, h, fit)
+    pb = _pixel_bytes(mode)
+    sq = side * side
+    decode = w * h * pb * _DECODE_FACTOR.get(fmt, 1)
+    crop = sq * pb if (side, side) != (w, h) else 0
+    convert = sq * 4 if mode in _CANONICAL else 0
+    channel = sq * (2 + 4)
+    target = _nearest_pow2(side) if fit == "resize" else side
+    keep = min(side, HIRES_MAX)
+    resample = side * max(target, keep) * 4 if target != side else 0
+    hires = 4 * 4 * keep * keep if target != side else 0
+    return file_bytes + decode + crop + convert + channel + resample + hires + (16 << 20)
+
+
+def _normalization(img: Image.Image) -> tuple[float, float] | None:
+    """(offset, scale) mapping a 32-bit or 16-bit integer or float image to [0, 1],
+    from the whole image (before any crop); None for 8-bit modes."""
+    mode = img.mode
+    if mode == "F":
+        lo, hi = math.inf, -math.inf
+        for _y, rows in _row_chunks(img):
+            if not np.all(np.isfinite(rows)):
+                raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
+            lo, hi = min(lo, float(rows.min())), max(hi, float(rows.max()))
+        return lo, (hi - lo if hi > lo else 1.0)
+    if mode.startswith("I;16"):
+        return 0.0, 65535.0
+    if mode == "I":
+        hi = img.getextrema()[1]
+        return 0.0, 65535.0 if hi <= 65535 else float(hi)
+    return None
+
+
+def _row_chunks(img: Image.Image, chunk_bytes: int = 1 << 22):
+    """(y, array) of bands of rows of a one-band image, about ``chunk_bytes`` each."""
+    w, h = img.size
+    step = max(1, chunk_bytes // (4 * max(1, w)))
+    for y in range(0, h, step):
+        yield y, np.asarray(img.crop((0, y, w, min(h, y + step))))
+
+
+def _planes(img: Image.Image, norm: tuple[float, float] | None):
+    """The channels of an image in a canonical mode as Pillow "F" images in
+    [0, 1], one at a time (8-bit: x / 255 in float32 through a lookup table)."""
+    mode = img.mode
+    if norm is None:
+        for band in range(len(mode)):
+            yield img.getchannel(band).point(_U8_TO_FLOAT, "F")
+        return
+    lo, scale = norm
+    out = Image.new("F", img.size)
+    for y, rows in _row_chunks(img):
+        r = rows.astype(np.float64)
+        if mode != "F":
+            r = np.clip(r, 0, scale)
+        out.paste(_f_image(((r - lo) / scale).astype(np.float32)), (0, y))
+    yield out
+
+
+def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
+    if fit not in FIT_MODES:
+        raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
     try:
-        with Image.open(src) as img:
-            w, h = img.size
+        with Image.open(io.BytesIO(data), formats=DECODERS) as im0:
+            w, h = im0.size
             if w * h > MAX_INPUT_PIXELS:
                 raise ExemplarError(
                     f"{name} is {w}x{h} px, too large to import (at most {MAX_INPUT_PIXELS // 2**20} Mpixels).")
-            if w == 0 or h == 0:
+            if w <= 0 or h <= 0:
                 raise ExemplarError(f"{name} has no pixels.")
-            img.load()
-            arr = _to_float(img)
+            if min(w, h) < MIN_SIZE:
+                raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px.")
+            size = (w, h)
+            side = min(w, h)
+            if fit == "resize" and im0.format == "JPEG" and side >= 2 * HIRES_MAX:
+                # Far more pixels than we keep: let libjpeg decode at 1/2..1/8 scale.
+                im0.draft(im0.mode, (max(1, w * HIRES_MAX // side), max(1, h * HIRES_MAX // side)))
+                w, h = im0.size
+            cost = import_cost(w, h, im0.mode, len(data), fit, im0.format or "")
+            if cost > IMPORT_BUDGET:
+                raise ExemplarError(f"{name} ({w}x{h} px, mode {im0.mode}) would need about "
+                                    f"{cost // 2**20} MB to import, more than the "
+                                    f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
+            im0.load()
+            norm = _normalization(im0)
+            x0, y0, side = _crop_box(w, h, fit)
+            img = im0 if (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
+        del im0
+        mode = img.mode
+        if mode in _CANONICAL:
+            target = _CANONICAL[mode] or ("RGBA" if "transparency" in img.info else "RGB")
+            img = img.convert(target)
+        elif not (mode in _CHANNELS or mode.startswith("I;16")):
+            raise ExemplarError(f"{name}: images in Pillow mode {printable(mode)!r} are not supported.")
+        px, hires = _fit_planes(_planes(img, norm), side, fit)
+        del img
     except ExemplarError:
         raise
+    except MemoryError:
+        raise ExemplarError(f"Not enough memory to import {name}.") from None
     except Image.DecompressionBombError:
         raise ExemplarError(f"{name} is too large to import safely.") from None
     except UnidentifiedImageError:
-        raise ExemplarError(f"{name} is not an image format Pillow can read.") from None
-    except (OSError, SyntaxError, ValueError, EOFError) as exc:
-        raise ExemplarError(f"{name} could not be read: the file looks damaged ({exc}).") from None
-    return from_array(arr, fit=fit, toroidal=toroidal, source=source)
+        raise ExemplarError(f"{name} is not an image format Infinitex reads ({FORMAT_NAMES}).") from None
+    except Exception as exc:  # any other failure inside a decoder: the file is damaged
+        detail = printable(exc, 160) or type(exc).__name__
+        raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
+    return _finish(px, hires, fit, toroidal, source, size)

@@ -20,6 +20,11 @@ from .gpu import Gpu, GpuAnalysis
 from .params import SynthParams
 from .pyramid import Pyramid, Rect, SynthesisError
 
+# Largest image assembled in memory (synth command, exports): 64 Mpixels of
+# int32 coordinates is 512 MB. Streamed exports will lift this.
+MAX_WINDOW_SIDE = 16384
+MAX_WINDOW_PIXELS = 64 * 1024 * 1024
+
 
 class Synthesizer:
     """Synthesizes windows of one analyzed exemplar on one GL context."""

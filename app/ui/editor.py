@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import random
+import sys
 import time
 from dataclasses import replace
 
@@ -21,12 +22,14 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 
 from engine.gpu import GLUnavailable, Gpu
 from engine.pyramid import Rect, SynthesisError
+from engine.safeio import ReadError, WriteError, check_output, printable
 
 from ..document import (
     PROJECT_SUFFIX,
     Autosave,
     Display,
     Document,
+    ExemplarOutside,
     ExemplarSource,
     History,
     Project,
@@ -117,13 +120,18 @@ class Editor:
         immapp.run(self.runner_params(), immapp.AddOnsParams())
         if self.screenshot:
             import numpy as np
-            from PIL import Image
+
+            from engine.exemplar import write_png
             shot = hello_imgui.final_app_window_screenshot()
             if shot is None or not getattr(shot, "size", 0):
                 print("infinitex: the screenshot could not be taken.")
                 return 1
             img = np.asarray(shot)
-            Image.fromarray(img[..., :3] if img.shape[-1] == 4 else img).save(self.screenshot)
+            try:
+                write_png(self.screenshot, np.ascontiguousarray(img[..., :3] if img.shape[-1] == 4 else img))
+            except WriteError as exc:
+                sys.stderr.write(f"error: {printable(exc)}\n")
+                return 1
         return 1 if self.fatal else 0
 
     def post_init(self) -> None:
@@ -145,6 +153,11 @@ class Editor:
             self.open_path(self.start_path, first=True)
         else:
             self.new_document()
+        if self.autosave.set_aside is not None:
+            where, why = self.autosave.set_aside
+            self.dialogs.message("Autosave set aside",
+                                 f"The autosaved work of an earlier session could not be read ({why})\n"
+                                 f"It was kept as {printable(where)}.")
         if recovered is not None:
             t = self.autosave.pending_time()
             when = time.strftime("%Y-%m-%d %H:%M", time.localtime(t)) if t else "an earlier session"
@@ -195,30 +208,36 @@ class Editor:
             return
         self._begin_load("new", Document(src), None, None)
 
-    def open_path(self, path: str, first: bool = False) -> None:
-        """Open an exemplar image (replaces the exemplar, undoable) or a project."""
+    def open_path(self, path: str, first: bool = False, allow_outside=False) -> None:
+        """Open an exemplar image (replaces the exemplar, undoable) or a project.
+
+        A project whose exemplar file lies outside the project's folder is
+        opened only after the user confirms that file."""
         path = os.path.expanduser(path)
         try:
             if os.path.isfile(path) and is_project_file(path):
-                proj = load_project(path)
+                proj = load_project(path, allow_outside=allow_outside)
                 self._begin_load("project", proj.document, proj, path)
                 return
-            if not os.path.exists(path):
-                raise ProjectError(f"No such file: {path}.")
-            if os.path.isdir(path):
-                raise ProjectError(f"{path} is a folder, not an image or project.")
             src = ExemplarSource.from_file(path)
-        except ProjectError as exc:
+        except ExemplarOutside as exc:
+            self.dialogs.ask("Exemplar outside the project's folder",
+                             f"{exc}\nRead this file as the exemplar?",
+                             [("Read it", lambda: self.open_path(path, first, allow_outside={exc.path})),
+                              ("Cancel", lambda: self._open_failed(None, first))])
+            return
+        except (ProjectError, ReadError) as exc:
             self._open_failed(str(exc), first)
             return
         except OSError as exc:
-            self._open_failed(f"{os.path.basename(path)} could not be read: {exc.strerror or exc}.", first)
+            self._open_failed(f"{printable(os.path.basename(path))} could not be read: {exc.strerror or exc}.", first)
             return
         base = self.doc if self.doc is not None else Document(src)
         self._begin_load("exemplar", replace(base, exemplar=src, toroidal=None), None, path)
 
-    def _open_failed(self, msg: str, first: bool) -> None:
-        self.dialogs.message("Could not open", msg)
+    def _open_failed(self, msg: str | None, first: bool) -> None:
+        if msg:
+            self.dialogs.message("Could not open", msg)
         if first and self.history is None:
             self.new_document()
 
@@ -330,12 +349,15 @@ class Editor:
         return Rect(math.floor(x0), math.floor(y0), math.ceil(x0 + w / self.view.zoom), math.ceil(y0 + h / self.view.zoom))
 
     def start_export(self, path: str, rect: Rect, toroidal: int = 0) -> None:
-        if not path.lower().endswith(".png"):
+        if not os.path.splitext(path)[1]:
             path += ".png"
         coords = os.path.splitext(path)[0] + "_coords.png" if self.write_coords else None
         try:
+            check_output(path, (".png",), "export")  # before any work
+            if coords:
+                check_output(coords, (".png",), "coordinate map")
             self.export_job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords)
-        except (SynthesisError, ValueError) as exc:
+        except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
 
     # -- the frame ----------------------------------------------------------
@@ -518,5 +540,45 @@ class Editor:
         self.edit(replace(self.doc, seed=random.randrange(1, 2 ** 31)), "New seed")
 
 
+def probe_gl() -> str | None:
+    """Why no OpenGL 3.3 core window can be made here, or None when one can.
+
+    Run before the window runner, which would otherwise stop with a traceback
+    (no display, no GLX, a driver below 3.3)."""
+    import glfw
+    errors: list[str] = []
+    glfw.set_error_callback(lambda code, text: errors.append(
+        text.decode("utf-8", "replace") if isinstance(text, bytes) else str(text)))
+    try:
+        if not glfw.init():
+            return errors[-1] if errors else "the window system could not be initialized"
+        try:
+            glfw.window_hint(glfw.VISIBLE, glfw.FALSE)
+            glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
+            glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+            glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+            glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, glfw.TRUE)
+            win = glfw.create_window(64, 64, "Infinitex GL probe", None, None)
+            if not win:
+                return errors[-1] if errors else "no OpenGL 3.3 window could be created"
+            glfw.destroy_window(win)
+            return None
+        finally:
+            glfw.terminate()
+    except Exception as exc:  # a missing or broken libglfw
+        return str(exc) or type(exc).__name__
+    finally:
+        glfw.set_error_callback(None)
+
+
 def run_editor(path: str | None = None, screenshot: str | None = None, frames: int = 10) -> int:
-    return Editor(path, screenshot=screenshot, frames=frames).run()
+    why = probe_gl()
+    if why is not None:
+        sys.stderr.write(f"error: the editor needs an OpenGL 3.3 window, and none can be made here "
+                         f"({printable(why, 200)}). The headless commands (synth, export) may still work.\n")
+        return 4
+    try:
+        return Editor(path, screenshot=screenshot, frames=frames).run()
+    except RuntimeError as exc:  # the window runner failed after all
+        sys.stderr.write(f"error: the editor window could not run ({printable(exc, 200)}).\n")
+        return 4

@@ -1,0 +1,277 @@
+"""Reading untrusted files and writing files safely: the one place for both.
+
+Every file Infinitex reads on a user's behalf (images, projects, referenced
+exemplars) goes through :func:`read_limited`, and every file it writes (PNG,
+``.npy``, projects, autosave, the analysis cache) goes through
+:func:`atomic_write`:
+
+- **Reads** accept only regular files (not FIFOs, devices or folders; the open
+  never blocks on a FIFO) and check the size against a limit *before* reading,
+  then read at most that much (files under ``/proc`` claim size 0).
+- **Writes** go to a temporary file in the target's folder, are flushed to
+  disk, then renamed over the target, so a killed write leaves the old file
+  (or none) and never a partial one. A target that exists and is not a regular
+  file (a device node, a FIFO, a folder) is refused; a symbolic link is written
+  through (the link stays, its file is replaced). The new file gets the
+  permissions an ordinary write would give (``0666 & ~umask``, or the old
+  file's mode). Temporary files left by killed writes of ours (their process
+  is gone, or they are a day old) are removed on the next write to that folder.
+- :func:`check_output` validates an output path (folder, extension, target
+  kind) before any work starts; :func:`printable` makes names safe to print on
+  one line.
+"""
+from __future__ import annotations
+
+import os
+import re
+import secrets
+import stat
+import time
+
+TMP_SUFFIX = ".infinitex-tmp"
+_TMP_RE = re.compile(r"^\..*\.(\d+)\.[0-9a-f]{12}" + re.escape(TMP_SUFFIX) + r"$")
+STALE_AGE_S = 24 * 3600  # a temporary file this old is stale even if its pid was reused
+
+
+class WriteError(OSError):
+    """A file could not be written; the message is a sentence for the user."""
+
+    def __str__(self) -> str:  # OSError would print "[Errno ...]" forms
+        return self.args[0] if self.args else "write failed"
+
+
+class ReadError(OSError):
+    """A file could not be read (or is not something we read); a sentence for the user."""
+
+    def __str__(self) -> str:
+        return self.args[0] if self.args else "read failed"
+
+
+def printable(text: object, limit: int = 300) -> str:
+    """``text`` on one line: control characters, lone surrogates (undecodable
+    file-name bytes) and other unprintables escaped; long texts shortened."""
+    s = str(text)
+    out = "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace").decode("ascii")
+                  for c in s)
+    if len(out) > limit:
+        out = out[:limit - 3] + "..."
+    return out
+
+
+def name_of(path: str) -> str:
+    return printable(os.path.basename(os.fspath(path)) or os.fspath(path))
+
+
+# -- reading -------------------------------------------------------------------
+
+
+def _mb(n: int) -> str:
+    return f"{n / 2 ** 20:.0f} MB"
+
+
+def read_limited(path: str, limit: int, what: str = "file") -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes, or :class:`ReadError`."""
+    path = os.fspath(path)
+    shown = printable(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise ReadError(f"No such file: {shown}.") from None
+    except IsADirectoryError:
+        raise ReadError(f"{shown} is a folder, not a {what}.") from None
+    except OSError as exc:
+        raise ReadError(f"{shown} could not be opened: {exc.strerror or exc}.") from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise ReadError(f"{shown} is a folder, not a {what}.")
+        if not stat.S_ISREG(st.st_mode):
+            raise ReadError(f"{shown} is not a regular file (a device, pipe or socket), so it is not read.")
+        if st.st_size > limit:
+            raise ReadError(f"{shown} is {_mb(st.st_size)}, larger than the {_mb(limit)} a {what} may be.")
+        chunks, total = [], 0
+        while True:
+            try:
+                b = os.read(fd, min(1 << 20, limit + 1 - total))
+            except BlockingIOError:  # not for regular files; be safe anyway
+                time.sleep(0.001)
+                continue
+            if not b:
+                break
+            chunks.append(b)
+            total += len(b)
+            if total > limit:
+                raise ReadError(f"{shown} is larger than the {_mb(limit)} a {what} may be.")
+        return b"".join(chunks)
+    except OSError as exc:
+        if isinstance(exc, ReadError):
+            raise
+        raise ReadError(f"{shown} could not be read: {exc.strerror or exc}.") from None
+    finally:
+        os.close(fd)
+
+
+def read_head(path: str, n: int) -> bytes:
+    """The first ``n`` bytes of a regular file; b"" for anything else (never blocks)."""
+    try:
+        fd = os.open(os.fspath(path), os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return b""
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return b""
+        return os.read(fd, n)
+    except OSError:
+        return b""
+    finally:
+        os.close(fd)
+
+
+# -- writing -------------------------------------------------------------------
+
+
+def _read_umask() -> int:
+    """The process umask, without changing it where /proc tells it (os.umask()
+    is a set-and-restore, racy with other threads creating files)."""
+    try:
+        with open("/proc/self/status", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    m = os.umask(0o022)
+    os.umask(m)
+    return m
+
+
+_UMASK = _read_umask()
+
+
+def check_output(path: str, extensions: tuple[str, ...] = (), what: str = "output") -> str:
+    """Validate an output path before any work: its folder exists and is
+    writable, its extension is one of ``extensions`` (lowercase, with the dot;
+    empty tuple: any), and it is not an existing folder, device or pipe.
+    Returns the path; raises :class:`WriteError` with a sentence."""
+    path = os.fspath(path)
+    shown = printable(path)
+    if not path or path.endswith(("/", os.sep)) or os.path.basename(path) in ("", ".", ".."):
+        raise WriteError(f"The {what} name {shown!r} is not a file name.")
+    if extensions:
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in extensions:
+            want = " or ".join(extensions)
+            got = f"'{printable(ext)}'" if ext else "no extension"
+            raise WriteError(f"The {what} {shown} has {got}; it must end in {want}.")
+    real = os.path.realpath(path)
+    folder = os.path.dirname(real)
+    if not os.path.isdir(folder):
+        raise WriteError(f"The folder of {shown} does not exist.")
+    try:
+        st = os.stat(real)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise WriteError(f"{shown} cannot be checked: {exc.strerror or exc}.") from None
+    if st is not None:
+        if stat.S_ISDIR(st.st_mode):
+            raise WriteError(f"{shown} is a folder; give a file name.")
+        if not stat.S_ISREG(st.st_mode):
+            raise WriteError(f"{shown} exists and is not a regular file (a device, pipe or socket); "
+                             "it is not overwritten.")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise WriteError(f"The folder of {shown} is not writable.")
+    return path
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def clean_stale_temporaries(folder: str) -> int:
+    """Remove our own temporary files in ``folder`` whose writer is gone (or
+    that are older than a day). Returns how many were removed."""
+    removed = 0
+    now = time.time()
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return 0
+    for e in entries:
+        m = _TMP_RE.match(e.name)
+        if not m:
+            continue
+        try:
+            st = e.stat(follow_symlinks=False)
+            if not stat.S_ISREG(st.st_mode):
+                continue
+            pid = int(m.group(1))
+            if (pid != os.getpid() and not _pid_alive(pid)) or now - st.st_mtime > STALE_AGE_S:
+                os.unlink(e.path)
+                removed += 1
+        except (OSError, ValueError):
+            continue
+    return removed
+
+
+def atomic_write(path: str, data: bytes | None = None, *, writer=None) -> None:
+    """Write ``data`` (or call ``writer(fileobj)``) to ``path`` atomically.
+
+    Raises :class:`WriteError` with a sentence (the old file is then untouched
+    and no temporary file is left). Exceptions raised by ``writer`` other than
+    OSError (e.g. KeyboardInterrupt, a codec's ValueError) propagate after the
+    clean-up."""
+    path = os.fspath(path)
+    shown = name_of(path)
+    real = os.path.realpath(path)  # write through symbolic links: the link stays
+    folder = os.path.dirname(real)
+    try:
+        st = os.stat(real)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise WriteError(f"Saving {shown} failed: {exc.strerror or exc}.") from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise WriteError(f"{printable(path)} exists and is not a regular file; it is not overwritten.")
+    mode = stat.S_IMODE(st.st_mode) if st is not None else (0o666 & ~_UMASK)
+    clean_stale_temporaries(folder)
+    base = os.path.basename(real)[:64]
+    tmp = os.path.join(folder, f".{base}.{os.getpid()}.{secrets.token_hex(6)}{TMP_SUFFIX}")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
+    except OSError as exc:
+        raise WriteError(f"Cannot write in the folder of {shown}: {exc.strerror or exc}.") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            if writer is not None:
+                writer(f)
+            else:
+                f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+            os.fchmod(f.fileno(), mode)
+        os.replace(tmp, real)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+            raise WriteError(f"Saving {shown} failed: {exc.strerror or exc}.") from None
+        raise
+    try:  # make the rename itself durable
+        dfd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
