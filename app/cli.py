@@ -16,11 +16,12 @@ from engine.cli import (
     CliError,
     Parser,
     _integer,
+    check_out,
     check_toroidal,
     check_window,
     guarded,
 )
-from engine.safeio import ReadError, check_output, printable
+from engine.safeio import ReadError, printable
 
 
 def build_parser() -> Parser:
@@ -59,11 +60,11 @@ def run_export(argv: list[str]) -> int:
     else:
         w, h = args.size or (1024, 1024)
         check_window(0, 0, w, h, "--size")
-    check_output(args.output, (".png",), "output image")
+    check_out(args.output, (".png",), "output image")
     coords_path = None
     if args.coords:
         coords_path = os.path.splitext(args.output)[0] + "_coords.png"
-        check_output(coords_path, (".png",), "coordinate map")
+        check_out(coords_path, (".png",), "coordinate map")
 
     if is_project_file(args.project):
         try:
@@ -86,12 +87,27 @@ def run_export(argv: list[str]) -> int:
         rect, tor = Rect.of(int(cx - w / 2), int(cy - h / 2), w, h), 0
         check_window(rect.x0, rect.y0, w, h, "--size")
 
+    # Decode and analyze before any GL: a bad exemplar fails fast.
+    from engine.analysis import AnalysisSettings, analyze
+    from engine.cli import _progress
+    from engine.exemplar import load_exemplar_bytes
     from engine.gpu import Gpu
 
     from .session import ExportJob, Session
-    session = Session(Gpu())
-    session.load_now(doc)
-    job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512)
+    ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+    an = analyze(ex, AnalysisSettings(model=doc.model, k=doc.k), progress=_progress(args.quiet))
+    gpu = Gpu()
+    session = Session(gpu)
+    try:
+        session.install(doc, ex, an)
+        job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512)
+        return _run(job, args, rect, gpu.renderer)
+    finally:
+        session.release()
+        gpu.release()
+
+
+def _run(job, args, rect, renderer: str) -> int:
     t0 = time.perf_counter()
     last = [0.0]
 
@@ -111,8 +127,7 @@ def run_export(argv: list[str]) -> int:
         raise
     if not args.quiet:
         sys.stderr.write(f"{printable(args.output)}: {rect.w}x{rect.h} in {time.perf_counter() - t0:.1f} s "
-                         f"({session.gpu.renderer})\n")
-    session.release()
+                         f"({renderer})\n")
     return 0
 
 

@@ -12,6 +12,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -75,6 +76,14 @@ def check_window(x: int, y: int, w: int, h: int, what: str) -> None:
                        f"{MAX_WINDOW_PIXELS >> 20} Mpixels, not {w}x{h}.", EXIT_USAGE)
     if min(x, y) < -COORD_LIMIT or max(x + w, y + h) > COORD_LIMIT:
         raise CliError(f"Canvas positions must stay within +-{COORD_LIMIT}.", EXIT_USAGE)
+
+
+def check_out(path: str, extensions: tuple[str, ...], what: str) -> None:
+    """An output path the command can write (before any work); usage error if not."""
+    try:
+        check_output(path, extensions, what)
+    except WriteError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
 
 
 def check_toroidal(n: int, flag: str = "--toroidal") -> None:
@@ -142,9 +151,9 @@ def run_synth(argv: list[str]) -> int:
         SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes, kappa=args.kappa).validate(0)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    check_output(args.output, (".png",), "output image")
+    check_out(args.output, (".png",), "output image")
     if args.coords:
-        check_output(args.coords, (".npy",), "coordinate map")
+        check_out(args.coords, (".npy",), "coordinate map")
         if os.path.realpath(args.coords) == os.path.realpath(args.output):
             raise CliError("--coords and -o name the same file.", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
@@ -167,16 +176,20 @@ def run_synth(argv: list[str]) -> int:
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     synth = Synthesizer(an, params)
-    t0 = time.perf_counter()
-    coords = synth.toroidal(w) if args.toroidal else synth.window(Rect.of(args.origin[0], args.origin[1], w, h))
-    dt = time.perf_counter() - t0
+    try:
+        renderer = synth.gpu.renderer
+        t0 = time.perf_counter()
+        coords = synth.toroidal(w) if args.toroidal else synth.window(Rect.of(args.origin[0], args.origin[1], w, h))
+        dt = time.perf_counter() - t0
+    finally:
+        synth.release()
     write_png(args.output, to_u8(synth.colors(coords)))
     if args.coords:
         c = coords.astype(np.int32)
         atomic_write(args.coords, writer=lambda f: np.save(f, c))
     if not args.quiet:
         sys.stderr.write(f"{printable(args.output)}: {w}x{h} from a {an.size}x{an.size} exemplar in "
-                         f"{dt * 1000:.0f} ms ({synth.gpu.renderer})\n")
+                         f"{dt * 1000:.0f} ms ({renderer})\n")
     return 0
 
 
@@ -187,6 +200,10 @@ def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
     from engine.exemplar import ExemplarError
     from engine.gpu import GLUnavailable
     from engine.pyramid import SynthesisError
+    # Decoders' warnings about damaged files (Pillow) would add lines of their
+    # own; the one-line error says what matters.
+    warnings.filterwarnings("ignore", module=r"PIL(\.|$)")
+
     def fail(message: object, code: int) -> int:
         sys.stderr.write(f"error: {printable(message, 1000)}\n")
         return code

@@ -52,6 +52,33 @@ FIT_MODES = ("resize", "crop")
 PIL_MODES = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}  # channels -> Pillow mode
 
 
+def _quiet_libtiff() -> None:
+    """Stop libtiff printing warnings and errors about damaged TIFFs on stderr.
+
+    Pillow turns libtiff's failures into exceptions (which become our one-line
+    ExemplarError), but libtiff's default handlers also print lines of their own
+    to the process's stderr. Its handlers are process-wide; clearing them needs
+    the libtiff that Pillow loaded (found in /proc/self/maps, so Linux only)."""
+    try:
+        import ctypes
+
+        from PIL import TiffImagePlugin  # noqa: F401  (loads libtiff with Pillow's core)
+        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:
+            libs = {line.split()[-1] for line in f if "libtiff" in line and ".so" in line}
+        for lib in libs:
+            tiff = ctypes.CDLL(lib)
+            for name in ("TIFFSetWarningHandler", "TIFFSetErrorHandler"):
+                fn = getattr(tiff, name)
+                fn.restype = ctypes.c_void_p
+                fn.argtypes = [ctypes.c_void_p]
+                fn(None)
+    except (OSError, AttributeError, ImportError):
+        pass
+
+
+_quiet_libtiff()
+
+
 def to_u8(a: np.ndarray) -> np.ndarray:
     """[0, 1] floats to uint8, rounded: the one quantization used for display and export."""
     return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)

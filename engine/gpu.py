@@ -46,11 +46,21 @@ class Gpu:
     """A moderngl context with the synthesis programs and a full-screen quad."""
 
     def __init__(self, ctx: moderngl.Context | None = None):
+        self.owns_context = ctx is None
         self.ctx = ctx or create_context()
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         quad = np.array([-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1], dtype="f4")
         self.quad = self.ctx.buffer(quad.tobytes())
+
+    def release(self) -> None:
+        """Free the programs and buffers, and the context if this Gpu made it."""
+        for obj in [*self._vaos.values(), *self._programs.values(), self.quad]:
+            obj.release()
+        self._vaos.clear()
+        self._programs.clear()
+        if self.owns_context:
+            self.ctx.release()
 
     @cached_property
     def renderer(self) -> str:

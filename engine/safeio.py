@@ -157,12 +157,6 @@ def check_output(path: str, extensions: tuple[str, ...] = (), what: str = "outpu
     shown = printable(path)
     if not path or path.endswith(("/", os.sep)) or os.path.basename(path) in ("", ".", ".."):
         raise WriteError(f"The {what} name {shown!r} is not a file name.")
-    if extensions:
-        ext = os.path.splitext(path)[1].lower()
-        if ext not in extensions:
-            want = " or ".join(extensions)
-            got = f"'{printable(ext)}'" if ext else "no extension"
-            raise WriteError(f"The {what} {shown} has {got}; it must end in {want}.")
     real = os.path.realpath(path)
     folder = os.path.dirname(real)
     if not os.path.isdir(folder):
@@ -175,10 +169,17 @@ def check_output(path: str, extensions: tuple[str, ...] = (), what: str = "outpu
         raise WriteError(f"{shown} cannot be checked: {exc.strerror or exc}.") from None
     if st is not None:
         if stat.S_ISDIR(st.st_mode):
-            raise WriteError(f"{shown} is a folder; give a file name.")
+            ending = f" ending in {' or '.join(extensions)}" if extensions else ""
+            raise WriteError(f"The {what} {shown} is a folder; give a file name{ending}.")
         if not stat.S_ISREG(st.st_mode):
             raise WriteError(f"{shown} exists and is not a regular file (a device, pipe or socket); "
                              "it is not overwritten.")
+    if extensions:
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in extensions:
+            want = " or ".join(extensions)
+            got = f"'{printable(ext)}'" if ext else "no extension"
+            raise WriteError(f"The {what} {shown} has {got}; it must end in {want}.")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise WriteError(f"The folder of {shown} is not writable.")
     return path

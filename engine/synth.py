@@ -31,6 +31,7 @@ class Synthesizer:
 
     def __init__(self, analysis: Analysis, params: SynthParams | None = None, gpu: Gpu | None = None):
         self.analysis = analysis
+        self.owns_gpu = gpu is None
         self.gpu = gpu or Gpu()
         self.gan = GpuAnalysis(self.gpu, analysis)
         self.params = params or SynthParams.default(analysis.L)
@@ -76,6 +77,8 @@ class Synthesizer:
 
     def release(self) -> None:
         self.gan.release()
+        if self.owns_gpu:
+            self.gpu.release()
 
 
 class Viewport:

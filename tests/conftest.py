@@ -11,6 +11,19 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 # A private analysis cache per test session: tests never see a stale one.
 os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
 
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+# Fuzzing profiles: "ci" (the default: a few hundred fixed cases, the same on
+# every run) and "long" (pytest --hypothesis-profile=long: 10,000 random cases
+# per target). bench/fuzz.py runs the same targets and reports figures.
+_QUIET = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much,
+          HealthCheck.large_base_example]
+settings.register_profile("ci", max_examples=200, deadline=None, derandomize=True, database=None,
+                          suppress_health_check=_QUIET, print_blob=True)
+settings.register_profile("long", max_examples=10_000, deadline=None, database=None,
+                          suppress_health_check=_QUIET, print_blob=True)
+settings.load_profile("ci")
+
 from engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from engine.exemplar import from_array, load_exemplar  # noqa: E402
 from engine.gpu import Gpu  # noqa: E402

@@ -572,6 +572,8 @@ def probe_gl() -> str | None:
 
 
 def run_editor(path: str | None = None, screenshot: str | None = None, frames: int = 10) -> int:
+    import warnings
+    warnings.filterwarnings("ignore", module=r"PIL(\.|$)")  # damaged files get our one message instead
     why = probe_gl()
     if why is not None:
         sys.stderr.write(f"error: the editor needs an OpenGL 3.3 window, and none can be made here "
