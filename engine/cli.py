@@ -158,18 +158,18 @@ def run_synth(argv: list[str]) -> int:
             raise CliError("--coords and -o name the same file.", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
     ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
-    an = analyze(ex, AnalysisSettings(model=args.model, k=args.k), use_cache=not args.no_cache,
-                 progress=_progress(args.quiet))
-    jit = args.jitter
+    jit, L = args.jitter, ex.levels
     if jit is None:
-        params = SynthParams.default(an.L)
+        params = SynthParams.default(L)
     elif len(jit) == 1:
-        params = SynthParams(jitter=(jit[0],) * (an.L + 1))
-    elif len(jit) == an.L + 1:
+        params = SynthParams(jitter=(jit[0],) * (L + 1))
+    elif len(jit) == L + 1:
         params = SynthParams(jitter=tuple(jit))
     else:
-        raise CliError(f"--jitter needs 1 value or {an.L + 1} (one per level of this "
-                       f"{an.size}x{an.size} exemplar), not {len(jit)}.", EXIT_USAGE)
+        raise CliError(f"--jitter needs 1 value or {L + 1} (one per level of this "
+                       f"{ex.size}x{ex.size} exemplar), not {len(jit)}.", EXIT_USAGE)
+    an = analyze(ex, AnalysisSettings(model=args.model, k=args.k), use_cache=not args.no_cache,
+                 progress=_progress(args.quiet))
     try:
         params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa)
         params.validate(an.L)

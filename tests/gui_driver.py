@@ -141,6 +141,32 @@ def main(out: str) -> int:
         check("broken project shows a message", any("not an Infinitex project" in m.body
                                                     for m in ed.dialogs.modals), "no message")
         ctx.item_click("//**/OK")
+
+        # A project whose exemplar file is outside its folder: asked first.
+        import json
+
+        from app.document import Document, ExemplarSource, Project, project_to_json
+        gravel = os.path.join(HERE, "assets", "gravel.png")
+        os.makedirs(os.path.join(out, "sub"), exist_ok=True)
+        outside = os.path.join(out, "sub", "outside.itex")
+        d = project_to_json(Project(Document(ExemplarSource.from_file(gravel), seed=77)), embed=False)
+        with open(outside, "w") as fh:
+            json.dump(d, fh)
+        before = ed.doc
+        ed.open_path(outside)
+        ctx.yield_(3)
+        check("outside exemplar asks first", any("outside the project's folder" in m.body
+                                                 for m in ed.dialogs.modals), "no question")
+        ctx.item_click("//**/Cancel")
+        ctx.yield_(3)
+        check("cancel leaves the document", ed.doc is before and not ed.dialogs.modals, "document changed")
+        ed.open_path(outside)
+        ctx.yield_(3)
+        ctx.item_click("//**/Read it")
+        settle(ctx)
+        check("read it opens the project", ed.doc.seed == 77 and ed.project_path == outside,
+              f"seed {ed.doc.seed}, path {ed.project_path}")
+
         # Quitting with unsaved edits asks; Cancel keeps the editor running.
         ctx.item_click("//**/New seed")
         ctx.yield_(2)

@@ -221,9 +221,10 @@ class Editor:
                 return
             src = ExemplarSource.from_file(path)
         except ExemplarOutside as exc:
+            allow = {exc.path}  # (exc itself is gone once the except block ends)
             self.dialogs.ask("Exemplar outside the project's folder",
                              f"{exc}\nRead this file as the exemplar?",
-                             [("Read it", lambda: self.open_path(path, first, allow_outside={exc.path})),
+                             [("Read it", lambda: self.open_path(path, first, allow_outside=allow)),
                               ("Cancel", lambda: self._open_failed(None, first))])
             return
         except (ProjectError, ReadError) as exc:
@@ -525,8 +526,11 @@ class Editor:
             self.panels.canvas_overlay(p0, w, h)
 
     def _after_frame(self) -> None:
-        busy = (not self.refined or self.export_job is not None or self.pending is not None
-                or (self.session is not None and self.session.job is not None))
+        working = (self.export_job is not None or self.pending is not None
+                   or (self.session is not None and self.session.job is not None))
+        # Nothing to refine while no document is open and a question waits for the user.
+        waiting = self.history is None and bool(self.dialogs.modals)
+        busy = working or (not self.refined and not waiting)
         self.params.fps_idling.enable_idling = not busy
         if self.quit_requested:
             self.params.app_shall_exit = True
