@@ -102,8 +102,8 @@ def main(argv=None) -> int:
             print(f"{k:<14}{v['frames']:>8}{v['frames_with_an_edit']:>7}{v['fps_mean']:>8.1f}{v['frame_ms_median']:>11.1f}"
                   f"{v['frame_ms_p90']:>9.1f}{v['frame_ms_max']:>9.1f}{v['refine_after_release_s']:>10.2f}")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=1)
+        from engine.safeio import atomic_write
+        atomic_write(args.json, json.dumps(results, indent=1).encode())
     return 0
 
 

@@ -41,6 +41,15 @@ print(json.dumps(dict(outcome=out, used=peak - base, seconds=dt)))
 """
 
 
+def measure_import(path: str) -> dict:
+    """Import ``path`` in a fresh process: outcome, bytes of peak memory added, seconds."""
+    r = subprocess.run([sys.executable, "-c", CHILD.format(root=ROOT), path],
+                       capture_output=True, text=True, timeout=600)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr[-2000:])
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 def make_cases(side: int, folder: str) -> list[tuple[str, str, str, str]]:
     """(label, path, mode, format) of generated test images (cheap to encode: flat areas and lines)."""
     import numpy as np
@@ -81,9 +90,7 @@ def main(argv: list[str]) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for label, path, mode, fmt in make_cases(args.side, folder):
-            r = subprocess.run([sys.executable, "-c", CHILD.format(root=ROOT), path],
-                               capture_output=True, text=True, timeout=600)
-            res = json.loads(r.stdout.strip().splitlines()[-1])
+            res = measure_import(path)
             cost = import_cost(args.side, args.side, mode, os.path.getsize(path), "resize", fmt)
             rows.append(dict(image=f"{args.side}^2 {label}", file_mb=round(os.path.getsize(path) / 2 ** 20, 1),
                              estimate_mb=cost >> 20, used_mb=res["used"] >> 20,

@@ -41,7 +41,7 @@ sys.path.insert(0, ROOT)
 
 from bench.measures import all_measures  # noqa: E402
 from engine.analysis import analyze  # noqa: E402
-from engine.exemplar import PIL_MODES, load_exemplar, to_u8  # noqa: E402
+from engine.exemplar import PIL_MODES, load_exemplar, to_u8, write_png  # noqa: E402
 from engine.pyramid import Rect  # noqa: E402
 from engine.synth import Synthesizer  # noqa: E402
 
@@ -149,11 +149,11 @@ def main(argv=None) -> int:
     os.makedirs(os.path.dirname(os.path.abspath(args.sheet)), exist_ok=True)
     gap = 4
     rows = [np.pad(r, ((0, gap), (0, 0), (0, 0)), constant_values=255) for r in sheet_rows]
-    Image.fromarray(np.concatenate(rows, axis=0)).save(args.sheet)
+    write_png(args.sheet, np.concatenate(rows, axis=0))
     print(f"contact sheet (exemplar | ours | tiled | peer): {args.sheet}")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=1)
+        from engine.safeio import atomic_write
+        atomic_write(args.json, json.dumps(results, indent=1).encode())
     return 0
 
 

@@ -141,8 +141,8 @@ def main(argv=None) -> int:
     for k, v in rows:
         print(f"{k:<{width}}  {v}")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(res, f, indent=2)
+        from engine.safeio import atomic_write
+        atomic_write(args.json, json.dumps(res, indent=2).encode())
     return 0
 
 

@@ -148,6 +148,16 @@ def _read_umask() -> int:
 _UMASK = _read_umask()
 
 
+def _existing(real: str, shown: str) -> os.stat_result | None:
+    """stat of an output target (symbolic links followed), None if it does not exist."""
+    try:
+        return os.stat(real)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise WriteError(f"{shown} cannot be checked: {exc.strerror or exc}.") from None
+
+
 def check_output(path: str, extensions: tuple[str, ...] = (), what: str = "output") -> str:
     """Validate an output path before any work: its folder exists and is
     writable, its extension is one of ``extensions`` (lowercase, with the dot;
@@ -161,12 +171,7 @@ def check_output(path: str, extensions: tuple[str, ...] = (), what: str = "outpu
     folder = os.path.dirname(real)
     if not os.path.isdir(folder):
         raise WriteError(f"The folder of {shown} does not exist.")
-    try:
-        st = os.stat(real)
-    except FileNotFoundError:
-        st = None
-    except OSError as exc:
-        raise WriteError(f"{shown} cannot be checked: {exc.strerror or exc}.") from None
+    st = _existing(real, shown)
     if st is not None:
         if stat.S_ISDIR(st.st_mode):
             ending = f" ending in {' or '.join(extensions)}" if extensions else ""
@@ -234,12 +239,7 @@ def atomic_write(path: str, data: bytes | None = None, *, writer=None) -> None:
     shown = name_of(path)
     real = os.path.realpath(path)  # write through symbolic links: the link stays
     folder = os.path.dirname(real)
-    try:
-        st = os.stat(real)
-    except FileNotFoundError:
-        st = None
-    except OSError as exc:
-        raise WriteError(f"Saving {shown} failed: {exc.strerror or exc}.") from None
+    st = _existing(real, shown)
     if st is not None and not stat.S_ISREG(st.st_mode):
         raise WriteError(f"{printable(path)} exists and is not a regular file; it is not overwritten.")
     mode = stat.S_IMODE(st.st_mode) if st is not None else (0o666 & ~_UMASK)

@@ -26,6 +26,7 @@ from app.document import (
     project_to_json,
     save_project,
 )
+from bench.import_memory import measure_import
 from engine.exemplar import (
     DECODERS,
     HIRES_MAX,
@@ -112,31 +113,6 @@ def test_large_jpeg_is_decoded_at_reduced_scale_with_a_capped_hires():
     assert ex.hires.shape == (HIRES_MAX, HIRES_MAX, 3)
 
 
-_PEAK = textwrap.dedent("""
-    import json, sys
-    sys.path.insert(0, {root!r})
-    from engine.exemplar import ExemplarError, load_exemplar
-    def hwm():  # peak RSS of this process image (ru_maxrss would include the parent's peak)
-        for line in open("/proc/self/status"):
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) * 1024
-    base = hwm()
-    try:
-        ex = load_exemplar(sys.argv[1]); out = "accepted"
-    except ExemplarError as exc:
-        out = str(exc)
-    peak = hwm()
-    print(json.dumps(dict(outcome=out, base=base, peak=peak)))
-""")
-
-
-def import_peak(path: str) -> dict:
-    code = _PEAK.format(root=ROOT)
-    r = subprocess.run([sys.executable, "-c", code, path], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    return json.loads(r.stdout.strip().splitlines()[-1])
-
-
 def test_import_memory_is_bounded(tmp_path):
     # A tiny JPEG whose header says 8000 x 8000 (libjpeg fills the missing
     # blocks): accepted at 2.3 GB before; now decoded at 1/2 scale.
@@ -144,17 +120,17 @@ def test_import_memory_is_bounded(tmp_path):
     sof = liar.find(b"\xff\xc0")
     liar[sof + 5:sof + 9] = (8000).to_bytes(2, "big") * 2
     (tmp_path / "liar.jpg").write_bytes(bytes(liar))
-    r = import_peak(str(tmp_path / "liar.jpg"))
+    r = measure_import(str(tmp_path / "liar.jpg"))
     assert len(liar) < 1024 and r["outcome"] == "accepted"
-    assert r["peak"] - r["base"] < 400 * 2 ** 20
+    assert r["used"] < 400 * 2 ** 20
     # 8192^2 RGBA PNG (peaked at 2.9-3.6 GB): within the budget, and the cost
     # computed from the header bounds what the import really used.
     img = Image.new("RGBA", (8192, 8192), (10, 20, 30, 255))
     img.paste((200, 100, 50, 255), (0, 0, 8192, 4096))
     img.save(tmp_path / "big.png", compress_level=1)
-    r = import_peak(str(tmp_path / "big.png"))
+    r = measure_import(str(tmp_path / "big.png"))
     assert r["outcome"] == "accepted"
-    used = r["peak"] - r["base"]
+    used = r["used"]
     assert used < IMPORT_BUDGET
     assert used <= import_cost(8192, 8192, "RGBA", os.path.getsize(tmp_path / "big.png"), "resize", "PNG")
 
