@@ -81,11 +81,12 @@ def coverage(coords: np.ndarray, m: int) -> tuple[float, float]:
     return evenness, float((counts > 0).mean())
 
 
-def verbatim_regions(coords: np.ndarray, m: int, toroidal: bool = False) -> tuple[float, int]:
+def verbatim_regions(coords: np.ndarray, m: int, toroidal: bool = False,
+                     mask: np.ndarray | None = None) -> tuple[float, int]:
     """(mean, max) size in pixels of verbatim-copied regions: connected pixels
     whose coordinates continue each other (S[p + e] = S[p] + e, mod m for a
     toroidal exemplar). The mean is area-weighted: the region size a random
-    output pixel belongs to."""
+    output pixel belongs to (a random pixel of ``mask``, when given)."""
     h, w = coords.shape[:2]
     c = coords.astype(np.int64)
     ids = np.arange(h * w).reshape(h, w)
@@ -105,6 +106,8 @@ def verbatim_regions(coords: np.ndarray, m: int, toroidal: bool = False) -> tupl
     g = sparse.coo_matrix((np.ones(len(r), dtype=np.int8), (r, q)), shape=(h * w, h * w))
     _, labels = csgraph.connected_components(g, directed=False)
     sizes = np.bincount(labels)
+    if mask is not None:
+        return float(sizes[labels[np.asarray(mask).ravel()]].mean()), int(sizes.max())
     return float((sizes.astype(np.float64) ** 2).sum() / sizes.sum()), int(sizes.max())
 
 

@@ -87,6 +87,14 @@ class Gpu:
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return tex
 
+    def u16_texture(self, data: np.ndarray):
+        """A single-channel uint16 (R16UI) texture of a (h, w) array."""
+        data = np.ascontiguousarray(data, dtype=np.uint16)
+        tex = self.ctx.texture((data.shape[1], data.shape[0]), 1, data.tobytes(), dtype="u2")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.repeat_x = tex.repeat_y = False
+        return tex
+
     def int_texture(self, size: tuple[int, int], components: int, data: np.ndarray | None = None):
         tex = self.ctx.texture(size, components, None if data is None else
                                np.ascontiguousarray(data, dtype=np.int16).tobytes(), dtype="i2")

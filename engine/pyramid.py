@@ -21,6 +21,7 @@ import moderngl
 import numpy as np
 
 from . import fixed
+from .controls import NO_CONTROLS, Controls
 from .gpu import Gpu, GpuAnalysis
 from .params import SynthParams, correction_margins, subpass_order
 
@@ -126,7 +127,8 @@ class Pyramid:
     """
 
     def __init__(self, gpu: Gpu, gan: GpuAnalysis, params: SynthParams, *,
-                 scrolling: bool = True, prefetch: int = 16, chunk: int = 16):
+                 scrolling: bool = True, prefetch: int = 16, chunk: int = 16,
+                 controls: Controls = NO_CONTROLS):
         self.gpu = gpu
         self.gan = gan
         self.an = gan.analysis
@@ -136,16 +138,26 @@ class Pyramid:
         self.buffers: list[_LevelBuffer | None] = [None] * (self.an.L + 1)
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
-        self.set_params(params)
+        self._efield: dict[int, object] = {}  # level -> R_E,l texture
+        self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
+        self.controls = NO_CONTROLS
+        self.set_params(params, controls)
 
     # -- parameters ---------------------------------------------------------
 
-    def set_params(self, params: SynthParams) -> None:
-        """Adopt new parameters, keeping every level they do not change."""
+    def set_params(self, params: SynthParams, controls: Controls | None = None) -> None:
+        """Adopt new parameters (and controls), keeping every level they do not change."""
         params.validate(self.an.L)
+        if controls is not None:
+            controls = controls.normalized()
+            controls.validate(self.an.size)
+            if controls.randomness_exemplar != self.controls.randomness_exemplar:
+                self._release_efield()
+            self.controls = controls
         old = getattr(self, "_signatures", None)
         self.params = params
-        self._signatures = [params.level_signature(l) for l in range(self.an.L + 1)]
+        self._signatures = [(params.level_signature(l), self.controls.level_signature(l))
+                            for l in range(self.an.L + 1)]
         self.corrected = params.corrected_levels() if params.passes > 0 else frozenset()
         radius = fixed.read_radius(self.an.model)
         m = correction_margins(params.subgrid, params.passes, radius)
@@ -293,19 +305,30 @@ class Pyramid:
         a, fa, b, fb = self._scratch_pair(region.w, region.h)
         h = an.h(l)
 
-        # Upsample + jitter into scratch a.
+        # Upsample + jitter into scratch a (modulated by the randomness fields).
         prog, vao = self.gpu.program("upsample.frag", SUB_S=s)
         if l > 0:
             parent = self.buffers[l - 1]
             assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
             parent.tex.use(0)
             set_uniforms(prog, parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
+        efield = self._efield_texture(l)
+        (efield or self._dummy).use(1)
+        cvals = None
+        if self.controls.randomness_canvas is not None:
+            cvals = self.controls.randomness_canvas.region(an.L - l, region.x0, region.y0, region.w, region.h,
+                                                           p.level_period(l))
+        ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
+        (ctex or self._dummy).use(2)
         set_uniforms(prog, has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
                      m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
-                     period=p.level_period(l))
+                     period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
+                     cfield=2, has_cfield=int(ctex is not None))
         fa.use()
         fa.viewport = (0, 0, region.w, region.h)
         vao.render(moderngl.TRIANGLES)
+        if ctex is not None:
+            ctex.release()
 
         # Correction subpasses, ping-ponging a <-> b.
         if l in self.corrected:
@@ -338,6 +361,19 @@ class Pyramid:
             vao.render(moderngl.TRIANGLES)
         return region.w * region.h
 
+    def _efield_texture(self, l: int):
+        e = self.controls.randomness_exemplar
+        if e is None:
+            return None
+        if l not in self._efield:
+            self._efield[l] = self.gpu.u16_texture(e.level(self.an.L, l))
+        return self._efield[l]
+
+    def _release_efield(self) -> None:
+        for t in self._efield.values():
+            t.release()
+        self._efield.clear()
+
     @staticmethod
     def _texel_pieces(buf: _LevelBuffer, r: Rect):
         """Split r into pieces contiguous in the destination texture."""
@@ -368,6 +404,7 @@ class Pyramid:
             if buf is not None:
                 buf.release()
         self.buffers = [None] * (self.an.L + 1)
+        self._release_efield()
         for a, fa, b, fb in self._scratch.values():
             for o in (fa, fb, a, b):
                 o.release()

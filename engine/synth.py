@@ -16,6 +16,7 @@ from dataclasses import replace
 import numpy as np
 
 from .analysis import Analysis
+from .controls import NO_CONTROLS, Controls
 from .gpu import Gpu, GpuAnalysis
 from .params import SynthParams
 from .pyramid import Pyramid, Rect, SynthesisError
@@ -29,7 +30,10 @@ MAX_WINDOW_PIXELS = 64 * 1024 * 1024
 class Synthesizer:
     """Synthesizes windows of one analyzed exemplar on one GL context."""
 
-    def __init__(self, analysis: Analysis, params: SynthParams | None = None, gpu: Gpu | None = None):
+    def __init__(self, analysis: Analysis, params: SynthParams | None = None, gpu: Gpu | None = None,
+                 controls: Controls = NO_CONTROLS):
+        controls.validate(analysis.size)
+        self.controls = controls
         self.analysis = analysis
         self.owns_gpu = gpu is None
         self.gpu = gpu or Gpu()
@@ -41,14 +45,17 @@ class Synthesizer:
     def L(self) -> int:
         return self.analysis.L
 
-    def set_params(self, params: SynthParams) -> None:
+    def set_params(self, params: SynthParams, controls: Controls | None = None) -> None:
         params.validate(self.L)
+        if controls is not None:
+            controls.validate(self.analysis.size)
+            self.controls = controls
         self.params = params
 
     def window(self, rect: Rect, level: int | None = None) -> np.ndarray:
         """Exact coordinates of ``rect`` at ``level`` (default: finest), (H, W, 2) int32."""
         level = self.L if level is None else level
-        pyr = Pyramid(self.gpu, self.gan, self.params, scrolling=False)
+        pyr = Pyramid(self.gpu, self.gan, self.params, scrolling=False, controls=self.controls)
         try:
             pyr.request(level, rect)
             return pyr.read(level, rect)
@@ -92,11 +99,12 @@ class Viewport:
 
     def __init__(self, synth: Synthesizer, prefetch: int = 16):
         self.synth = synth
-        self.pyramid = Pyramid(synth.gpu, synth.gan, synth.params, scrolling=True, prefetch=prefetch)
+        self.pyramid = Pyramid(synth.gpu, synth.gan, synth.params, scrolling=True, prefetch=prefetch,
+                               controls=synth.controls)
 
-    def set_params(self, params: SynthParams) -> None:
-        self.synth.set_params(params)
-        self.pyramid.set_params(params)
+    def set_params(self, params: SynthParams, controls: Controls | None = None) -> None:
+        self.synth.set_params(params, controls)
+        self.pyramid.set_params(params, controls)
 
     def show(self, rect: Rect, zoom_out: int = 0) -> int:
         """Make ``rect`` exact at level L - zoom_out; returns pixels synthesized."""

@@ -11,11 +11,51 @@ import numpy as np
 
 from engine import fixed
 from engine.analysis import Analysis
+from engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
 from engine.params import SynthParams, subpass_order
 
 
+def field_values(controls: Controls, an: Analysis, params: SynthParams, level: int,
+                 ux: np.ndarray, uy: np.ndarray, gx: np.ndarray, gy: np.ndarray):
+    """(E, C): the randomness field values at each pixel, read the documented way
+    (written without the engine's tile and region code: a pixel at a time)."""
+    m, L = an.size, an.L
+    E = np.full(ux.shape, NEUTRAL, np.int64)
+    C = np.full(ux.shape, NEUTRAL, np.int64)
+    e, c = controls.randomness_exemplar, controls.randomness_canvas
+    if e is not None:
+        k = L - level
+        # Min over the h_l x h_l exemplar block of each upsampled coordinate.
+        bx, by = (ux & (m - 1)) >> k, (uy & (m - 1)) >> k
+        blocks = e.values.reshape(m >> k, 1 << k, m >> k, 1 << k).min(axis=(1, 3)).astype(np.int64)
+        E = blocks[by, bx]
+    if c is not None and c.tiles:
+        k = L - level
+        n = params.level_period(level)
+        px, py = (gx & (n - 1), gy & (n - 1)) if n else (gx, gy)
+        x0, y0 = int(px.min()), int(py.min())
+        dense = _dense_canvas(c, x0 << k, y0 << k, (int(px.max()) + 1 - x0) << k, (int(py.max()) + 1 - y0) << k)
+        for _ in range(k):  # rounded means of 2x2, k times
+            d = dense.astype(np.int64)
+            dense = (d[0::2, 0::2] + d[1::2, 0::2] + d[0::2, 1::2] + d[1::2, 1::2] + 2) >> 2
+        C = dense[py - y0, px - x0].astype(np.int64)
+    return E, C
+
+
+def _dense_canvas(c, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+    """The finest canvas field over a rectangle, pixel by pixel from the tiles."""
+    from engine.controls import TILE
+    ys, xs = np.mgrid[y0:y0 + h, x0:x0 + w]
+    out = np.full((h, w), NEUTRAL, np.int64)
+    for (tx, ty), t in c.tiles.items():
+        sel = (xs // TILE == tx) & (ys // TILE == ty)
+        out[sel] = t[ys[sel] % TILE, xs[sel] % TILE]
+    return out
+
+
 def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: tuple[int, int],
-             shape: tuple[int, int], an: Analysis, params: SynthParams, level: int) -> np.ndarray:
+             shape: tuple[int, int], an: Analysis, params: SynthParams, level: int,
+             controls: Controls = NO_CONTROLS) -> np.ndarray:
     h, m = an.h(level), an.size
     H, W = shape
     gy, gx = np.mgrid[origin[1]:origin[1] + H, origin[0]:origin[0] + W].astype(np.int64)
@@ -29,7 +69,11 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         assert px.min() >= 0 and py.min() >= 0 and px.max() < parent.shape[1] and py.max() < parent.shape[0]
         ux = parent[py, px, 0] + fixed.child_offset(gmx & 1, h)
         uy = parent[py, px, 1] + fixed.child_offset(gmy & 1, h)
-    jx, jy = fixed.jitter(gmx, gmy, level, params.seed, h, fixed.jitter_q(params.jitter[level]))
+    rq = fixed.jitter_q(params.jitter[level])
+    if controls.randomness_exemplar is not None or controls.randomness_canvas is not None:
+        E, C = field_values(controls, an, params, level, ux, uy, gx, gy)
+        rq = modulated_rq(rq, E, C)
+    jx, jy = fixed.jitter(gmx, gmy, level, params.seed, h, rq)
     return np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
 
 
@@ -92,7 +136,8 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
 
 
 def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int,
-               level: int | None = None, uncorrected_level: int | None = None) -> np.ndarray:
+               level: int | None = None, uncorrected_level: int | None = None,
+               controls: Controls = NO_CONTROLS) -> np.ndarray:
     """Exact coordinates (h, w, 2) of the window at ``level`` (default finest).
 
     ``uncorrected_level`` skips correction on that one level (to measure what
@@ -113,7 +158,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
     parent, porigin = None, (0, 0)
     for l in range(0, level + 1):
         wx0, wy0, wx1, wy1 = wins[l]
-        S = upsample(parent, porigin, (wx0, wy0), (wy1 - wy0, wx1 - wx0), an, params, l)
+        S = upsample(parent, porigin, (wx0, wy0), (wy1 - wy0, wx1 - wx0), an, params, l, controls)
         if l != uncorrected_level and l in params.corrected_levels():
             for order in subpass_order(s, params.passes):
                 for phase in order:

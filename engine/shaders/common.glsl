@@ -34,3 +34,10 @@ ivec4 floor_shift(ivec4 x, int s) {
 ivec2 packed_texel(ivec2 p, ivec2 qdims) {
     return (p % SUB_S) * qdims + p / SUB_S;
 }
+
+// The effective r_l in 1024ths for randomness field values E (exemplar) and
+// C (canvas) in 1/32768ths (engine/controls.py: modulated_rq).
+int modulated_rq(int rq, uint E, uint C) {
+    uint t = (E * C + 16384u) >> 15;
+    return int(min(1024u, (uint(rq) * t + 16384u) >> 15));
+}

@@ -1,7 +1,10 @@
 // Upsample + jitter (LH05 3.1-3.2) of one padded region of level l into a
 // quadrant-packed scratch buffer:
 //   S_l[p] = (S_{l-1}[floor(p/2)] + floor(h (D - 1/2)) + J_l(p)) mod m,
-//   J_l(p) = floor(h H(p, l, seed) r_l + 1/2).
+//   J_l(p) = floor(h H(p, l, seed) r_l M_l(p) + 1/2),
+// M_l(p) the product of the randomness fields over the exemplar (read at the
+// upsampled coordinate, min-mipmapped) and over the canvas (engine/controls.py);
+// the effective r_l M_l(p) is clamped to 1. Fields are 1/32768ths (neutral 32768).
 // Level 0 starts from the exemplar centre m/2 (the upsampled S_{-1} = 0).
 // With a period n_l (toroidal output), jitter and child offsets use p mod n_l.
 
@@ -17,6 +20,11 @@ uniform int level;
 uniform uint seed;
 uniform int rq;                 // r_l in 1024ths
 uniform int period;             // n_l (a power of two), or 0 for the infinite canvas
+uniform int has_efield;         // randomness over the exemplar
+uniform usampler2D efield;      // R_E,l: (m >> eshift)^2, uint16
+uniform int eshift;             // L - l
+uniform int has_cfield;         // randomness over the canvas
+uniform usampler2D cfield;      // R_S,l over this scratch region (row-major local pixels), uint16
 
 out ivec4 result;
 
@@ -34,7 +42,13 @@ void main() {
     } else {
         u = ivec2(m / 2);
     }
+    int r = rq;
+    if (has_efield != 0 || has_cfield != 0) {
+        uint E = has_efield != 0 ? texelFetch(efield, (u & (m - 1)) >> eshift, 0).r : 32768u;
+        uint C = has_cfield != 0 ? texelFetch(cfield, local, 0).r : 32768u;
+        r = modulated_rq(rq, E, C);
+    }
     ivec2 H = hash2(gm, level, seed);
-    ivec2 J = ((h * H * rq + (1 << 19) + SHIFT_BIAS) >> 20) - (SHIFT_BIAS >> 20);
+    ivec2 J = ((h * H * r + (1 << 19) + SHIFT_BIAS) >> 20) - (SHIFT_BIAS >> 20);
     result = ivec4((u + J) & (m - 1), 0, 0);
 }

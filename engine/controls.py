@@ -1,0 +1,217 @@
+"""User controls of the synthesis: the one engine input built from a document.
+
+Everything an artist paints, places or marks reaches the synthesis passes
+through a :class:`Controls` value (immutable): today the two randomness fields
+of LH05 section 4.2 (ALGORITHM.md section 5); features and lattices will join
+it. The pyramid asks it, per strip and level, for what the passes read.
+
+**Randomness fields** modulate the jitter: ``J_l(p) = floor(h H(p) r_l M_l(p) + 1/2)``
+with the effective ``r_l M_l(p)`` clamped to [0, 1]. Field values are uint16 in
+1/32768ths: 0 = calm (no jitter), 32768 = neutral, 65535 = almost 2 (rough).
+
+- :class:`ExemplarField` (over the exemplar, m x m): ``M_l(p) = R_E,l[S_l(p)]``
+  where ``S_l(p)`` is the upsampled coordinate before jitter and ``R_E,l`` the
+  min-mipmap (a level-l texel covers h_l x h_l exemplar pixels and takes their
+  minimum, so a protected feature stays protected at every scale).
+- :class:`CanvasField` (over the infinite canvas, finest-level pixels, sparse
+  64 x 64 tiles; unpainted = neutral): ``M_l(p) = R_S,l[p]``, the mean-mipmap
+  (a level-l pixel covers h_l x h_l canvas pixels). With a toroidal period n,
+  the field is read at ``p mod n_l`` (its tile [0, n)^2 repeats).
+
+Both multiply: ``t = (E * C + 2^14) >> 15``, ``r'_q = min(1024, (r_q t + 2^14) >> 15)``,
+so a neutral field gives exactly the unmodulated jitter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+NEUTRAL = 32768
+TILE = 64  # canvas field tile side, finest-level pixels
+
+
+def modulated_rq(rq: int | np.ndarray, e: int | np.ndarray, c: int | np.ndarray) -> np.ndarray:
+    """The effective r_l in 1024ths for field values e (exemplar) and c (canvas)."""
+    t = (np.asarray(e, dtype=np.int64) * np.asarray(c, dtype=np.int64) + (1 << 14)) >> 15
+    return np.minimum(1024, (np.asarray(rq, dtype=np.int64) * t + (1 << 14)) >> 15)
+
+
+def _u16(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a)
+    if a.dtype != np.uint16:
+        raise ValueError("randomness fields are uint16 (1/32768ths)")
+    return np.ascontiguousarray(a)
+
+
+@dataclass(frozen=True, eq=False)
+class ExemplarField:
+    """Randomness over the exemplar: uint16 (m, m), 32768 = neutral."""
+
+    values: np.ndarray
+
+    def __post_init__(self):
+        v = _u16(self.values)
+        if v.ndim != 2 or v.shape[0] != v.shape[1] or v.shape[0] & (v.shape[0] - 1):
+            raise ValueError(f"an exemplar randomness field is a power-of-two square, not {v.shape}")
+        object.__setattr__(self, "values", v)
+
+    @property
+    def size(self) -> int:
+        return int(self.values.shape[0])
+
+    @cached_property
+    def key(self) -> str:
+        import hashlib
+        return hashlib.sha256(self.values.tobytes() + repr(self.values.shape).encode()).hexdigest()
+
+    def __eq__(self, other):
+        return isinstance(other, ExemplarField) and self.key == other.key
+
+    def __hash__(self):
+        return hash(self.key)
+
+    @cached_property
+    def mips(self) -> list[np.ndarray]:
+        """mips[k]: the min-mipmap reduced k times ((m >> k) square)."""
+        out = [self.values]
+        while out[-1].shape[0] > 1:
+            a = out[-1]
+            out.append(np.minimum(np.minimum(a[0::2, 0::2], a[1::2, 0::2]),
+                                  np.minimum(a[0::2, 1::2], a[1::2, 1::2])))
+        return out
+
+    def level(self, L: int, level: int) -> np.ndarray:
+        """R_E,l: the field seen by level ``level`` of an exemplar with finest level L."""
+        return self.mips[L - level]
+
+    @property
+    def neutral(self) -> bool:
+        return bool(np.all(self.values == NEUTRAL))
+
+
+@dataclass(frozen=True, eq=False)
+class CanvasField:
+    """Randomness over the canvas: sparse uint16 TILE x TILE tiles keyed by
+    tile index (tx, ty) (pixels [tx*TILE, (tx+1)*TILE)); absent tiles are neutral."""
+
+    tiles: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        clean = {}
+        for (tx, ty), t in self.tiles.items():
+            t = _u16(t)
+            if t.shape != (TILE, TILE):
+                raise ValueError(f"canvas field tiles are {TILE}x{TILE}, not {t.shape}")
+            if not np.all(t == NEUTRAL):
+                clean[(int(tx), int(ty))] = t
+        object.__setattr__(self, "tiles", clean)
+
+    @classmethod
+    def from_image(cls, values: np.ndarray, x: int, y: int) -> CanvasField:
+        """A painted region (uint16 H x W) placed with its top-left at canvas (x, y)."""
+        values = _u16(values)
+        h, w = values.shape
+        tiles = {}
+        for ty in range(y // TILE, (y + h - 1) // TILE + 1):
+            for tx in range(x // TILE, (x + w - 1) // TILE + 1):
+                t = np.full((TILE, TILE), NEUTRAL, np.uint16)
+                x0, y0 = tx * TILE, ty * TILE
+                ix0, iy0 = max(x0, x), max(y0, y)
+                ix1, iy1 = min(x0 + TILE, x + w), min(y0 + TILE, y + h)
+                t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
+                tiles[(tx, ty)] = t
+        return cls(tiles)
+
+    @cached_property
+    def key(self) -> str:
+        import hashlib
+        hsh = hashlib.sha256()
+        for k in sorted(self.tiles):
+            hsh.update(repr(k).encode())
+            hsh.update(self.tiles[k].tobytes())
+        return hsh.hexdigest()
+
+    def __eq__(self, other):
+        return isinstance(other, CanvasField) and self.key == other.key
+
+    def __hash__(self):
+        return hash(self.key)
+
+    @property
+    def neutral(self) -> bool:
+        return not self.tiles
+
+    def _mip_tiles(self, k: int) -> dict:
+        """Tiles of the field reduced k times (mean of 2x2, rounded), same tile size."""
+        cache = self.__dict__.setdefault("_mips", {0: self.tiles})
+        if k in cache:
+            return cache[k]
+        finer = self._mip_tiles(k - 1)
+        out: dict = {}
+        parents = {(tx >> 1, ty >> 1) for tx, ty in finer}
+        for px, py in parents:
+            big = np.full((2 * TILE, 2 * TILE), NEUTRAL, np.uint32)
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    t = finer.get((2 * px + dx, 2 * py + dy))
+                    if t is not None:
+                        big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = t
+            s = big[0::2, 0::2] + big[1::2, 0::2] + big[0::2, 1::2] + big[1::2, 1::2]
+            out[(px, py)] = ((s + 2) >> 2).astype(np.uint16)
+        cache[k] = out
+        return out
+
+    def region(self, k: int, x0: int, y0: int, w: int, h: int, period: int = 0) -> np.ndarray | None:
+        """The field reduced k times over [x0, x0+w) x [y0, y0+h) (level pixels),
+        uint16 (h, w); None when no painted tile touches it. With ``period`` n
+        (a level period), pixel p reads the field at p mod n."""
+        tiles = self._mip_tiles(k) if self.tiles else {}
+        if not tiles:
+            return None
+        if period:
+            ys = np.arange(y0, y0 + h) & (period - 1)
+            xs = np.arange(x0, x0 + w) & (period - 1)
+            base = self.region(k, 0, 0, period, period)
+            return None if base is None else np.ascontiguousarray(base[ys[:, None], xs[None, :]])
+        out = None
+        for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
+            for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
+                t = tiles.get((tx, ty))
+                if t is None:
+                    continue
+                if out is None:
+                    out = np.full((h, w), NEUTRAL, np.uint16)
+                ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
+                ix1, iy1 = min((tx + 1) * TILE, x0 + w), min((ty + 1) * TILE, y0 + h)
+                out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = t[iy0 - ty * TILE:iy1 - ty * TILE,
+                                                            ix0 - tx * TILE:ix1 - tx * TILE]
+        return out
+
+
+@dataclass(frozen=True)
+class Controls:
+    """Everything painted or placed by the user that the passes read."""
+
+    randomness_exemplar: ExemplarField | None = None
+    randomness_canvas: CanvasField | None = None
+
+    def normalized(self) -> Controls:
+        """Neutral fields dropped (they change nothing), so equal effects compare equal."""
+        e = self.randomness_exemplar
+        c = self.randomness_canvas
+        return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c)
+
+    def validate(self, m: int) -> None:
+        e = self.randomness_exemplar
+        if e is not None and e.size != m:
+            raise ValueError(f"The exemplar randomness field is {e.size}x{e.size}; the exemplar is {m}x{m}.")
+
+    def level_signature(self, level: int) -> tuple:
+        """What level ``level`` reads of the controls (fields change all levels)."""
+        e, c = self.randomness_exemplar, self.randomness_canvas
+        return (None if e is None else e.key, None if c is None else c.key)
+
+
+NO_CONTROLS = Controls()
