@@ -45,6 +45,29 @@ def _u16(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def dab_weights(cx: float, cy: float, radius: float, hardness: float, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+    """Brush coverage in [0, 1] over pixels [x0, x0+w) x [y0, y0+h) (pixel centers):
+    1 inside ``hardness * radius``, then a smooth falloff to 0 at ``radius``."""
+    ys, xs = np.mgrid[y0:y0 + h, x0:x0 + w]
+    d = np.hypot(xs + 0.5 - cx, ys + 0.5 - cy) / max(radius, 1e-6)
+    inner = min(max(hardness, 0.0), 0.999)
+    t = np.clip((d - inner) / (1.0 - inner), 0.0, 1.0)
+    return np.where(d >= 1.0, 0.0, 1.0 - t * t * (3.0 - 2.0 * t))
+
+
+def apply_dab(old: np.ndarray, weights: np.ndarray, value: int, strength: float) -> np.ndarray:
+    """old + (value - old) * strength * weights, rounded, as uint16."""
+    a = np.clip(strength, 0.0, 1.0) * weights
+    new = old.astype(np.float64) + (float(value) - old) * a
+    return np.clip(np.rint(new), 0, 65535).astype(np.uint16)
+
+
+def dab_rect(cx: float, cy: float, radius: float) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the pixels a dab can touch."""
+    return (int(np.floor(cx - radius)), int(np.floor(cy - radius)),
+            int(np.ceil(cx + radius)) + 1, int(np.ceil(cy + radius)) + 1)
+
+
 @dataclass(frozen=True, eq=False)
 class ExemplarField:
     """Randomness over the exemplar: uint16 (m, m), 32768 = neutral."""
@@ -90,6 +113,23 @@ class ExemplarField:
     def neutral(self) -> bool:
         return bool(np.all(self.values == NEUTRAL))
 
+    @classmethod
+    def blank(cls, m: int) -> ExemplarField:
+        return cls(np.full((m, m), NEUTRAL, np.uint16))
+
+    def painted(self, cx: float, cy: float, radius: float, value: int, strength: float = 1.0,
+                hardness: float = 0.5) -> ExemplarField:
+        """A dab (exemplar pixels; clipped at the exemplar's border)."""
+        m = self.size
+        x0, y0, x1, y1 = dab_rect(cx, cy, radius)
+        x0, y0, x1, y1 = max(0, x0), max(0, y0), min(m, x1), min(m, y1)
+        if x0 >= x1 or y0 >= y1:
+            return self
+        v = self.values.copy()
+        wts = dab_weights(cx, cy, radius, hardness, x0, y0, x1 - x0, y1 - y0)
+        v[y0:y1, x0:x1] = apply_dab(v[y0:y1, x0:x1], wts, value, strength)
+        return ExemplarField(v)
+
 
 @dataclass(frozen=True, eq=False)
 class CanvasField:
@@ -123,6 +163,33 @@ class CanvasField:
                 t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
                 tiles[(tx, ty)] = t
         return cls(tiles)
+
+    def painted(self, cx: float, cy: float, radius: float, value: int, strength: float = 1.0,
+                hardness: float = 0.5) -> tuple[CanvasField, "tuple[int, int, int, int]"]:
+        """A dab (finest-level canvas pixels): the new field, sharing every
+        untouched tile with this one, and the rectangle (x0, y0, x1, y1) it changed."""
+        x0, y0, x1, y1 = dab_rect(cx, cy, radius)
+        tiles = dict(self.tiles)
+        for ty in range(y0 // TILE, (y1 - 1) // TILE + 1):
+            for tx in range(x0 // TILE, (x1 - 1) // TILE + 1):
+                old = tiles.get((tx, ty))
+                base = old if old is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
+                wts = dab_weights(cx, cy, radius, hardness, tx * TILE, ty * TILE, TILE, TILE)
+                if not wts.any():
+                    continue
+                tiles[(tx, ty)] = apply_dab(base, wts, value, strength)
+        return CanvasField(tiles), (x0, y0, x1, y1)
+
+    def changed_rects(self, other: CanvasField) -> list:
+        """(x0, y0, x1, y1) of the tiles that differ between two fields."""
+        out = []
+        for k in set(self.tiles) | set(other.tiles):
+            a, b = self.tiles.get(k), other.tiles.get(k)
+            if a is b:
+                continue
+            if a is None or b is None or not np.array_equal(a, b):
+                out.append((k[0] * TILE, k[1] * TILE, (k[0] + 1) * TILE, (k[1] + 1) * TILE))
+        return out
 
     @cached_property
     def key(self) -> str:

@@ -80,6 +80,25 @@ class Rect:
         return [r for r in out if not r.empty]
 
 
+def _merge(rects: list[Rect]) -> list[Rect]:
+    """Overlapping rectangles merged into their bounding boxes (until disjoint)."""
+    out = list(rects)
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                if not out[i].intersect(out[j]).empty:
+                    a, b = out[i], out[j]
+                    out[i] = Rect(min(a.x0, b.x0), min(a.y0, b.y0), max(a.x1, b.x1), max(a.y1, b.y1))
+                    del out[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return out
+
+
 class SynthesisError(ValueError):
     """A request the synthesis cannot serve (e.g. coordinates out of range)."""
 
@@ -167,6 +186,47 @@ class Pyramid:
         first = next((l for l in range(self.an.L + 1) if old[l] != self._signatures[l]), None)
         if first is not None:
             self.invalidate(first)
+
+    def update_controls(self, controls: Controls, changed: list[Rect]) -> int:
+        """Adopt new controls that differ from the current ones only inside the
+        finest-level canvas rectangles ``changed`` (e.g. painted randomness),
+        re-synthesizing in place just what that changes in the held buffers.
+
+        Level by level, coarse to fine, the dirty region is the changed area
+        seen at that level plus the children of the parent's dirty region,
+        grown by the reach of correction (a changed pixel alters its
+        neighbors' results up to the correction margin away); it is clipped to
+        what the level holds and synthesized again as strips. The result is
+        bit-identical to synthesizing from scratch. Areas not held now cost
+        nothing and are synthesized with the new controls when shown.
+        Returns the number of level pixels synthesized."""
+        controls = controls.normalized()
+        controls.validate(self.an.size)
+        if controls.randomness_exemplar != self.controls.randomness_exemplar:
+            self.set_params(self.params, controls)  # the whole canvas changes
+            return 0
+        self.controls = controls
+        self._signatures = [(self.params.level_signature(l), controls.level_signature(l))
+                            for l in range(self.an.L + 1)]
+        L = self.an.L
+        total = 0
+        parent_dirty: list[Rect] = []
+        for l in range(L + 1):
+            k = L - l
+            dirty = [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)) for r in changed if not r.empty]
+            dirty += [Rect(2 * r.x0, 2 * r.y0, 2 * r.x1, 2 * r.y1) for r in parent_dirty]
+            reach = max(self.margins[l])
+            dirty = [r.pad(reach, reach, reach, reach) for r in dirty]
+            buf = self.buffers[l]
+            if buf is None or buf.valid is None:
+                break  # finer levels hold nothing this could have reached
+            clipped = [r.intersect(buf.valid) for r in dirty]
+            clipped = [r for r in clipped if not r.empty]
+            for r in _merge(clipped):
+                total += self._synthesize_strip(l, r, buf)
+            parent_dirty = dirty  # unclipped: what changed may spread into held children
+        self.pixels_synthesized = total
+        return total
 
     def invalidate(self, first_level: int = 0) -> None:
         """Forget the contents of levels >= first_level."""

@@ -186,3 +186,66 @@ def test_canvas_field_tiles_and_mips():
     assert f.region(0, 1000, 1000, 10, 10) is None
     half = f.region(1, -36, 22, 66, 51)
     assert half is not None and half.shape == (51, 66)
+
+
+def _reach(pyr, r: Rect) -> Rect:
+    """Finest-level bound of what a change inside r can alter (for the test)."""
+    L = pyr.an.L
+    cur = None
+    for l in range(L + 1):
+        k = L - l
+        d = Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k))
+        if cur is not None:
+            d = Rect(min(d.x0, 2 * cur.x0), min(d.y0, 2 * cur.y0), max(d.x1, 2 * cur.x1), max(d.y1, 2 * cur.y1))
+        g = max(pyr.margins[l])
+        cur = d.pad(g, g, g, g)
+    return cur
+
+
+def test_local_updates_after_20_strokes_equal_a_fresh_synthesis(analyses, gpu):
+    an = analyses["gravel-appearance"]
+    rng = np.random.default_rng(11)
+    params = SynthParams.default(an.L, seed=6)
+    x0, y0 = FAR - 5000, -FAR + 3000
+    view = Rect.of(x0, y0, 180, 140)
+    synth = Synthesizer(an, params, gpu=gpu)
+    vp = synth.viewport()
+    field = CanvasField()
+    try:
+        for i in range(20):
+            zoom = int(rng.integers(0, 3))
+            level = an.L - zoom
+            lv = Rect(view.x0 >> zoom, view.y0 >> zoom, (view.x1 >> zoom) + 1, (view.y1 >> zoom) + 1)
+            vp.show(lv, zoom)
+            before = vp.read(lv, zoom)
+            # A stroke of 4 dabs: inside, across the border of, or outside the view.
+            where = rng.choice(["inside", "across", "outside"])
+            cx = x0 + {"inside": 90, "across": -10, "outside": 900}[where] + rng.integers(-30, 30)
+            cy = y0 + {"inside": 70, "across": 140, "outside": -700}[where] + rng.integers(-30, 30)
+            value = int(rng.choice([0, 65535, NEUTRAL, 20000]))
+            old = field
+            bounds = []
+            for d in range(4):
+                field, r = field.painted(cx + 7 * d, cy + 3 * d, float(rng.integers(5, 40)), value,
+                                         strength=float(rng.uniform(0.3, 1)), hardness=float(rng.uniform(0, 1)))
+                bounds.append(Rect(*r))
+            changed = [Rect(*r) for r in old.changed_rects(field)]
+            vp.pyramid.update_controls(Controls(None, field), changed)
+            after = vp.read(lv, zoom)
+            fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(None, field)).window(lv, level)
+            assert np.array_equal(after, fresh), f"stroke {i} ({where}, zoom 1/{1 << zoom})"
+            # Pixels beyond every dab's reach did not change.
+            if changed:
+                pyr = vp.pyramid
+                reach = [_reach(pyr, c) for c in changed]
+                ys, xs = np.mgrid[lv.y0:lv.y1, lv.x0:lv.x1]
+                near = np.zeros(xs.shape, bool)
+                for rr in reach:
+                    k = zoom
+                    near |= ((xs >= rr.x0 >> k) & (xs < -((-rr.x1) >> k)) & (ys >= rr.y0 >> k)
+                             & (ys < -((-rr.y1) >> k)))
+                assert np.array_equal(after[~near], before[~near])
+            if where == "outside":
+                assert np.array_equal(after, before)
+    finally:
+        vp.release()
