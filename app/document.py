@@ -29,12 +29,13 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from engine.analysis import MODELS
-from engine.exemplar import FIT_MODES, MAX_FILE_BYTES
+from engine.controls import TILE, CanvasField, Controls, ExemplarField
+from engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
 from engine.params import DEFAULT_JITTER, SynthParams
 from engine.safeio import ReadError, WriteError, atomic_write, printable, read_head, read_limited
 
 FORMAT = "infinitex-project"
-VERSION = 1
+VERSION = 2              # 2: painted randomness fields ("randomness"); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MAX_PROJECT_BYTES = 32 * 1024 * 1024  # an embedded 16 MB exemplar is 21.4 MB of base64
@@ -85,6 +86,8 @@ class Document:
     subgrid: int = 2
     kappa: float = 0.5
     corrected: tuple[int, ...] | None = None
+    randomness_exemplar: ExemplarField | None = None   # painted over the exemplar (m x m)
+    randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on."""
@@ -99,6 +102,15 @@ class Document:
                 break
             out[L - i] = float(r)
         return tuple(out)
+
+    def controls(self, m: int) -> Controls:
+        """The engine input of everything painted, for an m x m exemplar (an
+        exemplar field painted at another size is scaled to m, nearest)."""
+        e = self.randomness_exemplar
+        if e is not None and e.size != m:
+            idx = (np.arange(m) * e.size) // m
+            e = ExemplarField(np.ascontiguousarray(e.values[idx[:, None], idx[None, :]]))
+        return Controls(e, self.randomness_canvas).normalized()
 
     def params(self, L: int) -> SynthParams:
         corrected = None if self.corrected is None else tuple(l for l in self.corrected if l <= L)
@@ -283,9 +295,10 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
                 ref_path = os.path.relpath(ex.path, os.path.dirname(os.path.abspath(path)))
             except ValueError:  # another drive on Windows
                 ref_path = ex.path
+    fields = _fields_to_json(doc)
     return {
         "format": FORMAT,
-        "version": VERSION,
+        "version": VERSION if fields else 1,
         "exemplar": {
             "name": ex.name,
             "sha256": ex.sha256,
@@ -300,9 +313,89 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
             "subgrid": doc.subgrid, "kappa": doc.kappa,
             "corrected": None if doc.corrected is None else list(doc.corrected),
         },
+        **({"randomness": fields} if fields else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
     }
+
+
+def _png16(a: np.ndarray) -> str:
+    import io
+
+    from PIL import Image
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(a, dtype=np.uint16)).save(buf, "PNG")
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _unpng16(text: object, shape: tuple[int, int] | None, what: str) -> np.ndarray:
+    """A 16-bit grayscale PNG (base64) as uint16; ProjectError if it is anything else."""
+    import io
+
+    from PIL import Image
+    if not isinstance(text, str) or len(text) > 8 * 2 ** 20:
+        raise ProjectError(f"The project's {what} is damaged.")
+    try:
+        data = base64.b64decode(text, validate=True)
+        with Image.open(io.BytesIO(data), formats=["PNG"]) as img:
+            if img.size[0] * img.size[1] > MAX_SIZE * MAX_SIZE or img.mode not in ("I;16", "I"):
+                raise ValueError
+            a = np.asarray(img)
+    except Exception:
+        raise ProjectError(f"The project's {what} is damaged.") from None
+    if a.min(initial=0) < 0 or a.max(initial=0) > 65535 or (shape is not None and a.shape != shape):
+        raise ProjectError(f"The project's {what} is damaged.")
+    return a.astype(np.uint16)
+
+
+def _fields_to_json(doc: Document) -> dict | None:
+    e, c = doc.randomness_exemplar, doc.randomness_canvas
+    if (e is None or e.neutral) and (c is None or c.neutral):
+        return None
+    return {
+        "exemplar": None if e is None or e.neutral else {"png16": _png16(e.values)},
+        "canvas": None if c is None or c.neutral else {
+            "tile": TILE, "tiles": [{"x": tx, "y": ty, "png16": _png16(t)} for (tx, ty), t in sorted(c.tiles.items())]},
+    }
+
+
+MAX_FIELD_TILES = 65536
+_TILE_LIMIT = 2 ** 31 // TILE
+
+
+def _fields_from_json(r: object) -> tuple[ExemplarField | None, CanvasField | None]:
+    """The painted fields of a project; all or nothing."""
+    if r is None:
+        return None, None
+    if not isinstance(r, dict):
+        raise ProjectError("The project's randomness fields are damaged.")
+    e = r.get("exemplar")
+    efield = None
+    if e is not None:
+        if not isinstance(e, dict):
+            raise ProjectError("The project's exemplar randomness field is damaged.")
+        v = _unpng16(e.get("png16"), None, "exemplar randomness field")
+        n = v.shape[0]
+        if v.ndim != 2 or v.shape[1] != n or n & (n - 1) or not 1 <= n <= MAX_SIZE:
+            raise ProjectError("The project's exemplar randomness field is damaged.")
+        efield = ExemplarField(v)
+    c = r.get("canvas")
+    cfield = None
+    if c is not None:
+        if not isinstance(c, dict) or c.get("tile") != TILE or not isinstance(c.get("tiles"), list) \
+                or len(c["tiles"]) > MAX_FIELD_TILES:
+            raise ProjectError("The project's canvas randomness field is damaged.")
+        tiles = {}
+        for t in c["tiles"]:
+            if not isinstance(t, dict):
+                raise ProjectError("The project's canvas randomness field is damaged.")
+            tx, ty = t.get("x"), t.get("y")
+            if not all(isinstance(v, int) and not isinstance(v, bool) and -_TILE_LIMIT <= v < _TILE_LIMIT
+                       for v in (tx, ty)) or (tx, ty) in tiles:
+                raise ProjectError("The project's canvas randomness field is damaged.")
+            tiles[(tx, ty)] = _unpng16(t.get("png16"), (TILE, TILE), "canvas randomness field")
+        cfield = CanvasField(tiles)
+    return efield, cfield
 
 
 def save_project(path: str, project: Project, embed: bool | None = None) -> None:
@@ -476,6 +569,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     if not _number(kappa) or not 0.0 <= kappa <= 100.0:
         raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
     toroidal = _get(e, "toroidal", bool, "exemplar", optional=True)
+    fields = _fields_from_json(d.get("randomness"))
     doc = Document(
         exemplar=source,
         fit=_get(e, "fit", str, "exemplar"),
@@ -488,6 +582,8 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         subgrid=_int_in(s, "subgrid", "synthesis", 1, 4),
         kappa=float(kappa),
         corrected=None if corrected is None else tuple(corrected),
+        randomness_exemplar=fields[0],
+        randomness_canvas=fields[1],
     )
     doc.validate()
     view, display = View(), Display()

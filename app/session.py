@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
+from engine.controls import NO_CONTROLS, CanvasField, Controls
 from engine.exemplar import (
     Exemplar,
     ExemplarError,
@@ -247,6 +248,7 @@ class Session:
         self.job: AnalysisJob | None = None
         self.generation = 0                    # bumps when a new analysis is installed
         self.params: SynthParams | None = None
+        self.controls: Controls = NO_CONTROLS
         self.failed: dict[tuple, str] = {}     # analysis keys that could not be loaded
 
     @property
@@ -278,10 +280,24 @@ class Session:
                 self.load(doc)
             return
         params = doc.params(self.L)
+        controls = doc.controls(self.analysis.size)
         if params != self.params:
-            self.params = params
-            self.synth.set_params(params)
-            self.pyramid.set_params(params)
+            self.params, self.controls = params, controls
+            self.synth.set_params(params, controls)
+            self.pyramid.set_params(params, controls)
+        elif controls != self.controls:
+            old, self.controls = self.controls, controls
+            self.synth.set_params(params, controls)
+            if old.randomness_exemplar == controls.randomness_exemplar:
+                # Painted on the canvas: re-synthesize in place what the paint reaches.
+                before = old.randomness_canvas or CanvasField()
+                after = controls.randomness_canvas or CanvasField()
+                changed = [Rect(*r) for r in before.changed_rects(after)]
+                self.pyramid.update_controls(controls, changed)
+                self.refiner.version += 1
+                self.refiner.last_pixels = self.pyramid.pixels_synthesized
+            else:
+                self.pyramid.set_params(params, controls)
 
     def poll(self) -> AnalysisJob | None:
         """Install a finished job; returns it once when it ends (success or not)."""
@@ -299,8 +315,10 @@ class Session:
         self.release_synthesis()
         self.exemplar, self.analysis = ex, an
         self.params = doc.params(an.L)
-        self.synth = Synthesizer(an, self.params, self.gpu)
-        self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16)
+        self.controls = doc.controls(an.size)
+        self.synth = Synthesizer(an, self.params, self.gpu, controls=self.controls)
+        self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16,
+                               controls=self.controls)
         self.refiner = Refiner(self.pyramid, self.gpu)
         self.stack = stack_u8(an)
         self.key = doc.analysis_key()
@@ -369,7 +387,8 @@ class ExportJob:
         if toroidal:
             params = replace(params, period=int(toroidal))
             params.validate(an.L)
-        self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16)
+        self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
+                               controls=session.controls)
         self.stack = session.stack
         self.L = an.L
         self.coords = np.zeros((rect.h, rect.w, 2), dtype=np.int32)

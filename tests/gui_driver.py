@@ -82,6 +82,43 @@ def main(out: str) -> int:
         settle(ctx)
         check("wheel zooms back", abs(ed.view.zoom - 1.0) < 1e-9, f"zoom {ed.view.zoom}")
 
+        # Paint randomness on the canvas: one stroke changes the canvas near the
+        # stroke only, is one undo step, and undo restores the canvas exactly.
+        before_paint = canvas(ctx)
+        steps_before = len(ed.history.undo_stack)
+        ctx.set_ref("//Infinitex")
+        ctx.item_click("//**/Paint canvas (B)##tool-paint-canvas")
+        tool = ed.tool
+        tool.brush.value, tool.brush.radius, tool.brush.strength = 2.0, 30.0, 1.0
+        r = ctx.item_info("//**/canvas").rect_full
+        cx, cy = (r.min.x + r.max.x) / 2, (r.min.y + r.max.y) / 2
+        ctx.mouse_move_to_pos((cx - 60, cy))
+        ctx.mouse_down(0)
+        for i in range(1, 7):
+            ctx.mouse_move_to_pos((cx - 60 + 20 * i, cy + 5 * i))
+        ctx.mouse_up(0)
+        painted = canvas(ctx)
+        check("paint tool is active", ed.tool.name == "paint-canvas", ed.tool.name)
+        check("a stroke is one undo step", len(ed.history.undo_stack) == steps_before + 1,
+              f"{len(ed.history.undo_stack) - steps_before} steps")
+        diff = np.any(painted != before_paint, axis=-1)
+        ys, xs = np.nonzero(diff)
+        check("a stroke changes the canvas", diff.sum() > 100, f"{diff.sum()} pixels")
+        # Canvas-local stroke box (the canvas image starts at the item's top-left).
+        sx0, sx1 = cx - 60 - r.min.x - 30, cx + 60 - r.min.x + 30
+        sy0, sy1 = cy - r.min.y - 30, cy + 30 - r.min.y + 30
+        far = 200  # the reach of correction through the coarse levels stays well inside this
+        check("only near the stroke", len(xs) > 0 and xs.min() > sx0 - far and xs.max() < sx1 + far
+              and ys.min() > sy0 - far and ys.max() < sy1 + far,
+              f"changed x {xs.min() if len(xs) else None}..{xs.max() if len(xs) else None}, stroke {sx0:.0f}..{sx1:.0f}")
+        check("the canvas field holds the paint", ed.doc.randomness_canvas is not None, "no field")
+        testing.capture(ctx, os.path.join(out, "painted.png"))
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        check("undo removes the stroke exactly", np.array_equal(canvas(ctx), before_paint), "canvas differs")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.mod_shift | imgui.Key.z)
+        check("redo repaints it exactly", np.array_equal(canvas(ctx), painted), "canvas differs")
+        ctx.item_click("//**/Navigate (N)##tool-navigate")
+
         # Save, change things, reopen: the canvas is identical to the saved one.
         saved_view = ed.view
         f = canvas(ctx)

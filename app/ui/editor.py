@@ -40,9 +40,11 @@ from ..document import (
     save_project,
 )
 from ..render.canvas import Canvas
+from ..render.overlays import FieldOverlay
 from ..session import ExportJob, Frame, Session, frame_for
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs
+from .tools import make_tools
 
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
 DEFAULT_EXEMPLAR = os.path.join(ASSETS, "gravel.png")
@@ -98,6 +100,12 @@ class Editor:
         self._last_doc = None
         self._last_edit = 0.0
         self.panels = panels.Panels(self)
+        self.tools = make_tools(self)
+        self.tool = self.tools[0]
+        self.show_fields = True          # randomness fields drawn as heat maps
+        self.overlay_canvas: FieldOverlay | None = None
+        self.overlay_exemplar: FieldOverlay | None = None
+        self._canvas_button = -1         # mouse button that went down on the canvas
 
     # -- running ------------------------------------------------------------
 
@@ -143,6 +151,8 @@ class Editor:
             self.renderer = self.gpu.renderer
             self.session = Session(self.gpu)
             self.canvas = Canvas(self.gpu)
+            self.overlay_canvas = FieldOverlay(ctx)
+            self.overlay_exemplar = FieldOverlay(ctx)
         except (GLUnavailable, Exception) as exc:
             self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
                           "on Linux install libgl1 and a Mesa driver.")
@@ -190,6 +200,9 @@ class Editor:
             self.session.release()
         if self.canvas is not None:
             self.canvas.release()
+        for o in (self.overlay_canvas, self.overlay_exemplar):
+            if o is not None:
+                o.release()
 
     # -- documents ----------------------------------------------------------
 
@@ -396,12 +409,16 @@ class Editor:
         imgui.begin_child("Canvas", (0, avail.y - status_h), imgui.ChildFlags_.borders,
                           imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
                           | imgui.WindowFlags_.no_background)
+        if self.doc is not None and self.session.ready:
+            self.panels.toolbar()
         self._canvas()
         imgui.end_child()
         self.panels.status_bar()
         self.dialogs.draw()
         self.panels.progress_modals()
         imgui.end()
+        if self.tool.name == "paint-exemplar" and self.doc is not None:
+            self.tool.window()
         self._after_frame()
 
     def _tick_fps(self) -> None:
@@ -453,6 +470,16 @@ class Editor:
             self.panels.open_dialog()
         if imgui.is_key_chord_pressed(ctrl | imgui.Key.q):
             self.request_quit()
+        io = imgui.get_io()
+        # Tool keys act on the canvas (under the mouse), never while typing or dragging a control.
+        if (self.cursor is not None and not (io.key_ctrl or io.key_alt or io.key_super)
+                and not imgui.is_any_item_active()):
+            for t in self.tools:
+                if t.key and imgui.is_key_pressed(getattr(imgui.Key, t.key.lower()), False):
+                    self.set_tool(t.name)
+            if imgui.is_key_pressed(imgui.Key.h, False):
+                self.show_fields = not self.show_fields
+            self.tool.keys()
 
     def _canvas(self) -> None:
         avail = imgui.get_content_region_avail()
@@ -466,8 +493,10 @@ class Editor:
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
             self.frame = frame_for(self.view, w, h, s.L, level)
             if self.doc is not self._last_doc:
-                self._last_doc = self.doc
-                self._last_edit = time.monotonic()
+                prev, self._last_doc = self._last_doc, self.doc
+                # Painting on the canvas is re-synthesized locally and exactly: no coarse preview.
+                if prev is None or replace(prev, randomness_canvas=self.doc.randomness_canvas) != self.doc:
+                    self._last_edit = time.monotonic()
             interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
             t0 = time.perf_counter()
             scale = 1
@@ -507,12 +536,19 @@ class Editor:
                                | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
         io = imgui.get_io()
         hovered = imgui.is_item_hovered()
-        if imgui.is_item_active():
-            d = io.mouse_delta
-            if d.x or d.y:
-                if (imgui.is_mouse_down(imgui.MouseButton_.right) or imgui.is_mouse_down(imgui.MouseButton_.middle)
-                        or imgui.is_mouse_down(imgui.MouseButton_.left)):
-                    self.view = self.view.panned(d.x, d.y)
+        x0, y0 = self.view.top_left(w, h)
+        mouse = (io.mouse_pos.x, io.mouse_pos.y)
+        at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
+        # Left button: the active tool; right and middle: always pan (from the press position).
+        tool = self.tool if s.ready and self.doc is not None else self.tools[0]
+        if imgui.is_item_activated():
+            self._canvas_button = 0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1
+            (tool if self._canvas_button == 0 else self.tools[0]).press(at, mouse)
+        elif imgui.is_item_active() and self._canvas_button >= 0:
+            (tool if self._canvas_button == 0 else self.tools[0]).drag(at, mouse)
+        if imgui.is_item_deactivated() and self._canvas_button >= 0:
+            (tool if self._canvas_button == 0 else self.tools[0]).release()
+            self._canvas_button = -1
         if hovered and io.mouse_wheel:
             mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
             self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mx, my, w, h)
@@ -523,7 +559,25 @@ class Editor:
         else:
             self.cursor = None
         if s.ready and self.doc is not None:
+            dl = imgui.get_window_draw_list()
+            if self.show_fields:
+                self._field_overlay(dl, p0, w, h)
             self.panels.canvas_overlay(p0, w, h)
+            if hovered:
+                self.tool.overlay(dl, p0, w, h)
+
+    def _field_overlay(self, dl, p0, w: int, h: int) -> None:
+        """The canvas randomness field as a translucent heat map over the canvas."""
+        z = self.view.zoom
+        x0, y0 = self.view.top_left(w, h)
+        tex = self.overlay_canvas.canvas(self.doc.randomness_canvas, x0, y0, w / z, h / z)
+        if tex is None:
+            return
+        fx, fy, fw, fh = self.overlay_canvas.placement
+        a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
+        dl.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
+        dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
+        dl.pop_clip_rect()
 
     def _after_frame(self) -> None:
         working = (self.export_job is not None or self.pending is not None
@@ -539,6 +593,12 @@ class Editor:
             self.params.app_shall_exit = True
 
     # -- small helpers for panels -----------------------------------------
+
+    def set_tool(self, name: str) -> None:
+        for t in self.tools:
+            if t.name == name and t is not self.tool:
+                self.tool.release()
+                self.tool = t
 
     def new_seed(self) -> None:
         self.edit(replace(self.doc, seed=random.randrange(1, 2 ** 31)), "New seed")

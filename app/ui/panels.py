@@ -74,6 +74,8 @@ class Panels:
                 self._goto_open = True
             if imgui.menu_item_simple("Actual size (1:1)"):
                 ed.view = View(ed.view.x, ed.view.y, 1.0)
+            imgui.separator()
+            _, ed.show_fields = imgui.menu_item("Show painted randomness", "H", ed.show_fields)
             imgui.end_menu()
         imgui.end_menu_bar()
         if getattr(self, "_goto_open", False):
@@ -96,6 +98,8 @@ class Panels:
             self._loading()
             return
         flags = imgui.TreeNodeFlags_.default_open
+        if ed.tool.name != "navigate" and imgui.collapsing_header("Brush", flags):
+            self.brush_panel()
         if imgui.collapsing_header("Exemplar", flags):
             self.exemplar_panel()
         if imgui.collapsing_header("Randomness", flags):
@@ -106,6 +110,34 @@ class Panels:
             self.display_panel()
         if imgui.collapsing_header("Export"):
             self.export_panel()
+
+    def toolbar(self) -> None:
+        """The tool bar over the canvas: one button per tool, the field overlay toggle."""
+        ed = self.ed
+        for i, t in enumerate(ed.tools):
+            if i:
+                imgui.same_line()
+            active = t is ed.tool
+            if active:
+                imgui.push_style_color(imgui.Col_.button, imgui.get_style_color_vec4(imgui.Col_.button_active))
+            if imgui.button(f"{t.label} ({t.key})##tool-{t.name}"):
+                ed.set_tool(t.name)
+            if active:
+                imgui.pop_style_color()
+            if imgui.is_item_hovered():
+                imgui.set_tooltip(t.tooltip)
+        imgui.same_line()
+        _, ed.show_fields = imgui.checkbox("Show painted randomness (H)", ed.show_fields)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Overlay the painted fields as heat maps: blue = calm, red = rough")
+        doc = ed.doc
+        if doc is not None and (doc.randomness_canvas is not None or doc.randomness_exemplar is not None):
+            imgui.same_line()
+            if imgui.button("Clear painted randomness"):
+                ed.edit(replace(doc, randomness_canvas=None, randomness_exemplar=None), "Clear painted randomness")
+
+    def brush_panel(self) -> None:
+        self.ed.tool.options()
 
     def _loading(self) -> None:
         job = self.ed.session.job

@@ -1,0 +1,76 @@
+"""Overlays drawn over the canvas and the exemplar view: the randomness fields
+as translucent heat maps (blue = calm, clear = neutral, red = rough)."""
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from engine.controls import NEUTRAL, CanvasField, ExemplarField
+
+MAX_OVERLAY = 2048  # texels a side
+
+
+def heat_rgba(values: np.ndarray) -> np.ndarray:
+    """uint16 field values to RGBA8: calm blue, neutral transparent, rough red."""
+    d = values.astype(np.float32) / NEUTRAL - 1.0
+    out = np.zeros(values.shape + (4,), np.uint8)
+    calm, rough = d < 0, d > 0
+    out[calm] = (60, 150, 255, 0)
+    out[rough] = (255, 80, 40, 0)
+    out[..., 3] = np.clip(np.abs(d) * 170.0, 0, 170).astype(np.uint8)
+    return out
+
+
+class FieldOverlay:
+    """One texture holding a heat map, re-made only when its inputs change."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self.tex: moderngl.Texture | None = None
+        self._key = None
+        self.placement = None  # canvas: (finest x0, y0, finest width, height) the texture covers
+
+    def _upload(self, rgba: np.ndarray) -> None:
+        h, w = rgba.shape[:2]
+        if self.tex is None or self.tex.size != (w, h):
+            if self.tex is not None:
+                self.tex.release()
+            self.tex = self.ctx.texture((w, h), 4, dtype="f1")
+            self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.tex.write(np.ascontiguousarray(rgba).tobytes())
+
+    def exemplar(self, field: ExemplarField | None, m: int):
+        """The texture of an exemplar field (m x m), or None when there is none."""
+        if field is None or field.neutral:
+            return None
+        key = ("e", field.key)
+        if key != self._key:
+            self._upload(heat_rgba(field.values))
+            self._key = key
+        return self.tex
+
+    def canvas(self, field: CanvasField | None, x0: float, y0: float, w_canvas: float, h_canvas: float):
+        """The texture of the canvas field over a finest-level rectangle, at a
+        resolution near the screen's; ``placement`` says where it lies."""
+        if field is None or field.neutral:
+            return None
+        k = max(0, math.ceil(math.log2(max(w_canvas, h_canvas) / MAX_OVERLAY))) if max(w_canvas, h_canvas) > MAX_OVERLAY else 0
+        X0, Y0 = math.floor(x0) >> k, math.floor(y0) >> k
+        X1, Y1 = (math.ceil(x0 + w_canvas) >> k) + 1, (math.ceil(y0 + h_canvas) >> k) + 1
+        key = ("c", field.key, k, X0, Y0, X1, Y1)
+        if key != self._key:
+            vals = field.region(k, X0, Y0, X1 - X0, Y1 - Y0)
+            if vals is None:
+                self._key, self.placement = key, None
+                return None
+            self._upload(heat_rgba(vals))
+            self._key = key
+            self.placement = (X0 << k, Y0 << k, (X1 - X0) << k, (Y1 - Y0) << k)
+        return self.tex if self.placement is not None else None
+
+    def release(self) -> None:
+        if self.tex is not None:
+            self.tex.release()
+            self.tex = None

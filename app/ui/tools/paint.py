@@ -1,0 +1,231 @@
+"""Painting randomness (LH05 4.2): on the canvas, or on the exemplar in its own
+window. Brush conventions as in Krita / Photoshop: radius (screen or canvas
+pixels), strength, hardness, a value from calm (0) through neutral (1) to
+rough (2), an eraser back to neutral; [ and ] resize the brush, Alt-click
+picks the value under the cursor, a circle shows the brush. One stroke (press
+to release) is one undo step. Painting on the canvas re-synthesizes only what
+the stroke reaches (engine.pyramid.Pyramid.update_controls)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from imgui_bundle import imgui
+
+from engine.controls import NEUTRAL, CanvasField, ExemplarField
+
+from . import Tool
+
+
+@dataclass
+class Brush:
+    radius: float = 24.0        # in screen pixels (canvas) or exemplar pixels (exemplar)
+    screen_units: bool = True   # canvas: radius in screen pixels (else canvas pixels)
+    strength: float = 0.8
+    hardness: float = 0.5
+    value: float = 0.0          # 0 calm .. 1 neutral .. 2 rough
+    eraser: bool = False
+
+    @property
+    def value_u16(self) -> int:
+        return NEUTRAL if self.eraser else int(min(65535, max(0, round(self.value * NEUTRAL))))
+
+
+def brush_options(brush: Brush, canvas: bool) -> None:
+    imgui.push_item_width(-110)
+    _, brush.radius = imgui.slider_float("Radius", brush.radius, 1.0, 400.0, "%.0f px",
+                                         imgui.SliderFlags_.logarithmic)
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("Brush size ([ and ] change it)")
+    if canvas:
+        _, brush.screen_units = imgui.checkbox("Radius in screen pixels", brush.screen_units)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("On: the brush keeps its size on screen at any zoom. Off: it covers a "
+                              "fixed area of the canvas")
+    _, brush.value = imgui.slider_float("Paint value", brush.value, 0.0, 2.0, "%.2f")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("0 = calm (no randomness: the exemplar is copied as it is), 1 = neutral, "
+                          "2 = rough (twice the randomness). Alt-click picks the value under the cursor")
+    _, brush.strength = imgui.slider_float("Strength", brush.strength, 0.0, 1.0, "%.2f")
+    _, brush.hardness = imgui.slider_float("Hardness", brush.hardness, 0.0, 1.0, "%.2f")
+    imgui.pop_item_width()
+    _, brush.eraser = imgui.checkbox("Eraser (back to neutral)", brush.eraser)
+
+
+def brush_keys(brush: Brush) -> None:
+    if imgui.get_io().want_text_input:
+        return
+    if imgui.is_key_pressed(imgui.Key.left_bracket):
+        brush.radius = max(1.0, brush.radius / 1.25)
+    if imgui.is_key_pressed(imgui.Key.right_bracket):
+        brush.radius = min(400.0, brush.radius * 1.25)
+
+
+def _dabs(last: tuple[float, float] | None, pos: tuple[float, float], spacing: float) -> list[tuple[float, float]]:
+    """Dab centers from the last dab to pos, every ``spacing`` (the last one at pos)."""
+    if last is None:
+        return [pos]
+    d = math.hypot(pos[0] - last[0], pos[1] - last[1])
+    n = int(d // max(spacing, 0.5))
+    if n == 0:
+        return []
+    return [(last[0] + (pos[0] - last[0]) * i / n, last[1] + (pos[1] - last[1]) * i / n) for i in range(1, n + 1)]
+
+
+class PaintCanvasTool(Tool):
+    name = "paint-canvas"
+    label = "Paint canvas"
+    key = "B"
+    tooltip = "Paint where the texture may vary: calm (0) keeps the exemplar's look, rough (2) varies more (B)"
+
+    def __init__(self, ed):
+        super().__init__(ed)
+        self.brush = Brush()
+        self._last: tuple[float, float] | None = None
+        self._group: object = None
+        self.dabs = 0  # dabs painted (benchmarks, tests)
+
+    def radius_canvas(self) -> float:
+        b = self.brush
+        return b.radius / self.ed.view.zoom if b.screen_units else b.radius
+
+    def press(self, pos, screen) -> None:
+        ed = self.ed
+        if imgui.get_io().key_alt:
+            field = ed.doc.randomness_canvas
+            x, y = math.floor(pos[0]), math.floor(pos[1])
+            v = field.region(0, x, y, 1, 1) if field is not None else None
+            self.brush.value = (NEUTRAL if v is None else int(v[0, 0])) / NEUTRAL
+            self.brush.eraser = False
+            return
+        self._group = object()
+        self._last = None
+        self.drag(pos, screen)
+
+    def drag(self, pos, screen) -> None:
+        if self._group is None:
+            return
+        r = self.radius_canvas()
+        dabs = _dabs(self._last, pos, 0.25 * r)
+        if not dabs:
+            return
+        ed = self.ed
+        field = ed.doc.randomness_canvas or CanvasField()
+        b = self.brush
+        for cx, cy in dabs:
+            field, _ = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)
+        self._last = dabs[-1]
+        self.dabs += len(dabs)
+        ed.edit(replace(ed.doc, randomness_canvas=field), "Paint randomness (canvas)", group=self._group)
+
+    def release(self) -> None:
+        if self._group is not None and self.ed.history is not None:
+            self.ed.history.end_group()
+        self._group = None
+        self._last = None
+
+    def options(self) -> None:
+        brush_options(self.brush, canvas=True)
+
+    def keys(self) -> None:
+        brush_keys(self.brush)
+
+    def overlay(self, draw_list, p0, w, h) -> None:
+        ed = self.ed
+        if ed.cursor is None:
+            return
+        io = imgui.get_io()
+        r = self.radius_canvas() * ed.view.zoom
+        c = (io.mouse_pos.x, io.mouse_pos.y)
+        draw_list.add_circle(c, r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
+        draw_list.add_circle(c, r, imgui.get_color_u32((1, 1, 1, 0.9)), 0, 1.5)
+
+
+class PaintExemplarTool(Tool):
+    """Paints the field over the exemplar, in the Exemplar window (zoomable):
+    what is protected there stays whole wherever it appears on the canvas."""
+
+    name = "paint-exemplar"
+    label = "Paint exemplar"
+    key = "E"
+    tooltip = ("Paint on the exemplar (in its window): calm (0) keeps those features whole wherever "
+               "they appear, rough (2) breaks them up more (E)")
+
+    def __init__(self, ed):
+        super().__init__(ed)
+        self.brush = Brush(radius=6.0, screen_units=False)
+        self.zoom = 3.0
+        self._last: tuple[float, float] | None = None
+        self._group: object = None
+
+    def options(self) -> None:
+        brush_options(self.brush, canvas=False)
+        imgui.text_disabled("Paint in the Exemplar window.")
+
+    def keys(self) -> None:
+        brush_keys(self.brush)
+
+    def _paint(self, pos) -> None:
+        ed = self.ed
+        m = ed.session.analysis.size
+        dabs = _dabs(self._last, pos, 0.25 * self.brush.radius)
+        if not dabs:
+            return
+        doc = ed.doc
+        field = doc.controls(m).randomness_exemplar or ExemplarField.blank(m)
+        b = self.brush
+        for cx, cy in dabs:
+            field = field.painted(cx, cy, b.radius, b.value_u16, b.strength, b.hardness)
+        self._last = dabs[-1]
+        ed.edit(replace(doc, randomness_exemplar=field), "Paint randomness (exemplar)", group=self._group)
+
+    def window(self) -> None:
+        """The Exemplar window: the exemplar, zoomable, with its field as a heat map."""
+        ed = self.ed
+        s = ed.session
+        if not s.ready or ed.canvas.exemplar_tex is None:
+            return
+        m = s.analysis.size
+        w, h = min(760, m * self.zoom + 40), min(760, m * self.zoom + 90)
+        vp = imgui.get_main_viewport()
+        imgui.set_next_window_size((w, h), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x - w - 24, vp.work_pos.y + 64), imgui.Cond_.first_use_ever)
+        opened, keep = imgui.begin("Exemplar randomness", True)
+        if not keep:
+            ed.set_tool("navigate")
+        if opened:
+            imgui.set_next_item_width(160)
+            _, self.zoom = imgui.slider_float("Zoom", self.zoom, 0.5, 8.0, "%.1fx", imgui.SliderFlags_.logarithmic)
+            imgui.same_line()
+            imgui.text_disabled(f"{m}x{m} px")
+            imgui.begin_child("exemplar-view", (0, 0), 0, imgui.WindowFlags_.horizontal_scrollbar)
+            size = m * self.zoom
+            p0 = imgui.get_cursor_screen_pos()
+            imgui.image(imgui.ImTextureRef(ed.canvas.exemplar_tex.glo), (size, size))
+            dl = imgui.get_window_draw_list()
+            heat = ed.overlay_exemplar.exemplar(ed.doc.controls(m).randomness_exemplar, m)
+            if heat is not None and ed.show_fields:
+                dl.add_image(imgui.ImTextureRef(heat.glo), p0, (p0.x + size, p0.y + size))
+            imgui.set_cursor_screen_pos(p0)
+            imgui.invisible_button("exemplar-paint", (size, size))
+            io = imgui.get_io()
+            ex = ((io.mouse_pos.x - p0.x) / self.zoom, (io.mouse_pos.y - p0.y) / self.zoom)
+            if imgui.is_item_activated():
+                if io.key_alt:
+                    f = ed.doc.controls(m).randomness_exemplar
+                    xi, yi = int(min(m - 1, max(0, ex[0]))), int(min(m - 1, max(0, ex[1])))
+                    self.brush.value = (NEUTRAL if f is None else int(f.values[yi, xi])) / NEUTRAL
+                    self.brush.eraser = False
+                else:
+                    self._group, self._last = object(), None
+            if imgui.is_item_active() and self._group is not None:
+                self._paint(ex)
+            if imgui.is_item_deactivated() and self._group is not None:
+                ed.history.end_group()
+                self._group, self._last = None, None
+            if imgui.is_item_hovered():
+                r = self.brush.radius * self.zoom
+                dl.add_circle(io.mouse_pos, r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
+                dl.add_circle(io.mouse_pos, r, imgui.get_color_u32((1, 1, 1, 0.9)), 0, 1.5)
+            imgui.end_child()
+        imgui.end()
