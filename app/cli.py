@@ -16,6 +16,7 @@ from engine.cli import (
     CliError,
     Parser,
     _integer,
+    add_randomness_args,
     check_out,
     check_toroidal,
     check_window,
@@ -37,6 +38,7 @@ def build_parser() -> Parser:
     p.add_argument("--size", nargs=2, type=_integer, default=None, metavar=("W", "H"),
                    help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
     p.add_argument("--coords", action="store_true", help="also write OUT_coords.png (exact exemplar coordinates)")
+    add_randomness_args(p)
     p.add_argument("--allow-outside-exemplar", action="store_true",
                    help="read an exemplar the project refers to outside the project's folder")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -95,6 +97,12 @@ def run_export(argv: list[str]) -> int:
 
     from .session import ExportJob, Session
     ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+    if args.randomness_exemplar or args.randomness_canvas:  # maps replace the project's fields
+        from dataclasses import replace
+
+        from engine.cli import randomness_controls
+        c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
+        doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas)
     an = analyze(ex, AnalysisSettings(model=doc.model, k=doc.k), progress=_progress(args.quiet))
     gpu = Gpu()
     session = Session(gpu)

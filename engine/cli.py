@@ -114,9 +114,38 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how a non power-of-two or non-square image becomes the exemplar")
     p.add_argument("--exemplar-toroidal", choices=("auto", "yes", "no"), default="auto",
                    help="does the exemplar tile? (auto: guessed from its wrap-around seam)")
+    add_randomness_args(p)
     p.add_argument("--no-cache", action="store_true", help="do not read or write the analysis cache")
     p.add_argument("-q", "--quiet", action="store_true")
     return p
+
+
+def add_randomness_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("painted randomness (grayscale maps: 8-bit M = value/128, 16-bit M = value/32768; "
+                             "0 calm, 1 neutral, 2 rough)")
+    g.add_argument("--randomness-exemplar", metavar="MAP", help="a map over the exemplar (its size, or brought "
+                   "to it by the exemplar's fit rule)")
+    g.add_argument("--randomness-canvas", metavar="MAP", help="a map over the canvas (finest-level pixels), "
+                   "placed by --randomness-origin; unpainted elsewhere")
+    g.add_argument("--randomness-origin", nargs=2, type=_integer, default=[0, 0], metavar=("X", "Y"),
+                   help="canvas position of the canvas map's top-left pixel (default 0 0)")
+
+
+def randomness_controls(args, fit: str, m: int, base=None):
+    """Controls from the map arguments (each map replaces the same field of ``base``)."""
+    from .controls import NO_CONTROLS, CanvasField, Controls, ExemplarField
+    from .exemplar import fit_field_map, load_field_map
+    base = base or NO_CONTROLS
+    e, c = base.randomness_exemplar, base.randomness_canvas
+    if args.randomness_exemplar:
+        e = ExemplarField(fit_field_map(load_field_map(args.randomness_exemplar, "exemplar randomness map"), fit, m))
+    if args.randomness_canvas:
+        values = load_field_map(args.randomness_canvas, "canvas randomness map")
+        x, y = args.randomness_origin
+        if min(x, y) < -COORD_LIMIT or max(x + values.shape[1], y + values.shape[0]) > COORD_LIMIT:
+            raise CliError(f"The canvas randomness map must lie within +-{COORD_LIMIT}.", EXIT_USAGE)
+        c = CanvasField.from_image(values, x, y)
+    return Controls(e, c).normalized()
 
 
 def _progress(quiet: bool):
@@ -168,6 +197,7 @@ def run_synth(argv: list[str]) -> int:
     else:
         raise CliError(f"--jitter needs 1 value or {L + 1} (one per level of this "
                        f"{ex.size}x{ex.size} exemplar), not {len(jit)}.", EXIT_USAGE)
+    controls = randomness_controls(args, args.fit, ex.size)  # maps are read before the analysis
     an = analyze(ex, AnalysisSettings(model=args.model, k=args.k), use_cache=not args.no_cache,
                  progress=_progress(args.quiet))
     try:
@@ -175,7 +205,7 @@ def run_synth(argv: list[str]) -> int:
         params.validate(an.L)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    synth = Synthesizer(an, params)
+    synth = Synthesizer(an, params, controls=controls)
     try:
         renderer = synth.gpu.renderer
         t0 = time.perf_counter()

@@ -14,9 +14,14 @@ with the effective ``r_l M_l(p)`` clamped to [0, 1]. Field values are uint16 in
   min-mipmap (a level-l texel covers h_l x h_l exemplar pixels and takes their
   minimum, so a protected feature stays protected at every scale).
 - :class:`CanvasField` (over the infinite canvas, finest-level pixels, sparse
-  64 x 64 tiles; unpainted = neutral): ``M_l(p) = R_S,l[p]``, the mean-mipmap
-  (a level-l pixel covers h_l x h_l canvas pixels). With a toroidal period n,
-  the field is read at ``p mod n_l`` (its tile [0, n)^2 repeats).
+  64 x 64 tiles; unpainted = neutral): ``M_l(p) = R_S,l[p]``, mipmapped toward
+  neutral: a level-l pixel (covering h_l x h_l canvas pixels) takes the value
+  closest to neutral that its whole footprint agrees on (the largest of an
+  all-calm footprint, the smallest of an all-rough one, else neutral). Paint
+  thus acts on the features that fit inside the painted area: a small dab
+  changes fine detail, a large area calms or roughens large features too, and
+  no dab re-rolls the big features around it (LH05's mean mipmap would). With
+  a toroidal period n, the field is read at ``p mod n_l``.
 
 Both multiply: ``t = (E * C + 2^14) >> 15``, ``r'_q = min(1024, (r_q t + 2^14) >> 15)``,
 so a neutral field gives exactly the unmodulated jitter.
@@ -30,6 +35,19 @@ import numpy as np
 
 NEUTRAL = 32768
 TILE = 64  # canvas field tile side, finest-level pixels
+
+
+def reduce_toward_neutral(a: np.ndarray) -> np.ndarray:
+    """One canvas-field mip step (2x2 -> 1): the value closest to neutral that
+    all four agree on: the largest if all are calm (below neutral), the
+    smallest if all are rough (above), else neutral. Repeated, a level-l pixel
+    gets the value closest to neutral over its whole footprint, so paint acts
+    on the features that fit inside the painted area and never re-rolls the
+    larger features around a small dab."""
+    q = [a[0::2, 0::2], a[1::2, 0::2], a[0::2, 1::2], a[1::2, 1::2]]
+    lo = np.minimum(np.minimum(q[0], q[1]), np.minimum(q[2], q[3]))
+    hi = np.maximum(np.maximum(q[0], q[1]), np.maximum(q[2], q[3]))
+    return np.where(hi < NEUTRAL, hi, np.where(lo > NEUTRAL, lo, NEUTRAL)).astype(np.uint16)
 
 
 def modulated_rq(rq: int | np.ndarray, e: int | np.ndarray, c: int | np.ndarray) -> np.ndarray:
@@ -181,14 +199,18 @@ class CanvasField:
         return CanvasField(tiles), (x0, y0, x1, y1)
 
     def changed_rects(self, other: CanvasField) -> list:
-        """(x0, y0, x1, y1) of the tiles that differ between two fields."""
+        """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two fields."""
         out = []
         for k in set(self.tiles) | set(other.tiles):
             a, b = self.tiles.get(k), other.tiles.get(k)
             if a is b:
                 continue
-            if a is None or b is None or not np.array_equal(a, b):
-                out.append((k[0] * TILE, k[1] * TILE, (k[0] + 1) * TILE, (k[1] + 1) * TILE))
+            a = a if a is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
+            b = b if b is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
+            ys, xs = np.nonzero(a != b)
+            if len(xs):  # the bounding box of the pixels that differ
+                x0, y0 = k[0] * TILE, k[1] * TILE
+                out.append((x0 + int(xs.min()), y0 + int(ys.min()), x0 + int(xs.max()) + 1, y0 + int(ys.max()) + 1))
         return out
 
     @cached_property
@@ -211,7 +233,7 @@ class CanvasField:
         return not self.tiles
 
     def _mip_tiles(self, k: int) -> dict:
-        """Tiles of the field reduced k times (mean of 2x2, rounded), same tile size."""
+        """Tiles of the field reduced k times (reduce_toward_neutral), same tile size."""
         cache = self.__dict__.setdefault("_mips", {0: self.tiles})
         if k in cache:
             return cache[k]
@@ -219,14 +241,13 @@ class CanvasField:
         out: dict = {}
         parents = {(tx >> 1, ty >> 1) for tx, ty in finer}
         for px, py in parents:
-            big = np.full((2 * TILE, 2 * TILE), NEUTRAL, np.uint32)
+            big = np.full((2 * TILE, 2 * TILE), NEUTRAL, np.uint16)
             for dy in (0, 1):
                 for dx in (0, 1):
                     t = finer.get((2 * px + dx, 2 * py + dy))
                     if t is not None:
                         big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = t
-            s = big[0::2, 0::2] + big[1::2, 0::2] + big[0::2, 1::2] + big[1::2, 1::2]
-            out[(px, py)] = ((s + 2) >> 2).astype(np.uint16)
+            out[(px, py)] = reduce_toward_neutral(big)
         cache[k] = out
         return out
 

@@ -400,3 +400,54 @@ def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str
         detail = printable(exc, 160) or type(exc).__name__
         raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
     return _finish(px, hires, fit, toroidal, source, size)
+
+
+# -- randomness maps ------------------------------------------------------------
+
+
+def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
+    """A grayscale randomness map as uint16 field values (1/32768ths): 8-bit
+    M = value / 128 (0 calm, 128 neutral, 255 almost 2), 16-bit M = value / 32768.
+    Color images are read as their luminance. Same safeguards as exemplars."""
+    name = printable(os.path.basename(path) or path)
+    try:
+        data = read_limited(path, MAX_FILE_BYTES, "image")
+    except ReadError as exc:
+        raise ExemplarError(f"The {what}: {exc}") from None
+    try:
+        with Image.open(io.BytesIO(data), formats=DECODERS) as img:
+            w, h = img.size
+            if w * h > MAX_INPUT_PIXELS or w <= 0 or h <= 0:
+                raise ExemplarError(f"The {what} {name} is {w}x{h} px; at most "
+                                    f"{MAX_INPUT_PIXELS // 2**20} Mpixels.")
+            img.load()
+            mode = img.mode
+            if mode.startswith("I;16") or mode == "I":
+                out = np.clip(np.asarray(img).astype(np.int64), 0, 65535).astype(np.uint16)
+            else:
+                if mode in ("LAB", "HSV", "CMYK", "YCbCr"):
+                    img = img.convert("RGB")
+                g = img if img.mode == "L" else img.convert("L")
+                out = (np.asarray(g).astype(np.uint32) * 256).astype(np.uint16)
+    except ExemplarError:
+        raise
+    except MemoryError:
+        raise ExemplarError(f"Not enough memory to read the {what} {name}.") from None
+    except UnidentifiedImageError:
+        raise ExemplarError(f"The {what} {name} is not an image format Infinitex reads ({FORMAT_NAMES}).") from None
+    except Exception as exc:
+        raise ExemplarError(f"The {what} {name} could not be read ({printable(exc, 160)}).") from None
+    return np.ascontiguousarray(out)
+
+
+def fit_field_map(values: np.ndarray, fit: str, m: int) -> np.ndarray:
+    """A map over the exemplar brought to the exemplar's m x m by its fit rule
+    (the same center crop; resampled bilinearly when the sizes differ)."""
+    h, w = values.shape
+    if (h, w) == (m, m):
+        return values
+    x0, y0, side = _crop_box(w, h, fit)
+    sq = values[y0:y0 + side, x0:x0 + side].astype(np.float32)
+    if side != m:
+        sq = np.asarray(Image.fromarray(sq, mode="F").resize((m, m), Image.BILINEAR))
+    return np.clip(np.rint(sq), 0, 65535).astype(np.uint16)

@@ -192,12 +192,14 @@ class Pyramid:
         finest-level canvas rectangles ``changed`` (e.g. painted randomness),
         re-synthesizing in place just what that changes in the held buffers.
 
-        Level by level, coarse to fine, the dirty region is the changed area
-        seen at that level plus the children of the parent's dirty region,
-        grown by the reach of correction (a changed pixel alters its
-        neighbors' results up to the correction margin away); it is clipped to
-        what the level holds and synthesized again as strips. The result is
-        bit-identical to synthesizing from scratch. Areas not held now cost
+        Level by level, coarse to fine: the inputs that changed are the pixels
+        whose field value changed and the children of the parent pixels whose
+        value actually changed; the dirty region is those grown by the reach of
+        correction (outside it no result can change), clipped to what the level
+        holds, and synthesized again as strips. Comparing each strip with what
+        it held before tells which pixels actually changed, and only those
+        reach the next level. The result is bit-identical to synthesizing from
+        scratch. Areas not held now cost
         nothing and are synthesized with the new controls when shown.
         Returns the number of level pixels synthesized."""
         controls = controls.normalized()
@@ -210,23 +212,37 @@ class Pyramid:
                             for l in range(self.an.L + 1)]
         L = self.an.L
         total = 0
-        parent_dirty: list[Rect] = []
+        parent_changed: list[Rect] = []
         for l in range(L + 1):
             k = L - l
-            dirty = [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)) for r in changed if not r.empty]
-            dirty += [Rect(2 * r.x0, 2 * r.y0, 2 * r.x1, 2 * r.y1) for r in parent_dirty]
-            reach = max(self.margins[l])
-            dirty = [r.pad(reach, reach, reach, reach) for r in dirty]
             buf = self.buffers[l]
             if buf is None or buf.valid is None:
                 break  # finer levels hold nothing this could have reached
-            clipped = [r.intersect(buf.valid) for r in dirty]
-            clipped = [r for r in clipped if not r.empty]
-            for r in _merge(clipped):
+            # Inputs that changed: where the field changed, and the children of
+            # the parent pixels whose values actually changed.
+            inputs = [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)) for r in changed if not r.empty]
+            inputs += [Rect(2 * r.x0, 2 * r.y0, 2 * r.x1, 2 * r.y1) for r in parent_changed]
+            reach = max(self.margins[l])
+            dirty = [r.pad(reach, reach, reach, reach).intersect(buf.valid) for r in inputs]
+            parent_changed = []
+            for r in _merge([r for r in dirty if not r.empty]):
+                before = self._read_rect(buf, r)
                 total += self._synthesize_strip(l, r, buf)
-            parent_dirty = dirty  # unclipped: what changed may spread into held children
+                diff = np.any(self._read_rect(buf, r) != before, axis=-1)
+                if diff.any():  # only pixels whose value changed reach the next level
+                    ys, xs = np.nonzero(diff)
+                    parent_changed.append(Rect(r.x0 + int(xs.min()), r.y0 + int(ys.min()),
+                                               r.x0 + int(xs.max()) + 1, r.y0 + int(ys.max()) + 1))
         self.pixels_synthesized = total
         return total
+
+    def _read_rect(self, buf: _LevelBuffer, r: Rect) -> np.ndarray:
+        """The held coordinates of ``r`` (H, W, 2) int16, read back piece by piece."""
+        out = np.empty((r.h, r.w, 2), dtype=np.int16)
+        for (gx, gy), (tx, ty), w, h in self._texel_pieces(buf, r):
+            data = buf.fbo.read(viewport=(tx, ty, w, h), components=2, dtype="i2", alignment=1)
+            out[gy - r.y0:gy - r.y0 + h, gx - r.x0:gx - r.x0 + w] = np.frombuffer(data, np.int16).reshape(h, w, 2)
+        return out
 
     def invalidate(self, first_level: int = 0) -> None:
         """Forget the contents of levels >= first_level."""

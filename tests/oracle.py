@@ -35,10 +35,13 @@ def field_values(controls: Controls, an: Analysis, params: SynthParams, level: i
         px, py = (gx & (n - 1), gy & (n - 1)) if n else (gx, gy)
         x0, y0 = int(px.min()), int(py.min())
         dense = _dense_canvas(c, x0 << k, y0 << k, (int(px.max()) + 1 - x0) << k, (int(py.max()) + 1 - y0) << k)
-        for _ in range(k):  # rounded means of 2x2, k times
-            d = dense.astype(np.int64)
-            dense = (d[0::2, 0::2] + d[1::2, 0::2] + d[0::2, 1::2] + d[1::2, 1::2] + 2) >> 2
-        C = dense[py - y0, px - x0].astype(np.int64)
+        # A level-k pixel: the value closest to neutral its whole 2^k x 2^k footprint
+        # agrees on (written per footprint, not as repeated 2x2 steps).
+        f = 1 << k
+        blocks = dense.reshape(dense.shape[0] // f, f, dense.shape[1] // f, f)
+        lo, hi = blocks.min(axis=(1, 3)), blocks.max(axis=(1, 3))
+        red = np.where(hi < NEUTRAL, hi, np.where(lo > NEUTRAL, lo, NEUTRAL))
+        C = red[py - y0, px - x0].astype(np.int64)
     return E, C
 
 

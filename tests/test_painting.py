@@ -1,0 +1,166 @@
+"""Painted randomness in documents, project files, the session and the CLI."""
+import base64
+import io
+import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from app.document import (
+    Document,
+    ExemplarSource,
+    History,
+    Project,
+    ProjectError,
+    load_project,
+    project_to_json,
+    save_project,
+)
+from app.session import ExportJob, Frame, Session
+from engine.controls import NEUTRAL, CanvasField, Controls, ExemplarField
+from engine.pyramid import Rect
+from engine.synth import Synthesizer
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+GRAVEL = os.path.join(ROOT, "assets", "gravel.png")
+
+
+@pytest.fixture(scope="module")
+def doc():
+    return Document(ExemplarSource.from_file(GRAVEL))
+
+
+def painted_doc(doc, m=128):
+    rng = np.random.default_rng(2)
+    c = CanvasField()
+    for i in range(12):
+        c, _ = c.painted(float(rng.uniform(-300, 300)), float(rng.uniform(-200, 200)), float(rng.uniform(5, 60)),
+                         int(rng.integers(0, 65536)), float(rng.uniform(0.2, 1)), float(rng.uniform(0, 1)))
+    e = ExemplarField.blank(m).painted(40, 50, 20, 0).painted(100, 90, 12, 65535, 0.5)
+    return replace(doc, randomness_canvas=c, randomness_exemplar=e)
+
+
+def test_project_round_trip_keeps_the_fields_exactly(doc, tmp_path):
+    d = painted_doc(doc)
+    path = tmp_path / "p.itex"
+    save_project(str(path), Project(d))
+    raw = json.loads(path.read_text())
+    assert raw["version"] == 2 and len(raw["randomness"]["canvas"]["tiles"]) == len(d.randomness_canvas.tiles)
+    back = load_project(str(path)).document
+    assert back == d
+    assert np.array_equal(back.randomness_exemplar.values, d.randomness_exemplar.values)
+    for k, t in d.randomness_canvas.tiles.items():
+        assert np.array_equal(back.randomness_canvas.tiles[k], t)
+    # Without fields, the file stays version 1 (older readers open it).
+    save_project(str(path), Project(doc))
+    assert json.loads(path.read_text())["version"] == 1 and "randomness" not in json.loads(path.read_text())
+
+
+def _png(a) -> str:
+    buf = io.BytesIO()
+    Image.fromarray(a).save(buf, "PNG")
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+@pytest.mark.parametrize("damage", [
+    lambda r: r["canvas"]["tiles"][0].update(png16="!!!"),
+    lambda r: r["canvas"]["tiles"][0].update(png16=_png(np.zeros((64, 64), np.uint8))),      # 8-bit
+    lambda r: r["canvas"]["tiles"][0].update(png16=_png(np.zeros((32, 64), np.uint16))),     # wrong size
+    lambda r: r["canvas"]["tiles"].append(dict(r["canvas"]["tiles"][0])),                    # duplicate tile
+    lambda r: r["canvas"]["tiles"][0].update(x=2 ** 40),
+    lambda r: r["canvas"].update(tile=32),
+    lambda r: r["exemplar"].update(png16=_png(np.zeros((100, 100), np.uint16))),             # not a power of two
+    lambda r: r.update(canvas=[1, 2]),
+])
+def test_damaged_fields_are_project_errors(doc, tmp_path, damage):
+    d = project_to_json(Project(painted_doc(doc)))
+    damage(d["randomness"])
+    p = tmp_path / "p.itex"
+    p.write_text(json.dumps(d))
+    with pytest.raises(ProjectError, match="randomness field"):
+        load_project(str(p))
+
+
+def test_undo_memory_grows_with_what_was_painted(doc):
+    """Each stroke stores only the tiles it touched; untouched tiles are shared."""
+    h = History(doc)
+    field = CanvasField()
+    touched = set()
+    for stroke in range(10):
+        g = object()
+        for dab in range(20):
+            field, r = field.painted(1000.0 * stroke + 3 * dab, 50.0, 20.0, 0)
+            touched.add(stroke)
+            h.apply(replace(h.current, randomness_canvas=field), "paint", group=g)
+        h.end_group()
+    arrays = {id(t) for d, _ in h.undo_stack + [(h.current, "")] if d.randomness_canvas
+              for t in d.randomness_canvas.tiles.values()}
+    per_stroke = len(h.current.randomness_canvas.tiles) / 10
+    # One copy of each tile a stroke touched, per stroke that touched it: no whole-field copies.
+    assert len(arrays) <= len(h.current.randomness_canvas.tiles) * 1.0 + 1
+    assert per_stroke <= 6  # a 100 x 40 px stroke touches at most 3 x 2 tiles
+
+
+def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu):
+    s = Session(gpu)
+    s.load_now(doc)
+    frame = Frame(level=s.L, want=Rect.of(-200, -150, 400, 300))
+    while not s.refine(frame, 1.0):
+        pass
+    full = sum(s.pyramid.buffers[l].valid.w * s.pyramid.buffers[l].valid.h for l in range(s.L + 1))
+    d = doc
+    field = CanvasField()
+    pixels = []
+    for i in range(8):
+        field, _ = field.painted(-100 + 25 * i, 10.0 + 3 * i, 24.0, 0)
+        d = replace(d, randomness_canvas=field)
+        s.sync(d)
+        pixels.append(s.pyramid.pixels_synthesized)
+        assert s.refine(frame, 1.0)  # still exact: nothing left to refine
+    got = s.pyramid.read(s.L, frame.want)
+    fresh = Synthesizer(s.analysis, s.params, gpu=gpu, controls=d.controls(s.analysis.size)).window(frame.want)
+    assert np.array_equal(got, fresh)
+    assert max(pixels) * 2 < full  # a dab re-synthesizes a part of the view (bench/paint.py measures it)
+    far, _ = field.painted(5000.0, 5000.0, 24.0, 0)
+    s.sync(replace(d, randomness_canvas=far))
+    assert s.pyramid.pixels_synthesized == 0  # paint outside what is held costs nothing now
+    s.sync(d)
+    # Exports use the fields too.
+    job = ExportJob(s, Rect.of(-50, -20, 96, 64), os.devnull + ".png" if False else "/tmp/_unused.png")
+    while not job.step(1.0):
+        pass
+    assert np.array_equal(job.coords, fresh[130:194, 150:246])
+    s.release()
+
+
+def test_cli_maps(tmp_path):
+    emap = np.full((128, 128), 128, np.uint8)
+    emap[10:60, 10:90] = 0
+    Image.fromarray(emap).save(tmp_path / "e.png")
+    cmap = np.zeros((120, 200), np.uint8)
+    Image.fromarray(cmap).save(tmp_path / "c.png")
+
+    def run(*a):
+        return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), *a, "-q"], capture_output=True,
+                              text=True, timeout=300)
+    base = ["--size", "96", "80", "--origin", "-20", "-10"]
+    assert run("synth", GRAVEL, "-o", str(tmp_path / "a.png"), *base).returncode == 0
+    r = run("synth", GRAVEL, "-o", str(tmp_path / "b.png"), *base, "--randomness-canvas", str(tmp_path / "c.png"),
+            "--randomness-origin", "-50", "-40", "--randomness-exemplar", str(tmp_path / "e.png"))
+    assert r.returncode == 0, r.stderr
+    a, b = np.asarray(Image.open(tmp_path / "a.png")), np.asarray(Image.open(tmp_path / "b.png"))
+    assert not np.array_equal(a, b)
+    r = run("export", GRAVEL, "-o", str(tmp_path / "c_out.png"), "--rect", "-20", "-10", "96", "80",
+            "--randomness-canvas", str(tmp_path / "c.png"), "--randomness-origin", "-50", "-40",
+            "--randomness-exemplar", str(tmp_path / "e.png"))
+    assert r.returncode == 0, r.stderr
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "c_out.png")), b)  # synth = export
+    (tmp_path / "bad.png").write_bytes(b"not an image")
+    r = run("synth", GRAVEL, "-o", str(tmp_path / "x.png"), "--randomness-canvas", str(tmp_path / "bad.png"))
+    assert r.returncode == 3 and len(r.stderr.strip().splitlines()) == 1 and "randomness map" in r.stderr
+    assert not (tmp_path / "x.png").exists()
