@@ -487,7 +487,10 @@ class Editor:
         self.canvas_size = (w, h)
         s = self.session
         p0 = imgui.get_cursor_screen_pos()
+        # Input first, so this frame already shows what a tool or a pan did.
+        hovered = self._canvas_input(p0, w, h)
         if s.ready and self.doc is not None:
+            s.sync(self.doc)  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
             level = None
             if self.display.mode == "level":
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
@@ -530,8 +533,21 @@ class Editor:
             self._canvas_key = None
             self.refined = False
         self.screen_fbo.use()
-        imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
         imgui.set_cursor_screen_pos(p0)
+        imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
+        if s.ready and self.doc is not None:
+            dl = imgui.get_window_draw_list()
+            if self.show_fields:
+                self._field_overlay(dl, p0, w, h)
+            self.panels.canvas_overlay(p0, w, h)
+            if hovered:
+                self.tool.overlay(dl, p0, w, h)
+
+    def _canvas_input(self, p0, w: int, h: int) -> bool:
+        """The canvas's mouse input: the left button goes to the active tool, the
+        right and middle buttons always pan (from the press position), the
+        wheel zooms around the cursor. Returns whether the canvas is hovered."""
+        s = self.session
         imgui.invisible_button("canvas", (w, h), imgui.ButtonFlags_.mouse_button_left
                                | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
         io = imgui.get_io()
@@ -539,7 +555,6 @@ class Editor:
         x0, y0 = self.view.top_left(w, h)
         mouse = (io.mouse_pos.x, io.mouse_pos.y)
         at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
-        # Left button: the active tool; right and middle: always pan (from the press position).
         tool = self.tool if s.ready and self.doc is not None else self.tools[0]
         if imgui.is_item_activated():
             self._canvas_button = 0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1
@@ -550,21 +565,13 @@ class Editor:
             (tool if self._canvas_button == 0 else self.tools[0]).release()
             self._canvas_button = -1
         if hovered and io.mouse_wheel:
-            mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
-            self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mx, my, w, h)
+            self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
         if hovered:
-            mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
             x0, y0 = self.view.top_left(w, h)
-            self.cursor = (x0 + mx / self.view.zoom, y0 + my / self.view.zoom)
+            self.cursor = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
         else:
             self.cursor = None
-        if s.ready and self.doc is not None:
-            dl = imgui.get_window_draw_list()
-            if self.show_fields:
-                self._field_overlay(dl, p0, w, h)
-            self.panels.canvas_overlay(p0, w, h)
-            if hovered:
-                self.tool.overlay(dl, p0, w, h)
+        return hovered
 
     def _field_overlay(self, dl, p0, w: int, h: int) -> None:
         """The canvas randomness field as a translucent heat map over the canvas."""
