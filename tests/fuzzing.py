@@ -273,7 +273,11 @@ def tiny_exemplar() -> bytes:
 
 
 def base_project() -> dict:
-    doc = Document(ExemplarSource.from_bytes(tiny_exemplar(), "tiny.png"))
+    """A valid project with both painted randomness fields (so mutations reach them)."""
+    from engine.controls import CanvasField, ExemplarField
+    c, _ = CanvasField().painted(10.0, 20.0, 12.0, 0)
+    e = ExemplarField.blank(32).painted(8, 8, 5, 65535)
+    doc = Document(ExemplarSource.from_bytes(tiny_exemplar(), "tiny.png"), randomness_canvas=c, randomness_exemplar=e)
     return project_to_json(Project(doc), embed=True)
 
 
@@ -296,7 +300,8 @@ PATHS = [("version",), ("exemplar",), ("exemplar", "name"), ("exemplar", "sha256
          ("analysis", "k"), ("synthesis", "jitter"), ("synthesis", "seed"), ("synthesis", "passes"),
          ("synthesis", "subgrid"), ("synthesis", "kappa"), ("synthesis", "corrected"), ("view",),
          ("view", "x"), ("view", "y"), ("view", "zoom"), ("display", "mode"), ("display", "level"),
-         ("display", "magnify"), ("format",), ("synthesis",)]
+         ("display", "magnify"), ("format",), ("synthesis",), ("randomness",), ("randomness", "canvas"),
+         ("randomness", "exemplar"), ("randomness", "canvas", "tiles"), ("randomness", "canvas", "tile")]
 
 
 @st.composite

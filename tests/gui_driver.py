@@ -117,6 +117,27 @@ def main(out: str) -> int:
         check("undo removes the stroke exactly", np.array_equal(canvas(ctx), before_paint), "canvas differs")
         ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.mod_shift | imgui.Key.z)
         check("redo repaints it exactly", np.array_equal(canvas(ctx), painted), "canvas differs")
+        # Paint on the exemplar, in its window: the exemplar field changes, one undo step.
+        ctx.item_click("//**/Paint exemplar (E)##tool-paint-exemplar")
+        ctx.yield_(3)
+        ed.tool.brush.value, ed.tool.brush.radius = 0.0, 10.0
+        steps_before = len(ed.history.undo_stack)
+        ctx.set_ref("//Exemplar randomness")
+        er = ctx.item_info("//**/exemplar-paint").rect_full
+        ctx.mouse_move_to_pos((er.min.x + 20, er.min.y + 20))
+        ctx.mouse_down(0)
+        ctx.mouse_move_to_pos((er.min.x + 80, er.min.y + 60))
+        ctx.mouse_up(0)
+        ctx.yield_(2)
+        f = ed.doc.randomness_exemplar
+        check("exemplar stroke paints the exemplar field", f is not None and int(f.values.min()) < 32768,
+              "no exemplar field")
+        check("exemplar stroke is one undo step", len(ed.history.undo_stack) == steps_before + 1,
+              f"{len(ed.history.undo_stack) - steps_before} steps")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        ctx.yield_(2)
+        check("undo removes the exemplar stroke", ed.doc.randomness_exemplar is None, "still painted")
+        ctx.set_ref("//Infinitex")
         ctx.item_click("//**/Navigate (N)##tool-navigate")
 
         # Save, change things, reopen: the canvas is identical to the saved one.

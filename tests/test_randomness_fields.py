@@ -211,6 +211,7 @@ def test_local_updates_after_20_strokes_equal_a_fresh_synthesis(analyses, gpu):
     synth = Synthesizer(an, params, gpu=gpu)
     vp = synth.viewport()
     field = CanvasField()
+    efield = None
     try:
         for i in range(20):
             zoom = int(rng.integers(0, 3))
@@ -223,16 +224,23 @@ def test_local_updates_after_20_strokes_equal_a_fresh_synthesis(analyses, gpu):
             cx = x0 + {"inside": 90, "across": -10, "outside": 900}[where] + rng.integers(-30, 30)
             cy = y0 + {"inside": 70, "across": 140, "outside": -700}[where] + rng.integers(-30, 30)
             value = int(rng.choice([0, 65535, NEUTRAL, 20000]))
+            if i % 5 == 4:  # a stroke on the exemplar field: the whole canvas changes
+                efield = (efield or ExemplarField.blank(an.size)).painted(
+                    float(rng.integers(0, an.size)), float(rng.integers(0, an.size)), 12.0, value)
+                vp.pyramid.update_controls(Controls(efield, field), [])
+                vp.show(lv, zoom)
+                after = vp.read(lv, zoom)
+                fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(efield, field)).window(lv, level)
+                assert np.array_equal(after, fresh), f"exemplar stroke {i}"
+                continue
             old = field
-            bounds = []
             for d in range(4):
                 field, r = field.painted(cx + 7 * d, cy + 3 * d, float(rng.integers(5, 40)), value,
                                          strength=float(rng.uniform(0.3, 1)), hardness=float(rng.uniform(0, 1)))
-                bounds.append(Rect(*r))
             changed = [Rect(*r) for r in old.changed_rects(field)]
-            vp.pyramid.update_controls(Controls(None, field), changed)
+            vp.pyramid.update_controls(Controls(efield, field), changed)
             after = vp.read(lv, zoom)
-            fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(None, field)).window(lv, level)
+            fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(efield, field)).window(lv, level)
             assert np.array_equal(after, fresh), f"stroke {i} ({where}, zoom 1/{1 << zoom})"
             # Pixels beyond every dab's reach did not change.
             if changed:
