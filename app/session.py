@@ -153,6 +153,7 @@ class Refiner:
         self.last_pixels = 0
         self.last_ms = 0.0
         self.version = 0  # bumps whenever pixels were synthesized
+        self.extra_pixels = 0  # synthesized outside step/preview (local updates), reported with the next
 
     def _valid(self, level: int) -> Rect | None:
         buf = self.pyramid.buffers[level]
@@ -178,7 +179,8 @@ class Refiner:
         return n
 
     def _done(self, t0: float, pixels: int) -> None:
-        self.last_pixels = pixels
+        self.last_pixels = pixels + self.extra_pixels
+        self.extra_pixels = 0
         self.version += bool(pixels)
         self.last_ms = (time.perf_counter() - t0) * 1000.0
 
@@ -295,7 +297,7 @@ class Session:
                 changed = [Rect(*r) for r in before.changed_rects(after)]
                 self.pyramid.update_controls(controls, changed)
                 self.refiner.version += 1
-                self.refiner.last_pixels = self.pyramid.pixels_synthesized
+                self.refiner.extra_pixels += self.pyramid.pixels_synthesized
             else:
                 self.pyramid.set_params(params, controls)
 

@@ -127,7 +127,7 @@ class ExemplarField:
         """R_E,l: the field seen by level ``level`` of an exemplar with finest level L."""
         return self.mips[L - level]
 
-    @property
+    @cached_property
     def neutral(self) -> bool:
         return bool(np.all(self.values == NEUTRAL))
 
