@@ -28,7 +28,7 @@ so a neutral field gives exactly the unmodulated jitter.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -278,28 +278,171 @@ class CanvasField:
         return out
 
 
+MAX_FEATURE_RADIUS = 2047   # finest-level pixels: keeps the integer geometry inside 32 bits
+FEATURE_CELL = 256          # spatial index cell, finest-level pixels
+
+
+@dataclass(frozen=True)
+class Feature:
+    """An exemplar feature placed on the canvas (LH05 4.3; ALGORITHM.md section 5).
+
+    At each level l of its range, inside a circle around the canvas point
+    whose radius goes from ``outer`` (first level) to ``inner`` (last level),
+    the coordinates are overridden: ``S_l[p] = (u_F + h_l (p - p_F,l)) mod m``
+    with ``p_F,l = floor(p_F / 2^(L-l))``. A pixel is inside when its center is
+    within the radius, in 1/16 level pixels (integers). ``levels`` None is the
+    default range, every level but the finest two (so the feature gets fresh
+    detail); ``(0, L)`` is an exact copy. Later features win where they overlap.
+    """
+
+    exemplar: tuple[int, int]          # u_F, exemplar pixels
+    canvas: tuple[int, int]            # p_F, finest-level canvas pixels
+    inner: int                         # radius at the last level of the range, canvas pixels
+    outer: int                         # radius at the first level
+    levels: tuple[int, int] | None = None
+
+    def validate(self, m: int, L: int) -> None:
+        ux, uy = self.exemplar
+        if not (0 <= ux < m and 0 <= uy < m):
+            raise ValueError(f"A feature's exemplar point {self.exemplar} lies outside the {m}x{m} exemplar.")
+        if not 0 <= self.inner <= self.outer <= MAX_FEATURE_RADIUS:
+            raise ValueError(f"Feature radii must satisfy 0 <= inner <= outer <= {MAX_FEATURE_RADIUS}.")
+        if self.levels is not None:
+            a, b = self.levels
+            if not 0 <= a <= b <= L:
+                raise ValueError(f"A feature's levels must lie within 0..{L}, first <= last.")
+
+    def level_range(self, L: int) -> tuple[int, int]:
+        return self.levels if self.levels is not None else (0, max(0, L - 2))
+
+    def radius_at(self, level: int, L: int) -> int:
+        """The radius (canvas pixels) at ``level``: outer at the first level of
+        the range, inner at the last, linear (floored) between."""
+        a, b = self.level_range(L)
+        return self.outer - ((self.outer - self.inner) * (level - a)) // max(1, b - a)
+
+    def bbox(self) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1) finest-level pixels the feature can touch at any level."""
+        x, y = self.canvas
+        r = self.outer + 2
+        return (x - r, y - r, x + r + 1, y + r + 1)
+
+    def clamped(self, m: int, toroidal: bool) -> Feature:
+        """On an exemplar that does not tile, the exemplar point moved inward so
+        the copied disc does not wrap across the exemplar's border."""
+        if toroidal:
+            return self
+        r = self.outer
+
+        def c(v: int) -> int:
+            return m // 2 if 2 * r + 1 >= m else min(max(v, r), m - 1 - r)
+        u = (c(self.exemplar[0]), c(self.exemplar[1]))
+        return self if u == self.exemplar else replace(self, exemplar=u)
+
+
 @dataclass(frozen=True)
 class Controls:
     """Everything painted or placed by the user that the passes read."""
 
     randomness_exemplar: ExemplarField | None = None
     randomness_canvas: CanvasField | None = None
+    features: tuple[Feature, ...] = ()
 
     def normalized(self) -> Controls:
         """Neutral fields dropped (they change nothing), so equal effects compare equal."""
         e = self.randomness_exemplar
         c = self.randomness_canvas
-        return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c)
+        return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c,
+                        tuple(self.features))
 
     def validate(self, m: int) -> None:
         e = self.randomness_exemplar
         if e is not None and e.size != m:
             raise ValueError(f"The exemplar randomness field is {e.size}x{e.size}; the exemplar is {m}x{m}.")
+        L = m.bit_length() - 1
+        for f in self.features:
+            f.validate(m, L)
+
+    @cached_property
+    def features_key(self) -> str:
+        import hashlib
+        return hashlib.sha256(repr(self.features).encode()).hexdigest()
 
     def level_signature(self, level: int) -> tuple:
         """What level ``level`` reads of the controls (fields change all levels)."""
         e, c = self.randomness_exemplar, self.randomness_canvas
-        return (None if e is None else e.key, None if c is None else c.key)
+        return (None if e is None else e.key, None if c is None else c.key,
+                self.features_key if self.features else None)
+
+    @cached_property
+    def _feature_index(self) -> dict:
+        """Spatial index: FEATURE_CELL-sized canvas cells -> feature indices."""
+        index: dict = {}
+        for i, f in enumerate(self.features):
+            x0, y0, x1, y1 = f.bbox()
+            for cy in range(y0 // FEATURE_CELL, (y1 - 1) // FEATURE_CELL + 1):
+                for cx in range(x0 // FEATURE_CELL, (x1 - 1) // FEATURE_CELL + 1):
+                    index.setdefault((cx, cy), []).append(i)
+        return index
+
+    def features_in(self, x0: int, y0: int, x1: int, y1: int) -> list[int]:
+        """Indices (in order) of the features whose reach meets a finest-level rectangle."""
+        if not self.features:
+            return []
+        index = self._feature_index
+        cells = ((x1 - 1) // FEATURE_CELL - x0 // FEATURE_CELL + 1) * ((y1 - 1) // FEATURE_CELL - y0 // FEATURE_CELL + 1)
+        if cells > len(index):
+            found = {i for lst in index.values() for i in lst}
+        else:
+            found = set()
+            for cy in range(y0 // FEATURE_CELL, (y1 - 1) // FEATURE_CELL + 1):
+                for cx in range(x0 // FEATURE_CELL, (x1 - 1) // FEATURE_CELL + 1):
+                    found.update(index.get((cx, cy), ()))
+        out = []
+        for i in sorted(found):
+            fx0, fy0, fx1, fy1 = self.features[i].bbox()
+            if fx0 < x1 and x0 < fx1 and fy0 < y1 and y0 < fy1:
+                out.append(i)
+        return out
+
+    def feature_table(self, level: int, L: int, m: int, toroidal: bool, x0: int, y0: int, x1: int, y1: int,
+                      period: int = 0) -> np.ndarray | None:
+        """The features active at ``level`` over a level-pixel rectangle, as the
+        int32 (N, 2, 4) table the passes read: (p_F,l x, y, frac x + 16 frac y,
+        radius in 1/16 level pixels), (u_F x, y, 0, 0); None when there are none.
+        With a period (a toroidal tile) every feature applies, modulo the tile."""
+        k = L - level
+        rows = []
+        found = range(len(self.features)) if period else self.features_in(x0 << k, y0 << k, x1 << k, y1 << k)
+        for i in found:
+            f = self.features[i]
+            a, b = f.level_range(L)
+            if not a <= level <= b:
+                continue
+            f = f.clamped(m, toroidal)
+            r16 = (f.radius_at(level, L) << 4) >> k
+            px, py = f.canvas
+            fx, fy = ((px << 4) >> k) & 15, ((py << 4) >> k) & 15
+            rows.append([[px >> k, py >> k, fx + 16 * fy, r16], [f.exemplar[0], f.exemplar[1], 0, 0]])
+        return np.asarray(rows, dtype=np.int32) if rows else None
+
+    def changed_rects(self, other: Controls) -> list | None:
+        """Finest-level rectangles outside which ``other`` reads the same as this
+        one; None when the change reaches everywhere (the exemplar field)."""
+        if self.randomness_exemplar != other.randomness_exemplar:
+            return None
+        before = self.randomness_canvas or CanvasField()
+        after = other.randomness_canvas or CanvasField()
+        out = before.changed_rects(after)
+        if self.features != other.features:
+            old, new = set(self.features), set(other.features)
+            out += [f.bbox() for f in old ^ new]  # added, removed, moved or resized
+            # Which feature wins an overlap follows the list order: features whose
+            # relative order changed are changes too.
+            ka = [f for f in self.features if f in new]
+            kb = [f for f in other.features if f in old]
+            out += [f.bbox() for x, y in zip(ka, kb) if x != y for f in (x, y)]
+        return out
 
 
 NO_CONTROLS = Controls()

@@ -159,6 +159,7 @@ class Pyramid:
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
         self._efield: dict[int, object] = {}  # level -> R_E,l texture
         self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
+        self._dummy_i = gpu.ctx.texture((2, 1), 4, np.zeros(8, np.int32).tobytes(), dtype="i4")
         self.controls = NO_CONTROLS
         self.set_params(params, controls)
 
@@ -187,10 +188,11 @@ class Pyramid:
         if first is not None:
             self.invalidate(first)
 
-    def update_controls(self, controls: Controls, changed: list[Rect]) -> int:
+    def update_controls(self, controls: Controls, changed: list[Rect] | None = None) -> int:
         """Adopt new controls that differ from the current ones only inside the
-        finest-level canvas rectangles ``changed`` (e.g. painted randomness),
-        re-synthesizing in place just what that changes in the held buffers.
+        finest-level canvas rectangles ``changed`` (painted randomness, placed
+        features; None: computed from the two controls), re-synthesizing in
+        place just what that changes in the held buffers.
 
         Level by level, coarse to fine: the inputs that changed are the pixels
         whose field value changed and the children of the parent pixels whose
@@ -204,7 +206,10 @@ class Pyramid:
         Returns the number of level pixels synthesized."""
         controls = controls.normalized()
         controls.validate(self.an.size)
-        if controls.randomness_exemplar != self.controls.randomness_exemplar:
+        if changed is None:
+            rects = self.controls.changed_rects(controls)
+            changed = None if rects is None else [Rect(*r) for r in rects]
+        if changed is None or controls.randomness_exemplar != self.controls.randomness_exemplar:
             self.set_params(self.params, controls)  # the whole canvas changes
             return 0
         self.controls = controls
@@ -388,6 +393,14 @@ class Pyramid:
             assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
             parent.tex.use(0)
             set_uniforms(prog, parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
+        feats = self.controls.feature_table(l, an.L, an.size, an.toroidal, region.x0, region.y0,
+                                            region.x1, region.y1, p.level_period(l))
+        ftex = None
+        if feats is not None:
+            ftex = self.gpu.ctx.texture((2, feats.shape[0]), 4, feats.tobytes(), dtype="i4")
+            ftex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        (ftex or self._dummy_i).use(3)
+        nfeat = 0 if feats is None else feats.shape[0]
         efield = self._efield_texture(l)
         (efield or self._dummy).use(1)
         cvals = None
@@ -399,7 +412,7 @@ class Pyramid:
         set_uniforms(prog, has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
                      m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
                      period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
-                     cfield=2, has_cfield=int(ctex is not None))
+                     cfield=2, has_cfield=int(ctex is not None), features=3, nfeat=nfeat)
         fa.use()
         fa.viewport = (0, 0, region.w, region.h)
         vao.render(moderngl.TRIANGLES)
@@ -428,13 +441,17 @@ class Pyramid:
         # Write the exact strip back, split where the buffer wraps.
         prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
         a.use(0)
-        set_uniforms(prog, src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask)
+        (ftex or self._dummy_i).use(3)
+        set_uniforms(prog, src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
+                     h=h, m=an.size, period=p.level_period(l), features=3, nfeat=nfeat)
         buf.fbo.use()
         for piece in self._texel_pieces(buf, strip):
             g0, t0, w, hh = piece
             set_uniforms(prog, region_g0=g0, region_t0=t0)
             buf.fbo.viewport = (t0[0], t0[1], w, hh)
             vao.render(moderngl.TRIANGLES)
+        if ftex is not None:
+            ftex.release()
         return region.w * region.h
 
     def _efield_texture(self, l: int):
@@ -481,6 +498,10 @@ class Pyramid:
                 buf.release()
         self.buffers = [None] * (self.an.L + 1)
         self._release_efield()
+        if self._dummy is not None:
+            self._dummy.release()
+            self._dummy_i.release()
+            self._dummy = self._dummy_i = None
         for a, fa, b, fb in self._scratch.values():
             for o in (fa, fb, a, b):
                 o.release()

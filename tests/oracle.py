@@ -77,7 +77,42 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         E, C = field_values(controls, an, params, level, ux, uy, gx, gy)
         rq = modulated_rq(rq, E, C)
     jx, jy = fixed.jitter(gmx, gmy, level, params.seed, h, rq)
-    return np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
+    S = np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
+    return apply_features(S, origin, an, params, level, controls)
+
+
+def apply_features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,
+                   controls: Controls) -> np.ndarray:
+    """Override the coordinates inside placed features (written from the
+    definition: every feature tested at every pixel, exact rationals)."""
+    if not controls.features:
+        return S
+    from fractions import Fraction
+    L, m, h = an.L, an.size, an.h(level)
+    k = L - level
+    n = params.level_period(level)
+    H, W = S.shape[:2]
+    out = S.copy()
+    for f in controls.features:
+        a, b = f.level_range(L)
+        if not a <= level <= b:
+            continue
+        f = f.clamped(m, an.toroidal)
+        r = Fraction(f.radius_at(level, L) * 16 // (1 << k), 16)  # the radius in 1/16 level pixels, floored
+        cx, cy = Fraction(f.canvas[0] * 16 // (1 << k), 16), Fraction(f.canvas[1] * 16 // (1 << k), 16)
+        pfx, pfy = f.canvas[0] >> k, f.canvas[1] >> k
+        for yy in range(H):
+            gy = origin[1] + yy
+            for xx in range(W):
+                gx = origin[0] + xx
+                dx, dy = gx - pfx, gy - pfy
+                ex, ey = Fraction(2 * gx + 1, 2) - cx, Fraction(2 * gy + 1, 2) - cy
+                if n:
+                    dx, dy = ((dx + n // 2) % n) - n // 2, ((dy + n // 2) % n) - n // 2
+                    ex, ey = ex - (gx - pfx - dx), ey - (gy - pfy - dy)
+                if ex * ex + ey * ey <= r * r:
+                    out[yy, xx] = ((f.exemplar[0] + h * dx) % m, (f.exemplar[1] + h * dy) % m)
+    return out
 
 
 def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis,
@@ -166,6 +201,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
             for order in subpass_order(s, params.passes):
                 for phase in order:
                     S = correct_subpass(S, phase, (wx0, wy0), an, params, l)
+            S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]
     return parent[y - wy0:y - wy0 + h, x - wx0:x - wx0 + w].astype(np.int32)

@@ -41,3 +41,30 @@ int modulated_rq(int rq, uint E, uint C) {
     uint t = (E * C + 16384u) >> 15;
     return int(min(1024u, (uint(rq) * t + 16384u) >> 15));
 }
+
+// Placed features (engine/controls.py Feature, LH05 4.3). Table texture, one
+// row per feature: (p_F,l.x, p_F,l.y, frac.x + 16 frac.y, radius in 1/16 level
+// pixels), (u_F.x, u_F.y, -, -). A pixel whose center lies within the radius
+// takes S = (u_F + h (g - p_F,l)) mod m; later features win. With a period n
+// (toroidal output) offsets wrap modulo n.
+uniform int nfeat;
+uniform isampler2D features;
+
+ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
+    for (int i = 0; i < nfeat; i++) {
+        ivec4 a = texelFetch(features, ivec2(0, i), 0);
+        ivec2 d = g - a.xy;
+        if (period > 0) {
+            d = ((d + period / 2) & (period - 1)) - period / 2;
+        }
+        int lim = (a.w >> 4) + 2;
+        if (abs(d.x) > lim || abs(d.y) > lim) {
+            continue;
+        }
+        ivec2 d16 = d * 16 + 8 - ivec2(a.z & 15, a.z >> 4);
+        if (d16.x * d16.x + d16.y * d16.y <= a.w * a.w) {
+            s = (texelFetch(features, ivec2(1, i), 0).xy + h * d) & (m - 1);
+        }
+    }
+    return s;
+}

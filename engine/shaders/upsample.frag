@@ -50,5 +50,5 @@ void main() {
     }
     ivec2 H = hash2(gm, level, seed);
     ivec2 J = ((h * H * r + (1 << 19) + SHIFT_BIAS) >> 20) - (SHIFT_BIAS >> 20);
-    result = ivec4((u + J) & (m - 1), 0, 0);
+    result = ivec4(apply_features(g, (u + J) & (m - 1), h, m, period), 0, 0);
 }

@@ -1,5 +1,6 @@
 // Copy the exact part of a corrected scratch region into a level's
-// persistent buffer, whose texel of global position g is (g - anchor) & mask.
+// persistent buffer, whose texel of global position g is (g - anchor) & mask;
+// placed features are imposed again (correction may have moved their pixels).
 
 uniform isampler2D src;       // quadrant-packed scratch
 uniform ivec2 qdims;
@@ -7,11 +8,15 @@ uniform ivec2 src_origin;     // global position of scratch pixel (0, 0)
 uniform ivec2 region_g0;      // global position of the first written texel
 uniform ivec2 region_t0;      // its texel in the destination
 uniform ivec2 dest_mask;
+uniform int h;
+uniform int m;
+uniform int period;
 
 out ivec4 result;
 
 void main() {
     ivec2 T = ivec2(gl_FragCoord.xy);
     ivec2 g = region_g0 + ((T - region_t0) & dest_mask);
-    result = texelFetch(src, packed_texel(g - src_origin, qdims), 0);
+    ivec4 v = texelFetch(src, packed_texel(g - src_origin, qdims), 0);
+    result = ivec4(apply_features(g, v.xy, h, m, period), 0, 0);  // features hold through correction
 }
