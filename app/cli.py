@@ -97,12 +97,13 @@ def run_export(argv: list[str]) -> int:
 
     from .session import ExportJob, Session
     ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
-    if args.randomness_exemplar or args.randomness_canvas:  # maps replace the project's fields
+    if args.randomness_exemplar or args.randomness_canvas or args.features:  # these replace the project's
         from dataclasses import replace
 
         from engine.cli import randomness_controls
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
-        doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas)
+        doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
+                      features=c.features)
     an = analyze(ex, AnalysisSettings(model=doc.model, k=doc.k), progress=_progress(args.quiet))
     gpu = Gpu()
     session = Session(gpu)

@@ -29,13 +29,22 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from engine.analysis import MODELS
-from engine.controls import TILE, CanvasField, Controls, ExemplarField
+from engine.controls import (
+    TILE,
+    CanvasField,
+    Controls,
+    ExemplarField,
+    Feature,
+    features_from_json,
+    features_to_json,
+    fit_features,
+)
 from engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
 from engine.params import DEFAULT_JITTER, SynthParams
 from engine.safeio import ReadError, WriteError, atomic_write, printable, read_head, read_limited
 
 FORMAT = "infinitex-project"
-VERSION = 2              # 2: painted randomness fields ("randomness"); files without them are written as 1
+VERSION = 2              # 2: painted randomness ("randomness") and placed features ("features"); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MAX_PROJECT_BYTES = 32 * 1024 * 1024  # an embedded 16 MB exemplar is 21.4 MB of base64
@@ -88,6 +97,7 @@ class Document:
     corrected: tuple[int, ...] | None = None
     randomness_exemplar: ExemplarField | None = None   # painted over the exemplar (m x m)
     randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
+    features: tuple[Feature, ...] = ()                 # placed exemplar features, later ones win
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on."""
@@ -110,7 +120,7 @@ class Document:
         if e is not None and e.size != m:
             idx = (np.arange(m) * e.size) // m
             e = ExemplarField(np.ascontiguousarray(e.values[idx[:, None], idx[None, :]]))
-        return Controls(e, self.randomness_canvas).normalized()
+        return Controls(e, self.randomness_canvas, fit_features(self.features, m)).normalized()
 
     def params(self, L: int) -> SynthParams:
         corrected = None if self.corrected is None else tuple(l for l in self.corrected if l <= L)
@@ -298,7 +308,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
     fields = _fields_to_json(doc)
     return {
         "format": FORMAT,
-        "version": VERSION if fields else 1,
+        "version": VERSION if fields or doc.features else 1,
         "exemplar": {
             "name": ex.name,
             "sha256": ex.sha256,
@@ -314,6 +324,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
             "corrected": None if doc.corrected is None else list(doc.corrected),
         },
         **({"randomness": fields} if fields else {}),
+        **({"features": features_to_json(doc.features)} if doc.features else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
     }
@@ -570,6 +581,10 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
     toroidal = _get(e, "toroidal", bool, "exemplar", optional=True)
     fields = _fields_from_json(d.get("randomness"))
+    try:
+        features = features_from_json(d.get("features", []))
+    except ValueError as exc:
+        raise ProjectError(f"The project's features are damaged: {exc}") from None
     doc = Document(
         exemplar=source,
         fit=_get(e, "fit", str, "exemplar"),
@@ -584,6 +599,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         corrected=None if corrected is None else tuple(corrected),
         randomness_exemplar=fields[0],
         randomness_canvas=fields[1],
+        features=features,
     )
     doc.validate()
     view, display = View(), Display()

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
-from engine.controls import NO_CONTROLS, CanvasField, Controls
+from engine.controls import NO_CONTROLS, Controls
 from engine.exemplar import (
     Exemplar,
     ExemplarError,
@@ -288,18 +288,13 @@ class Session:
             self.synth.set_params(params, controls)
             self.pyramid.set_params(params, controls)
         elif controls != self.controls:
-            old, self.controls = self.controls, controls
+            # Paint on the canvas, placed features: re-synthesized in place where
+            # they reach (a change of the exemplar field refines everything).
+            self.controls = controls
             self.synth.set_params(params, controls)
-            if old.randomness_exemplar == controls.randomness_exemplar:
-                # Painted on the canvas: re-synthesize in place what the paint reaches.
-                before = old.randomness_canvas or CanvasField()
-                after = controls.randomness_canvas or CanvasField()
-                changed = [Rect(*r) for r in before.changed_rects(after)]
-                self.pyramid.update_controls(controls, changed)
-                self.refiner.version += 1
-                self.refiner.extra_pixels += self.pyramid.pixels_synthesized
-            else:
-                self.pyramid.set_params(params, controls)
+            self.pyramid.update_controls(controls)
+            self.refiner.version += 1
+            self.refiner.extra_pixels += self.pyramid.pixels_synthesized
 
     def poll(self) -> AnalysisJob | None:
         """Install a finished job; returns it once when it ends (success or not)."""

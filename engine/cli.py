@@ -129,14 +129,34 @@ def add_randomness_args(p: argparse.ArgumentParser) -> None:
                    "placed by --randomness-origin; unpainted elsewhere")
     g.add_argument("--randomness-origin", nargs=2, type=_integer, default=[0, 0], metavar=("X", "Y"),
                    help="canvas position of the canvas map's top-left pixel (default 0 0)")
+    p.add_argument("--features", metavar="FEATURES.json",
+                   help='placed features: a JSON list of {"exemplar": [ux, uy], "canvas": [px, py], '
+                        '"radius": [inner, outer], "levels": [first, last] (optional)}')
+
+
+def load_features(path: str):
+    """Features from a JSON file (untrusted: size-limited, bounded parse); CliError if bad."""
+    import json
+
+    from .controls import features_from_json
+    from .safeio import ReadError, read_limited
+    try:
+        raw = read_limited(path, 16 * 2 ** 20, "features file")
+        data = json.loads(raw.decode("utf-8"), parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+        return features_from_json(data)
+    except ReadError as exc:
+        raise CliError(str(exc), EXIT_INPUT) from None
+    except (UnicodeDecodeError, RecursionError, ValueError) as exc:
+        raise CliError(f"The features file {printable(path)} is not usable: {printable(exc, 200)}", EXIT_INPUT) from None
 
 
 def randomness_controls(args, fit: str, m: int, base=None):
     """Controls from the map arguments (each map replaces the same field of ``base``)."""
     from .controls import NO_CONTROLS, CanvasField, Controls, ExemplarField
     from .exemplar import fit_field_map, load_field_map
+    from .controls import fit_features
     base = base or NO_CONTROLS
-    e, c = base.randomness_exemplar, base.randomness_canvas
+    e, c, feats = base.randomness_exemplar, base.randomness_canvas, base.features
     if args.randomness_exemplar:
         e = ExemplarField(fit_field_map(load_field_map(args.randomness_exemplar, "exemplar randomness map"), fit, m))
     if args.randomness_canvas:
@@ -145,7 +165,9 @@ def randomness_controls(args, fit: str, m: int, base=None):
         if min(x, y) < -COORD_LIMIT or max(x + values.shape[1], y + values.shape[0]) > COORD_LIMIT:
             raise CliError(f"The canvas randomness map must lie within +-{COORD_LIMIT}.", EXIT_USAGE)
         c = CanvasField.from_image(values, x, y)
-    return Controls(e, c).normalized()
+    if getattr(args, "features", None):
+        feats = fit_features(load_features(args.features), m)
+    return Controls(e, c, feats).normalized()
 
 
 def _progress(quiet: bool):

@@ -340,6 +340,54 @@ class Feature:
         return self if u == self.exemplar else replace(self, exemplar=u)
 
 
+MAX_FEATURES = 65536
+
+
+def features_to_json(features) -> list:
+    """The documented JSON form (project files and ``--features FILE.json``)."""
+    return [{"exemplar": list(f.exemplar), "canvas": list(f.canvas), "radius": [f.inner, f.outer],
+             "levels": None if f.levels is None else list(f.levels)} for f in features]
+
+
+def features_from_json(data: object) -> tuple[Feature, ...]:
+    """Parse a JSON list of features (untrusted); ValueError with a sentence."""
+    if not isinstance(data, list) or len(data) > MAX_FEATURES:
+        raise ValueError(f"Features must be a JSON list of at most {MAX_FEATURES} objects.")
+
+    def ints(v, n, lo, hi, what, i):
+        if (not isinstance(v, list) or len(v) != n
+                or not all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi for x in v)):
+            raise ValueError(f"Feature {i + 1}: \"{what}\" must be {n} integers from {lo} to {hi}.")
+        return tuple(v)
+    out = []
+    limit = 2 ** 31 - 2 ** 24
+    for i, d in enumerate(data):
+        if not isinstance(d, dict):
+            raise ValueError(f"Feature {i + 1} is not an object.")
+        u = ints(d.get("exemplar"), 2, 0, 4095, "exemplar", i)
+        p = ints(d.get("canvas"), 2, -limit, limit, "canvas", i)
+        r = ints(d.get("radius"), 2, 0, MAX_FEATURE_RADIUS, "radius", i)
+        if r[0] > r[1]:
+            raise ValueError(f"Feature {i + 1}: the inner radius is larger than the outer one.")
+        lv = d.get("levels")
+        levels = None if lv is None else ints(lv, 2, 0, 12, "levels", i)
+        if levels is not None and levels[0] > levels[1]:
+            raise ValueError(f"Feature {i + 1}: \"levels\" must be [first, last] with first <= last.")
+        out.append(Feature(u, p, r[0], r[1], levels))
+    return tuple(out)
+
+
+def fit_features(features, m: int) -> tuple[Feature, ...]:
+    """Features for an m x m exemplar: exemplar points and levels clamped to it."""
+    L = m.bit_length() - 1
+    out = []
+    for f in features:
+        u = (min(f.exemplar[0], m - 1), min(f.exemplar[1], m - 1))
+        lv = None if f.levels is None else (min(f.levels[0], L), min(f.levels[1], L))
+        out.append(f if (u, lv) == (f.exemplar, f.levels) else replace(f, exemplar=u, levels=lv))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class Controls:
     """Everything painted or placed by the user that the passes read."""

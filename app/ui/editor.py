@@ -497,8 +497,10 @@ class Editor:
             self.frame = frame_for(self.view, w, h, s.L, level)
             if self.doc is not self._last_doc:
                 prev, self._last_doc = self._last_doc, self.doc
-                # Painting on the canvas is re-synthesized locally and exactly: no coarse preview.
-                if prev is None or replace(prev, randomness_canvas=self.doc.randomness_canvas) != self.doc:
+                # Canvas paint and features are re-synthesized locally and exactly: no coarse preview.
+                local = replace(prev, randomness_canvas=self.doc.randomness_canvas,
+                                features=self.doc.features) if prev is not None else None
+                if local != self.doc:
                     self._last_edit = time.monotonic()
             interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
             t0 = time.perf_counter()
