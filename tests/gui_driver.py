@@ -140,6 +140,35 @@ def main(out: str) -> int:
         ctx.set_ref("//Infinitex")
         ctx.item_click("//**/Navigate (N)##tool-navigate")
 
+        # Drag a feature from the exemplar panel onto the canvas: placed where it
+        # was dropped, the canvas shows it, undo removes it exactly.
+        before_feature = canvas(ctx)
+        n_before = len(ed.doc.features)
+        ctx.set_ref("//Infinitex")
+        ctx.item_drag_and_drop("//**/exemplar-thumb", "//**/canvas")
+        after_feature = canvas(ctx)
+        feats = ed.doc.features
+        r = ctx.item_info("//**/canvas").rect_full
+        check("a dropped feature is placed", len(feats) == n_before + 1, f"{len(feats)} features")
+        if len(feats) == n_before + 1:
+            f = feats[-1]
+            cx, cy = (r.min.x + r.max.x) / 2 - r.min.x, (r.min.y + r.max.y) / 2 - r.min.y
+            x0, y0 = ed.view.top_left(*ed.canvas_size)
+            want = (x0 + cx / ed.view.zoom, y0 + cy / ed.view.zoom)
+            check("at the drop point", abs(f.canvas[0] - want[0]) <= 2 and abs(f.canvas[1] - want[1]) <= 2,
+                  f"{f.canvas} vs {want}")
+            m = ed.session.analysis.size
+            check("of the exemplar point under the mouse", abs(f.exemplar[0] - m // 2) <= 2
+                  and abs(f.exemplar[1] - m // 2) <= 2, f"{f.exemplar}")
+            diff = np.any(after_feature != before_feature, axis=-1)
+            ys, xs = np.nonzero(diff)
+            check("the canvas shows the feature there", diff.sum() > 200 and abs(np.median(xs) - cx) < 60
+                  and abs(np.median(ys) - cy) < 60, f"{diff.sum()} px changed")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        check("undo removes the feature exactly", len(ed.doc.features) == n_before
+              and np.array_equal(canvas(ctx), before_feature), "canvas differs")
+        ctx.item_click("//**/Navigate (N)##tool-navigate")
+
         # Save, change things, reopen: the canvas is identical to the saved one.
         saved_view = ed.view
         f = canvas(ctx)

@@ -45,6 +45,7 @@ from ..session import ExportJob, Frame, Session, frame_for
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs
 from .tools import make_tools
+from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
 DEFAULT_EXEMPLAR = os.path.join(ASSETS, "gravel.png")
@@ -542,6 +543,8 @@ class Editor:
             if self.show_fields:
                 self._field_overlay(dl, p0, w, h)
             self.panels.canvas_overlay(p0, w, h)
+            if self.tool.name == "feature":
+                self.tool.draw_handles(dl, p0, w, h)
             if hovered:
                 self.tool.overlay(dl, p0, w, h)
 
@@ -566,7 +569,13 @@ class Editor:
         if imgui.is_item_deactivated() and self._canvas_button >= 0:
             (tool if self._canvas_button == 0 else self.tools[0]).release()
             self._canvas_button = -1
-        if hovered and io.mouse_wheel:
+        if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
+            payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
+            if payload is not None and s.ready and self.doc is not None:
+                self.set_tool("feature")
+                self.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
+            imgui.end_drag_drop_target()
+        if hovered and io.mouse_wheel and not (s.ready and self.doc is not None and self.tool.wheel(at, io.mouse_wheel)):
             self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
         if hovered:
             x0, y0 = self.view.top_left(w, h)

@@ -13,6 +13,7 @@ from engine.pyramid import Rect
 
 from ..document import DISPLAY_MODES, View
 from .dialogs import IMAGE_FILTER, PNG_FILTER
+from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 MODE_LABELS = {"color": "Color", "coords": "Coordinate map", "patches": "Patch boundaries",
                "level": "Single pyramid level", "relief": "Shaded relief"}
@@ -98,7 +99,8 @@ class Panels:
             self._loading()
             return
         flags = imgui.TreeNodeFlags_.default_open
-        if ed.tool.name != "navigate" and imgui.collapsing_header("Brush", flags):
+        if ed.tool.name != "navigate" and imgui.collapsing_header(
+                "Features" if ed.tool.name == "feature" else "Brush", flags):
             self.brush_panel()
         if imgui.collapsing_header("Exemplar", flags):
             self.exemplar_panel()
@@ -153,7 +155,7 @@ class Panels:
         ex, an = s.exemplar, s.analysis
         if ed.canvas.exemplar_tex is not None:
             size = min(PANEL_IMAGE, imgui.get_content_region_avail().x)
-            imgui.image(imgui.ImTextureRef(ed.canvas.exemplar_tex.glo), (size, size))
+            self.exemplar_thumbnail(size)
         imgui.text(doc.exemplar.name)
         ow, oh = ex.original_size
         chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
@@ -177,6 +179,32 @@ class Panels:
             imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
             if imgui.button("Cancel analysis"):
                 job.cancel()
+
+    def exemplar_thumbnail(self, size: float) -> None:
+        """The exemplar; drag from it onto the canvas to place that feature there."""
+        ed = self.ed
+        tex = imgui.ImTextureRef(ed.canvas.exemplar_tex.glo)
+        p0 = imgui.get_cursor_screen_pos()
+        imgui.image(tex, (size, size))
+        imgui.set_cursor_screen_pos(p0)
+        imgui.invisible_button("exemplar-thumb", (size, size))
+        if imgui.is_item_hovered() and not imgui.is_mouse_down(imgui.MouseButton_.left):
+            imgui.set_tooltip("Drag a spot of the exemplar onto the canvas to place it there as a feature")
+        if imgui.begin_drag_drop_source():
+            try:
+                m = ed.session.analysis.size
+                pos, delta = imgui.get_io().mouse_pos, imgui.get_mouse_drag_delta(0)
+                ux = int(min(m - 1, max(0, (pos.x - delta.x - p0.x) / size * m)))  # where the drag began
+                uy = int(min(m - 1, max(0, (pos.y - delta.y - p0.y) / size * m)))
+                imgui.set_drag_drop_payload_py_id(FEATURE_PAYLOAD, uy * 4096 + ux)
+                # Preview: the exemplar around the point, at the size it will have on the canvas.
+                tool = next(t for t in ed.tools if t.name == "feature")
+                r = max(8, tool.outer)
+                prev = min(256.0, 2 * r * ed.view.zoom)
+                imgui.image(tex, (prev, prev), ((ux - r) / m, (uy - r) / m), ((ux + r) / m, (uy + r) / m))
+                imgui.text(f"feature at exemplar ({ux}, {uy})")
+            finally:
+                imgui.end_drag_drop_source()
 
     def randomness_panel(self) -> None:
         ed = self.ed

@@ -34,8 +34,13 @@ class Tool:
     def keys(self) -> None:
         """Per-frame keyboard shortcuts while the tool is active."""
 
+    def wheel(self, pos: tuple[float, float], amount: float) -> bool:
+        """The mouse wheel over the canvas; True when the tool used it (else it zooms)."""
+        return False
+
 
 def make_tools(ed) -> list[Tool]:
+    from .feature import FeatureTool
     from .navigate import NavigateTool
     from .paint import PaintCanvasTool, PaintExemplarTool
-    return [NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed)]
+    return [NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed)]

@@ -1,0 +1,238 @@
+"""Features (LH05 4.3): place chosen exemplar features anywhere on the canvas.
+
+- Press on empty canvas and drag: "grab what I see": the feature's exemplar
+  point is the synthesized coordinate under the cursor, and it follows the
+  mouse to where it is released.
+- Drag the exemplar thumbnail (Exemplar panel) onto the canvas: the point
+  under the mouse on the thumbnail becomes a feature at the drop point.
+- Press on a feature's center (or inside its inner circle) and drag: move it;
+  drag its inner or outer circle: resize that radius; the wheel over a
+  feature resizes both radii (Shift: the outer one only); Del deletes the
+  selected feature. One gesture is one undo step.
+The Brush panel lists every feature (radii, levels, jump to, delete). The
+canvas follows each step through local re-synthesis of the old and new area.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from imgui_bundle import imgui
+
+from engine.controls import MAX_FEATURE_RADIUS, Feature
+from engine.pyramid import Rect, SynthesisError
+
+from ...document import View
+from . import Tool
+
+PAYLOAD = "INFINITEX_FEATURE"   # drag-and-drop payload: exemplar point as uy * 4096 + ux
+
+
+class FeatureTool(Tool):
+    name = "feature"
+    label = "Features"
+    key = "F"
+    tooltip = ("Place exemplar features: drag on the canvas to move what you see, or drag the exemplar "
+               "thumbnail onto the canvas; drag a feature's center to move it, its circles to resize (F)")
+
+    def __init__(self, ed):
+        super().__init__(ed)
+        self.inner = 24
+        self.outer = 48
+        self.exact = False        # False: every level but the finest two (fresh detail); True: all levels
+        self.show = True          # draw circles and handles
+        self.selected: int | None = None
+        self._mode: str | None = None
+        self._group: object = None
+        self._press: tuple[float, float] = (0.0, 0.0)
+        self._start: Feature | None = None
+
+    # -- document helpers -------------------------------------------------
+
+    @property
+    def features(self) -> tuple[Feature, ...]:
+        return self.ed.doc.features if self.ed.doc is not None else ()
+
+    def _set(self, features, label: str, group=None) -> None:
+        ed = self.ed
+        ed.edit(replace(ed.doc, features=tuple(features)), label, group=group)
+
+    def _levels(self):
+        return (0, self.ed.session.L) if self.exact else None
+
+    def sample(self, pos) -> tuple[int, int]:
+        """The synthesized exemplar coordinate shown at canvas point ``pos``."""
+        ed = self.ed
+        s = ed.session
+        m = s.analysis.size
+        level = ed.frame.level if ed.frame is not None else s.L
+        k = s.L - level
+        x, y = math.floor(pos[0]) >> k, math.floor(pos[1]) >> k
+        try:
+            c = s.pyramid.read(level, Rect.of(x, y, 1, 1))
+            ed.screen_fbo.use()
+            return int(c[0, 0, 0]) % m, int(c[0, 0, 1]) % m
+        except SynthesisError:
+            return m // 2, m // 2
+
+    def place(self, u: tuple[int, int], pos, label: str = "Place feature", group=None) -> None:
+        f = Feature(u, (round(pos[0]), round(pos[1])), self.inner, max(self.inner, self.outer), self._levels())
+        self._set(self.features + (f,), label, group)
+        self.selected = len(self.features) - 1
+
+    # -- hit testing --------------------------------------------------------
+
+    def _hit(self, pos) -> tuple[int, str] | None:
+        z = self.ed.view.zoom
+        for i in range(len(self.features) - 1, -1, -1):  # the topmost (last) first
+            f = self.features[i]
+            d = math.hypot(pos[0] - f.canvas[0], pos[1] - f.canvas[1]) * z
+            if abs(d - f.outer * z) <= 5:
+                return i, "outer"
+            if abs(d - f.inner * z) <= 5 and f.inner * z > 10:
+                return i, "inner"
+            if d <= max(7.0, f.inner * z):
+                return i, "move"
+        return None
+
+    # -- gestures -----------------------------------------------------------
+
+    def press(self, pos, screen) -> None:
+        self._group = object()
+        self._press = pos
+        hit = self._hit(pos)
+        if hit is None:
+            self.place(self.sample(pos), pos, "Place feature", self._group)
+            self._mode = "move"
+        else:
+            self.selected, self._mode = hit
+        self._start = self.features[self.selected]
+
+    def drag(self, pos, screen) -> None:
+        if self._mode is None or self.selected is None or self.selected >= len(self.features):
+            return
+        f0 = self._start
+        if self._mode == "move":
+            c = (f0.canvas[0] + round(pos[0] - self._press[0]), f0.canvas[1] + round(pos[1] - self._press[1]))
+            f = replace(f0, canvas=c)
+            label = "Move feature"
+        else:
+            r = min(MAX_FEATURE_RADIUS, round(math.hypot(pos[0] - f0.canvas[0], pos[1] - f0.canvas[1])))
+            if self._mode == "outer":
+                f = replace(f0, outer=max(r, f0.inner))
+            else:
+                f = replace(f0, inner=min(r, f0.outer))
+            label = "Resize feature"
+        feats = list(self.features)
+        if feats[self.selected] != f:
+            feats[self.selected] = f
+            self._set(feats, label, self._group)
+
+    def release(self) -> None:
+        if self._group is not None and self.ed.history is not None:
+            self.ed.history.end_group()
+        self._group, self._mode = None, None
+
+    def wheel(self, pos, amount: float) -> bool:
+        """Resize the feature under the cursor; True when the wheel was used."""
+        hit = self._hit(pos)
+        if hit is None:
+            return False
+        i = hit[0]
+        f = self.features[i]
+        s = 2.0 ** (0.125 * amount)
+        outer = min(MAX_FEATURE_RADIUS, max(1, round(f.outer * s)))
+        inner = f.inner if imgui.get_io().key_shift else min(outer, max(0, round(f.inner * s)))
+        feats = list(self.features)
+        feats[i] = replace(f, inner=min(inner, outer), outer=outer)
+        self._set(feats, "Resize feature", ("feature-wheel", i))
+        self.selected = i
+        return True
+
+    def keys(self) -> None:
+        if imgui.get_io().want_text_input:
+            return
+        if self.selected is not None and (imgui.is_key_pressed(imgui.Key.delete) or imgui.is_key_pressed(imgui.Key.backspace)):
+            self.delete(self.selected)
+
+    def delete(self, i: int) -> None:
+        feats = list(self.features)
+        if 0 <= i < len(feats):
+            del feats[i]
+            self._set(feats, "Delete feature")
+        self.selected = None
+
+    # -- drawing ------------------------------------------------------------
+
+    def overlay(self, draw_list, p0, w, h) -> None:
+        pass  # handles are drawn for every visible feature by draw_handles
+
+    def draw_handles(self, draw_list, p0, w: int, h: int) -> None:
+        ed = self.ed
+        if not self.show or not self.features:
+            return
+        z = ed.view.zoom
+        x0, y0 = ed.view.top_left(w, h)
+        white, black = imgui.get_color_u32((1, 1, 1, 0.9)), imgui.get_color_u32((0, 0, 0, 0.75))
+        sel = imgui.get_color_u32((1.0, 0.8, 0.2, 1.0))
+        draw_list.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
+        for i, f in enumerate(self.features):
+            c = (p0.x + (f.canvas[0] - x0) * z, p0.y + (f.canvas[1] - y0) * z)
+            ro = f.outer * z
+            if c[0] + ro < p0.x or c[0] - ro > p0.x + w or c[1] + ro < p0.y or c[1] - ro > p0.y + h:
+                continue
+            col = sel if i == self.selected else white
+            for r in (f.outer * z, f.inner * z):
+                if r >= 2:
+                    draw_list.add_circle(c, r, black, 0, 3.0)
+                    draw_list.add_circle(c, r, col, 0, 1.5)
+            draw_list.add_circle_filled(c, 4.0, black)
+            draw_list.add_circle_filled(c, 3.0, col)
+        draw_list.pop_clip_rect()
+
+    def options(self) -> None:
+        ed = self.ed
+        imgui.push_item_width(-110)
+        _, self.inner = imgui.slider_int("Inner radius", self.inner, 0, 512)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("New features: inside this radius the exemplar is copied at the finest level used")
+        _, self.outer = imgui.slider_int("Outer radius", max(self.outer, self.inner), self.inner, 1024)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("New features: the radius at the coarsest level; the texture around blends in")
+        imgui.pop_item_width()
+        _, self.exact = imgui.checkbox("Exact copy (all levels)", self.exact)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Off: the finest two levels stay free, so the feature gets fresh detail (LH05)")
+        _, self.show = imgui.checkbox("Show feature handles", self.show)
+        feats = self.features
+        imgui.text(f"{len(feats)} feature{'s' if len(feats) != 1 else ''}")
+        if feats and imgui.begin_list_box("##features", (-1, min(160, 22 * len(feats) + 6))):
+            for i, f in enumerate(feats):
+                if imgui.selectable(f"#{i + 1}  at ({f.canvas[0]}, {f.canvas[1]})  r {f.inner}/{f.outer}##feat{i}",
+                                    i == self.selected)[0]:
+                    self.selected = i
+            imgui.end_list_box()
+        i = self.selected
+        if i is not None and i < len(feats):
+            f = feats[i]
+            L = ed.session.L
+            imgui.push_item_width(-110)
+            ch1, inner = imgui.slider_int("Inner##sel", f.inner, 0, f.outer)
+            ch2, outer = imgui.slider_int("Outer##sel", f.outer, max(1, f.inner), MAX_FEATURE_RADIUS)
+            a, b = f.level_range(L)
+            ch3, lv = imgui.slider_int2("Levels##sel", [a, b], 0, L)
+            imgui.pop_item_width()
+            if ch1 or ch2 or ch3:
+                levels = (min(lv[0], lv[1]), max(lv[0], lv[1]))
+                g = replace(f, inner=min(inner, outer), outer=outer,
+                            levels=None if levels == (0, max(0, L - 2)) and f.levels is None else levels)
+                new = list(feats)
+                new[i] = g
+                self._set(new, "Edit feature", ("feature-edit", i))
+            if imgui.is_item_deactivated():
+                ed.history.end_group()
+            if imgui.button("Jump to"):
+                ed.view = View(float(f.canvas[0]), float(f.canvas[1]), ed.view.zoom)
+            imgui.same_line()
+            if imgui.button("Delete (Del)"):
+                self.delete(i)
