@@ -53,8 +53,17 @@ class Gpu:
         quad = np.array([-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1], dtype="f4")
         self.quad = self.ctx.buffer(quad.tobytes())
 
+    def activate(self) -> None:
+        """Make this Gpu's own (standalone) context current. Several headless
+        contexts may live in one process (tests, a pipeline); GL calls go to
+        whichever was made current last, so every engine entry point calls this.
+        A context given to Gpu (the editor's window) is left to its owner."""
+        if self.owns_context:
+            self.ctx.__enter__()
+
     def release(self) -> None:
         """Free the programs and buffers, and the context if this Gpu made it."""
+        self.activate()
         for obj in [*self._vaos.values(), *self._programs.values(), self.quad]:
             obj.release()
         self._vaos.clear()

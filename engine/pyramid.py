@@ -157,6 +157,7 @@ class Pyramid:
         self.buffers: list[_LevelBuffer | None] = [None] * (self.an.L + 1)
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
+        gpu.activate()
         self._efield: dict[int, object] = {}  # level -> R_E,l texture
         self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
         self._dummy_i = gpu.ctx.texture((2, 1), 4, np.zeros(8, np.int32).tobytes(), dtype="i4")
@@ -206,6 +207,7 @@ class Pyramid:
         Returns the number of level pixels synthesized."""
         controls = controls.normalized()
         controls.validate(self.an.size)
+        self.gpu.activate()
         if changed is None:
             rects = self.controls.changed_rects(controls)
             changed = None if rects is None else [Rect(*r) for r in rects]
@@ -297,6 +299,7 @@ class Pyramid:
             raise SynthesisError(f"Level {level} does not exist (0..{self.an.L}).")
         if rect.empty:
             return 0
+        self.gpu.activate()
         lim = COORD_LIMIT >> (self.an.L - level)
         if min(rect.x0, rect.y0) < -lim or max(rect.x1, rect.y1) > lim:
             raise SynthesisError(f"Canvas positions must stay within +-{lim} at level {level}.")
@@ -487,12 +490,14 @@ class Pyramid:
         buf = self.buffers[level]
         if buf is None or buf.valid is None or not buf.valid.contains(rect):
             raise SynthesisError(f"Level {level} does not hold {rect}; request it first.")
+        self.gpu.activate()
         data = np.frombuffer(buf.tex.read(alignment=1), dtype=np.int16).reshape(buf.size[1], buf.size[0], 2)
         tx = (np.arange(rect.x0, rect.x1) - buf.anchor[0]) & buf.mask[0]
         ty = (np.arange(rect.y0, rect.y1) - buf.anchor[1]) & buf.mask[1]
         return data[ty[:, None], tx[None, :]].astype(np.int32)
 
     def release(self) -> None:
+        self.gpu.activate()
         for buf in self.buffers:
             if buf is not None:
                 buf.release()

@@ -37,6 +37,7 @@ class Synthesizer:
         self.analysis = analysis
         self.owns_gpu = gpu is None
         self.gpu = gpu or Gpu()
+        self.gpu.activate()
         self.gan = GpuAnalysis(self.gpu, analysis)
         self.params = params or SynthParams.default(analysis.L)
         self.params.validate(analysis.L)
@@ -83,6 +84,7 @@ class Synthesizer:
         return stack[coords[..., 1], coords[..., 0]]
 
     def release(self) -> None:
+        self.gpu.activate()
         self.gan.release()
         if self.owns_gpu:
             self.gpu.release()

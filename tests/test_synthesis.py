@@ -186,3 +186,16 @@ def test_bad_requests_are_rejected(synths, analyses):
                 dict(jitter=(0.5,) * (an.L + 1), kappa=-1), dict(jitter=(0.5,) * (an.L + 1), corrected=(99,))):
         with pytest.raises(ValueError):
             SynthParams(**bad).validate(an.L)
+
+
+def test_several_headless_contexts_in_one_process(analyses, gpu):
+    """A second engine (its own context, created and released in between, as an
+    in-process CLI run does) leaves the first one working."""
+    from engine.gpu import Gpu
+    an = analyses["gravel-appearance"]
+    synth = Synthesizer(an, gpu=gpu)
+    before = synth.window(Rect.of(5, 7, 40, 30))
+    other = Gpu()
+    Synthesizer(an, gpu=other).window(Rect.of(0, 0, 16, 16))
+    other.release()
+    assert np.array_equal(synth.window(Rect.of(5, 7, 40, 30)), before)

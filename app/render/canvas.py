@@ -50,6 +50,7 @@ class Canvas:
 
     def set_exemplar(self, stack_u8: np.ndarray, toroidal: bool, hires: np.ndarray | None, generation: int) -> None:
         """Upload the uint8 stack (L+1, m, m, C) and, if given, the float hires exemplar."""
+        self.gpu.activate()
         self._release_exemplar()
         n, m = stack_u8.shape[0], stack_u8.shape[1]
         rgba = _to_rgba(stack_u8)
@@ -80,6 +81,7 @@ class Canvas:
     # -- drawing --------------------------------------------------------------
 
     def ensure_size(self, w: int, h: int) -> None:
+        self.gpu.activate()
         w, h = max(1, int(w)), max(1, int(h))
         if (w, h) == self.size and self.tex is not None:
             return
@@ -93,6 +95,7 @@ class Canvas:
 
     def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display) -> int:
         """Draw into the canvas texture; returns the coarsest level drawn (-1: none)."""
+        self.gpu.activate()
         self.fbo.use()
         self.fbo.viewport = (0, 0, *self.size)
         self.gpu.ctx.clear(0.16, 0.16, 0.17, 1.0)
@@ -152,6 +155,7 @@ class Canvas:
 
     def read(self) -> np.ndarray:
         """The canvas as uint8 (H, W, 3), row 0 at the top."""
+        self.gpu.activate()
         data = self.fbo.read(components=3, alignment=1)
         return np.frombuffer(data, dtype=np.uint8).reshape(self.size[1], self.size[0], 3).copy()
 
@@ -162,6 +166,7 @@ class Canvas:
         self.stack_tex = self.hires_tex = self.exemplar_tex = None
 
     def release(self) -> None:
+        self.gpu.activate()
         self._release_exemplar()
         if self.tex is not None:
             self.fbo.release()
