@@ -75,7 +75,8 @@ def drag_in_editor(steps: int) -> dict:
         stamps.append(time.perf_counter())
         orig_gui()
         pixels_at.append(sum(updates))
-        moved_at.append(ed.doc.features if ed.doc is not None else None)
+        tool = ed.tool
+        moved_at.append(getattr(tool, "preview", None) or (ed.doc.features if ed.doc is not None else None))
 
     params = ed.runner_params()
     params.callbacks.show_gui = gui
@@ -112,12 +113,15 @@ def drag_in_editor(steps: int) -> dict:
             ctx.mouse_move_to_pos((x0 + span * i / steps, cy + 40 * ((i // 10) % 2)))
             ctx.yield_()
         n1 = len(stamps)
-        ctx.mouse_up(0)
         t_release = time.perf_counter()
+        n_release = len(updates)
+        ctx.mouse_up(0)  # the release frame commits the move
         exact = settle(ctx)
         exact_s = time.perf_counter() - t_release
+        results["pixels_on_release"] = sum(updates[n_release:])
         frames = [b - a for a, b in zip(stamps[n0:n1 - 1], stamps[n0 + 1:n1])]
-        # Steps: the frames in which the feature moved (the test engine moves the mouse over several frames).
+        # Steps: the frames in which the (previewed) feature moved; the test engine
+        # moves the mouse over several frames.
         step_idx = [i for i in range(n0, n1 - 1) if moved_at[i] != moved_at[i - 1]]
         px = [pixels_at[i] - pixels_at[i - 1] for i in step_idx]
         lat = sorted(stamps[i + 1] - stamps[i] for i in step_idx)

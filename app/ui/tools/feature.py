@@ -9,8 +9,10 @@
   drag its inner or outer circle: resize that radius; the wheel over a
   feature resizes both radii (Shift: the outer one only); Del deletes the
   selected feature. One gesture is one undo step.
-The Brush panel lists every feature (radii, levels, jump to, delete). The
-canvas follows each step through local re-synthesis of the old and new area.
+While dragging, the feature is previewed (its circles and the exemplar it
+copies follow the mouse, no synthesis); on release the canvas re-synthesizes
+the old and the new area once, locally and exactly. The Features panel lists
+every feature (radii, levels, jump to, delete).
 """
 from __future__ import annotations
 
@@ -46,6 +48,7 @@ class FeatureTool(Tool):
         self._group: object = None
         self._press: tuple[float, float] = (0.0, 0.0)
         self._start: Feature | None = None
+        self.preview: Feature | None = None   # the selected feature as dragged, committed on release
 
     # -- document helpers -------------------------------------------------
 
@@ -109,29 +112,30 @@ class FeatureTool(Tool):
         self._start = self.features[self.selected]
 
     def drag(self, pos, screen) -> None:
+        """While the button is held the feature is previewed (its circles and the
+        exemplar it copies follow the mouse, no synthesis); release commits it,
+        and the canvas re-synthesizes the old and new area once, exactly."""
         if self._mode is None or self.selected is None or self.selected >= len(self.features):
             return
         f0 = self._start
         if self._mode == "move":
             c = (f0.canvas[0] + round(pos[0] - self._press[0]), f0.canvas[1] + round(pos[1] - self._press[1]))
-            f = replace(f0, canvas=c)
-            label = "Move feature"
+            self.preview = replace(f0, canvas=c)
         else:
             r = min(MAX_FEATURE_RADIUS, round(math.hypot(pos[0] - f0.canvas[0], pos[1] - f0.canvas[1])))
-            if self._mode == "outer":
-                f = replace(f0, outer=max(r, f0.inner))
-            else:
-                f = replace(f0, inner=min(r, f0.outer))
-            label = "Resize feature"
-        feats = list(self.features)
-        if feats[self.selected] != f:
-            feats[self.selected] = f
-            self._set(feats, label, self._group)
+            self.preview = (replace(f0, outer=max(r, f0.inner)) if self._mode == "outer"
+                            else replace(f0, inner=min(r, f0.outer)))
 
     def release(self) -> None:
+        f = self.preview
+        if f is not None and self.selected is not None and self.selected < len(self.features) \
+                and self.features[self.selected] != f:
+            feats = list(self.features)
+            feats[self.selected] = f
+            self._set(feats, "Move feature" if self._mode == "move" else "Resize feature", self._group)
         if self._group is not None and self.ed.history is not None:
             self.ed.history.end_group()
-        self._group, self._mode = None, None
+        self._group, self._mode, self.preview = None, None, None
 
     def wheel(self, pos, amount: float) -> bool:
         """Resize the feature under the cursor; True when the wheel was used."""
@@ -176,7 +180,19 @@ class FeatureTool(Tool):
         white, black = imgui.get_color_u32((1, 1, 1, 0.9)), imgui.get_color_u32((0, 0, 0, 0.75))
         sel = imgui.get_color_u32((1.0, 0.8, 0.2, 1.0))
         draw_list.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
-        for i, f in enumerate(self.features):
+        shown = list(self.features)
+        if self.preview is not None and self.selected is not None and self.selected < len(shown):
+            f = shown[self.selected] = self.preview
+            tex = ed.canvas.exemplar_tex
+            if tex is not None and f.inner > 0:  # the exemplar the feature copies, under the mouse
+                m = ed.session.analysis.size
+                c = (p0.x + (f.canvas[0] - x0) * z, p0.y + (f.canvas[1] - y0) * z)
+                r = f.inner * z
+                ux, uy, ri = f.exemplar[0], f.exemplar[1], f.inner
+                draw_list.add_image_rounded(imgui.ImTextureRef(tex.glo), (c[0] - r, c[1] - r), (c[0] + r, c[1] + r),
+                                            ((ux - ri) / m, (uy - ri) / m), ((ux + ri) / m, (uy + ri) / m),
+                                            imgui.get_color_u32((1, 1, 1, 0.85)), r)
+        for i, f in enumerate(shown):
             c = (p0.x + (f.canvas[0] - x0) * z, p0.y + (f.canvas[1] - y0) * z)
             ro = f.outer * z
             if c[0] + ro < p0.x or c[0] - ro > p0.x + w or c[1] + ro < p0.y or c[1] - ro > p0.y + h:
