@@ -170,3 +170,46 @@ def test_spatial_index_finds_exactly_the_features_that_reach_a_rectangle():
         brute = [i for i, f in enumerate(feats)
                  if f.bbox()[0] < x1 and x0 < f.bbox()[2] and f.bbox()[1] < y1 and y0 < f.bbox()[3]]
         assert c.features_in(x0, y0, x1, y1) == brute
+
+
+def test_features_in_projects_and_on_the_command_line(tmp_path):
+    import json
+    import os
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    from app.document import Document, ExemplarSource, Project, ProjectError, load_project, save_project
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    gravel = os.path.join(root, "assets", "gravel.png")
+    feats = (Feature((60, 40), (100, 80), 20, 40), Feature((10, 100), (150, 60), 10, 30, (0, 7)))
+    doc = Document(ExemplarSource.from_file(gravel), features=feats)
+    p = tmp_path / "p.itex"
+    save_project(str(p), Project(doc))
+    assert load_project(str(p)).document.features == feats
+    d = json.loads(p.read_text())
+    for bad in ([{"exemplar": [1, 2]}], [{"exemplar": [1, 2], "canvas": [0, 0], "radius": [30, 10]}],
+                {"not": "a list"}, [{"exemplar": [1, 2], "canvas": [0, 0], "radius": [1, 2], "levels": [5, 2]}]):
+        d["features"] = bad
+        p.write_text(json.dumps(d))
+        with pytest.raises(ProjectError, match="features"):
+            load_project(str(p))
+    # The command line: synth and export agree; bad data is one line.
+    fj = tmp_path / "f.json"
+    fj.write_text(json.dumps([{"exemplar": [60, 40], "canvas": [20, 16], "radius": [12, 24], "levels": [0, 7]}]))
+
+    def run(*a):
+        return subprocess.run([sys.executable, os.path.join(root, "main.py"), *a, "-q"], capture_output=True,
+                              text=True, timeout=300)
+    r = run("synth", gravel, "-o", str(tmp_path / "a.png"), "--size", "64", "48", "--features", str(fj))
+    assert r.returncode == 0, r.stderr
+    r = run("export", gravel, "-o", str(tmp_path / "b.png"), "--rect", "0", "0", "64", "48", "--features", str(fj))
+    assert r.returncode == 0, r.stderr
+    a, b = np.asarray(Image.open(tmp_path / "a.png")), np.asarray(Image.open(tmp_path / "b.png"))
+    assert np.array_equal(a, b)
+    ex = np.asarray(Image.open(gravel))
+    assert np.array_equal(a[16, 20], ex[40, 60])  # the exact copy at the feature's center
+    fj.write_text("[{\"exemplar\": [1]}]")
+    r = run("synth", gravel, "-o", str(tmp_path / "c.png"), "--features", str(fj))
+    assert r.returncode == 3 and len(r.stderr.strip().splitlines()) == 1 and "features" in r.stderr
