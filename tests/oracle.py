@@ -219,3 +219,20 @@ def neighborhood_error(an: Analysis, level: int, S: np.ndarray) -> float:
     u = S[ys, xs].astype(np.int64)
     ne = an.levels[level].nbhd.astype(np.int64)[u[:, 1], u[:, 0]]
     return float(((ns - ne) ** 2).sum(axis=1).mean())
+
+
+def reach_bound(pyr, r):
+    """A finest-level bound of what a change of the controls inside rectangle
+    ``r`` can alter in pyramid ``pyr`` (its levels' correction margins, doubled
+    from each level to the next): outside it, local updates must change nothing."""
+    from engine.pyramid import Rect
+    L = pyr.an.L
+    cur = None
+    for level in range(L + 1):
+        k = L - level
+        d = Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k))
+        if cur is not None:
+            d = Rect(min(d.x0, 2 * cur.x0), min(d.y0, 2 * cur.y0), max(d.x1, 2 * cur.x1), max(d.y1, 2 * cur.y1))
+        g = max(pyr.margins[level])
+        cur = d.pad(g, g, g, g)
+    return cur

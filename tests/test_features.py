@@ -99,19 +99,6 @@ def test_feature_near_the_border_of_a_non_toroidal_exemplar_does_not_wrap(analys
     assert S[..., 0][inside].min() >= 0 and S[..., 1][inside].max() < m
 
 
-def _reach(pyr, r: Rect) -> Rect:
-    L = pyr.an.L
-    cur = None
-    for l in range(L + 1):
-        k = L - l
-        d = Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k))
-        if cur is not None:
-            d = Rect(min(d.x0, 2 * cur.x0), min(d.y0, 2 * cur.y0), max(d.x1, 2 * cur.x1), max(d.y1, 2 * cur.y1))
-        g = max(pyr.margins[l])
-        cur = d.pad(g, g, g, g)
-    return cur
-
-
 def test_local_updates_after_feature_edits_equal_a_fresh_synthesis(analyses, gpu):
     an = analyses["gravel-appearance"]
     rng = np.random.default_rng(21)
@@ -151,7 +138,7 @@ def test_local_updates_after_feature_edits_equal_a_fresh_synthesis(analyses, gpu
             ys, xs = np.mgrid[lv.y0:lv.y1, lv.x0:lv.x1]
             near = np.zeros(xs.shape, bool)
             for c in changed:
-                rr = _reach(vp.pyramid, c)
+                rr = oracle.reach_bound(vp.pyramid, c)
                 near |= ((xs >= rr.x0 >> zoom) & (xs < -((-rr.x1) >> zoom)) & (ys >= rr.y0 >> zoom)
                          & (ys < -((-rr.y1) >> zoom)))
             assert np.array_equal(after[~near], before[~near])

@@ -188,20 +188,6 @@ def test_canvas_field_tiles_and_mips():
     assert half is not None and half.shape == (51, 66)
 
 
-def _reach(pyr, r: Rect) -> Rect:
-    """Finest-level bound of what a change inside r can alter (for the test)."""
-    L = pyr.an.L
-    cur = None
-    for l in range(L + 1):
-        k = L - l
-        d = Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k))
-        if cur is not None:
-            d = Rect(min(d.x0, 2 * cur.x0), min(d.y0, 2 * cur.y0), max(d.x1, 2 * cur.x1), max(d.y1, 2 * cur.y1))
-        g = max(pyr.margins[l])
-        cur = d.pad(g, g, g, g)
-    return cur
-
-
 def test_local_updates_after_20_strokes_equal_a_fresh_synthesis(analyses, gpu):
     an = analyses["gravel-appearance"]
     rng = np.random.default_rng(11)
@@ -245,7 +231,7 @@ def test_local_updates_after_20_strokes_equal_a_fresh_synthesis(analyses, gpu):
             # Pixels beyond every dab's reach did not change.
             if changed:
                 pyr = vp.pyramid
-                reach = [_reach(pyr, c) for c in changed]
+                reach = [oracle.reach_bound(pyr, c) for c in changed]
                 ys, xs = np.mgrid[lv.y0:lv.y1, lv.x0:lv.x1]
                 near = np.zeros(xs.shape, bool)
                 for rr in reach:
