@@ -438,11 +438,19 @@ synth_options = st.one_of(
     _opt("--fit", st.sampled_from(["resize", "crop", "stretch"])),
     _opt("--exemplar-toroidal", st.sampled_from(["auto", "yes", "no", "maybe"])),
     st.sampled_from([["--toroidal"], ["--no-cache"], ["-q"], ["--bogus"], ["-o"], ["--size"]]))
+# Painted randomness maps and feature files: untrusted files too.
+control_options = st.one_of(
+    _opt("--features", st.sampled_from(["FEATS", "BADFEATS", "HUGEFEATS", "TEXT", "MISSING", "DEVZERO", "EPS", "DIR"])),
+    _opt("--randomness-canvas", st.sampled_from(["CMAP", "TINY", "TEXT", "EPS", "MISSING", "FIFO"])),
+    _opt("--randomness-exemplar", st.sampled_from(["CMAP", "TINY", "TEXT", "MISSING"])),
+    st.tuples(st.just("--randomness-origin"), INT_TEXT, INT_TEXT).map(list))
+synth_options = st.one_of(synth_options, control_options)
 export_options = st.one_of(
     st.tuples(st.just("--rect"), INT_TEXT, INT_TEXT, SIZE_TEXT, SIZE_TEXT).map(list),
     st.tuples(st.just("--size"), SIZE_TEXT, SIZE_TEXT).map(list),
     _opt("--toroidal", st.one_of(st.sampled_from(["32", "64"]), INT_TEXT)),
-    st.sampled_from([["--coords"], ["--allow-outside-exemplar"], ["-q"], ["--bogus"], ["--toroidal"]]))
+    st.sampled_from([["--coords"], ["--allow-outside-exemplar"], ["-q"], ["--bogus"], ["--toroidal"]]),
+    control_options)
 INPUTS = ["TINY", "PROJECT", "OUTSIDE_PROJECT", "MISSING", "DIR", "FIFO", "DEVZERO", "TEXT", "EPS"]
 
 
@@ -483,12 +491,21 @@ def cli_sandbox() -> str:
     with open(os.path.join(root, "sub", "OUTSIDE.itex"), "w") as f:
         json.dump(d, f)
     os.mkfifo(os.path.join(root, "FIFO"))
+    with open(os.path.join(root, "FEATS.json"), "w") as f:
+        json.dump([{"exemplar": [5, 6], "canvas": [10, 12], "radius": [4, 9]},
+                   {"exemplar": [20, 3], "canvas": [30, -5], "radius": [2, 5], "levels": [0, 5]}], f)
+    with open(os.path.join(root, "BADFEATS.json"), "w") as f:
+        f.write('[{"exemplar": [1e999, "x"], "canvas": [0]}, NaN, ' + "[" * 5000)
+    with open(os.path.join(root, "HUGEFEATS.json"), "w") as f:
+        json.dump([{"exemplar": [1, 1], "canvas": [0, 0], "radius": [2047, 2047], "levels": [0, 12]}] * 3, f)
+    Image.fromarray((np.arange(40 * 50) % 256).astype(np.uint8).reshape(40, 50)).save(os.path.join(root, "CMAP.png"))
     return root
 
 
 def _resolve(arg: str, root: str) -> str:
     table = {"TINY": "TINY.png", "PROJECT": "PROJECT.itex", "OUTSIDE_PROJECT": "sub/OUTSIDE.itex",
-             "MISSING": "missing.png", "TEXT": "TEXT.txt", "EPS": "EPS.eps"}
+             "MISSING": "missing.png", "TEXT": "TEXT.txt", "EPS": "EPS.eps", "FEATS": "FEATS.json",
+             "BADFEATS": "BADFEATS.json", "HUGEFEATS": "HUGEFEATS.json", "CMAP": "CMAP.png", "FIFO": "FIFO"}
     if arg == "DEVZERO":
         return "/dev/zero"
     if arg in table:
