@@ -132,14 +132,15 @@ class Panels:
         _, ed.show_fields = imgui.checkbox("Show painted randomness (H)", ed.show_fields)
         if imgui.is_item_hovered():
             imgui.set_tooltip("Overlay the painted fields as heat maps: blue = calm, red = rough")
-        doc = ed.doc
-        if doc is not None and (doc.randomness_canvas is not None or doc.randomness_exemplar is not None):
-            imgui.same_line()
-            if imgui.button("Clear painted randomness"):
-                ed.edit(replace(doc, randomness_canvas=None, randomness_exemplar=None), "Clear painted randomness")
 
     def brush_panel(self) -> None:
-        self.ed.tool.options()
+        ed = self.ed
+        ed.tool.options()
+        doc = ed.doc
+        if ed.tool.name.startswith("paint") and (doc.randomness_canvas is not None
+                                                 or doc.randomness_exemplar is not None):
+            if imgui.button("Clear painted randomness", (-1, 0)):
+                ed.edit(replace(doc, randomness_canvas=None, randomness_exemplar=None), "Clear painted randomness")
 
     def _loading(self) -> None:
         job = self.ed.session.job
