@@ -41,7 +41,16 @@ from engine.controls import (
 )
 from engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
 from engine.params import DEFAULT_JITTER, SynthParams
-from engine.safeio import ReadError, WriteError, atomic_write, printable, read_head, read_limited
+from engine.safeio import (
+    JSONLimitError,
+    ReadError,
+    WriteError,
+    atomic_write,
+    parse_json,
+    printable,
+    read_head,
+    read_limited,
+)
 
 FORMAT = "infinitex-project"
 VERSION = 2              # 2: painted randomness ("randomness") and placed features ("features"); files without them are written as 1
@@ -115,12 +124,18 @@ class Document:
 
     def controls(self, m: int) -> Controls:
         """The engine input of everything painted, for an m x m exemplar (an
-        exemplar field painted at another size is scaled to m, nearest)."""
+        exemplar field painted at another size is scaled to m, nearest). Made
+        once per document: the session compares it every frame."""
+        cached = self.__dict__.get("_controls")
+        if cached is not None and cached[0] == m:
+            return cached[1]
         e = self.randomness_exemplar
         if e is not None and e.size != m:
             idx = (np.arange(m) * e.size) // m
             e = ExemplarField(np.ascontiguousarray(e.values[idx[:, None], idx[None, :]]))
-        return Controls(e, self.randomness_canvas, fit_features(self.features, m)).normalized()
+        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m)).normalized()
+        object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
+        return controls
 
     def params(self, L: int) -> SynthParams:
         corrected = None if self.corrected is None else tuple(l for l in self.corrected if l <= L)
@@ -428,48 +443,13 @@ class ExemplarOutside(ProjectError):
                          "which is outside the project's folder.")
 
 
-_JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"')
-
-
-def _json_depth(text: str) -> int:
-    """How deeply the JSON text nests (strings are skipped), without parsing it."""
-    b = np.frombuffer(_JSON_STRING.sub('""', text).encode("utf-8", "replace"), dtype=np.uint8)
-    if b.size == 0:
-        return 0
-    delta = ((b == 0x5B) | (b == 0x7B)).astype(np.int32) - ((b == 0x5D) | (b == 0x7D))
-    return int(np.cumsum(delta).max())
-
-
-def _parse_int(text: str) -> int:
-    if len(text.lstrip("-")) > MAX_INT_DIGITS:
-        raise ProjectError("The project holds a number too large for any setting.")
-    return int(text)
-
-
-def _parse_float(text: str) -> float:
-    v = float(text)
-    if not math.isfinite(v) or len(text) > 64:
-        raise ProjectError("The project holds a number too large for any setting.")
-    return v
-
-
-def _parse_constant(text: str):
-    raise ProjectError(f"The project holds {text}, which is not a number any setting can take.")
-
-
 def parse_project_json(raw: bytes, name: str = "The file") -> object:
     """Decode untrusted project JSON with bounded nesting and numbers."""
     try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise ProjectError(f"{name} is not an Infinitex project (not readable as JSON).") from None
-    if _json_depth(text) > MAX_JSON_DEPTH:
-        raise ProjectError(f"{name} is not an Infinitex project (its JSON nests too deeply).")
-    try:
-        return json.loads(text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant)
-    except ProjectError:
-        raise
-    except (json.JSONDecodeError, RecursionError, ValueError):
+        return parse_json(raw, MAX_JSON_DEPTH, MAX_INT_DIGITS)
+    except JSONLimitError as exc:
+        raise ProjectError(f"{name} is not an Infinitex project ({exc}).") from None
+    except ValueError:
         raise ProjectError(f"{name} is not an Infinitex project (not readable as JSON).") from None
 
 

@@ -136,17 +136,14 @@ def add_randomness_args(p: argparse.ArgumentParser) -> None:
 
 def load_features(path: str):
     """Features from a JSON file (untrusted: size-limited, bounded parse); CliError if bad."""
-    import json
-
     from .controls import features_from_json
-    from .safeio import ReadError, read_limited
+    from .safeio import ReadError, parse_json, read_limited
     try:
         raw = read_limited(path, 16 * 2 ** 20, "features file")
-        data = json.loads(raw.decode("utf-8"), parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
-        return features_from_json(data)
+        return features_from_json(parse_json(raw, max_depth=4))
     except ReadError as exc:
         raise CliError(str(exc), EXIT_INPUT) from None
-    except (UnicodeDecodeError, RecursionError, ValueError) as exc:
+    except ValueError as exc:
         raise CliError(f"The features file {printable(path)} is not usable: {printable(exc, 200)}", EXIT_INPUT) from None
 
 

@@ -27,6 +27,7 @@ then converted one channel at a time. Every failure is an :class:`ExemplarError`
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import math
@@ -36,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from .safeio import ReadError, printable, read_limited
+from .safeio import ReadError, atomic_write, printable, read_limited
 
 MIN_SIZE = 32
 MAX_SIZE = 512
@@ -86,7 +87,6 @@ def to_u8(a: np.ndarray) -> np.ndarray:
 
 def write_png(path: str, pixels: np.ndarray) -> None:
     """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
-    from .safeio import atomic_write
     arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
     img = Image.fromarray(np.ascontiguousarray(arr), mode=PIL_MODES[pixels.shape[2]])
     atomic_write(path, writer=lambda f: img.save(f, format="PNG"))
@@ -351,17 +351,44 @@ def _planes(img: Image.Image, norm: tuple[float, float] | None):
     yield out
 
 
+@contextlib.contextmanager
+def _decoding(name: str):
+    """Every failure inside a decoder becomes one ExemplarError sentence naming ``name``."""
+    try:
+        yield
+    except ExemplarError:
+        raise
+    except MemoryError:
+        raise ExemplarError(f"Not enough memory to import {name}.") from None
+    except Image.DecompressionBombError:
+        raise ExemplarError(f"{name} is too large to import safely.") from None
+    except UnidentifiedImageError:
+        raise ExemplarError(f"{name} is not an image format Infinitex reads ({FORMAT_NAMES}).") from None
+    except Exception as exc:  # any other failure inside a decoder: the file is damaged
+        detail = printable(exc, 160) or type(exc).__name__
+        raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
+
+
+def _open(data: bytes, name: str) -> Image.Image:
+    """The image in ``data``, opened with the allow-listed decoders only and its
+    size checked from the header (nothing decoded yet). Use inside _decoding."""
+    img = Image.open(io.BytesIO(data), formats=DECODERS)
+    w, h = img.size
+    if w * h > MAX_INPUT_PIXELS:
+        img.close()
+        raise ExemplarError(f"{name} is {w}x{h} px, too large to import (at most {MAX_INPUT_PIXELS // 2**20} Mpixels).")
+    if w <= 0 or h <= 0:
+        img.close()
+        raise ExemplarError(f"{name} has no pixels.")
+    return img
+
+
 def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
     if fit not in FIT_MODES:
         raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
-    try:
-        with Image.open(io.BytesIO(data), formats=DECODERS) as im0:
+    with _decoding(name):
+        with _open(data, name) as im0:
             w, h = im0.size
-            if w * h > MAX_INPUT_PIXELS:
-                raise ExemplarError(
-                    f"{name} is {w}x{h} px, too large to import (at most {MAX_INPUT_PIXELS // 2**20} Mpixels).")
-            if w <= 0 or h <= 0:
-                raise ExemplarError(f"{name} has no pixels.")
             if min(w, h) < MIN_SIZE:
                 raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px.")
             size = (w, h)
@@ -388,17 +415,6 @@ def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str
             raise ExemplarError(f"{name}: images in Pillow mode {printable(mode)!r} are not supported.")
         px, hires = _fit_planes(_planes(img, norm), side, fit)
         del img
-    except ExemplarError:
-        raise
-    except MemoryError:
-        raise ExemplarError(f"Not enough memory to import {name}.") from None
-    except Image.DecompressionBombError:
-        raise ExemplarError(f"{name} is too large to import safely.") from None
-    except UnidentifiedImageError:
-        raise ExemplarError(f"{name} is not an image format Infinitex reads ({FORMAT_NAMES}).") from None
-    except Exception as exc:  # any other failure inside a decoder: the file is damaged
-        detail = printable(exc, 160) or type(exc).__name__
-        raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
     return _finish(px, hires, fit, toroidal, source, size)
 
 
@@ -409,35 +425,19 @@ def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
     """A grayscale randomness map as uint16 field values (1/32768ths): 8-bit
     M = value / 128 (0 calm, 128 neutral, 255 almost 2), 16-bit M = value / 32768.
     Color images are read as their luminance. Same safeguards as exemplars."""
-    name = printable(os.path.basename(path) or path)
+    name = f"The {what} {printable(os.path.basename(path) or path)}"
     try:
         data = read_limited(path, MAX_FILE_BYTES, "image")
     except ReadError as exc:
         raise ExemplarError(f"The {what}: {exc}") from None
-    try:
-        with Image.open(io.BytesIO(data), formats=DECODERS) as img:
-            w, h = img.size
-            if w * h > MAX_INPUT_PIXELS or w <= 0 or h <= 0:
-                raise ExemplarError(f"The {what} {name} is {w}x{h} px; at most "
-                                    f"{MAX_INPUT_PIXELS // 2**20} Mpixels.")
-            img.load()
-            mode = img.mode
-            if mode.startswith("I;16") or mode == "I":
-                out = np.clip(np.asarray(img).astype(np.int64), 0, 65535).astype(np.uint16)
-            else:
-                if mode in ("LAB", "HSV", "CMYK", "YCbCr"):
-                    img = img.convert("RGB")
-                g = img if img.mode == "L" else img.convert("L")
-                out = (np.asarray(g).astype(np.uint32) * 256).astype(np.uint16)
-    except ExemplarError:
-        raise
-    except MemoryError:
-        raise ExemplarError(f"Not enough memory to read the {what} {name}.") from None
-    except UnidentifiedImageError:
-        raise ExemplarError(f"The {what} {name} is not an image format Infinitex reads ({FORMAT_NAMES}).") from None
-    except Exception as exc:
-        raise ExemplarError(f"The {what} {name} could not be read ({printable(exc, 160)}).") from None
-    return np.ascontiguousarray(out)
+    with _decoding(name), _open(data, name) as img:
+        img.load()
+        if img.mode.startswith("I;16") or img.mode == "I":
+            return np.clip(np.asarray(img).astype(np.int64), 0, 65535).astype(np.uint16)
+        if img.mode in ("LAB", "HSV", "CMYK", "YCbCr"):
+            img = img.convert("RGB")
+        g = img if img.mode == "L" else img.convert("L")
+        return np.ascontiguousarray((np.asarray(g).astype(np.uint32) * 256).astype(np.uint16))
 
 
 def fit_field_map(values: np.ndarray, fit: str, m: int) -> np.ndarray:

@@ -177,8 +177,7 @@ class Pyramid:
             self.controls = controls
         old = getattr(self, "_signatures", None)
         self.params = params
-        self._signatures = [(params.level_signature(l), self.controls.level_signature(l))
-                            for l in range(self.an.L + 1)]
+        self._signatures = self._level_signatures()
         self.corrected = params.corrected_levels() if params.passes > 0 else frozenset()
         radius = fixed.read_radius(self.an.model)
         m = correction_margins(params.subgrid, params.passes, radius)
@@ -215,8 +214,7 @@ class Pyramid:
             self.set_params(self.params, controls)  # the whole canvas changes
             return 0
         self.controls = controls
-        self._signatures = [(self.params.level_signature(l), controls.level_signature(l))
-                            for l in range(self.an.L + 1)]
+        self._signatures = self._level_signatures()
         L = self.an.L
         total = 0
         parent_changed: list[Rect] = []
@@ -250,6 +248,10 @@ class Pyramid:
             data = buf.fbo.read(viewport=(tx, ty, w, h), components=2, dtype="i2", alignment=1)
             out[gy - r.y0:gy - r.y0 + h, gx - r.x0:gx - r.x0 + w] = np.frombuffer(data, np.int16).reshape(h, w, 2)
         return out
+
+    def _level_signatures(self) -> list[tuple]:
+        """What each level depends on: its parameters and the controls."""
+        return [(self.params.level_signature(l), self.controls.level_signature(l)) for l in range(self.an.L + 1)]
 
     def invalidate(self, first_level: int = 0) -> None:
         """Forget the contents of levels >= first_level."""

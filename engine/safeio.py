@@ -91,11 +91,7 @@ def read_limited(path: str, limit: int, what: str = "file") -> bytes:
             raise ReadError(f"{shown} is {_mb(st.st_size)}, larger than the {_mb(limit)} a {what} may be.")
         chunks, total = [], 0
         while True:
-            try:
-                b = os.read(fd, min(1 << 20, limit + 1 - total))
-            except BlockingIOError:  # not for regular files; be safe anyway
-                time.sleep(0.001)
-                continue
+            b = os.read(fd, min(1 << 20, limit + 1 - total))  # regular files never block
             if not b:
                 break
             chunks.append(b)
@@ -125,6 +121,53 @@ def read_head(path: str, n: int) -> bytes:
         return b""
     finally:
         os.close(fd)
+
+
+class JSONLimitError(ValueError):
+    """Untrusted JSON went past a limit (nesting, number size); a phrase for the user."""
+
+
+_JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"')
+
+
+def _json_depth(text: str) -> int:
+    """How deeply the JSON text nests (strings are skipped), without parsing it."""
+    import numpy as np
+    b = np.frombuffer(_JSON_STRING.sub('""', text).encode("utf-8", "replace"), dtype=np.uint8)
+    if b.size == 0:
+        return 0
+    delta = ((b == 0x5B) | (b == 0x7B)).astype(np.int32) - ((b == 0x5D) | (b == 0x7D))
+    return int(np.cumsum(delta).max())
+
+
+def parse_json(raw: bytes, max_depth: int, max_digits: int = 18) -> object:
+    """Untrusted JSON bytes, parsed with the nesting checked before parsing
+    (no RecursionError) and numbers checked while parsing (no huge integers,
+    no overflow to infinity, no NaN). JSONLimitError past a limit, ValueError
+    (including UnicodeDecodeError and JSONDecodeError) when it is not JSON."""
+    import json
+    import math
+    text = raw.decode("utf-8")
+    if _json_depth(text) > max_depth:
+        raise JSONLimitError("its JSON nests too deeply")
+
+    def parse_int(t: str) -> int:
+        if len(t.lstrip("-")) > max_digits:
+            raise JSONLimitError("it holds a number too large for any setting")
+        return int(t)
+
+    def parse_float(t: str) -> float:
+        v = float(t)
+        if not math.isfinite(v) or len(t) > 64:
+            raise JSONLimitError("it holds a number too large for any setting")
+        return v
+
+    def parse_constant(t: str):
+        raise JSONLimitError(f"it holds {t}, which is not a number any setting can take")
+    try:
+        return json.loads(text, parse_int=parse_int, parse_float=parse_float, parse_constant=parse_constant)
+    except RecursionError:
+        raise JSONLimitError("its JSON nests too deeply") from None
 
 
 # -- writing -------------------------------------------------------------------

@@ -560,6 +560,7 @@ class Editor:
         x0, y0 = self.view.top_left(w, h)
         mouse = (io.mouse_pos.x, io.mouse_pos.y)
         at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
+        view_before = self.view
         tool = self.tool if s.ready and self.doc is not None else self.tools[0]
         if imgui.is_item_activated():
             self._canvas_button = 0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1
@@ -577,11 +578,10 @@ class Editor:
             imgui.end_drag_drop_target()
         if hovered and io.mouse_wheel and not (s.ready and self.doc is not None and self.tool.wheel(at, io.mouse_wheel)):
             self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
-        if hovered:
+        if self.view != view_before:  # the wheel or a pan moved the canvas under the mouse
             x0, y0 = self.view.top_left(w, h)
-            self.cursor = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
-        else:
-            self.cursor = None
+            at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
+        self.cursor = at if hovered else None
         return hovered
 
     def _field_overlay(self, dl, p0, w: int, h: int) -> None:
