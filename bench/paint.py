@@ -76,7 +76,7 @@ def main(argv=None) -> int:
         pyr = ed.session.pyramid
         orig_update = pyr.update_controls
 
-        def counted(controls, changed):
+        def counted(controls, changed=None):
             n = orig_update(controls, changed)
             updates.append(n)
             return n
