@@ -16,6 +16,9 @@ numpy oracle in ``tests/`` agree bit for bit on any driver:
   computed with exactly the integer formula the shader uses for ``N_S``, so a
   perfectly coherent patch has error 0.
 - ``simset[l]``: similarity sets ``C_l^i(u)``, ``i = 1..k`` as (x, y).
+- ``lattice_simset[l]`` (rectified near-regular exemplars only, LH05 4.5):
+  similarity sets restricted to the lattice-equivalent positions
+  ``u + (i m/nx, j m/ny)``, used on the lattice levels.
 
 Nearest neighbors come from ``scipy.spatial.cKDTree``, the well-kept library for
 the job (the README says why scipy is a dependency).
@@ -35,6 +38,7 @@ from scipy.spatial import cKDTree
 
 from . import fixed
 from .exemplar import Exemplar
+from .lattice import lattice_level_limit
 from .safeio import atomic_write
 
 ANALYSIS_VERSION = 4
@@ -59,6 +63,7 @@ class AnalysisSettings:
     k: int = 2                     # similarity-set size, 1..4
     spacing: float = 0.05          # min distance between set entries, fraction of m
     appearance_sigma: float = 1.5  # Gaussian weight of the 5x5 appearance taps, in taps
+    lattice: tuple[int, int] = (0, 0)  # (nx, ny) cells of a rectified near-regular exemplar; (0, 0): none
 
     def validate(self) -> None:
         if self.model not in MODELS:
@@ -67,6 +72,9 @@ class AnalysisSettings:
             raise ValueError(f"k must be between 1 and 4, not {self.k}.")
         if not 0.0 <= self.spacing < 0.5:
             raise ValueError("spacing must be a fraction of the exemplar size in [0, 0.5).")
+        nx, ny = self.lattice
+        if (nx, ny) != (0, 0) and not all(n >= 1 and n & (n - 1) == 0 and n <= 16 for n in (nx, ny)):
+            raise ValueError(f"Lattice cell counts must be powers of two up to 16, not {nx}x{ny}.")
 
 
 @dataclass
@@ -77,6 +85,7 @@ class LevelData:
     shift: int             # right shift applied to the projection
     nbhd: np.ndarray       # int16 (m, m, 8): N_E(u)
     simset: np.ndarray     # int16 (m, m, k, 2): C^i(u) as (x, y)
+    lattice_simset: np.ndarray | None = None  # int16 (m, m, k, 2): restricted to u + cells, or None
 
 
 @dataclass
@@ -310,6 +319,43 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     return out.reshape(m, m, k, 2).astype(np.int16)
 
 
+def lattice_similarity_sets(desc: np.ndarray, k: int, nx: int, ny: int) -> np.ndarray:
+    """C^1..C^k restricted to the lattice (LH05 4.5), int16 (m, m, k, 2).
+
+    C^1(u) = u; the others are the best-matching of the nx*ny - 1 positions
+    ``u + (i m/nx, j m/ny) mod m`` (exact integer distances between the
+    projected neighborhoods; ties go to the first offset in (j, i) order);
+    missing entries (a 1x1 block) repeat u. The rectified exemplar is
+    toroidal by construction, so every such position is usable."""
+    m = desc.shape[0]
+    cx, cy = m // nx, m // ny
+    ys, xs = np.mgrid[0:m, 0:m]
+    ident = np.stack([xs, ys], axis=-1).astype(np.int64)
+    out = np.repeat(ident[:, :, None, :], k, axis=2)
+    offsets = np.array([(i * cx, j * cy) for j in range(ny) for i in range(nx) if i or j], dtype=np.int64)
+    if k == 1 or len(offsets) == 0:
+        return out.astype(np.int16)
+    d64 = desc.astype(np.int64)
+    K = min(k - 1, len(offsets))
+    big = np.iinfo(np.int64).max
+    bd = np.full((m, m, K), big, dtype=np.int64)   # best distances, ascending
+    bo = np.zeros((m, m, K), dtype=np.int64)       # their offset indices
+    for n, (ox, oy) in enumerate(offsets):
+        d = ((np.roll(d64, shift=(-oy, -ox), axis=(0, 1)) - d64) ** 2).sum(axis=-1)
+        pos = (bd <= d[..., None]).sum(axis=-1)  # after equal entries: earlier offsets win ties
+        for s_ in range(K - 1, -1, -1):
+            shift_in = (pos < s_)
+            put = pos == s_
+            if s_ > 0:
+                bd[..., s_] = np.where(shift_in, bd[..., s_ - 1], np.where(put, d, bd[..., s_]))
+                bo[..., s_] = np.where(shift_in, bo[..., s_ - 1], np.where(put, n, bo[..., s_]))
+            else:
+                bd[..., 0] = np.where(put, d, bd[..., 0])
+                bo[..., 0] = np.where(put, n, bo[..., 0])
+    out[:, :, 1:1 + K] = (ident[:, :, None, :] + offsets[bo]) % m
+    return out.astype(np.int16)
+
+
 # ----------------------------------------------------------------------------
 # Driver and cache
 
@@ -359,8 +405,11 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
             sims = np.repeat(ident, k, axis=2).astype(np.int16)
         else:
             sims = similarity_sets(nbhd, m, h, k, ex.toroidal, settings.spacing)
+        lsims = None
+        if settings.lattice != (0, 0) and 0 < level <= lattice_level_limit(m, *settings.lattice):
+            lsims = lattice_similarity_sets(nbhd, k, *settings.lattice)
         levels.append(LevelData(stack=stack[level], feat=feat, proj=proj, shift=int(shift),
-                                nbhd=nbhd, simset=sims))
+                                nbhd=nbhd, simset=sims, lattice_simset=lsims))
     report(1.0, "done")
     return levels
 
@@ -371,6 +420,8 @@ def _save(path: str, an: Analysis) -> None:
         for name in ("stack", "feat", "proj", "nbhd", "simset"):
             arrays[f"{name}{i}"] = getattr(lv, name)
         arrays[f"shift{i}"] = np.array(lv.shift)
+        if lv.lattice_simset is not None:
+            arrays[f"lattice_simset{i}"] = lv.lattice_simset
     meta = dict(size=an.size, channels=an.channels, toroidal=an.toroidal,
                 settings=asdict(an.settings), version=ANALYSIS_VERSION, key=an.key)
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
@@ -390,8 +441,12 @@ def _load(path: str, key: str, settings: AnalysisSettings, ex: Exemplar) -> Anal
             m, L = ex.size, ex.levels
             levels = []
             for i in range(L + 1):
+                lsims = z[f"lattice_simset{i}"] if f"lattice_simset{i}" in z.files else None
                 lv = LevelData(stack=z[f"stack{i}"], feat=z[f"feat{i}"], proj=z[f"proj{i}"],
-                               shift=int(z[f"shift{i}"]), nbhd=z[f"nbhd{i}"], simset=z[f"simset{i}"])
+                               shift=int(z[f"shift{i}"]), nbhd=z[f"nbhd{i}"], simset=z[f"simset{i}"],
+                               lattice_simset=lsims)
+                if (lsims is None) == (settings.lattice != (0, 0) and 0 < i <= lattice_level_limit(m, *settings.lattice)):
+                    return None
                 if lv.stack.shape != (m, m, ex.channels) or lv.nbhd.shape != (m, m, NDIM) \
                         or lv.simset.shape != (m, m, settings.k, 2):
                     return None

@@ -2,8 +2,8 @@
 
 Everything an artist paints, places or marks reaches the synthesis passes
 through a :class:`Controls` value (immutable): today the two randomness fields
-of LH05 section 4.2 (ALGORITHM.md section 5); features and lattices will join
-it. The pyramid asks it, per strip and level, for what the passes read.
+of LH05 section 4.2 (ALGORITHM.md section 5), placed features (4.3) and the
+lattice of a near-regular texture (4.5, :mod:`engine.lattice`). The pyramid asks it, per strip and level, for what the passes read.
 
 **Randomness fields** modulate the jitter: ``J_l(p) = floor(h H(p) r_l M_l(p) + 1/2)``
 with the effective ``r_l M_l(p)`` clamped to [0, 1]. Field values are uint16 in
@@ -32,6 +32,8 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
+
+from .lattice import Lattice
 
 NEUTRAL = 32768
 TILE = 64  # canvas field tile side, finest-level pixels
@@ -395,15 +397,27 @@ class Controls:
     randomness_exemplar: ExemplarField | None = None
     randomness_canvas: CanvasField | None = None
     features: tuple[Feature, ...] = ()
+    lattice: Lattice | None = None  # near-regular mode: the exemplar is this lattice's rectified block
 
     def normalized(self) -> Controls:
         """Neutral fields dropped (they change nothing), so equal effects compare equal."""
         e = self.randomness_exemplar
         c = self.randomness_canvas
         return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c,
-                        tuple(self.features))
+                        tuple(self.features), self.lattice)
 
-    def validate(self, m: int) -> None:
+    def lattice_shift(self, m: int, level: int) -> tuple[int, int] | None:
+        """(log2 cx, log2 cy) when ``level`` is a lattice level: jitter is
+        quantized to whole cells and the lattice similarity sets are used."""
+        return None if self.lattice is None else self.lattice.quant_shift(m, level)
+
+    def validate(self, m: int, lattice_grid: tuple[int, int] | None = None) -> None:
+        """Raise ValueError if these controls cannot drive an m x m exemplar
+        analyzed with ``lattice_grid`` (the analysis' (nx, ny); None: unchecked)."""
+        if self.lattice is not None and lattice_grid is not None \
+                and (self.lattice.nx, self.lattice.ny) != tuple(lattice_grid):
+            raise ValueError(f"The lattice has {self.lattice.nx}x{self.lattice.ny} cells but the exemplar was "
+                             f"analyzed for {lattice_grid[0]}x{lattice_grid[1]}.")
         e = self.randomness_exemplar
         if e is not None and e.size != m:
             raise ValueError(f"The exemplar randomness field is {e.size}x{e.size}; the exemplar is {m}x{m}.")
@@ -416,11 +430,12 @@ class Controls:
         import hashlib
         return hashlib.sha256(repr(self.features).encode()).hexdigest()
 
-    def level_signature(self, level: int) -> tuple:
+    def level_signature(self, level: int, m: int = 0) -> tuple:
         """What level ``level`` reads of the controls (fields change all levels)."""
         e, c = self.randomness_exemplar, self.randomness_canvas
         return (None if e is None else e.key, None if c is None else c.key,
-                self.features_key if self.features else None)
+                self.features_key if self.features else None,
+                None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)))
 
     @cached_property
     def _feature_index(self) -> dict:
@@ -477,7 +492,7 @@ class Controls:
     def changed_rects(self, other: Controls) -> list | None:
         """Finest-level rectangles outside which ``other`` reads the same as this
         one; None when the change reaches everywhere (the exemplar field)."""
-        if self.randomness_exemplar != other.randomness_exemplar:
+        if self.randomness_exemplar != other.randomness_exemplar or self.lattice != other.lattice:
             return None
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()

@@ -138,17 +138,24 @@ class LevelTextures:
         else:
             self.feat = gpu.int_texture((m, m), 4, _rgba(lv.feat))
         self.nbhd = gpu.uint_texture((m, m), pack8(lv.nbhd))
-        sims = lv.simset.reshape(m, m, -1)
-        self.sim = [gpu.int_texture((m, m), 4, _rgba(sims[:, :, 0:4]) if sims.shape[2] >= 4
-                                    else _rgba(np.concatenate([sims[:, :, 0:2]] * 2, axis=2))),
-                    gpu.int_texture((m, m), 4, _rgba(sims[:, :, 4:8]))]
+        self.sim = _sim_textures(gpu, lv.simset)
+        self.lattice_sim = None if lv.lattice_simset is None else _sim_textures(gpu, lv.lattice_simset)
         # Row r of the projection -> uniform P[2r] (dims 0-3), P[2r+1] (dims 4-7).
         self.proj = np.ascontiguousarray(lv.proj, dtype=np.int32).tobytes()
         self.shift = lv.shift
 
     def release(self) -> None:
-        for t in [self.feat, self.nbhd] + self.sim:
+        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []):
             t.release()
+
+
+def _sim_textures(gpu: Gpu, simset: np.ndarray) -> list:
+    """Similarity sets (m, m, k, 2) as the two RGBA32I textures sim01, sim23."""
+    m = simset.shape[0]
+    sims = simset.reshape(m, m, -1)
+    return [gpu.int_texture((m, m), 4, _rgba(sims[:, :, 0:4]) if sims.shape[2] >= 4
+                            else _rgba(np.concatenate([sims[:, :, 0:2]] * 2, axis=2))),
+            gpu.int_texture((m, m), 4, _rgba(sims[:, :, 4:8]))]
 
 
 class GpuAnalysis:

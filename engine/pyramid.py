@@ -171,7 +171,7 @@ class Pyramid:
         params.validate(self.an.L)
         if controls is not None:
             controls = controls.normalized()
-            controls.validate(self.an.size)
+            controls.validate(self.an.size, self.an.settings.lattice)
             if controls.randomness_exemplar != self.controls.randomness_exemplar:
                 self._release_efield()
             self.controls = controls
@@ -205,7 +205,7 @@ class Pyramid:
         nothing and are synthesized with the new controls when shown.
         Returns the number of level pixels synthesized."""
         controls = controls.normalized()
-        controls.validate(self.an.size)
+        controls.validate(self.an.size, self.an.settings.lattice)
         self.gpu.activate()
         if changed is None:
             rects = self.controls.changed_rects(controls)
@@ -251,7 +251,8 @@ class Pyramid:
 
     def _level_signatures(self) -> list[tuple]:
         """What each level depends on: its parameters and the controls."""
-        return [(self.params.level_signature(l), self.controls.level_signature(l)) for l in range(self.an.L + 1)]
+        return [(self.params.level_signature(l), self.controls.level_signature(l, self.an.size))
+                for l in range(self.an.L + 1)]
 
     def invalidate(self, first_level: int = 0) -> None:
         """Forget the contents of levels >= first_level."""
@@ -414,10 +415,12 @@ class Pyramid:
                                                            p.level_period(l))
         ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
         (ctex or self._dummy).use(2)
+        lshift = self.controls.lattice_shift(an.size, l)
         set_uniforms(prog, has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
                      m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
                      period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
-                     cfield=2, has_cfield=int(ctex is not None), features=3, nfeat=nfeat)
+                     cfield=2, has_cfield=int(ctex is not None), features=3, nfeat=nfeat,
+                     lattice_shift=lshift or (-1, -1))
         fa.use()
         fa.viewport = (0, 0, region.w, region.h)
         vao.render(moderngl.TRIANGLES)
@@ -428,7 +431,8 @@ class Pyramid:
         if l in self.corrected:
             lt = self.gan.level(l)
             prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
-            for unit, tex in enumerate([lt.feat, lt.nbhd] + lt.sim, start=1):
+            sims = lt.lattice_sim if lshift is not None else lt.sim
+            for unit, tex in enumerate([lt.feat, lt.nbhd] + sims, start=1):
                 tex.use(unit)
             set_uniforms(prog, src=0, feat=1, nbhd=2, sim01=3, sim23=4,
                          dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,

@@ -77,6 +77,11 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         E, C = field_values(controls, an, params, level, ux, uy, gx, gy)
         rq = modulated_rq(rq, E, C)
     jx, jy = fixed.jitter(gmx, gmy, level, params.seed, h, rq)
+    shift = controls.lattice_shift(m, level)
+    if shift is not None:  # lattice level: J' = c floor(J / c + 1/2), exactly (Python integers)
+        cx, cy = 1 << shift[0], 1 << shift[1]
+        jx = np.vectorize(lambda j: cx * ((2 * j + cx) // (2 * cx)))(jx) if cx > 1 else jx
+        jy = np.vectorize(lambda j: cy * ((2 * j + cy) // (2 * cy)))(jy) if cy > 1 else jy
     S = np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
     return apply_features(S, origin, an, params, level, controls)
 
@@ -144,7 +149,7 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
 
 
 def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
-                    params: SynthParams, level: int) -> np.ndarray:
+                    params: SynthParams, level: int, controls: Controls = NO_CONTROLS) -> np.ndarray:
     s = params.subgrid
     lv = an.levels[level]
     h, m = an.h(level), an.size
@@ -161,7 +166,8 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
         nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
         bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
         for i in range(an.k):
-            u = lv.simset[by, bx, i].astype(np.int64)
+            sims = lv.lattice_simset if controls.lattice_shift(m, level) is not None else lv.simset
+            u = sims[by, bx, i].astype(np.int64)
             e = nbhd[u[:, 1], u[:, 0]] - ns
             dist = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP)
             cost = dist * (fixed.PSI_ONE if i == 0 else psi)
@@ -200,7 +206,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
         if l != uncorrected_level and l in params.corrected_levels():
             for order in subpass_order(s, params.passes):
                 for phase in order:
-                    S = correct_subpass(S, phase, (wx0, wy0), an, params, l)
+                    S = correct_subpass(S, phase, (wx0, wy0), an, params, l, controls)
             S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]

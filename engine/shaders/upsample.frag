@@ -7,6 +7,7 @@
 // the effective r_l M_l(p) is clamped to 1. Fields are 1/32768ths (neutral 32768).
 // Level 0 starts from the exemplar centre m/2 (the upsampled S_{-1} = 0).
 // With a period n_l (toroidal output), jitter and child offsets use p mod n_l.
+// On lattice levels (near-regular exemplars) J is quantized to whole cells.
 
 uniform isampler2D parent;      // level l-1, persistent buffer (toroidal addressing)
 uniform ivec2 parent_anchor;    // texel = (g - anchor) & mask
@@ -25,6 +26,7 @@ uniform usampler2D efield;      // R_E,l: (m >> eshift)^2, uint16
 uniform int eshift;             // L - l
 uniform int has_cfield;         // randomness over the canvas
 uniform usampler2D cfield;      // R_S,l over this scratch region (row-major local pixels), uint16
+uniform ivec2 lattice_shift;    // lattice level (LH05 4.5): log2 of the cell (cx, cy); else (-1, -1)
 
 out ivec4 result;
 
@@ -50,5 +52,9 @@ void main() {
     }
     ivec2 H = hash2(gm, level, seed);
     ivec2 J = ((h * H * r + (1 << 19) + SHIFT_BIAS) >> 20) - (SHIFT_BIAS >> 20);
+    if (lattice_shift.x >= 0) {  // whole cells: J' = c floor(J / c + 1/2)
+        ivec2 half_cell = (ivec2(1) << lattice_shift) >> 1;
+        J = (((J + half_cell + SHIFT_BIAS) >> lattice_shift) - (ivec2(SHIFT_BIAS) >> lattice_shift)) << lattice_shift;
+    }
     result = ivec4(apply_features(g, (u + J) & (m - 1), h, m, period), 0, 0);
 }
