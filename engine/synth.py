@@ -32,7 +32,7 @@ class Synthesizer:
 
     def __init__(self, analysis: Analysis, params: SynthParams | None = None, gpu: Gpu | None = None,
                  controls: Controls = NO_CONTROLS):
-        controls.validate(analysis.size)
+        controls.validate(analysis.size, analysis.settings.lattice)
         self.controls = controls
         self.analysis = analysis
         self.owns_gpu = gpu is None
@@ -49,7 +49,7 @@ class Synthesizer:
     def set_params(self, params: SynthParams, controls: Controls | None = None) -> None:
         params.validate(self.L)
         if controls is not None:
-            controls.validate(self.analysis.size)
+            controls.validate(self.analysis.size, self.analysis.settings.lattice)
             self.controls = controls
         self.params = params
 
