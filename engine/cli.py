@@ -115,9 +115,63 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exemplar-toroidal", choices=("auto", "yes", "no"), default="auto",
                    help="does the exemplar tile? (auto: guessed from its wrap-around seam)")
     add_randomness_args(p)
+    add_lattice_args(p)
     p.add_argument("--no-cache", action="store_true", help="do not read or write the analysis cache")
     p.add_argument("-q", "--quiet", action="store_true")
     return p
+
+
+def add_lattice_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("near-regular textures (bricks, tiles, weaves: LH05 4.5)")
+    g.add_argument("--lattice", metavar="auto|none|OX,OY,T1X,T1Y,T2X,T2Y,NX,NY",
+                   help="synthesize on the lattice: 'auto' detects it; or give the origin, the two "
+                        "translation vectors (input-image pixels) and the block of NX x NY cells "
+                        "(1, 2, 4, 8 or 16); 'none' turns a project's lattice off. The lattice used is "
+                        "printed on stdout as 'lattice: ...' (or 'lattice: none')")
+    g.add_argument("--lattice-levels", type=_integer, default=None, metavar="K",
+                   help="number of coarse levels synthesized on the lattice (default: down to a quarter cell)")
+    g.add_argument("--geometry", choices=("original", "rectified"), default="original",
+                   help="with a lattice: show the texture in the input's geometry (a slanted lattice stays "
+                        "slanted; default) or rectified (cells axis-aligned, as synthesized)")
+
+
+def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None, quiet: bool = False):
+    """The lattice a --lattice argument names for ``image`` (input pixels),
+    printed on stdout as one line; None for 'none' or when 'auto' finds none."""
+    from .lattice import Lattice, LatticeError, detect
+    if spec is None:
+        return None
+    H, W = image.shape[:2]
+    if spec.strip().lower() == "none":
+        lat = None
+    elif spec.strip().lower() == "auto":
+        d = detect(image)
+        lat = d.lattice
+        if not quiet:
+            sys.stderr.write(f"lattice detection: confidence {d.confidence:.2f} in {d.seconds * 1000:.0f} ms"
+                             f"{'' if lat else ' (no lattice found)'}\n")
+    else:
+        try:
+            lat = Lattice.parse(spec)
+        except LatticeError as exc:
+            raise CliError(f"--lattice: {exc}", EXIT_USAGE) from None
+    if lat is not None:
+        if levels is not None:
+            lat = replace(lat, levels=levels)
+        try:
+            lat.validate(W, H)
+        except LatticeError as exc:
+            raise CliError(f"--lattice: {exc}", EXIT_INPUT) from None
+    sys.stdout.write(f"lattice: {lat.to_text() if lat else 'none'}\n")
+    sys.stdout.flush()
+    return lat
+
+
+def check_lattice_args(args) -> None:
+    if args.lattice_levels is not None and not 0 <= args.lattice_levels <= 10:
+        raise CliError("--lattice-levels must be between 0 and 10.", EXIT_USAGE)
+    if args.lattice_levels is not None and not args.lattice:
+        raise CliError("--lattice-levels needs --lattice.", EXIT_USAGE)
 
 
 def add_randomness_args(p: argparse.ArgumentParser) -> None:
@@ -204,8 +258,22 @@ def run_synth(argv: list[str]) -> int:
         check_out(args.coords, (".npy",), "coordinate map")
         if os.path.realpath(args.coords) == os.path.realpath(args.output):
             raise CliError("--coords and -o name the same file.", EXIT_USAGE)
+    check_lattice_args(args)
+    if args.coords and args.lattice and args.geometry == "original" and not args.toroidal:
+        raise CliError("--coords needs --geometry rectified: in the original geometry each pixel blends "
+                       "four synthesized texels.", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
-    ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
+    lattice = image = None
+    if args.lattice:
+        from engine.exemplar import load_full
+        from engine.lattice import rectified_exemplar
+        image = load_full(args.exemplar)
+        lattice = resolve_lattice(args.lattice, image, args.lattice_levels, args.quiet)
+    if lattice is not None:
+        ex = rectified_exemplar(image, lattice, source=args.exemplar)
+    else:
+        ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
+    del image
     jit, L = args.jitter, ex.levels
     if jit is None:
         params = SynthParams.default(L)
@@ -217,7 +285,15 @@ def run_synth(argv: list[str]) -> int:
         raise CliError(f"--jitter needs 1 value or {L + 1} (one per level of this "
                        f"{ex.size}x{ex.size} exemplar), not {len(jit)}.", EXIT_USAGE)
     controls = randomness_controls(args, args.fit, ex.size)  # maps are read before the analysis
-    an = analyze(ex, AnalysisSettings(model=args.model, k=args.k), use_cache=not args.no_cache,
+    grid = (0, 0)
+    if lattice is not None:
+        controls = replace(controls, lattice=lattice)
+        grid = (lattice.nx, lattice.ny)
+        cx, cy = lattice.cell(ex.size)
+        if args.toroidal and (w % cx or w % cy):
+            raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar "
+                           f"px) divides; use --size {max(cx, cy, 32)} or more.", EXIT_USAGE)
+    an = analyze(ex, AnalysisSettings(model=args.model, k=args.k, lattice=grid), use_cache=not args.no_cache,
                  progress=_progress(args.quiet))
     try:
         params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa)
@@ -225,14 +301,30 @@ def run_synth(argv: list[str]) -> int:
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     synth = Synthesizer(an, params, controls=controls)
+    original = lattice is not None and args.geometry == "original" and not args.toroidal
     try:
         renderer = synth.gpu.renderer
         t0 = time.perf_counter()
-        coords = synth.toroidal(w) if args.toroidal else synth.window(Rect.of(args.origin[0], args.origin[1], w, h))
+        if args.toroidal:
+            coords = synth.toroidal(w)
+        elif original:
+            from engine.lattice import original_geometry_box
+            box = original_geometry_box(lattice, an.size, args.origin[0], args.origin[1], w, h)
+            bw, bh = box[2] - box[0], box[3] - box[1]
+            check_window(box[0], box[1], bw, bh, "--size (in the rectified geometry)")
+            coords = synth.window(Rect(*box))
+        else:
+            coords = synth.window(Rect.of(args.origin[0], args.origin[1], w, h))
         dt = time.perf_counter() - t0
     finally:
         synth.release()
-    write_png(args.output, to_u8(synth.colors(coords)))
+    if original:
+        from engine.lattice import render_original
+        source = ex.hires if ex.hires is not None else ex.pixels
+        pixels = render_original(coords, box, lattice, an.size, source, args.origin[0], args.origin[1], w, h)
+        write_png(args.output, to_u8(pixels))
+    else:
+        write_png(args.output, to_u8(synth.colors(coords)))
     if args.coords:
         c = coords.astype(np.int32)
         atomic_write(args.coords, writer=lambda f: np.save(f, c))
@@ -274,4 +366,5 @@ def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
 
 
 def main(argv: list[str]) -> int:
-    return guarded(run_synth, argv)
+    from .lattice import LatticeError
+    return guarded(run_synth, argv, (LatticeError,))

@@ -45,6 +45,7 @@ MAX_INPUT_PIXELS = 64 * 1024 * 1024  # 8192^2: bigger inputs are refused up fron
 MAX_FILE_BYTES = 512 * 1024 * 1024   # image files larger than this are not read
 IMPORT_BUDGET = 1024 * 1024 * 1024   # bytes an import may use at its peak (file + decoded + floats)
 HIRES_MAX = 2048                     # side of the full-resolution copy kept for magnification
+FULL_MAX_PIXELS = 16 * 1024 * 1024   # a whole image kept unfitted (a lattice's input): 4096^2
 # Pillow's pure raster decoders we accept (Pillow format IDs). Nothing that runs
 # a program (EPS runs Ghostscript) or is a container of other formats.
 DECODERS = ("PNG", "JPEG", "BMP", "TIFF", "WEBP", "TGA", "GIF", "PPM", "QOI", "SGI", "PCX")
@@ -386,6 +387,36 @@ def _open(data: bytes, name: str) -> Image.Image:
 def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
     if fit not in FIT_MODES:
         raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
+    px, hires, size = _decode_pixels(data, name, fit)
+    return _finish(px, hires, fit, toroidal, source, size)
+
+
+def decode_full(data: bytes, name: str = "image") -> np.ndarray:
+    """The whole image (float32 (H, W, C) in [0, 1]), not fitted: the input of
+    a lattice (whose vectors are in its pixels). Same safeguards as exemplars;
+    at most FULL_MAX_PIXELS."""
+    name = printable(name)
+    if not data:
+        raise ExemplarError(f"{name} is empty (0 bytes).")
+    px, _, _ = _decode_pixels(data, name, "full")
+    if not np.all(np.isfinite(px)):
+        raise ExemplarError("The image holds values that are not numbers (NaN or infinity).")
+    return px
+
+
+def load_full(path: str | os.PathLike) -> np.ndarray:
+    """:func:`decode_full` of an image file."""
+    path = os.fspath(path)
+    try:
+        data = read_limited(path, MAX_FILE_BYTES, "image")
+    except ReadError as exc:
+        raise ExemplarError(str(exc)) from None
+    return decode_full(data, os.path.basename(path) or path)
+
+
+def _decode_pixels(data: bytes, name: str, fit: str):
+    """(pixels, hires or None, original size) by a fit rule, or "full"."""
+    full = fit == "full"
     with _decoding(name):
         with _open(data, name) as im0:
             w, h = im0.size
@@ -393,19 +424,24 @@ def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str
                 raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px.")
             size = (w, h)
             side = min(w, h)
+            if full and w * h > FULL_MAX_PIXELS:
+                raise ExemplarError(f"{name} is {w}x{h} px; a lattice image may have at most "
+                                    f"{FULL_MAX_PIXELS // 2**20} Mpixels (reduce it first).")
             if fit == "resize" and im0.format == "JPEG" and side >= 2 * HIRES_MAX:
                 # Far more pixels than we keep: let libjpeg decode at 1/2..1/8 scale.
                 im0.draft(im0.mode, (max(1, w * HIRES_MAX // side), max(1, h * HIRES_MAX // side)))
                 w, h = im0.size
-            cost = import_cost(w, h, im0.mode, len(data), fit, im0.format or "")
+            cost = import_cost(w, h, im0.mode, len(data), "crop" if full else fit, im0.format or "")
+            if full:
+                cost += 4 * 4 * w * h  # every channel kept at full size
             if cost > IMPORT_BUDGET:
                 raise ExemplarError(f"{name} ({w}x{h} px, mode {im0.mode}) would need about "
                                     f"{cost // 2**20} MB to import, more than the "
                                     f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
             im0.load()
             norm = _normalization(im0)
-            x0, y0, side = _crop_box(w, h, fit)
-            img = im0 if (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
+            x0, y0, side = (0, 0, 0) if full else _crop_box(w, h, fit)
+            img = im0 if full or (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
         del im0
         mode = img.mode
         if mode in _CANONICAL:
@@ -413,9 +449,13 @@ def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str
             img = img.convert(target)
         elif not (mode in _CHANNELS or mode.startswith("I;16")):
             raise ExemplarError(f"{name}: images in Pillow mode {printable(mode)!r} are not supported.")
+        if full:
+            px = np.ascontiguousarray(np.stack([np.asarray(p, dtype=np.float32) for p in _planes(img, norm)],
+                                               axis=2))
+            return px, None, size
         px, hires = _fit_planes(_planes(img, norm), side, fit)
         del img
-    return _finish(px, hires, fit, toroidal, source, size)
+    return px, hires, size
 
 
 # -- randomness maps ------------------------------------------------------------

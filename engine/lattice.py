@@ -540,3 +540,50 @@ def autocorrelation_at(img: np.ndarray, v) -> float:
     p, b = p - p.mean(), b - b.mean()
     den = math.sqrt(float((p * p).sum() * (b * b).sum()))
     return float((p * b).sum() / den) if den > 1e-12 else 0.0
+
+
+# -- back to the input's geometry ------------------------------------------------
+
+
+def original_geometry_box(lattice: Lattice, m: int, x: int, y: int, w: int, h: int) -> tuple[int, int, int, int]:
+    """The rectified canvas texels (x0, y0, x1, y1) that rendering the
+    input-geometry rectangle (x, y, w, h) reads (with the 4-texel blend)."""
+    G = lattice.canvas_matrix(m)
+    corners = np.array([[x, y], [x + w, y], [x, y + h], [x + w, y + h]], dtype=np.float64)
+    p = corners @ G.T
+    return (math.floor(p[:, 0].min()) - 2, math.floor(p[:, 1].min()) - 2,
+            math.ceil(p[:, 0].max()) + 2, math.ceil(p[:, 1].max()) + 2)
+
+
+def render_original(coords: np.ndarray, box: tuple[int, int, int, int], lattice: Lattice, m: int,
+                    source: np.ndarray, x: int, y: int, w: int, h: int) -> np.ndarray:
+    """The texture in the input's geometry (float32 (h, w, C)): pixel q of the
+    rectangle (x, y, w, h) (input-image pixels) is the rectified canvas point
+    p = G q, shown by synthesis magnification (LH05 section 5): each of the 4
+    texels nearest p extrapolates its exemplar coordinate to p, the rectified
+    exemplar ``source`` (m x m, or its hi-res copy) is sampled there
+    (bilinear, wrapping), and the 4 colors are blended bilinearly. ``coords``
+    are the synthesized coordinates of the rectified texels ``box`` (from
+    :func:`original_geometry_box`)."""
+    G = lattice.canvas_matrix(m)
+    ys, xs = np.mgrid[y:y + h, x:x + w].astype(np.float64) + 0.5
+    px = G[0, 0] * xs + G[0, 1] * ys
+    py = G[1, 0] * xs + G[1, 1] * ys
+    fx, fy = px - 0.5, py - 0.5
+    ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+    ax, ay = fx - ix, fy - iy
+    s = source.shape[0]
+    scale = s / m
+    planes = [np.asarray(source[:, :, c], dtype=np.float64) for c in range(source.shape[2])]
+    out = np.zeros((h, w, source.shape[2]), dtype=np.float64)
+    x0, y0 = box[0], box[1]
+    for dy in (0, 1):
+        for dx in (0, 1):
+            tx, ty = ix + dx, iy + dy
+            u = coords[ty - y0, tx - x0].astype(np.float64)
+            ux = (u[..., 0] + (px - (tx + 0.5)) + 0.5) * scale - 0.5  # extrapolated, in source pixels
+            uy = (u[..., 1] + (py - (ty + 0.5)) + 0.5) * scale - 0.5
+            wgt = (ax if dx else 1 - ax) * (ay if dy else 1 - ay)
+            for c, plane in enumerate(planes):
+                out[:, :, c] += wgt * ndimage.map_coordinates(plane, [uy, ux], order=1, mode="grid-wrap")
+    return np.clip(out, 0.0, 1.0).astype(np.float32)
