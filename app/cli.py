@@ -16,11 +16,14 @@ from engine.cli import (
     CliError,
     Parser,
     _integer,
+    add_lattice_args,
     add_randomness_args,
+    check_lattice_args,
     check_out,
     check_toroidal,
     check_window,
     guarded,
+    resolve_lattice,
 )
 from engine.safeio import ReadError, printable
 
@@ -39,6 +42,7 @@ def build_parser() -> Parser:
                    help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
     p.add_argument("--coords", action="store_true", help="also write OUT_coords.png (exact exemplar coordinates)")
     add_randomness_args(p)
+    add_lattice_args(p)
     p.add_argument("--allow-outside-exemplar", action="store_true",
                    help="read an exemplar the project refers to outside the project's folder")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -74,9 +78,11 @@ def run_export(argv: list[str]) -> int:
         except ExemplarOutside as exc:
             raise CliError(f"{exc} Pass --allow-outside-exemplar to read it.", EXIT_INPUT) from None
         doc, view = proj.document, proj.view
+        geometry = proj.display.geometry
     else:
         try:
             doc, view = Document(ExemplarSource.from_file(args.project)), None
+            geometry = "original"
         except ReadError as exc:
             raise CliError(str(exc), EXIT_INPUT) from None
     if args.rect:
@@ -96,20 +102,40 @@ def run_export(argv: list[str]) -> int:
     from engine.gpu import Gpu
 
     from .session import ExportJob, Session
-    ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+    from dataclasses import replace
+    check_lattice_args(args)
+    if args.lattice:  # replaces the project's lattice ('none' removes it)
+        from engine.exemplar import decode_full
+        image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels, args.quiet))
+        del image
+    elif doc.lattice is not None:
+        sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
+    if doc.lattice is not None:
+        from engine.exemplar import decode_full
+        from engine.lattice import rectified_exemplar
+        ex = rectified_exemplar(decode_full(doc.exemplar.data, doc.exemplar.name), doc.lattice,
+                                source=doc.exemplar.name)
+        if tor:
+            cx, cy = doc.lattice.cell(ex.size)
+            if tor % cx or tor % cy:
+                raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar px) "
+                               f"divides; use --toroidal {max(cx, cy, 32)} or more.", EXIT_USAGE)
+    else:
+        ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
     if args.randomness_exemplar or args.randomness_canvas or args.features:  # these replace the project's
-        from dataclasses import replace
-
         from engine.cli import randomness_controls
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features)
-    an = analyze(ex, AnalysisSettings(model=doc.model, k=doc.k), progress=_progress(args.quiet))
+    grid = (doc.lattice.nx, doc.lattice.ny) if doc.lattice else (0, 0)
+    an = analyze(ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid), progress=_progress(args.quiet))
     gpu = Gpu()
     session = Session(gpu)
     try:
         session.install(doc, ex, an)
-        job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512)
+        job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512,
+                        geometry=args.geometry or geometry)
         return _run(job, args, rect, gpu.renderer)
     finally:
         session.release()
@@ -141,5 +167,7 @@ def _run(job, args, rect, renderer: str) -> int:
 
 
 def main(argv: list[str]) -> int:
+    from engine.lattice import LatticeError
+
     from .document import ProjectError
-    return guarded(run_export, argv, (ProjectError, ValueError))
+    return guarded(run_export, argv, (ProjectError, LatticeError, ValueError))

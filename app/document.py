@@ -40,6 +40,7 @@ from engine.controls import (
     fit_features,
 )
 from engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
+from engine.lattice import Lattice, LatticeError
 from engine.params import DEFAULT_JITTER, SynthParams
 from engine.safeio import (
     JSONLimitError,
@@ -53,7 +54,7 @@ from engine.safeio import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 2              # 2: painted randomness ("randomness") and placed features ("features"); files without them are written as 1
+VERSION = 3              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MAX_PROJECT_BYTES = 32 * 1024 * 1024  # an embedded 16 MB exemplar is 21.4 MB of base64
@@ -63,6 +64,7 @@ MAX_LEVELS = 13                 # jitter / corrected lists hold at most one entr
 MIN_ZOOM, MAX_ZOOM = 1.0 / 64.0, 16.0
 DISPLAY_MODES = ("color", "coords", "patches", "level", "relief")
 MAGNIFY_FILTERS = ("hires", "bilinear", "nearest")
+GEOMETRIES = ("original", "rectified")
 
 
 class ProjectError(ValueError):
@@ -107,10 +109,13 @@ class Document:
     randomness_exemplar: ExemplarField | None = None   # painted over the exemplar (m x m)
     randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
     features: tuple[Feature, ...] = ()                 # placed exemplar features, later ones win
+    lattice: Lattice | None = None                     # near-regular mode: synthesize this lattice's block
 
     def analysis_key(self) -> tuple:
-        """What the exemplar analysis depends on."""
-        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k)
+        """What the exemplar analysis depends on (a lattice's geometry: its
+        rectified block is the exemplar; not its number of lattice levels)."""
+        lat = None if self.lattice is None else replace(self.lattice, levels=None)
+        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat)
 
     def jitter_for(self, L: int) -> tuple[float, ...]:
         """r_l for levels 0..L. Stored values are matched from the finest level
@@ -133,7 +138,7 @@ class Document:
         if e is not None and e.size != m:
             idx = (np.arange(m) * e.size) // m
             e = ExemplarField(np.ascontiguousarray(e.values[idx[:, None], idx[None, :]]))
-        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m)).normalized()
+        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice).normalized()
         object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
         return controls
 
@@ -167,6 +172,11 @@ class Document:
             raise ProjectError(str(exc)) from None
         if self.corrected is not None and any(not 0 <= l <= 12 for l in self.corrected):
             raise ProjectError("Corrected levels must be level numbers from 0 to 12.")
+        if self.lattice is not None:
+            try:
+                self.lattice.check_shape()
+            except LatticeError as exc:
+                raise ProjectError(f"The project's lattice: {exc}") from None
 
 
 def _clamp01(v: float) -> float:
@@ -220,6 +230,7 @@ class Display:
     mode: str = "color"
     level: int = -1          # pyramid level shown in "level" mode; -1 = finest
     magnify: str = "hires"   # zoomed-in filter: "hires" (synthesis magnification), "bilinear", "nearest"
+    geometry: str = "original"  # with a lattice: "original" (the input's geometry) or "rectified"
 
 
 @dataclass(frozen=True)
@@ -323,7 +334,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
     fields = _fields_to_json(doc)
     return {
         "format": FORMAT,
-        "version": VERSION if fields or doc.features else 1,
+        "version": 3 if doc.lattice else (2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
             "sha256": ex.sha256,
@@ -340,9 +351,41 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
         },
         **({"randomness": fields} if fields else {}),
         **({"features": features_to_json(doc.features)} if doc.features else {}),
+        **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
     }
+
+
+def _lattice_to_json(lat: Lattice) -> dict:
+    return {"origin": list(lat.origin), "t1": list(lat.t1), "t2": list(lat.t2),
+            "cells": [lat.nx, lat.ny], "levels": lat.levels}
+
+
+def _lattice_from_json(d: object) -> Lattice | None:
+    if d is None:
+        return None
+    bad = ProjectError("The project's lattice is damaged.")
+    if not isinstance(d, dict):
+        raise bad
+    vecs = []
+    for key in ("origin", "t1", "t2"):
+        v = d.get(key)
+        if not (isinstance(v, list) and len(v) == 2 and all(_number(x) and abs(x) < 1e6 for x in v)):
+            raise bad
+        vecs.append((float(v[0]), float(v[1])))
+    cells, levels = d.get("cells"), d.get("levels")
+    if not (isinstance(cells, list) and len(cells) == 2
+            and all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= 16 for c in cells)):
+        raise bad
+    if levels is not None and not (isinstance(levels, int) and not isinstance(levels, bool) and 0 <= levels <= 10):
+        raise bad
+    lat = Lattice(vecs[0], vecs[1], vecs[2], cells[0], cells[1], levels)
+    try:
+        lat.check_shape()
+    except LatticeError as exc:
+        raise ProjectError(f"The project's lattice: {exc}") from None
+    return lat
 
 
 def _png16(a: np.ndarray) -> str:
@@ -580,6 +623,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         randomness_exemplar=fields[0],
         randomness_canvas=fields[1],
         features=features,
+        lattice=_lattice_from_json(d.get("lattice")),
     )
     doc.validate()
     view, display = View(), Display()
@@ -593,11 +637,12 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         if not isinstance(g, dict):
             raise ProjectError("The project's display settings are damaged.")
         mode, level, mag = g.get("mode", "color"), g.get("level", -1), g.get("magnify", "hires")
+        geom = g.get("geometry", "original")
         if (not isinstance(mode, str) or mode not in DISPLAY_MODES or not isinstance(mag, str)
                 or mag not in MAGNIFY_FILTERS or not isinstance(level, int) or isinstance(level, bool)
-                or not -1 <= level <= 12):
+                or not -1 <= level <= 12 or geom not in GEOMETRIES):
             raise ProjectError("The project's display settings are damaged.")
-        display = Display(mode, level, mag)
+        display = Display(mode, level, mag, geom)
     return Project(doc, view, display)
 
 

@@ -21,11 +21,13 @@ from engine.controls import NO_CONTROLS, Controls
 from engine.exemplar import (
     Exemplar,
     ExemplarError,
+    decode_full,
     load_exemplar_bytes,
     to_u8,
     write_png,
 )
 from engine.gpu import Gpu
+from engine.lattice import LatticeError, original_geometry_box, rectified_exemplar, render_original
 from engine.params import SynthParams
 from engine.pyramid import Pyramid, Rect, SynthesisError
 from engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
@@ -89,14 +91,22 @@ class AnalysisJob:
     def _run(self) -> None:
         d = self.doc
         try:
-            ex = load_exemplar_bytes(d.exemplar.data, name=d.exemplar.name, fit=d.fit, toroidal=d.toroidal)
+            grid = (0, 0)
+            if d.lattice is not None:
+                image = decode_full(d.exemplar.data, d.exemplar.name)
+                self._progress(0.0, "Rectifying the lattice")
+                ex = rectified_exemplar(image, d.lattice, source=d.exemplar.name)
+                grid = (d.lattice.nx, d.lattice.ny)
+                del image
+            else:
+                ex = load_exemplar_bytes(d.exemplar.data, name=d.exemplar.name, fit=d.fit, toroidal=d.toroidal)
             self._progress(0.0, "Analyzing")
-            an = analyze(ex, AnalysisSettings(model=d.model, k=d.k), cache_dir=self.cache_dir,
+            an = analyze(ex, AnalysisSettings(model=d.model, k=d.k, lattice=grid), cache_dir=self.cache_dir,
                          progress=self._progress)
             self.exemplar, self.analysis = ex, an
         except AnalysisCancelled:
             self.cancelled = True
-        except ExemplarError as exc:
+        except (ExemplarError, LatticeError) as exc:
             self.error = str(exc)
         except MemoryError:
             self.error = f"Not enough memory to analyze {d.exemplar.name}."
@@ -367,7 +377,7 @@ class ExportJob:
     """
 
     def __init__(self, session: Session, rect: Rect, out_path: str, *, toroidal: int = 0,
-                 coords_path: str | None = None, tile: int = 128):
+                 coords_path: str | None = None, tile: int = 128, geometry: str = "rectified"):
         if session.synth is None:
             raise SynthesisError("Nothing to export yet: the exemplar is still being analyzed.")
         if rect.empty:
@@ -376,10 +386,22 @@ class ExportJob:
             raise SynthesisError(f"Exports are limited to {MAX_EXPORT_SIDE} px a side and "
                                  f"{MAX_EXPORT_PIXELS // 2**20} Mpixels; {rect.w}x{rect.h} is too large.")
         self.session = session
-        self.rect = rect
+        self.out_rect = rect
         self.out_path = out_path
         self.coords_path = coords_path
         an = session.analysis
+        # With a lattice shown in the input's geometry, ``rect`` is in input
+        # pixels: the rectified texels it reads are synthesized, then mapped back.
+        self.lattice = session.controls.lattice if geometry == "original" and not toroidal else None
+        if self.lattice is not None:
+            if coords_path:
+                raise SynthesisError("The coordinate map is exported in the rectified geometry only "
+                                     "(each pixel of the original geometry blends four texels).")
+            rect = Rect(*original_geometry_box(self.lattice, an.size, rect.x0, rect.y0, rect.w, rect.h))
+            if rect.w > MAX_EXPORT_SIDE or rect.h > MAX_EXPORT_SIDE or rect.w * rect.h > MAX_EXPORT_PIXELS:
+                raise SynthesisError(f"This export reads {rect.w}x{rect.h} rectified texels, more than the "
+                                     f"{MAX_EXPORT_SIDE} px a side and {MAX_EXPORT_PIXELS // 2**20} Mpixels allowed.")
+        self.rect = rect
         params = session.params
         if toroidal:
             params = replace(params, period=int(toroidal))
@@ -437,6 +459,12 @@ class ExportJob:
             raise SynthesisError(self.error)
 
     def image(self) -> np.ndarray:
+        if self.lattice is not None:
+            ex, r = self.session.exemplar, self.out_rect
+            source = ex.hires if ex.hires is not None else ex.pixels
+            box = (self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1)
+            return to_u8(render_original(self.coords, box, self.lattice, self.session.analysis.size, source,
+                                         r.x0, r.y0, r.w, r.h))
         return colors_u8(self.stack, self.coords, self.L)
 
     def _write(self) -> None:

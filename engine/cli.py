@@ -130,9 +130,10 @@ def add_lattice_args(p: argparse.ArgumentParser) -> None:
                         "printed on stdout as 'lattice: ...' (or 'lattice: none')")
     g.add_argument("--lattice-levels", type=_integer, default=None, metavar="K",
                    help="number of coarse levels synthesized on the lattice (default: down to a quarter cell)")
-    g.add_argument("--geometry", choices=("original", "rectified"), default="original",
-                   help="with a lattice: show the texture in the input's geometry (a slanted lattice stays "
-                        "slanted; default) or rectified (cells axis-aligned, as synthesized)")
+    g.add_argument("--geometry", choices=("original", "rectified"), default=None,
+                   help="with a lattice: the texture in the input's geometry (a slanted lattice stays "
+                        "slanted; the default, or the project's choice) or rectified (cells axis-aligned, "
+                        "as synthesized); toroidal tiles are always rectified")
 
 
 def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None, quiet: bool = False):
@@ -259,7 +260,7 @@ def run_synth(argv: list[str]) -> int:
         if os.path.realpath(args.coords) == os.path.realpath(args.output):
             raise CliError("--coords and -o name the same file.", EXIT_USAGE)
     check_lattice_args(args)
-    if args.coords and args.lattice and args.geometry == "original" and not args.toroidal:
+    if args.coords and args.lattice and args.geometry != "rectified" and not args.toroidal:
         raise CliError("--coords needs --geometry rectified: in the original geometry each pixel blends "
                        "four synthesized texels.", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
@@ -301,7 +302,7 @@ def run_synth(argv: list[str]) -> int:
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     synth = Synthesizer(an, params, controls=controls)
-    original = lattice is not None and args.geometry == "original" and not args.toroidal
+    original = lattice is not None and args.geometry != "rectified" and not args.toroidal
     try:
         renderer = synth.gpu.renderer
         t0 = time.perf_counter()
