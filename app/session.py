@@ -125,16 +125,26 @@ class Frame:
     want: Rect            # level-ld texels covering the canvas (plus a 1-texel border)
 
 
-def frame_for(view: View, w: int, h: int, L: int, level: int | None = None) -> Frame:
+def frame_for(view: View, w: int, h: int, L: int, level: int | None = None,
+              geom: np.ndarray | None = None) -> Frame:
     """The display level for the view's zoom (coarser levels when zoomed out:
-    the pyramid is the mipmap) and the rectangle of it the canvas covers."""
-    k = 0 if view.zoom >= 1.0 else min(L, int(round(-math.log2(view.zoom))))
+    the pyramid is the mipmap) and the rectangle of it the canvas covers.
+
+    ``geom`` (2x2), when the canvas shows a lattice in the input's geometry,
+    maps view positions to synthesized (rectified) canvas positions."""
+    tlx, tly = view.top_left(w, h)
+    brx, bry = tlx + w / view.zoom, tly + h / view.zoom
+    zoom = view.zoom
+    if geom is not None:
+        corners = np.array([[tlx, tly], [brx, tly], [tlx, bry], [brx, bry]]) @ np.asarray(geom).T
+        tlx, tly = corners.min(axis=0)
+        brx, bry = corners.max(axis=0)
+        zoom = view.zoom / float(np.linalg.norm(geom, 2))  # screen px per rectified px, at least
+    k = 0 if zoom >= 1.0 else min(L, int(round(-math.log2(zoom))))
     ld = L - k
     if level is not None:
         ld = max(0, min(ld, level))
     k = L - ld
-    tlx, tly = view.top_left(w, h)
-    brx, bry = tlx + w / view.zoom, tly + h / view.zoom
     s = 1 << k
     want = Rect(math.floor(tlx / s) - 1, math.floor(tly / s) - 1, math.floor(brx / s) + 2, math.floor(bry / s) + 2)
     return Frame(ld, want)

@@ -93,8 +93,12 @@ class Canvas:
         self.fbo = self.gpu.ctx.framebuffer([self.tex])
         self.size = (w, h)
 
-    def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display) -> int:
-        """Draw into the canvas texture; returns the coarsest level drawn (-1: none)."""
+    def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display,
+               geom: np.ndarray | None = None) -> int:
+        """Draw into the canvas texture; returns the coarsest level drawn (-1: none).
+
+        ``geom`` (2x2): the view is in a lattice's input geometry and this maps
+        its positions to the synthesized (rectified) canvas."""
         self.gpu.activate()
         self.fbo.use()
         self.fbo.viewport = (0, 0, *self.size)
@@ -117,7 +121,11 @@ class Canvas:
             return -1
         L = len(pyramid.buffers) - 1
         tlx, tly = view.top_left(*self.size)
+        G = np.eye(2) if geom is None else np.asarray(geom, dtype=np.float64)
+        if geom is not None:
+            tlx, tly = (float(v) for v in G @ np.array([tlx, tly]))
         ix, iy = math.floor(tlx), math.floor(tly)
+        M = G / view.zoom  # screen pixel -> finest-level canvas pixel
         mode = MODES.get(display.mode, 0)
         p = self.prog
         self.stack_tex.use(1)
@@ -127,16 +135,17 @@ class Canvas:
             buf = pyramid.buffers[l]
             k = L - l
             buf.tex.use(0)
-            texel_px = view.zoom * (1 << k)
-            exact = texel_px == 1.0 and tlx == ix and tly == iy and (ix % (1 << k)) == 0 and (iy % (1 << k)) == 0
+            texel_px = view.zoom * (1 << k) / float(np.linalg.norm(G, 2))
+            exact = geom is None and texel_px == 1.0 and tlx == ix and tly == iy and (ix % (1 << k)) == 0 and (iy % (1 << k)) == 0
             # Synthesis magnification where the finest level is enlarged; a coarser
             # level standing in while the view refines is drawn as plain texels (cheap).
             magnify = int(display.magnify != "nearest" and l == frame.level and texel_px > 1.0)
-            self.gpu.ctx.scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, view.zoom)
+            self.gpu.ctx.scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, M)
             use_hires = int(self.hires_tex is not None and display.magnify == "hires" and l == L and texel_px > 1.0)
             set_uniforms(p, coords=0, stack=1, hires=2, anchor=buf.anchor, cmask=buf.mask,
                          vlo=(buf.valid.x0, buf.valid.y0), vhi=(buf.valid.x1, buf.valid.y1),
                          tl_i=(ix, iy), tl_f=(tlx - ix, tly - iy), zoom=float(view.zoom), k=k, m=self.m,
+                         geom=(float(M[0, 0]), float(M[0, 1]), float(M[1, 0]), float(M[1, 1])),
                          layer=l, use_hires=use_hires, mode=mode, magnify=magnify, exact=int(exact),
                          toroidal=int(self.toroidal), has_alpha=int(self.channels in (2, 4)),
                          relief_strength=float(self.m) / 24.0)
@@ -144,13 +153,17 @@ class Canvas:
         self.gpu.ctx.scissor = None
         return levels[-1]
 
-    def _screen_box(self, r, k: int, tlx: float, tly: float, zoom: float):
-        """Canvas pixels covered by level-(L-k) rectangle r: (x, y, w, h), clipped."""
+    def _screen_box(self, r, k: int, tlx: float, tly: float, M: np.ndarray):
+        """Canvas pixels covered by level-(L-k) rectangle r: (x, y, w, h), clipped.
+        M maps screen pixels to finest-level canvas pixels (relative to tlx, tly)."""
         s = 1 << k
-        x0 = max(0, math.floor((r.x0 * s - tlx) * zoom))
-        y0 = max(0, math.floor((r.y0 * s - tly) * zoom))
-        x1 = min(self.size[0], math.ceil((r.x1 * s - tlx) * zoom))
-        y1 = min(self.size[1], math.ceil((r.y1 * s - tly) * zoom))
+        corners = np.array([[r.x0 * s - tlx, r.y0 * s - tly], [r.x1 * s - tlx, r.y0 * s - tly],
+                            [r.x0 * s - tlx, r.y1 * s - tly], [r.x1 * s - tlx, r.y1 * s - tly]])
+        scr = corners @ np.linalg.inv(M).T
+        x0 = max(0, math.floor(scr[:, 0].min()))
+        y0 = max(0, math.floor(scr[:, 1].min()))
+        x1 = min(self.size[0], math.ceil(scr[:, 0].max()))
+        y1 = min(self.size[1], math.ceil(scr[:, 1].max()))
         return (x0, y0, max(0, x1 - x0), max(0, y1 - y0))
 
     def read(self) -> np.ndarray:

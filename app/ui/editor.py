@@ -44,7 +44,7 @@ from ..render.overlays import FieldOverlay
 from ..session import ExportJob, Frame, Session, frame_for
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs
-from .tools import make_tools
+from .tools import CANVAS_SPACE_TOOLS, make_tools
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
@@ -418,7 +418,7 @@ class Editor:
         self.dialogs.draw()
         self.panels.progress_modals()
         imgui.end()
-        if self.tool.name == "paint-exemplar" and self.doc is not None:
+        if self.tool.name in ("paint-exemplar", "lattice") and self.doc is not None:
             self.tool.window()
         self._after_frame()
 
@@ -495,7 +495,8 @@ class Editor:
             level = None
             if self.display.mode == "level":
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
-            self.frame = frame_for(self.view, w, h, s.L, level)
+            geom = self.geometry()
+            self.frame = frame_for(self.view, w, h, s.L, level, geom)
             if self.doc is not self._last_doc:
                 prev, self._last_doc = self._last_doc, self.doc
                 # Canvas paint and features are re-synthesized locally and exactly: no coarse preview.
@@ -525,7 +526,7 @@ class Editor:
             view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
             key = (s.generation, s.params, s.refiner.version, self.frame, view, self.display, (w, h))
             if key != self._canvas_key or self.canvas_request:
-                self.canvas.render(s.pyramid, self.frame, view, self.display)
+                self.canvas.render(s.pyramid, self.frame, view, self.display, geom)
                 self._canvas_key = key
             if self.canvas_request:
                 self.canvas_pixels = self.canvas.read()
@@ -540,7 +541,7 @@ class Editor:
         imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
         if s.ready and self.doc is not None:
             dl = imgui.get_window_draw_list()
-            if self.show_fields:
+            if self.show_fields and self.geometry() is None:
                 self._field_overlay(dl, p0, w, h)
             self.panels.canvas_overlay(p0, w, h)
             if self.tool.name == "feature":
@@ -572,7 +573,7 @@ class Editor:
             self._canvas_button = -1
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
-            if payload is not None and s.ready and self.doc is not None:
+            if payload is not None and s.ready and self.doc is not None and self.geometry() is None:
                 self.set_tool("feature")
                 self.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
             imgui.end_drag_drop_target()
@@ -612,7 +613,20 @@ class Editor:
 
     # -- small helpers for panels -----------------------------------------
 
+    def geometry(self):
+        """The 2x2 map from view positions to the synthesized canvas when a
+        lattice is shown in the input's geometry; None when the canvas shows
+        the synthesized (rectified) texture itself."""
+        s = self.session
+        lat = s.controls.lattice if s is not None and s.ready and s.controls is not None else None
+        if lat is None or self.display.geometry != "original":
+            return None
+        return lat.canvas_matrix(s.analysis.size)
+
     def set_tool(self, name: str) -> None:
+        if name in CANVAS_SPACE_TOOLS and self.geometry() is not None:
+            # Paint and features live on the synthesized canvas: show it rectified.
+            self.display = replace(self.display, geometry="rectified")
         for t in self.tools:
             if t.name == name and t is not self.tool:
                 self.tool.release()

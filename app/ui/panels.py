@@ -100,7 +100,7 @@ class Panels:
             return
         flags = imgui.TreeNodeFlags_.default_open
         if ed.tool.name != "navigate" and imgui.collapsing_header(
-                "Features" if ed.tool.name == "feature" else "Brush", flags):
+                {"feature": "Features", "lattice": "Lattice"}.get(ed.tool.name, "Brush") + "###tool-options", flags):
             self.brush_panel()
         if imgui.collapsing_header("Exemplar", flags):
             self.exemplar_panel()

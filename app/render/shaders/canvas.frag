@@ -14,6 +14,8 @@ uniform ivec2 vhi;
 uniform ivec2 tl_i;
 uniform vec2 tl_f;
 uniform float zoom;
+uniform vec4 geom;            // screen px -> finest-level canvas px: (a, b, c, d) = [[a, b], [c, d]];
+                              // (1/zoom, 0, 0, 1/zoom), or a lattice's map to the rectified canvas
 uniform int k;                // L - l: one level texel is 2^k finest pixels
 uniform int m;                // exemplar size
 uniform int layer;            // stack layer (= level)
@@ -63,13 +65,14 @@ vec4 magnified(ivec2 base, vec2 frac) {
     vec2 t = F - fb;
     float h = float(1 << k);
     vec4 acc = vec4(0.0);
-    float d = 1.0 / (zoom * float(m));
+    vec2 ddx = vec2(geom.x, geom.z) / float(m);   // uv derivatives per screen pixel
+    vec2 ddy = vec2(geom.y, geom.w) / float(m);
     for (int j = 0; j < 2; j++) {
         for (int i = 0; i < 2; i++) {
             ivec2 c = ivec2(i, j);
             ivec2 u = S(base + ivec2(fb) + c);
             vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
-            vec4 s = use_hires != 0 ? textureGrad(hires, uv, vec2(d, 0.0), vec2(0.0, d))
+            vec4 s = use_hires != 0 ? textureGrad(hires, uv, ddx, ddy)
                                     : texture(stack, vec3(uv, float(layer)));
             float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
             acc += w * s;
@@ -80,7 +83,7 @@ vec4 magnified(ivec2 base, vec2 frac) {
 
 void main() {
     vec2 q = gl_FragCoord.xy;
-    vec2 P = tl_f + q / zoom;                       // finest level, relative to tl_i
+    vec2 P = tl_f + vec2(geom.x * q.x + geom.y * q.y, geom.z * q.x + geom.w * q.y);  // finest level, relative to tl_i
     int s = 1 << k;
     ivec2 base = tl_i >> k;                          // floor division (sign-extending shift)
     vec2 frac = (vec2(tl_i - (base << k)) + P) / float(s);

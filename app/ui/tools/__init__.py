@@ -39,8 +39,12 @@ class Tool:
         return False
 
 
+CANVAS_SPACE_TOOLS = ("paint-canvas", "feature")  # tools that work on the synthesized (rectified) canvas
+
+
 def make_tools(ed) -> list[Tool]:
     from .feature import FeatureTool
+    from .lattice import LatticeTool
     from .navigate import NavigateTool
     from .paint import PaintCanvasTool, PaintExemplarTool
-    return [NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed)]
+    return [NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed), LatticeTool(ed)]

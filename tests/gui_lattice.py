@@ -1,0 +1,119 @@
+"""Drive the lattice tool of the real editor with the imgui test engine
+(run under Xvfb by test_editor.py).
+
+    xvfb-run -a python tests/gui_lattice.py OUT_DIR
+
+Opens generated running-bond bricks, auto-detects the lattice, drags a
+handle with the mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
+to OUT_DIR/report.txt and a screenshot to OUT_DIR/lattice.png.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from imgui_bundle import imgui
+from imgui_bundle.immapp import testing
+from lattice_gen import bricks
+
+from app.ui.editor import Editor
+from engine.exemplar import to_u8, write_png
+
+
+def main(out: str) -> int:
+    os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+    img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
+    path = os.path.join(out, "bricks.png")
+    write_png(path, to_u8(img))
+    ed = Editor(path, recover=False, window_size=(1280, 800))
+    report: list[str] = []
+
+    def check(name: str, cond: bool, why: str = "") -> None:
+        report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
+
+    def settle(ctx, limit=3000) -> None:
+        for _ in range(limit):
+            ctx.yield_()
+            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
+                    and ed.pending is None and ed.session.job is None):
+                return
+        raise RuntimeError("the editor did not settle")
+
+    def canvas(ctx) -> np.ndarray:
+        settle(ctx)
+        ed.canvas_request = True
+        while ed.canvas_request:
+            ctx.yield_()
+        return ed.canvas_pixels
+
+    def preview(ctx) -> bytes:
+        ctx.yield_(2)  # the window re-rectifies during a frame (GL stays on the main thread)
+        px = ed.tool.preview_pixels
+        return b"" if px is None else px.tobytes()
+
+    def test(ctx) -> None:
+        settle(ctx)
+        plain = canvas(ctx)
+        ctx.item_click("//**/Lattice (L)##tool-lattice")
+        ctx.yield_(3)
+        check("lattice tool selected", ed.tool.name == "lattice", ed.tool.name)
+        ctx.item_click("//**/Auto-detect")
+        settle(ctx)
+        lat = ed.doc.lattice
+        check("auto-detect finds the bricks", lat is not None and abs(lat.t1[0] - 40) < 0.5 and abs(lat.t1[1]) < 0.5
+              and abs(abs(lat.t2[0]) - 20) < 0.5 and abs(lat.t2[1] - 18) < 0.5, str(lat))
+        check("confidence shown", ed.tool.detection is not None and ed.tool.detection.confidence > 0.5,
+              str(ed.tool.detection))
+        on_lattice = canvas(ctx)
+        check("the canvas changes to lattice synthesis", not np.array_equal(plain, on_lattice) and on_lattice.std() > 5,
+              "same canvas")
+        before = preview(ctx)
+        # The handles sit on the detected lattice: drag the end of t1 by the mouse.
+        info = ctx.item_info("//Lattice/**/lattice-handles")
+        r = info.rect_full
+        z = ed.tool.zoom
+        hx, hy = lat.origin[0] + lat.t1[0], lat.origin[1] + lat.t1[1]
+        start = imgui.ImVec2(r.min.x + hx * z, r.min.y + hy * z)
+        ctx.mouse_move_to_pos(start)
+        ctx.mouse_down(0)
+        ctx.mouse_move_to_pos(imgui.ImVec2(start.x - 2 * z, start.y + 1 * z))
+        ctx.yield_(2)
+        dragging = preview(ctx)
+        check("the preview follows the handle while dragging", dragging and dragging != before, "preview unchanged")
+        ctx.mouse_up(0)
+        settle(ctx)
+        moved = ed.doc.lattice
+        check("the handle moved t1", moved is not None and abs(moved.t1[0] - (lat.t1[0] - 2)) < 1.0
+              and abs(moved.t1[1] - (lat.t1[1] + 1)) < 1.0, str(moved))
+        check("one undo step per drag", ed.history.undo_label() == "Move lattice vector t1", ed.history.undo_label())
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        settle(ctx)
+        check("undo restores the lattice", ed.doc.lattice == lat, str(ed.doc.lattice))
+        check("undo restores the preview", preview(ctx) == before, "preview differs")
+        check("undo restores the canvas", np.array_equal(canvas(ctx), on_lattice), "canvas differs")
+        ctx.item_click("//**/Rectified")
+        rect = canvas(ctx)
+        check("rectified geometry differs from the original", not np.array_equal(rect, on_lattice), "same canvas")
+        ctx.item_click("//**/Original geometry")
+        check("original geometry comes back exactly", np.array_equal(canvas(ctx), on_lattice), "canvas differs")
+        check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
+        testing.capture(ctx, os.path.join(out, "lattice.png"))
+
+    try:
+        testing.run(test_function=test, runner_params=ed.runner_params(),
+                    run_speed=testing.TestRunSpeed.fast)
+    except Exception as exc:
+        report.append(f"FAIL driver: {exc}")
+    with open(os.path.join(out, "report.txt"), "w") as fh:
+        fh.write("\n".join(report) + "\n")
+    return 0 if report and all(r.startswith("ok") for r in report) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
