@@ -198,3 +198,77 @@ def test_lattice_controls_must_match_the_analysis(cases, gpu):
     lat, ex, an = cases["tiles"]
     with pytest.raises(ValueError, match="analyzed for"):
         Synthesizer(an, SynthParams.default(an.L), gpu=gpu, controls=Controls(lattice=replace(lat, nx=lat.nx * 2)))
+
+
+# -- command line and projects ----------------------------------------------------
+
+
+def _cli(*args):
+    import os
+    import subprocess
+    import sys
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return subprocess.run([sys.executable, os.path.join(root, "main.py"), *args], capture_output=True,
+                          text=True, timeout=600, cwd=root)
+
+
+def test_cli_prints_the_lattice_and_reuses_it(tmp_path):
+    from PIL import Image
+
+    from engine.exemplar import to_u8, write_png
+    img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18, angle=20)
+    src = str(tmp_path / "bricks.png")
+    write_png(src, to_u8(img))
+    a = _cli("synth", src, "--lattice", "auto", "-o", str(tmp_path / "a.png"), "--size", "160", "96", "-q")
+    assert a.returncode == 0, a.stderr
+    lines = [ln for ln in a.stdout.splitlines() if ln.startswith("lattice: ")]
+    assert len(lines) == 1
+    spec = lines[0][len("lattice: "):]
+    lat = Lattice.parse(spec)
+    assert lat.nx >= 2 and lat.ny >= 2
+    b = _cli("synth", src, "--lattice", spec, "-o", str(tmp_path / "b.png"), "--size", "160", "96", "-q")
+    assert b.returncode == 0 and b.stdout.strip() == lines[0]
+    pa, pb = (np.asarray(Image.open(tmp_path / n)) for n in ("a.png", "b.png"))
+    assert pa.shape == (96, 160, 3) and np.array_equal(pa, pb)
+    # export shares the code: the same rectangle in the input's geometry is the same image
+    c = _cli("export", src, "--lattice", spec, "-o", str(tmp_path / "c.png"), "--rect", "0", "0", "160", "96", "-q")
+    assert c.returncode == 0, c.stderr
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "c.png")), pa)
+    bad = _cli("synth", src, "--lattice", "0,0,30,0,60,0.5,2,2", "-o", str(tmp_path / "d.png"))
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "collinear" in bad.stderr
+    far = _cli("synth", src, "--lattice", "0,0,130,0,0,60,2,2", "-o", str(tmp_path / "d.png"))
+    assert far.returncode == 3 and "does not fit" in far.stderr
+    tor = _cli("synth", src, "--lattice", spec, "--toroidal", "--size", "32", "32", "-o", str(tmp_path / "d.png"))
+    assert tor.returncode == 2 and "whole cells" in tor.stderr
+
+
+def test_cli_reports_no_lattice_on_a_stochastic_image(tmp_path):
+    import os
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    r = _cli("synth", os.path.join(root, "assets", "gravel.png"), "--lattice", "auto", "-o", str(tmp_path / "g.png"), "-q")
+    assert r.returncode == 0 and r.stdout.strip() == "lattice: none"
+
+
+def test_lattice_in_projects():
+    from app.document import Document, ExemplarSource, Project, ProjectError, project_from_json, project_to_json
+    from engine.exemplar import to_u8
+    import io
+
+    from PIL import Image
+    img, _, _ = tiles(np.random.default_rng(2), side=128, cell=32)
+    buf = io.BytesIO()
+    Image.fromarray(to_u8(img)).save(buf, format="PNG")
+    lat = Lattice((0.5, 0.0), (32.0, 0.0), (0.0, 32.0), 2, 2, levels=3)
+    doc = Document(ExemplarSource.from_bytes(buf.getvalue(), "tiles.png"), lattice=lat)
+    d = project_to_json(Project(doc))
+    assert d["version"] == 3
+    back = project_from_json(d).document
+    assert back.lattice == lat and back.analysis_key() == doc.analysis_key()
+    assert back.controls(64).lattice == lat
+    assert doc.analysis_key() == Document(doc.exemplar, lattice=replace(lat, levels=None)).analysis_key()
+    for damage in ({"origin": [0, 0], "t1": [10, 0], "t2": [20, 0.1], "cells": [2, 2]},
+                   {"origin": [0, 0], "t1": [10, 0], "t2": [0, 10], "cells": [3, 2]},
+                   {"origin": "x"}, [1, 2]):
+        bad = dict(d, lattice=damage)
+        with pytest.raises(ProjectError):
+            project_from_json(bad)
