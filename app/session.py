@@ -416,6 +416,12 @@ class ExportJob:
         if toroidal:
             params = replace(params, period=int(toroidal))
             params.validate(an.L)
+            lat = session.controls.lattice
+            if lat is not None:
+                cx, cy = lat.cell(an.size)
+                if toroidal % cx or toroidal % cy:
+                    raise SynthesisError(f"A toroidal tile of whole cells needs a size that the lattice cell "
+                                         f"({cx}x{cy} px) divides: {max(cx, cy, 32)} px or more.")
         self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
                                controls=session.controls)
         self.stack = session.stack

@@ -272,3 +272,64 @@ def test_lattice_in_projects():
         bad = dict(d, lattice=damage)
         with pytest.raises(ProjectError):
             project_from_json(bad)
+
+
+def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gpu, tmp_path):
+    """A lattice document in the session: canvas paint is re-synthesized
+    locally and equals a fresh synthesis; changing the lattice levels keeps
+    the analysis; the view exported in the input's geometry equals main.py
+    export; a toroidal tile that is not whole cells is refused."""
+    import io
+
+    from PIL import Image
+
+    from app.document import Document, ExemplarSource
+    from app.session import ExportJob, Frame, Session
+    from engine.controls import CanvasField
+    from engine.exemplar import to_u8
+    from engine.pyramid import SynthesisError
+
+    img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
+    buf = io.BytesIO()
+    Image.fromarray(to_u8(img)).save(buf, format="PNG")
+    path = tmp_path / "bricks.png"
+    path.write_bytes(buf.getvalue())
+    lat = replace(detect(img).lattice, nx=2)  # cells 64 x 32 px of a 128 px exemplar
+    doc = Document(ExemplarSource.from_file(str(path)), lattice=lat)
+    s = Session(gpu)
+    s.load_now(doc)
+    assert s.analysis.settings.lattice == (lat.nx, lat.ny) and s.controls.lattice == lat
+    frame = Frame(level=s.L, want=Rect.of(-150, -100, 300, 200))
+    while not s.refine(frame, 1.0):
+        pass
+    field = CanvasField()
+    d = doc
+    for i in range(5):
+        field, _ = field.painted(-60 + 30 * i, 12.0 * i, 20.0, 65535)
+        d = replace(d, randomness_canvas=field)
+        s.sync(d)
+        assert s.refine(frame, 1.0)
+    fresh = Synthesizer(s.analysis, s.params, gpu=gpu, controls=d.controls(s.analysis.size)).window(frame.want)
+    assert np.array_equal(s.pyramid.read(s.L, frame.want), fresh)
+    key = s.key
+    d2 = replace(d, lattice=replace(lat, levels=2))
+    s.sync(d2)
+    assert s.key == key  # no new analysis: only which levels are lattice levels
+    while not s.refine(frame, 1.0):
+        pass
+    assert not np.array_equal(s.pyramid.read(s.L, frame.want), fresh)
+    s.sync(d)
+    job = ExportJob(s, Rect.of(0, 0, 160, 96), str(tmp_path / "view.png"), geometry="original")
+    while not job.step(1.0):
+        pass
+    assert job.error is None
+    with pytest.raises(SynthesisError, match="whole cells"):
+        ExportJob(s, Rect(0, 0, 32, 32), str(tmp_path / "t.png"), toroidal=32)
+    s.release()
+    from app.document import Project, save_project
+    proj = tmp_path / "bricks.itex"
+    save_project(str(proj), Project(d))
+    r = _cli("export", str(proj), "-o", str(tmp_path / "cli.png"), "--rect", "0", "0", "160", "96", "-q")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == f"lattice: {lat.to_text()}"
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "cli.png")), np.asarray(Image.open(tmp_path / "view.png")))

@@ -248,7 +248,8 @@ class Editor:
             self._open_failed(f"{printable(os.path.basename(path))} could not be read: {exc.strerror or exc}.", first)
             return
         base = self.doc if self.doc is not None else Document(src)
-        self._begin_load("exemplar", replace(base, exemplar=src, toroidal=None), None, path)
+        # A lattice is marked in the old image's pixels: the new image starts without one.
+        self._begin_load("exemplar", replace(base, exemplar=src, toroidal=None, lattice=None), None, path)
 
     def _open_failed(self, msg: str | None, first: bool) -> None:
         if msg:
@@ -371,7 +372,9 @@ class Editor:
             check_output(path, (".png",), "export")  # before any work
             if coords:
                 check_output(coords, (".png",), "coordinate map")
-            self.export_job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords)
+            geometry = "original" if self.geometry() is not None else "rectified"  # what the canvas shows
+            self.export_job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords,
+                                        geometry=geometry)
         except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
 

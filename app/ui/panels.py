@@ -160,11 +160,28 @@ class Panels:
         imgui.text(doc.exemplar.name)
         ow, oh = ex.original_size
         chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
-        imgui.text_disabled(f"{ow}x{oh} -> {ex.size}x{ex.size}, {chans}, {an.L + 1} levels")
+        lattice = ex.fit == "lattice"
+        how = f"lattice block {ex.size}x{ex.size}" if lattice else f"{ex.size}x{ex.size}"
+        imgui.text_disabled(f"{ow}x{oh} -> {how}, {chans}, {an.L + 1} levels")
         if ex.hires is not None:
             imgui.text_disabled(f"hi-res {ex.hires.shape[1]}x{ex.hires.shape[0]} kept for magnification")
         if imgui.button("Open image...", (-1, 0)):
             ed.dialogs.ask_path("Open exemplar", False, IMAGE_FILTER, ed.open_path)
+        if lattice:
+            imgui.push_text_wrap_pos(0)
+            imgui.text_disabled("The exemplar is the lattice's block of cells, rectified (it tiles); "
+                                "the Lattice tool (L) sets it.")
+            imgui.pop_text_wrap_pos()
+        else:
+            self._fit_options(doc, ex)
+        job = s.job
+        if job is not None:
+            imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
+            if imgui.button("Cancel analysis"):
+                job.cancel()
+
+    def _fit_options(self, doc, ex) -> None:
+        ed = self.ed
         fits = [f for f, _ in FIT_LABELS]
         changed, i = imgui.combo("Import", fits.index(doc.fit), [lbl for _, lbl in FIT_LABELS])
         if changed:
@@ -175,11 +192,6 @@ class Panels:
         changed, i = imgui.combo("Toroidal", cur, labels)
         if changed:
             ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
-        job = s.job
-        if job is not None:
-            imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
-            if imgui.button("Cancel analysis"):
-                job.cancel()
 
     def exemplar_thumbnail(self, size: float) -> None:
         """The exemplar; drag from it onto the canvas to place that feature there."""
@@ -332,6 +344,14 @@ class Panels:
             ed.tile_size = TILE_SIZES[i]
         if imgui.button("Export toroidal tile...", (-1, 0)):
             self.export_tile()
+        lat = ed.session.controls.lattice if ed.session is not None and ed.session.ready else None
+        if lat is not None:
+            cx, cy = lat.cell(ed.session.analysis.size)
+            imgui.push_text_wrap_pos(0)
+            imgui.text_disabled(f"Lattice: the view and rectangles export as the canvas shows them "
+                                f"({'input geometry' if ed.geometry() is not None else 'rectified'}); "
+                                f"tiles are rectified, whole {cx}x{cy} px cells.")
+            imgui.pop_text_wrap_pos()
 
     def export_view(self) -> None:
         ed = self.ed
