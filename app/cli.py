@@ -107,7 +107,7 @@ def run_export(argv: list[str]) -> int:
     if args.lattice:  # replaces the project's lattice ('none' removes it)
         from engine.exemplar import decode_full
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
-        doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels, args.quiet))
+        doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
         del image
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")

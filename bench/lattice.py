@@ -12,7 +12,7 @@ lattice mode keeps the lattice.
    exemplar's, for a 384^2 window synthesized with and without lattice mode
    from the same rectified exemplar. 1.0 = as regular as the exemplar. On the
    generated bricks, tiles and 8 random near-regular images, and on the shared
-   brick (rows of random-length bricks: only the rows are a lattice) and
+   brick (columns of random-height bricks: only the columns are a lattice) and
    reptile (a curved lattice) exemplars, whose detected lattice is below the
    confidence threshold: the detector's best guess is used, as an artist would
    with "Use the best guess anyway".

@@ -20,7 +20,14 @@ for ``ours`` (default settings, a window at canvas position (10007, -20011)),
 Times: ``warm_s`` (ours: a window call with the analysis cached and shaders
 compiled; peer: a second in-process ``gmic.run``) and ``cold_s`` (each as a
 whole command in a fresh process with a cold analysis cache), with
-``peer / ours`` ratios. Writes a contact sheet (exemplar | ours | tiled | peer).
+``peer / ours`` ratios. Writes a contact sheet (exemplar | ours | tiled | peer |
+ours in lattice mode).
+
+Near-regular exemplars (a lattice detected, or the best guess for the shared
+brick and reptile skin) are also synthesized in lattice mode (engine/lattice.py,
+in the input's geometry, brought to the exemplar's scale) and every method gets
+a ``lattice_regularity``: the autocorrelation at the two lattice vectors, output
+over exemplar (1 = as regular as the exemplar).
 """
 from __future__ import annotations
 
@@ -41,11 +48,58 @@ sys.path.insert(0, ROOT)
 
 from bench.measures import all_measures  # noqa: E402
 from engine.analysis import analyze  # noqa: E402
-from engine.exemplar import PIL_MODES, load_exemplar, to_u8, write_png  # noqa: E402
+from engine.analysis import AnalysisSettings  # noqa: E402
+from engine.controls import Controls  # noqa: E402
+from engine.exemplar import PIL_MODES, load_exemplar, load_full, to_u8, write_png  # noqa: E402
+from engine.lattice import (  # noqa: E402
+    autocorrelation_at,
+    choose_block,
+    detect,
+    original_geometry_box,
+    rectified_exemplar,
+    render_original,
+)
 from engine.pyramid import Rect  # noqa: E402
 from engine.synth import Synthesizer  # noqa: E402
 
 ORIGIN = (10007, -20011)
+NEAR_REGULAR = ("brick", "reptile_skin")  # below the detector's threshold: the best guess is used
+
+
+def lattice_case(path: str, name: str, fitted_size: int):
+    """(lattice, image, scale) for a near-regular exemplar, else None. ``scale``
+    is fitted-exemplar pixels per input pixel (the resize fit rule)."""
+    img = load_full(path)
+    d = detect(img)
+    lat = d.lattice
+    if lat is None and name in NEAR_REGULAR and d.t1 is not None:
+        lat = choose_block(d.t1, d.t2, img.shape[1], img.shape[0])
+    if lat is None:
+        return None
+    return lat, img, fitted_size / min(img.shape[:2])
+
+
+def lattice_output(lat, img, n: int, scale: float) -> np.ndarray:
+    """n x n of lattice mode in the input's geometry, at the fitted exemplar's scale."""
+    ex = rectified_exemplar(img, lat)
+    an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny)))
+    synth = Synthesizer(an, controls=Controls(lattice=lat))
+    w = int(round(n / scale))
+    x0, y0 = ORIGIN[0] // 4, ORIGIN[1] // 4
+    box = original_geometry_box(lat, an.size, x0, y0, w, w)
+    try:
+        coords = synth.window(Rect(*box))
+    finally:
+        synth.release()
+    src = ex.hires if ex.hires is not None else ex.pixels
+    out = render_original(coords, box, lat, an.size, src, x0, y0, w, w)
+    planes = [np.asarray(Image.fromarray(out[:, :, c], mode="F").resize((n, n), Image.LANCZOS))
+              for c in range(out.shape[2])]
+    return np.clip(np.stack(planes, axis=2), 0.0, 1.0)
+
+
+def regularity(exemplar: np.ndarray, out: np.ndarray, vectors) -> list[float]:
+    return [round(autocorrelation_at(out, v) / max(1e-9, autocorrelation_at(exemplar, v)), 3) for v in vectors]
 
 
 def _save(path: str, a: np.ndarray) -> None:
@@ -106,6 +160,11 @@ def main(argv=None) -> int:
         ex_png = os.path.join(tmp, f"{name}.png")
         _save(ex_png, ex.pixels)  # the peer gets exactly the exemplar we use
         entry = {"size": m, "channels": ex.channels}
+        case = lattice_case(path, name, m)
+        if case is not None:
+            lat, full, scale = case
+            vectors = [(lat.t1[0] * scale, lat.t1[1] * scale), (lat.t2[0] * scale, lat.t2[1] * scale)]
+            entry["lattice"] = lat.to_text()
         for n in args.sizes:
             rect = Rect.of(ORIGIN[0], ORIGIN[1], n, n)
             synth.window(Rect.of(0, 0, 32, 32))  # shaders compiled, textures uploaded
@@ -135,12 +194,19 @@ def main(argv=None) -> int:
                          "peer_cold_s": peer_cold, "warm_ratio_peer_over_ours": peer_warm / ours_warm,
                          "cold_ratio_peer_over_ours": peer_cold / ours_cold},
             }
+            lat_out = None
+            if case is not None:
+                lat_out = lattice_output(lat, full, n, scale)
+                row["lattice"] = all_measures(ex.pixels, lat_out)
+                for method, img in (("ours", ours), ("tiled", tiled), ("peer", peer), ("lattice", lat_out)):
+                    row[method]["lattice_regularity"] = regularity(ex.pixels, img, vectors)
             entry[str(n)] = row
             print(f"{name:<13}{n:>5}  ours {ours_warm * 1000:7.0f} ms  peer {peer_warm * 1000:7.0f} ms  "
                   f"(cold {ours_cold:5.1f} s / {peer_cold:5.1f} s)", flush=True)
             if n == args.sizes[0]:
                 ex_big = np.asarray(Image.fromarray(_rgb(ex.pixels)).resize((n, n), Image.NEAREST))
-                cells = [ex_big, _rgb(ours), _rgb(tiled), _rgb(peer)]
+                blank = np.full((n, n, 3), 40, dtype=np.uint8)
+                cells = [ex_big, _rgb(ours), _rgb(tiled), _rgb(peer), blank if lat_out is None else _rgb(lat_out)]
                 sheet_rows.append(np.concatenate(cells, axis=1))
         results["exemplars"][name] = entry
         synth.release()
@@ -150,7 +216,7 @@ def main(argv=None) -> int:
     gap = 4
     rows = [np.pad(r, ((0, gap), (0, 0), (0, 0)), constant_values=255) for r in sheet_rows]
     write_png(args.sheet, np.concatenate(rows, axis=0))
-    print(f"contact sheet (exemplar | ours | tiled | peer): {args.sheet}")
+    print(f"contact sheet (exemplar | ours | tiled | peer | ours, lattice mode): {args.sheet}")
     if args.json:
         from engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(results, indent=1).encode())
@@ -165,13 +231,17 @@ def _print_table(results: dict) -> None:
     for name, entry in results["exemplars"].items():
         for n in results["sizes"]:
             row = entry[str(n)]
-            for method in ("ours", "tiled", "peer"):
+            for method in ("ours", "tiled", "peer", "lattice"):
+                if method not in row:
+                    continue
                 d = row[method]
                 cov = f"{d['coverage']:7.3f}{d['used']:6.2f}" if "coverage" in d else f"{'-':>7}{'-':>6}"
                 verb = f"{d['verbatim_mean_px']:10.0f}{d['verbatim_max_px']:9d}" if "verbatim_max_px" in d \
                     else f"{'-':>10}{'-':>9}"
+                reg = d.get("lattice_regularity")
+                reg = f"  lattice regularity {reg[0]:.2f} / {reg[1]:.2f}" if reg else ""
                 print(f"{name:<13}{n:>5} {method:<6}{d['energy']:9.5f}{d['completeness']:9.5f}{cov}{verb}"
-                      f"{d['repetition']:7.2f}{d['histogram']:7.3f}")
+                      f"{d['repetition']:7.2f}{d['histogram']:7.3f}{reg}")
             t = row["time"]
             print(f"{'':<19}time: ours {t['ours_warm_s'] * 1000:.0f} ms warm, {t['ours_cold_s']:.1f} s cold; "
                   f"peer {t['peer_warm_s'] * 1000:.0f} ms warm, {t['peer_cold_s']:.1f} s cold; "

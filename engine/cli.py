@@ -136,7 +136,7 @@ def add_lattice_args(p: argparse.ArgumentParser) -> None:
                         "as synthesized); toroidal tiles are always rectified")
 
 
-def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None, quiet: bool = False):
+def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None):
     """The lattice a --lattice argument names for ``image`` (input pixels),
     printed on stdout as one line; None for 'none' or when 'auto' finds none."""
     from .lattice import Lattice, LatticeError, detect
@@ -146,11 +146,7 @@ def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None, qui
     if spec.strip().lower() == "none":
         lat = None
     elif spec.strip().lower() == "auto":
-        d = detect(image)
-        lat = d.lattice
-        if not quiet:
-            sys.stderr.write(f"lattice detection: confidence {d.confidence:.2f} in {d.seconds * 1000:.0f} ms"
-                             f"{'' if lat else ' (no lattice found)'}\n")
+        lat = detect(image).lattice
     else:
         try:
             lat = Lattice.parse(spec)
@@ -269,7 +265,7 @@ def run_synth(argv: list[str]) -> int:
         from engine.exemplar import load_full
         from engine.lattice import rectified_exemplar
         image = load_full(args.exemplar)
-        lattice = resolve_lattice(args.lattice, image, args.lattice_levels, args.quiet)
+        lattice = resolve_lattice(args.lattice, image, args.lattice_levels)
     if lattice is not None:
         ex = rectified_exemplar(image, lattice, source=args.exemplar)
     else:

@@ -290,8 +290,8 @@ def canonical_basis(t1, t2) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _autocorrelation(gray: np.ndarray) -> np.ndarray:
-    """Normalized autocorrelation (overlap-unbiased), centred: index (H//2... )
-    holds lag 0; lags up to half the image each way."""
+    """Normalized autocorrelation (each lag divided by its overlap), centred:
+    index (H // 2, W // 2) holds lag 0; lags up to half the image each way."""
     H, W = gray.shape
     g = gray - ndimage.gaussian_filter(gray, max(H, W) / 8.0, mode="reflect")  # drop slow shading
     g = g - g.mean()

@@ -273,11 +273,13 @@ def tiny_exemplar() -> bytes:
 
 
 def base_project() -> dict:
-    """A valid project with both painted randomness fields (so mutations reach them)."""
+    """A valid project with both painted randomness fields and a lattice (so mutations reach them)."""
     from engine.controls import CanvasField, ExemplarField
+    from engine.lattice import Lattice
     c, _ = CanvasField().painted(10.0, 20.0, 12.0, 0)
     e = ExemplarField.blank(32).painted(8, 8, 5, 65535)
-    doc = Document(ExemplarSource.from_bytes(tiny_exemplar(), "tiny.png"), randomness_canvas=c, randomness_exemplar=e)
+    doc = Document(ExemplarSource.from_bytes(tiny_exemplar(), "tiny.png"), randomness_canvas=c, randomness_exemplar=e,
+                   lattice=Lattice((1.0, 2.0), (8.0, 0.5), (-1.0, 7.5), 2, 2, levels=2))
     return project_to_json(Project(doc), embed=True)
 
 
@@ -301,7 +303,9 @@ PATHS = [("version",), ("exemplar",), ("exemplar", "name"), ("exemplar", "sha256
          ("synthesis", "subgrid"), ("synthesis", "kappa"), ("synthesis", "corrected"), ("view",),
          ("view", "x"), ("view", "y"), ("view", "zoom"), ("display", "mode"), ("display", "level"),
          ("display", "magnify"), ("format",), ("synthesis",), ("randomness",), ("randomness", "canvas"),
-         ("randomness", "exemplar"), ("randomness", "canvas", "tiles"), ("randomness", "canvas", "tile")]
+         ("randomness", "exemplar"), ("randomness", "canvas", "tiles"), ("randomness", "canvas", "tile"),
+         ("lattice",), ("lattice", "origin"), ("lattice", "t1"), ("lattice", "t2"), ("lattice", "cells"),
+         ("lattice", "levels"), ("display", "geometry")]
 
 
 @st.composite
@@ -443,7 +447,12 @@ control_options = st.one_of(
     _opt("--features", st.sampled_from(["FEATS", "BADFEATS", "HUGEFEATS", "TEXT", "MISSING", "DEVZERO", "EPS", "DIR"])),
     _opt("--randomness-canvas", st.sampled_from(["CMAP", "TINY", "TEXT", "EPS", "MISSING", "FIFO"])),
     _opt("--randomness-exemplar", st.sampled_from(["CMAP", "TINY", "TEXT", "MISSING"])),
-    st.tuples(st.just("--randomness-origin"), INT_TEXT, INT_TEXT).map(list))
+    st.tuples(st.just("--randomness-origin"), INT_TEXT, INT_TEXT).map(list),
+    _opt("--lattice", st.sampled_from(["auto", "none", "NONE", "0,0,8,0,0,8,2,2", "1,1,8,0.5,-1,7.5,2,2",
+                                       "0,0,8,0,16,0,2,2", "0,0,8,0,0,8,3,2", "0,0,100,0,0,100,2,2", "1,2,3",
+                                       "nan,0,8,0,0,8,2,2", "0,0,1e300,0,0,8,2,2", "0,0,8,0,0,8,16,16", ""])),
+    _opt("--lattice-levels", INT_TEXT),
+    _opt("--geometry", st.sampled_from(["original", "rectified", "skewed"])))
 synth_options = st.one_of(synth_options, control_options)
 export_options = st.one_of(
     st.tuples(st.just("--rect"), INT_TEXT, INT_TEXT, SIZE_TEXT, SIZE_TEXT).map(list),
