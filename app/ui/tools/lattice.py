@@ -62,6 +62,7 @@ class LatticeTool(Tool):
                 self.message = str(exc)
                 return None
             self._image = (ex.sha256, px)
+            self.zoom = float(min(4.0, max(0.25, 2.0 ** round(math.log2(480.0 / max(px.shape[:2]))))))
             self._release(self._image_tex)
             self._image_tex = self._texture(px)
             self.detection = None
