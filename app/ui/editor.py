@@ -54,6 +54,7 @@ REST_BUDGET_S = 0.060        # refining at rest: more work per frame, still a li
 PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
 INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
+IDLE_FPS = 0.25              # frames per second with nothing to do (input wakes the editor at once)
 
 
 class Editor:
@@ -117,7 +118,11 @@ class Editor:
         p.imgui_window_params.default_imgui_window_type = hello_imgui.DefaultImGuiWindowType.no_default_window
         p.ini_disable = True
         p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
-        p.fps_idling.fps_idle = 20.0
+        # Idle means idle: with nothing to refine and no job, the runner waits for
+        # events (input wakes it at once) and draws one frame every few seconds
+        # (the autosave clock); working or refining turns idling off (_after_frame).
+        p.fps_idling.fps_idle = IDLE_FPS
+        p.fps_idling.fps_idling_mode = hello_imgui.FpsIdlingMode.sleep
         p.callbacks.post_init = self.post_init
         p.callbacks.show_gui = self.gui
         p.callbacks.before_exit = self.before_exit
