@@ -23,7 +23,7 @@ sys.path.insert(0, HERE)
 
 from imgui_bundle.immapp import testing
 
-from app.ui.editor import Editor
+from infinitex.app.ui.editor import Editor
 
 
 def main(argv=None) -> int:
@@ -102,7 +102,7 @@ def main(argv=None) -> int:
             print(f"{k:<14}{v['frames']:>8}{v['frames_with_an_edit']:>7}{v['fps_mean']:>8.1f}{v['frame_ms_median']:>11.1f}"
                   f"{v['frame_ms_p90']:>9.1f}{v['frame_ms_max']:>9.1f}{v['refine_after_release_s']:>10.2f}")
     if args.json:
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(results, indent=1).encode())
     return 0
 

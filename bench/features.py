@@ -30,13 +30,13 @@ def pan_cost(features: int, frames: int = 64) -> float:
     """Mean ms per frame panning a 512^2 viewport 8 px per frame (headless)."""
     import numpy as np
 
-    from engine.analysis import analyze
-    from engine.controls import Controls, Feature
-    from engine.exemplar import load_exemplar
-    from engine.params import SynthParams
-    from engine.pyramid import Rect
-    from engine.synth import Synthesizer
-    an = analyze(load_exemplar(os.path.join(HERE, "assets", "gravel.png")))
+    from infinitex.engine.analysis import analyze
+    from infinitex.engine.controls import Controls, Feature
+    from infinitex.engine.exemplar import load_exemplar
+    from infinitex.engine.params import SynthParams
+    from infinitex.engine.pyramid import Rect
+    from infinitex.engine.synth import Synthesizer
+    an = analyze(load_exemplar(os.path.join(HERE, "infinitex", "assets", "gravel.png")))
     rng = np.random.default_rng(1)
     feats = tuple(Feature((int(rng.integers(0, an.size)), int(rng.integers(0, an.size))),
                           (int(rng.integers(-4000, 4000)), int(rng.integers(-4000, 4000))), 16, 48)
@@ -59,7 +59,7 @@ def pan_cost(features: int, frames: int = 64) -> float:
 def drag_in_editor(steps: int) -> dict:
     from imgui_bundle.immapp import testing
 
-    from app.ui.editor import Editor
+    from infinitex.app.ui.editor import Editor
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
     ed = Editor(recover=False)
@@ -157,7 +157,7 @@ def main(argv=None) -> int:
     print(f"Panning 512^2 at 8 px/frame: {res['pan_ms_no_features']:.1f} ms/frame without features, "
           f"{res['pan_ms_1000_features']:.1f} ms/frame with 1,000 ({res['pan_ratio']:.2f}x)")
     if args.json:
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(res, indent=1).encode())
     return 0
 

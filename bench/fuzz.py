@@ -114,7 +114,7 @@ def main(argv: list[str]) -> int:
         print(f"| {r['target']} | {r['cases']} | {r['accepted']} | {r['refused']} | {r['crash']} | {r['hang']} | "
               f"{r['median_ms']} | {r['max_ms']} | {r['peak_mb']:.0f} | {r['seconds']} |")
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-    from engine.safeio import atomic_write
+    from infinitex.engine.safeio import atomic_write
     atomic_write(args.json, json.dumps(dict(cases_per_target=args.cases, seed=args.seed, results=results),
                                        indent=1).encode())
     bad = sum(r.get("crash", 0) + r.get("hang", 0) for r in results) + sum("error" in r for r in results)

@@ -108,7 +108,7 @@ def main(argv=None) -> int:
               f"({len(w)} motions)")
     if args.json:
         sys.path.insert(0, HERE)
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(r, indent=1).encode())
     return 0
 

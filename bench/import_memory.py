@@ -24,7 +24,7 @@ ROOT = os.path.dirname(HERE)
 CHILD = """
 import json, sys, time
 sys.path.insert(0, {root!r})
-from engine.exemplar import ExemplarError, load_exemplar
+from infinitex.engine.exemplar import ExemplarError, load_exemplar
 def hwm():  # peak RSS of this process image (ru_maxrss would include the parent's peak)
     for line in open("/proc/self/status"):
         if line.startswith("VmHWM:"):
@@ -86,7 +86,7 @@ def main(argv: list[str]) -> int:
     p.add_argument("--json", default=os.path.join(HERE, "results", "import-memory.json"))
     args = p.parse_args(argv)
     sys.path.insert(0, ROOT)
-    from engine.exemplar import IMPORT_BUDGET, import_cost
+    from infinitex.engine.exemplar import IMPORT_BUDGET, import_cost
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for label, path, mode, fmt in make_cases(args.side, folder):
@@ -100,7 +100,7 @@ def main(argv: list[str]) -> int:
     print("|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['image']} | {r['file_mb']} | {r['estimate_mb']} | {r['used_mb']} | {r['outcome']} | {r['seconds']} |")
-    from engine.safeio import atomic_write
+    from infinitex.engine.safeio import atomic_write
     atomic_write(args.json, json.dumps(dict(budget_mb=IMPORT_BUDGET >> 20, date=time.strftime("%Y-%m-%d"),
                                             rows=rows), indent=1).encode())
     return 0

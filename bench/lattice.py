@@ -38,10 +38,10 @@ SHARED = os.path.join(os.path.dirname(HERE), "shared", "exemplars")
 
 from lattice_gen import bricks, lattice_error, near_regular, random_basis, stochastic, tiles  # noqa: E402
 
-from engine.analysis import AnalysisSettings, analyze  # noqa: E402
-from engine.controls import Controls  # noqa: E402
-from engine.exemplar import from_array, load_full, to_u8  # noqa: E402
-from engine.lattice import (  # noqa: E402
+from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
+from infinitex.engine.controls import Controls  # noqa: E402
+from infinitex.engine.exemplar import from_array, load_full, to_u8  # noqa: E402
+from infinitex.engine.lattice import (  # noqa: E402
     autocorrelation_at,
     choose_block,
     detect,
@@ -49,10 +49,10 @@ from engine.lattice import (  # noqa: E402
     rectified_exemplar,
     render_original,
 )
-from engine.params import SynthParams  # noqa: E402
-from engine.pyramid import Rect  # noqa: E402
-from engine.safeio import atomic_write  # noqa: E402
-from engine.synth import Synthesizer  # noqa: E402
+from infinitex.engine.params import SynthParams  # noqa: E402
+from infinitex.engine.pyramid import Rect  # noqa: E402
+from infinitex.engine.safeio import atomic_write  # noqa: E402
+from infinitex.engine.synth import Synthesizer  # noqa: E402
 
 
 def detection_times() -> dict:

@@ -27,7 +27,7 @@ sys.path.insert(0, HERE)
 
 from imgui_bundle.immapp import testing  # noqa: E402
 
-from app.ui.editor import Editor  # noqa: E402
+from infinitex.app.ui.editor import Editor  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -53,7 +53,7 @@ def main(argv=None) -> int:
         dabs_at.append(ed.tools[1].dabs)
         pixels_at.append(sum(updates))
         if full_view == [-1]:  # asked by the test (GL calls belong in the frame, on the GL thread)
-            from engine.pyramid import Pyramid
+            from infinitex.engine.pyramid import Pyramid
             s = ed.session
             fresh = Pyramid(s.gpu, s.synth.gan, s.params, scrolling=False, controls=s.controls)
             fresh.request(ed.frame.level, ed.frame.want)
@@ -139,7 +139,7 @@ def main(argv=None) -> int:
           f"{results['pixels_per_dab_median']:.0f} / {results['pixels_per_dab_p90']:.0f} | {results['full_view_pixels']} | "
           f"{results['fewer_pixels_than_full']:.1f}x | {results['fps_during_stroke']:.1f} |")
     if args.json:
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(results, indent=1).encode())
     return 0
 

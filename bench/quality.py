@@ -47,11 +47,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from bench.measures import all_measures  # noqa: E402
-from engine.analysis import analyze  # noqa: E402
-from engine.analysis import AnalysisSettings  # noqa: E402
-from engine.controls import Controls  # noqa: E402
-from engine.exemplar import PIL_MODES, load_exemplar, load_full, to_u8, write_png  # noqa: E402
-from engine.lattice import (  # noqa: E402
+from infinitex.engine.analysis import analyze  # noqa: E402
+from infinitex.engine.analysis import AnalysisSettings  # noqa: E402
+from infinitex.engine.controls import Controls  # noqa: E402
+from infinitex.engine.exemplar import PIL_MODES, load_exemplar, load_full, to_u8, write_png  # noqa: E402
+from infinitex.engine.lattice import (  # noqa: E402
     autocorrelation_at,
     choose_block,
     detect,
@@ -59,8 +59,8 @@ from engine.lattice import (  # noqa: E402
     rectified_exemplar,
     render_original,
 )
-from engine.pyramid import Rect  # noqa: E402
-from engine.synth import Synthesizer  # noqa: E402
+from infinitex.engine.pyramid import Rect  # noqa: E402
+from infinitex.engine.synth import Synthesizer  # noqa: E402
 
 ORIGIN = (10007, -20011)
 NEAR_REGULAR = ("brick", "reptile_skin")  # below the detector's threshold: the best guess is used
@@ -218,7 +218,7 @@ def main(argv=None) -> int:
     write_png(args.sheet, np.concatenate(rows, axis=0))
     print(f"contact sheet (exemplar | ours | tiled | peer | ours, lattice mode): {args.sheet}")
     if args.json:
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(results, indent=1).encode())
     return 0
 

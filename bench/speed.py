@@ -33,8 +33,8 @@ import json, resource, sys, time
 import numpy as np
 from PIL import Image
 sys.path.insert(0, {root!r})
-from engine.exemplar import load_exemplar, from_array
-from engine.analysis import analyze
+from infinitex.engine.exemplar import load_exemplar, from_array
+from infinitex.engine.analysis import analyze
 ex = load_exemplar({path!r})
 size = {size}
 img = np.stack([np.asarray(Image.fromarray(ex.pixels[:, :, c], mode="F").resize((size, size), Image.LANCZOS))
@@ -67,14 +67,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small analyses and fewer runs (< 1 minute)")
     ap.add_argument("--json", metavar="OUT.json")
-    ap.add_argument("--exemplar", default=os.path.join(ROOT, "assets", "gravel.png"),
+    ap.add_argument("--exemplar", default=os.path.join(ROOT, "infinitex", "assets", "gravel.png"),
                     help="exemplar resampled to each analysis size and used for synthesis")
     args = ap.parse_args(argv)
 
-    from engine.analysis import analyze
-    from engine.exemplar import load_exemplar
-    from engine.pyramid import Rect
-    from engine.synth import Synthesizer
+    from infinitex.engine.analysis import analyze
+    from infinitex.engine.exemplar import load_exemplar
+    from infinitex.engine.pyramid import Rect
+    from infinitex.engine.synth import Synthesizer
 
     os.environ.setdefault("INFINITEX_CACHE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     sizes = (64, 128) if args.quick else (64, 128, 256, 512)
@@ -141,7 +141,7 @@ def main(argv=None) -> int:
     for k, v in rows:
         print(f"{k:<{width}}  {v}")
     if args.json:
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(res, indent=2).encode())
     return 0
 

@@ -14,19 +14,19 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from engine.analysis import analyze  # noqa: E402
-from engine.controls import NEUTRAL, CanvasField, Controls  # noqa: E402
-from engine.exemplar import load_exemplar, to_u8, write_png  # noqa: E402
-from engine.params import SynthParams  # noqa: E402
-from engine.pyramid import Rect  # noqa: E402
-from engine.synth import Synthesizer  # noqa: E402
+from infinitex.engine.analysis import analyze  # noqa: E402
+from infinitex.engine.controls import NEUTRAL, CanvasField, Controls  # noqa: E402
+from infinitex.engine.exemplar import load_exemplar, to_u8, write_png  # noqa: E402
+from infinitex.engine.params import SynthParams  # noqa: E402
+from infinitex.engine.pyramid import Rect  # noqa: E402
+from infinitex.engine.synth import Synthesizer  # noqa: E402
 
 
 def main(out: str) -> None:
     w, h, gap = 384, 192, 6
     columns = []
     for name in ("brick", "gravel"):
-        ex = load_exemplar(os.path.join(ROOT, "assets", f"{name}.png"))
+        ex = load_exemplar(os.path.join(ROOT, "infinitex", "assets", f"{name}.png"))
         an = analyze(ex)
         field = np.full((h, w), NEUTRAL, np.uint16)
         field[:, : w // 3] = 0

@@ -24,11 +24,11 @@ settings.register_profile("long", max_examples=10_000, deadline=None, database=N
                           suppress_health_check=_QUIET, print_blob=True)
 settings.load_profile("ci")
 
-from engine.analysis import AnalysisSettings, analyze  # noqa: E402
-from engine.exemplar import from_array, load_exemplar  # noqa: E402
-from engine.gpu import Gpu  # noqa: E402
+from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
+from infinitex.engine.exemplar import from_array, load_exemplar  # noqa: E402
+from infinitex.engine.gpu import Gpu  # noqa: E402
 
-ASSETS = os.path.join(ROOT, "assets")
+ASSETS = os.path.join(ROOT, "infinitex", "assets")
 
 
 @pytest.fixture(scope="session")

@@ -31,7 +31,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from app.document import (  # noqa: E402
+from infinitex.app.document import (  # noqa: E402
     DISPLAY_MODES,
     MAGNIFY_FILTERS,
     MAX_ZOOM,
@@ -44,7 +44,7 @@ from app.document import (  # noqa: E402
     load_project,
     project_to_json,
 )
-from engine.exemplar import (  # noqa: E402
+from infinitex.engine.exemplar import (  # noqa: E402
     FIT_MODES,
     MAX_SIZE,
     MIN_SIZE,
@@ -274,8 +274,8 @@ def tiny_exemplar() -> bytes:
 
 def base_project() -> dict:
     """A valid project with both painted randomness fields and a lattice (so mutations reach them)."""
-    from engine.controls import CanvasField, ExemplarField
-    from engine.lattice import Lattice
+    from infinitex.engine.controls import CanvasField, ExemplarField
+    from infinitex.engine.lattice import Lattice
     c, _ = CanvasField().painted(10.0, 20.0, 12.0, 0)
     e = ExemplarField.blank(32).painted(8, 8, 5, 65535)
     doc = Document(ExemplarSource.from_bytes(tiny_exemplar(), "tiny.png"), randomness_canvas=c, randomness_exemplar=e,
@@ -526,7 +526,7 @@ def _resolve(arg: str, root: str) -> str:
 
 def run_cli(argv: list[str], root: str, timeout: float = 60.0) -> str:
     """Run ``main.py`` in-process on ``argv`` (paths resolved in ``root``)."""
-    from main import main
+    from infinitex.__main__ import main
     real = [_resolve(a, root) for a in argv]
     fifo = os.path.join(root, "FIFO")
     before = {e.name for e in os.scandir(root)}

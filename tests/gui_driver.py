@@ -18,7 +18,7 @@ sys.path.insert(0, HERE)
 from imgui_bundle import imgui
 from imgui_bundle.immapp import testing
 
-from app.ui.editor import Editor
+from infinitex.app.ui.editor import Editor
 
 
 def main(out: str) -> int:
@@ -211,7 +211,7 @@ def main(out: str) -> int:
         if ok:
             from PIL import Image
 
-            from app.session import decode_coords
+            from infinitex.app.session import decode_coords
             coords = decode_coords(np.asarray(Image.open(os.path.join(out, "tile_coords.png"))))
             check("tile coordinates are exemplar positions", coords.shape == (64, 64, 2)
                   and coords.min() >= 0 and coords.max() < ed.session.analysis.size, str(coords.shape))
@@ -232,8 +232,8 @@ def main(out: str) -> int:
         # A project whose exemplar file is outside its folder: asked first.
         import json
 
-        from app.document import Document, ExemplarSource, Project, project_to_json
-        gravel = os.path.join(HERE, "assets", "gravel.png")
+        from infinitex.app.document import Document, ExemplarSource, Project, project_to_json
+        gravel = os.path.join(HERE, "infinitex", "assets", "gravel.png")
         os.makedirs(os.path.join(out, "sub"), exist_ok=True)
         outside = os.path.join(out, "sub", "outside.itex")
         d = project_to_json(Project(Document(ExemplarSource.from_file(gravel), seed=77)), embed=False)

@@ -22,8 +22,8 @@ from imgui_bundle import imgui
 from imgui_bundle.immapp import testing
 from lattice_gen import bricks
 
-from app.ui.editor import Editor
-from engine.exemplar import to_u8, write_png
+from infinitex.app.ui.editor import Editor
+from infinitex.engine.exemplar import to_u8, write_png
 
 
 def main(out: str) -> int:

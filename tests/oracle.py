@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine import fixed
-from engine.analysis import Analysis
-from engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
-from engine.params import SynthParams, subpass_order
+from infinitex.engine import fixed
+from infinitex.engine.analysis import Analysis
+from infinitex.engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
+from infinitex.engine.params import SynthParams, subpass_order
 
 
 def field_values(controls: Controls, an: Analysis, params: SynthParams, level: int,
@@ -47,7 +47,7 @@ def field_values(controls: Controls, an: Analysis, params: SynthParams, level: i
 
 def _dense_canvas(c, x0: int, y0: int, w: int, h: int) -> np.ndarray:
     """The finest canvas field over a rectangle, pixel by pixel from the tiles."""
-    from engine.controls import TILE
+    from infinitex.engine.controls import TILE
     ys, xs = np.mgrid[y0:y0 + h, x0:x0 + w]
     out = np.full((h, w), NEUTRAL, np.int64)
     for (tx, ty), t in c.tiles.items():
@@ -231,7 +231,7 @@ def reach_bound(pyr, r):
     """A finest-level bound of what a change of the controls inside rectangle
     ``r`` can alter in pyramid ``pyr`` (its levels' correction margins, doubled
     from each level to the next): outside it, local updates must change nothing."""
-    from engine.pyramid import Rect
+    from infinitex.engine.pyramid import Rect
     L = pyr.an.L
     cur = None
     for level in range(L + 1):

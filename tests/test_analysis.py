@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from conftest import periodic_noise
 
-from engine.analysis import (
+from infinitex.engine.analysis import (
     AnalysisCancelled,
     AnalysisSettings,
     analysis_key,
@@ -13,7 +13,7 @@ from engine.analysis import (
     border_margin,
     gaussian_stack,
 )
-from engine.exemplar import from_array
+from infinitex.engine.exemplar import from_array
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-GRAVEL = os.path.join(ROOT, "assets", "gravel.png")
+GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 
 def run(*args):
@@ -73,7 +73,7 @@ def test_bad_input_one_line_no_traceback(tmp_path, args, words):
 def test_no_gl_gives_a_clear_message(tmp_path, monkeypatch, capsys):
     import moderngl
 
-    from engine import cli
+    from infinitex.engine import cli
 
     def broken(*args, **kwargs):
         raise Exception("libEGL.so not loaded")

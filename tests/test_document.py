@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import pytest
 
-from app.document import (
+from infinitex.app.document import (
     EMBED_LIMIT,
     Autosave,
     Display,
@@ -21,7 +21,7 @@ from app.document import (
     save_project,
 )
 
-ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets")
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "infinitex", "assets")
 
 
 @pytest.fixture

@@ -4,10 +4,10 @@ import numpy as np
 import oracle
 import pytest
 
-from engine.controls import Controls, Feature
-from engine.params import SynthParams
-from engine.pyramid import Rect
-from engine.synth import Synthesizer
+from infinitex.engine.controls import Controls, Feature
+from infinitex.engine.params import SynthParams
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
 
 FAR = 2 ** 30
 
@@ -167,9 +167,9 @@ def test_features_in_projects_and_on_the_command_line(tmp_path):
 
     from PIL import Image
 
-    from app.document import Document, ExemplarSource, Project, ProjectError, load_project, save_project
+    from infinitex.app.document import Document, ExemplarSource, Project, ProjectError, load_project, save_project
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    gravel = os.path.join(root, "assets", "gravel.png")
+    gravel = os.path.join(root, "infinitex", "assets", "gravel.png")
     feats = (Feature((60, 40), (100, 80), 20, 40), Feature((10, 100), (150, 60), 10, 30, (0, 7)))
     doc = Document(ExemplarSource.from_file(gravel), features=feats)
     p = tmp_path / "p.itex"

@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 
 import fuzzing as F
-from app.document import (
+from infinitex.app.document import (
     Autosave,
     Document,
     ExemplarOutside,
@@ -27,7 +27,7 @@ from app.document import (
     save_project,
 )
 from bench.import_memory import measure_import
-from engine.exemplar import (
+from infinitex.engine.exemplar import (
     DECODERS,
     HIRES_MAX,
     IMPORT_BUDGET,
@@ -36,7 +36,7 @@ from engine.exemplar import (
     load_exemplar,
     load_exemplar_bytes,
 )
-from engine.safeio import (
+from infinitex.engine.safeio import (
     TMP_SUFFIX,
     ReadError,
     WriteError,
@@ -47,7 +47,7 @@ from engine.safeio import (
 )
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-GRAVEL = os.path.join(ROOT, "assets", "gravel.png")
+GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 
 def encoded(img: Image.Image, fmt: str, **kw) -> bytes:
@@ -249,7 +249,7 @@ def test_atomic_write_refuses_devices_fifos_and_folders(tmp_path):
 
 
 def test_atomic_write_gives_ordinary_permissions_and_follows_links(tmp_path, monkeypatch):
-    import engine.safeio as sio
+    import infinitex.engine.safeio as sio
     old = os.umask(0o027)
     try:
         assert sio._read_umask() == 0o027  # read without changing it
@@ -287,7 +287,7 @@ def test_killed_writes_keep_the_old_file_and_their_temporaries_are_cleaned(tmp_p
     code = textwrap.dedent(f"""
         import sys, time
         sys.path.insert(0, {ROOT!r})
-        from engine.safeio import atomic_write
+        from infinitex.engine.safeio import atomic_write
         def slow(f):
             f.write(b"half"); f.flush(); print("writing", flush=True); time.sleep(60)
         atomic_write({str(target)!r}, writer=slow)

@@ -6,12 +6,12 @@ import oracle
 import pytest
 from lattice_gen import bricks, lattice_error, near_regular, random_basis, stochastic, tiles
 
-from engine.analysis import AnalysisSettings, analyze
-from engine.controls import Controls
-from engine.lattice import Lattice, LatticeError, autocorrelation_at, detect, rectified_exemplar
-from engine.params import SynthParams
-from engine.pyramid import Rect
-from engine.synth import Synthesizer
+from infinitex.engine.analysis import AnalysisSettings, analyze
+from infinitex.engine.controls import Controls
+from infinitex.engine.lattice import Lattice, LatticeError, autocorrelation_at, detect, rectified_exemplar
+from infinitex.engine.params import SynthParams
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
 
 FAR = 2 ** 30
 
@@ -215,7 +215,7 @@ def _cli(*args):
 def test_cli_prints_the_lattice_and_reuses_it(tmp_path):
     from PIL import Image
 
-    from engine.exemplar import to_u8, write_png
+    from infinitex.engine.exemplar import to_u8, write_png
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18, angle=20)
     src = str(tmp_path / "bricks.png")
     write_png(src, to_u8(img))
@@ -245,13 +245,13 @@ def test_cli_prints_the_lattice_and_reuses_it(tmp_path):
 def test_cli_reports_no_lattice_on_a_stochastic_image(tmp_path):
     import os
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    r = _cli("synth", os.path.join(root, "assets", "gravel.png"), "--lattice", "auto", "-o", str(tmp_path / "g.png"), "-q")
+    r = _cli("synth", os.path.join(root, "infinitex", "assets", "gravel.png"), "--lattice", "auto", "-o", str(tmp_path / "g.png"), "-q")
     assert r.returncode == 0 and r.stdout.strip() == "lattice: none"
 
 
 def test_lattice_in_projects():
-    from app.document import Document, ExemplarSource, Project, ProjectError, project_from_json, project_to_json
-    from engine.exemplar import to_u8
+    from infinitex.app.document import Document, ExemplarSource, Project, ProjectError, project_from_json, project_to_json
+    from infinitex.engine.exemplar import to_u8
     import io
 
     from PIL import Image
@@ -283,11 +283,11 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
 
     from PIL import Image
 
-    from app.document import Document, ExemplarSource
-    from app.session import ExportJob, Frame, Session
-    from engine.controls import CanvasField
-    from engine.exemplar import to_u8
-    from engine.pyramid import SynthesisError
+    from infinitex.app.document import Document, ExemplarSource
+    from infinitex.app.session import ExportJob, Frame, Session
+    from infinitex.engine.controls import CanvasField
+    from infinitex.engine.exemplar import to_u8
+    from infinitex.engine.pyramid import SynthesisError
 
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
     buf = io.BytesIO()
@@ -326,7 +326,7 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
     with pytest.raises(SynthesisError, match="whole cells"):
         ExportJob(s, Rect(0, 0, 32, 32), str(tmp_path / "t.png"), toroidal=32)
     s.release()
-    from app.document import Project, save_project
+    from infinitex.app.document import Project, save_project
     proj = tmp_path / "bricks.itex"
     save_project(str(proj), Project(d))
     r = _cli("export", str(proj), "-o", str(tmp_path / "cli.png"), "--rect", "0", "0", "160", "96", "-q")

@@ -16,7 +16,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def _gravel():
-    return np.asarray(Image.open(os.path.join(ROOT, "assets", "gravel.png")), dtype=np.float64) / 255.0
+    return np.asarray(Image.open(os.path.join(ROOT, "infinitex", "assets", "gravel.png")), dtype=np.float64) / 255.0
 
 
 def test_tiled_exemplar_has_near_zero_energy_and_maximal_repetition():

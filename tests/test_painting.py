@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.document import (
+from infinitex.app.document import (
     Document,
     ExemplarSource,
     History,
@@ -21,13 +21,13 @@ from app.document import (
     project_to_json,
     save_project,
 )
-from app.session import ExportJob, Frame, Session
-from engine.controls import CanvasField, ExemplarField
-from engine.pyramid import Rect
-from engine.synth import Synthesizer
+from infinitex.app.session import ExportJob, Frame, Session
+from infinitex.engine.controls import CanvasField, ExemplarField
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-GRAVEL = os.path.join(ROOT, "assets", "gravel.png")
+GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ import oracle
 import pytest
 
 from bench.measures import verbatim_regions
-from engine.controls import NEUTRAL, TILE, CanvasField, Controls, ExemplarField, modulated_rq
-from engine.params import SynthParams
-from engine.pyramid import Rect
-from engine.synth import Synthesizer
+from infinitex.engine.controls import NEUTRAL, TILE, CanvasField, Controls, ExemplarField, modulated_rq
+from infinitex.engine.params import SynthParams
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
 
 FAR = 2 ** 30
 
@@ -40,7 +40,7 @@ def test_modulation_arithmetic(gpu):
     # The shader's function (common.glsl) equals the numpy one on 65,536 inputs.
     import moderngl
 
-    from engine.gpu import GLSL_VERSION, read_shader
+    from infinitex.engine.gpu import GLSL_VERSION, read_shader
     rng = np.random.default_rng(0)
     n = 256
     rq = rng.integers(0, 1025, (n, n))

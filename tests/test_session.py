@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.document import Display, Document, ExemplarSource, Project, View, save_project
-from app.render.canvas import Canvas
-from app.session import (
+from infinitex.app.document import Display, Document, ExemplarSource, Project, View, save_project
+from infinitex.app.render.canvas import Canvas
+from infinitex.app.session import (
     ExportJob,
     Session,
     colors_u8,
@@ -19,7 +19,7 @@ from app.session import (
     encode_coords,
     frame_for,
 )
-from engine.pyramid import Rect, SynthesisError
+from infinitex.engine.pyramid import Rect, SynthesisError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -27,7 +27,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 @pytest.fixture(scope="module")
 def session(gpu):
     s = Session(gpu)
-    s.load_now(Document(ExemplarSource.from_file(os.path.join(ROOT, "assets", "gravel.png"))))
+    s.load_now(Document(ExemplarSource.from_file(os.path.join(ROOT, "infinitex", "assets", "gravel.png"))))
     yield s
     s.release()
 
@@ -121,7 +121,7 @@ def test_coordinate_map_encoding_is_exact():
 
 
 def test_export_cli_matches_the_editor_export(session, tmp_path):
-    doc = Document(ExemplarSource.from_file(os.path.join(ROOT, "assets", "gravel.png")))
+    doc = Document(ExemplarSource.from_file(os.path.join(ROOT, "infinitex", "assets", "gravel.png")))
     doc = replace(doc, seed=0)
     proj = tmp_path / "p.itex"
     save_project(str(proj), Project(doc, View(10.0, 20.0, 1.0)))

@@ -5,9 +5,9 @@ import numpy as np
 import oracle
 import pytest
 
-from engine.params import SynthParams, correction_margins
-from engine.pyramid import Rect, SynthesisError
-from engine.synth import Synthesizer
+from infinitex.engine.params import SynthParams, correction_margins
+from infinitex.engine.pyramid import Rect, SynthesisError
+from infinitex.engine.synth import Synthesizer
 
 FAR = 2 ** 30
 
@@ -191,7 +191,7 @@ def test_bad_requests_are_rejected(synths, analyses):
 def test_several_headless_contexts_in_one_process(analyses, gpu):
     """A second engine (its own context, created and released in between, as an
     in-process CLI run does) leaves the first one working."""
-    from engine.gpu import Gpu
+    from infinitex.engine.gpu import Gpu
     an = analyses["gravel-appearance"]
     synth = Synthesizer(an, gpu=gpu)
     before = synth.window(Rect.of(5, 7, 40, 30))

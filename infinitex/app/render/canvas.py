@@ -14,9 +14,9 @@ import moderngl
 import numpy as np
 from PIL import Image
 
-from engine.exemplar import to_u8
-from engine.gpu import Gpu, read_shader
-from engine.pyramid import Pyramid, set_uniforms
+from infinitex.engine.exemplar import to_u8
+from infinitex.engine.gpu import Gpu, read_shader
+from infinitex.engine.pyramid import Pyramid, set_uniforms
 
 from ..document import Display, View
 from ..session import Frame, level_rect

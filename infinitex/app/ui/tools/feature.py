@@ -21,8 +21,8 @@ from dataclasses import replace
 
 from imgui_bundle import imgui
 
-from engine.controls import MAX_FEATURE_RADIUS, Feature
-from engine.pyramid import Rect, SynthesisError
+from infinitex.engine.controls import MAX_FEATURE_RADIUS, Feature
+from infinitex.engine.pyramid import Rect, SynthesisError
 
 from ...document import View
 from . import Tool

@@ -16,9 +16,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
-from engine.controls import NO_CONTROLS, Controls
-from engine.exemplar import (
+from infinitex.engine.analysis import Analysis, AnalysisCancelled, AnalysisSettings, analyze
+from infinitex.engine.controls import NO_CONTROLS, Controls
+from infinitex.engine.exemplar import (
     Exemplar,
     ExemplarError,
     decode_full,
@@ -26,13 +26,13 @@ from engine.exemplar import (
     to_u8,
     write_png,
 )
-from engine.gpu import Gpu
-from engine.lattice import LatticeError, original_geometry_box, rectified_exemplar, render_original
-from engine.params import SynthParams
-from engine.pyramid import Pyramid, Rect, SynthesisError
-from engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
-from engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
-from engine.synth import Synthesizer
+from infinitex.engine.gpu import Gpu
+from infinitex.engine.lattice import LatticeError, original_geometry_box, rectified_exemplar, render_original
+from infinitex.engine.params import SynthParams
+from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
+from infinitex.engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
+from infinitex.engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
+from infinitex.engine.synth import Synthesizer
 
 from .document import Document, View
 

@@ -20,9 +20,9 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
     immapp,
 )
 
-from engine.gpu import GLUnavailable, Gpu
-from engine.pyramid import Rect, SynthesisError
-from engine.safeio import ReadError, WriteError, check_output, printable
+from infinitex.engine.gpu import GLUnavailable, Gpu
+from infinitex.engine.pyramid import Rect, SynthesisError
+from infinitex.engine.safeio import ReadError, WriteError, check_output, printable
 
 from ..document import (
     PROJECT_SUFFIX,
@@ -135,7 +135,7 @@ class Editor:
         if self.screenshot:
             import numpy as np
 
-            from engine.exemplar import write_png
+            from infinitex.engine.exemplar import write_png
             shot = hello_imgui.final_app_window_screenshot()
             if shot is None or not getattr(shot, "size", 0):
                 print("infinitex: the screenshot could not be taken.")

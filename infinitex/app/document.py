@@ -28,8 +28,8 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from engine.analysis import MODELS
-from engine.controls import (
+from infinitex.engine.analysis import MODELS
+from infinitex.engine.controls import (
     TILE,
     CanvasField,
     Controls,
@@ -39,10 +39,10 @@ from engine.controls import (
     features_to_json,
     fit_features,
 )
-from engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
-from engine.lattice import Lattice, LatticeError
-from engine.params import DEFAULT_JITTER, SynthParams
-from engine.safeio import (
+from infinitex.engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
+from infinitex.engine.lattice import Lattice, LatticeError
+from infinitex.engine.params import DEFAULT_JITTER, SynthParams
+from infinitex.engine.safeio import (
     JSONLimitError,
     ReadError,
     WriteError,

@@ -46,6 +46,12 @@ class Synthesizer:
     def L(self) -> int:
         return self.analysis.L
 
+    def __enter__(self) -> "Synthesizer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
     def set_params(self, params: SynthParams, controls: Controls | None = None) -> None:
         params.validate(self.L)
         if controls is not None:

@@ -7,7 +7,7 @@ import math
 import moderngl
 import numpy as np
 
-from engine.controls import NEUTRAL, CanvasField, ExemplarField
+from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField
 
 MAX_OVERLAY = 2048  # texels a side
 

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 from imgui_bundle import imgui
 
-from engine.params import DEFAULT_JITTER, FIRST_CORRECTED_LEVEL
-from engine.pyramid import Rect
+from infinitex.engine.params import DEFAULT_JITTER, FIRST_CORRECTED_LEVEL
+from infinitex.engine.pyramid import Rect
 
 from ..document import DISPLAY_MODES, View
 from .dialogs import IMAGE_FILTER, PNG_FILTER

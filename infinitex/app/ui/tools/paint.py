@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 from imgui_bundle import imgui
 
-from engine.controls import NEUTRAL, CanvasField, ExemplarField
+from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField
 
 from . import Tool
 

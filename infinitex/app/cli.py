@@ -1,4 +1,4 @@
-"""``python main.py export PROJECT -o OUT.png``: render a project headless.
+"""``infinitex export PROJECT -o OUT.png``: render a project headless.
 
 Shares the editor's export code (``app.session.ExportJob``), so the file is
 identical to what File > Export writes. Every argument is checked before any
@@ -10,11 +10,12 @@ import os
 import sys
 import time
 
-from engine.cli import (
+from infinitex.engine.cli import (
     EXIT_INPUT,
     EXIT_USAGE,
     CliError,
     Parser,
+    ProgressBar,
     _integer,
     add_lattice_args,
     add_randomness_args,
@@ -25,11 +26,11 @@ from engine.cli import (
     guarded,
     resolve_lattice,
 )
-from engine.safeio import ReadError, printable
+from infinitex.engine.safeio import ReadError, printable
 
 
 def build_parser() -> Parser:
-    p = Parser(prog="main.py export",
+    p = Parser(prog="infinitex export",
                description="Export a project's texture (a rectangle, its view, or a toroidal tile).")
     p.add_argument("project", help="an .itex project file (or an exemplar image: default settings)")
     p.add_argument("-o", "--output", required=True, help="output PNG (.png)")
@@ -51,7 +52,7 @@ def build_parser() -> Parser:
 
 def run_export(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
-    from engine.pyramid import Rect
+    from infinitex.engine.pyramid import Rect
 
     from .document import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
 
@@ -96,24 +97,24 @@ def run_export(argv: list[str]) -> int:
         check_window(rect.x0, rect.y0, w, h, "--size")
 
     # Decode and analyze before any GL: a bad exemplar fails fast.
-    from engine.analysis import AnalysisSettings, analyze
-    from engine.cli import _progress
-    from engine.exemplar import load_exemplar_bytes
-    from engine.gpu import Gpu
+    from infinitex.engine.analysis import AnalysisSettings, analyze
+    from infinitex.engine.cli import _progress
+    from infinitex.engine.exemplar import load_exemplar_bytes
+    from infinitex.engine.gpu import Gpu
 
     from .session import ExportJob, Session
     from dataclasses import replace
     check_lattice_args(args)
     if args.lattice:  # replaces the project's lattice ('none' removes it)
-        from engine.exemplar import decode_full
+        from infinitex.engine.exemplar import decode_full
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
         del image
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
     if doc.lattice is not None:
-        from engine.exemplar import decode_full
-        from engine.lattice import rectified_exemplar
+        from infinitex.engine.exemplar import decode_full
+        from infinitex.engine.lattice import rectified_exemplar
         ex = rectified_exemplar(decode_full(doc.exemplar.data, doc.exemplar.name), doc.lattice,
                                 source=doc.exemplar.name)
         if tor:
@@ -124,7 +125,7 @@ def run_export(argv: list[str]) -> int:
     else:
         ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
     if args.randomness_exemplar or args.randomness_canvas or args.features:  # these replace the project's
-        from engine.cli import randomness_controls
+        from infinitex.engine.cli import randomness_controls
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features)
@@ -144,16 +145,7 @@ def run_export(argv: list[str]) -> int:
 
 def _run(job, args, rect, renderer: str) -> int:
     t0 = time.perf_counter()
-    last = [0.0]
-
-    def progress(f: float) -> None:
-        now = time.monotonic()
-        if not args.quiet and (now - last[0] > 0.25 or f >= 1.0):
-            last[0] = now
-            sys.stderr.write(f"\rexport {f * 100:5.1f}%")
-            if f >= 1.0:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
+    progress = ProgressBar("export", args.quiet)
 
     try:
         job.run(progress)
@@ -167,7 +159,7 @@ def _run(job, args, rect, renderer: str) -> int:
 
 
 def main(argv: list[str]) -> int:
-    from engine.lattice import LatticeError
+    from infinitex.engine.lattice import LatticeError
 
     from .document import ProjectError
     return guarded(run_export, argv, (ProjectError, LatticeError, ValueError))

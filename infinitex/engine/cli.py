@@ -1,4 +1,4 @@
-"""Headless command line: ``python main.py synth EXEMPLAR -o OUT.png ...``.
+"""Headless command line: ``infinitex synth EXEMPLAR -o OUT.png ...``.
 
 Bad input gives a one-line message on stderr and a non-zero exit, never a
 traceback: arguments (output names and extensions, sizes, ranges) are all
@@ -92,7 +92,7 @@ def check_toroidal(n: int, flag: str = "--toroidal") -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = Parser(prog="main.py synth",
+    p = Parser(prog="infinitex synth",
                                 description="Synthesize a window of the infinite texture of an exemplar.")
     p.add_argument("exemplar", help="exemplar image (PNG, JPEG, BMP, TIFF, WebP...)")
     p.add_argument("-o", "--output", required=True, help="output PNG (.png)")
@@ -218,28 +218,43 @@ def randomness_controls(args, fit: str, m: int, base=None):
     return Controls(e, c, feats).normalized()
 
 
-def _progress(quiet: bool):
-    last = [0.0]
+class ProgressBar:
+    """A progress bar on stderr (tqdm: percent, elapsed, time left, the current
+    step), or nothing when ``quiet``. Call it with a fraction in [0, 1] (and a
+    message); it closes itself at 1."""
 
-    def report(fraction: float, message: str) -> None:
-        now = time.monotonic()
-        if quiet or (now - last[0] < 0.25 and fraction < 1.0):
+    def __init__(self, what: str, quiet: bool):
+        self.bar = None
+        if not quiet:
+            from tqdm import tqdm
+            self.bar = tqdm(total=1000, desc=what, file=sys.stderr, mininterval=0.25, dynamic_ncols=True,
+                            bar_format="{desc} {percentage:3.0f}%|{bar}| {elapsed}<{remaining}{postfix}")
+
+    def __call__(self, fraction: float, message: str = "") -> None:
+        bar = self.bar
+        if bar is None:
             return
-        last[0] = now
-        sys.stderr.write(f"\ranalysis {fraction * 100:5.1f}%  {message:<40}")
+        n = int(round(1000 * min(1.0, max(0.0, fraction))))
+        if message:
+            bar.set_postfix_str(message[:40], refresh=False)
+        if n > bar.n:
+            bar.update(n - bar.n)
         if fraction >= 1.0:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-    return report
+            bar.close()
+            self.bar = None
+
+
+def _progress(quiet: bool) -> ProgressBar:
+    return ProgressBar("analysis", quiet)
 
 
 def run_synth(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
-    from engine.analysis import AnalysisSettings, analyze
-    from engine.exemplar import load_exemplar, to_u8, write_png
-    from engine.params import SynthParams
-    from engine.pyramid import Rect
-    from engine.synth import Synthesizer
+    from infinitex.engine.analysis import AnalysisSettings, analyze
+    from infinitex.engine.exemplar import load_exemplar, to_u8, write_png
+    from infinitex.engine.params import SynthParams
+    from infinitex.engine.pyramid import Rect
+    from infinitex.engine.synth import Synthesizer
 
     # Everything the arguments decide is checked before any work.
     w, h = args.size
@@ -262,8 +277,8 @@ def run_synth(argv: list[str]) -> int:
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
     lattice = image = None
     if args.lattice:
-        from engine.exemplar import load_full
-        from engine.lattice import rectified_exemplar
+        from infinitex.engine.exemplar import load_full
+        from infinitex.engine.lattice import rectified_exemplar
         image = load_full(args.exemplar)
         lattice = resolve_lattice(args.lattice, image, args.lattice_levels)
     if lattice is not None:
@@ -305,7 +320,7 @@ def run_synth(argv: list[str]) -> int:
         if args.toroidal:
             coords = synth.toroidal(w)
         elif original:
-            from engine.lattice import original_geometry_box
+            from infinitex.engine.lattice import original_geometry_box
             box = original_geometry_box(lattice, an.size, args.origin[0], args.origin[1], w, h)
             bw, bh = box[2] - box[0], box[3] - box[1]
             check_window(box[0], box[1], bw, bh, "--size (in the rectified geometry)")
@@ -316,7 +331,7 @@ def run_synth(argv: list[str]) -> int:
     finally:
         synth.release()
     if original:
-        from engine.lattice import render_original
+        from infinitex.engine.lattice import render_original
         source = ex.hires if ex.hires is not None else ex.pixels
         pixels = render_original(coords, box, lattice, an.size, source, args.origin[0], args.origin[1], w, h)
         write_png(args.output, to_u8(pixels))
@@ -334,10 +349,10 @@ def run_synth(argv: list[str]) -> int:
 def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
     """Run a command, turning every expected failure into one line on stderr
     and an exit code (never a traceback)."""
-    from engine.analysis import AnalysisCancelled
-    from engine.exemplar import ExemplarError
-    from engine.gpu import GLUnavailable
-    from engine.pyramid import SynthesisError
+    from infinitex.engine.analysis import AnalysisCancelled
+    from infinitex.engine.exemplar import ExemplarError
+    from infinitex.engine.gpu import GLUnavailable
+    from infinitex.engine.pyramid import SynthesisError
     # Decoders' warnings about damaged files (Pillow) would add lines of their
     # own; the one-line error says what matters.
     warnings.filterwarnings("ignore", module=r"PIL(\.|$)")

@@ -19,8 +19,8 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
-from engine.exemplar import ExemplarError, decode_full, to_u8
-from engine.lattice import Detection, Lattice, LatticeError, choose_block, detect
+from infinitex.engine.exemplar import ExemplarError, decode_full, to_u8
+from infinitex.engine.lattice import Detection, Lattice, LatticeError, choose_block, detect
 
 from ...render.canvas import _to_rgba
 from . import Tool

@@ -1,0 +1,85 @@
+"""Infinitex: infinite, controllable, example-based textures.
+
+The engine synthesizes *exemplar coordinates* for any window of an infinite
+canvas, on the GPU (OpenGL 3.3 core, headless through EGL), bit for bit the
+same whatever the window, its order or the machine. One call::
+
+    import infinitex as itx
+
+    img = itx.synthesize("gravel.png", size=(512, 512), origin=(10_000, -3_000), seed=7)
+    itx.write_png("gravel-512.png", img)           # uint8 (H, W, C)
+    tile = itx.tile("gravel.png", 256)              # a seamless 256 x 256 tile
+    bricks = itx.synthesize("bricks.png", size=(512, 512), lattice="auto")  # rows kept
+
+``synthesize(exemplar, size=(W, H), origin=(X, Y), *, seed=0, randomness=None,
+controls=NO_CONTROLS, lattice=None, geometry="original")``
+    ``exemplar`` is an image path, a float array in [0, 1] or an ``Exemplar``.
+    ``randomness``: r for every level, or one per level coarse to fine
+    (default 0.6). ``controls``: painted randomness and placed features
+    (``Controls``). ``lattice``: a ``Lattice``, ``"auto"`` or None.
+``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice=None)``
+    An n x n toroidal tile (n a power of two, 32 to 4096).
+
+Step by step (an analysis and a GL context made once, many windows)::
+
+    ex = itx.load_exemplar("gravel.png")            # fit rule "resize" (or fit="crop")
+    an = itx.analyze(ex)                            # CPU, cached on disk (INFINITEX_CACHE)
+    params = itx.SynthParams.default(an.L, seed=7)  # jitter per level, passes, kappa, period...
+    with itx.Synthesizer(an, params) as s:
+        coords = s.window(itx.Rect.of(0, 0, 256, 256))   # int32 (H, W, 2): exemplar (x, y)
+        colors = s.colors(coords)                        # float32 (H, W, C) in [0, 1]
+        seamless = s.toroidal(256)                       # coordinates of a toroidal tile
+
+Controls (one engine input, ``Controls``): ``CanvasField`` and
+``ExemplarField`` (painted randomness, uint16, 32768 = neutral; ``painted()``
+adds a dab), ``Feature`` (an exemplar spot placed on the canvas), ``Lattice``
+(``detect_lattice(image)``, ``rectified_exemplar(image, lattice)``; analyze
+with ``AnalysisSettings(lattice=(nx, ny))``). Projects: ``load_project``,
+``save_project``; the editor's exports: ``infinitex export``. Runnable
+examples of each capability are in ``examples/`` of the source tree.
+
+Command line: ``infinitex`` (the editor), ``infinitex synth``, ``infinitex
+export``, ``infinitex --version``.
+"""
+from __future__ import annotations
+
+import os as _os
+
+__version__ = "0.5.0"
+ASSETS = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "assets")  # bundled CC0 exemplars
+
+# Names resolved on first use (PEP 562), so ``import infinitex`` and
+# ``infinitex --version`` stay fast and need no GL.
+_EXPORTS = {
+    "synthesize": "api", "tile": "api",
+    "Exemplar": "engine.exemplar", "ExemplarError": "engine.exemplar", "load_exemplar": "engine.exemplar",
+    "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.exemplar",
+    "to_u8": "engine.exemplar",
+    "Analysis": "engine.analysis", "AnalysisSettings": "engine.analysis", "analyze": "engine.analysis",
+    "SynthParams": "engine.params",
+    "Synthesizer": "engine.synth", "Viewport": "engine.synth",
+    "Rect": "engine.pyramid",
+    "Controls": "engine.controls", "NO_CONTROLS": "engine.controls", "CanvasField": "engine.controls",
+    "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
+    "Lattice": "engine.lattice", "rectified_exemplar": "engine.lattice", "render_original": "engine.lattice",
+    "original_geometry_box": "engine.lattice",
+    "load_project": "app.document", "save_project": "app.document", "Document": "app.document",
+    "Project": "app.document",
+}
+_RENAMED = {"detect_lattice": ("engine.lattice", "detect")}
+
+__all__ = sorted([*_EXPORTS, *_RENAMED, "__version__", "ASSETS"])
+
+
+def __getattr__(name: str):
+    import importlib
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    if name in _RENAMED:
+        mod, attr = _RENAMED[name]
+        return getattr(importlib.import_module(f".{mod}", __name__), attr)
+    raise AttributeError(f"module 'infinitex' has no attribute {name!r}")
+
+
+def __dir__():
+    return __all__
