@@ -170,3 +170,32 @@ def test_view_zoom_keeps_the_point_under_the_cursor():
     assert View(0, 0, 1.0).zoom_at(1e-6, 0, 0, w, h).zoom == 1 / 64
     assert View(0, 0, 1.0).zoom_at(1e6, 0, 0, w, h).zoom == 16
     assert View(0.3, 0.7, 1.0).top_left(101, 51) == (-50, -25)  # 1:1 snaps to whole pixels
+
+
+def test_settings_keep_recent_files_and_survive_damage(tmp_path):
+    from infinitex.app.settings import RECENT_MAX, Settings, load_settings, save_settings
+    path = str(tmp_path / "settings.json")
+    assert load_settings(path) == Settings()
+    s = Settings()
+    for i in range(RECENT_MAX + 3):
+        s = s.with_recent(str(tmp_path / f"f{i}.png"))
+    s = s.with_recent(str(tmp_path / "f5.png"))  # reopened: moves to the top, no duplicate
+    assert len(s.recent) == RECENT_MAX and s.recent[0].endswith("f5.png") and len(set(s.recent)) == RECENT_MAX
+    s = Settings(s.recent, (1600, 900))
+    assert save_settings(s, path) and load_settings(path) == s
+    for bad in (b"\xff\xfe", b"[" * 100000, b'{"recent": "x", "window": [1, 2]}', b'{"recent": [1, "rel.png"]}'):
+        with open(path, "wb") as f:
+            f.write(bad)
+        got = load_settings(path)
+        assert got.window is None and all(os.path.isabs(r) for r in got.recent)
+
+
+def test_autosave_remembers_which_project_it_belongs_to(tmp_path):
+    from infinitex.app.document import Autosave, View
+    doc = Document(ExemplarSource.from_file(os.path.join(ASSETS, "gravel.png")), seed=5)
+    a = Autosave(str(tmp_path / "autosave.itex"))
+    proj = Project(doc, View(120.0, -40.0, 2.0), origin=str(tmp_path / "mine.itex"))
+    assert a.tick(proj, True, force=True)
+    back = Autosave(str(tmp_path / "autosave.itex")).pending()
+    assert back.origin == str(tmp_path / "mine.itex") and back.view == proj.view and back.document.seed == 5
+    assert "autosave_of" not in project_to_json(Project(doc))  # ordinary saves do not carry it

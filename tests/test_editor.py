@@ -49,6 +49,19 @@ def test_lattice_tool_driven_by_the_test_engine(tmp_path):
     assert proc.returncode == 0
 
 
+def test_everyday_use_driven_by_the_test_engine(tmp_path):
+    """Advanced collapsed with explained controls, zoom keys, F1, Open Recent,
+    images as new documents, the title, Save before losing edits, the export
+    notice (tests/gui_everyday.py)."""
+    proc = _run([os.path.join(HERE, "gui_everyday.py"), str(tmp_path)], tmp_path)
+    report_path = tmp_path / "report.txt"
+    assert report_path.exists(), proc.stdout[-3000:] + proc.stderr[-3000:]
+    report = report_path.read_text().splitlines()
+    failures = [r for r in report if not r.startswith("ok")]
+    assert not failures and len(report) >= 16, "\n".join(report) + "\n" + proc.stdout[-2000:]
+    assert proc.returncode == 0
+
+
 def test_screenshot_option_writes_the_window(tmp_path):
     from PIL import Image
     out = tmp_path / "shot.png"

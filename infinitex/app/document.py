@@ -238,6 +238,7 @@ class Project:
     document: Document
     view: View = View()
     display: Display = Display()
+    origin: str | None = None  # autosaves: the project file the unsaved work belongs to
 
 
 # -- undo / redo -------------------------------------------------------------
@@ -354,6 +355,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
         **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
+        **({"autosave_of": project.origin} if project.origin else {}),
     }
 
 
@@ -643,7 +645,10 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
                 or not -1 <= level <= 12 or geom not in GEOMETRIES):
             raise ProjectError("The project's display settings are damaged.")
         display = Display(mode, level, mag, geom)
-    return Project(doc, view, display)
+    origin = d.get("autosave_of")
+    if origin is not None and not (isinstance(origin, str) and 0 < len(origin) <= 4096 and "\x00" not in origin):
+        raise ProjectError("The project's autosave origin is damaged.")
+    return Project(doc, view, display, origin)
 
 
 def load_project(path: str, allow_outside=False) -> Project:

@@ -42,6 +42,7 @@ from ..document import (
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay
 from ..session import ExportJob, Frame, Session, frame_for
+from ..settings import load_settings, save_settings
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs
 from .tools import CANVAS_SPACE_TOOLS, make_tools
@@ -54,16 +55,28 @@ REST_BUDGET_S = 0.060        # refining at rest: more work per frame, still a li
 PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
 INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
+SHORTCUTS = [
+    ("1", "Actual size (100%)"), ("+  /  -", "Zoom in / out (also the mouse wheel)"),
+    ("0", "Fit one exemplar across the canvas"), ("Right or middle drag", "Pan (any tool)"),
+    ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"), ("Ctrl+O", "Open an image or a project"),
+    ("Ctrl+S / Ctrl+Shift+S", "Save / save as"), ("Ctrl+Q", "Quit"),
+    ("H", "Show or hide the painted randomness (cursor over the canvas)"),
+    ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
+    ("F1  or  ?", "This list"),
+]
 IDLE_FPS = 0.25              # frames per second with nothing to do (input wakes the editor at once)
 
 
 class Editor:
     def __init__(self, path: str | None = None, *, screenshot: str | None = None, frames: int = 10,
-                 window_size: tuple[int, int] = (1280, 800), recover: bool = True):
+                 window_size: tuple[int, int] | None = None, recover: bool = True):
         self.start_path = path
         self.screenshot = screenshot
         self.min_frames = frames
-        self.window_size = window_size
+        self.settings = load_settings()
+        # The size the window had when the editor last closed (a screenshot keeps the documented 1280 x 800).
+        self.window_size = window_size or (None if screenshot else self.settings.window) or (1280, 800)
+        self.show_shortcuts = False
         self.offer_recovery = recover and screenshot is None
         self.history: History | None = None
         self.view = View()
@@ -108,6 +121,8 @@ class Editor:
         self.overlay_canvas: FieldOverlay | None = None
         self.overlay_exemplar: FieldOverlay | None = None
         self._canvas_button = -1         # mouse button that went down on the canvas
+        self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
+        self._title = ""
 
     # -- running ------------------------------------------------------------
 
@@ -192,10 +207,29 @@ class Editor:
         except Exception:
             pass
 
+    def remember(self, path: str) -> None:
+        """Put a file at the top of File > Open Recent (kept in the user's config folder)."""
+        self.settings = self.settings.with_recent(path)
+        save_settings(self.settings)
+
+    def _save_window_size(self) -> None:
+        if self.screenshot:
+            return
+        try:
+            import glfw
+            from imgui_bundle import glfw_utils
+            w, h = glfw.get_window_size(glfw_utils.glfw_window_hello_imgui())
+        except Exception:
+            return
+        if w >= 320 and h >= 320:
+            self.settings = replace(self.settings, window=(int(w), int(h)))
+            save_settings(self.settings)
+
     def before_exit(self) -> None:
+        self._save_window_size()
         if self.history is not None and self.history.dirty:
             try:
-                self.autosave.tick(self.project(), True, force=True)  # keep unsaved work for recovery
+                self.autosave.tick(self.autosave_project(), True, force=True)  # keep unsaved work for recovery
             except ProjectError:
                 pass
         else:
@@ -219,6 +253,22 @@ class Editor:
     def project(self) -> Project:
         return Project(self.doc, self.view, self.display)
 
+    def autosave_project(self) -> Project:
+        """The project with the file it belongs to, so recovery restores its name."""
+        return replace(self.project(), origin=os.path.abspath(self.project_path) if self.project_path else None)
+
+    @property
+    def title(self) -> str:
+        """The window title: the document's name, * when it has unsaved edits."""
+        if self.project_path:
+            name = os.path.basename(self.project_path)
+        elif self.doc is not None:
+            name = f"untitled ({self.doc.exemplar.name})"
+        else:
+            name = "untitled"
+        dirty = self.history is not None and self.history.dirty
+        return f"{'*' if dirty else ''}{name} - Infinitex"
+
     def new_document(self) -> None:
         try:
             src = ExemplarSource.from_file(DEFAULT_EXEMPLAR)
@@ -227,8 +277,10 @@ class Editor:
             return
         self._begin_load("new", Document(src), None, None)
 
-    def open_path(self, path: str, first: bool = False, allow_outside=False) -> None:
-        """Open an exemplar image (replaces the exemplar, undoable) or a project.
+    def open_path(self, path: str, first: bool = False, allow_outside=False, replace_exemplar: bool = False) -> None:
+        """Open a project, or an image as a new document (untitled, default
+        settings); with ``replace_exemplar`` the image replaces the exemplar of
+        the open document instead (undoable; the Exemplar panel's button).
 
         A project whose exemplar file lies outside the project's folder is
         opened only after the user confirms that file."""
@@ -243,7 +295,8 @@ class Editor:
             allow = {exc.path}  # (exc itself is gone once the except block ends)
             self.dialogs.ask("Exemplar outside the project's folder",
                              f"{exc}\nRead this file as the exemplar?",
-                             [("Read it", lambda: self.open_path(path, first, allow_outside=allow)),
+                             [("Read it", lambda: self.open_path(path, first, allow_outside=allow,
+                                                                 replace_exemplar=replace_exemplar)),
                               ("Cancel", lambda: self._open_failed(None, first))])
             return
         except (ProjectError, ReadError) as exc:
@@ -252,9 +305,11 @@ class Editor:
         except OSError as exc:
             self._open_failed(f"{printable(os.path.basename(path))} could not be read: {exc.strerror or exc}.", first)
             return
-        base = self.doc if self.doc is not None else Document(src)
-        # A lattice is marked in the old image's pixels: the new image starts without one.
-        self._begin_load("exemplar", replace(base, exemplar=src, toroidal=None, lattice=None), None, path)
+        if replace_exemplar and self.doc is not None:
+            # A lattice is marked in the old image's pixels: the new image starts without one.
+            self._begin_load("exemplar", replace(self.doc, exemplar=src, toroidal=None, lattice=None), None, path)
+        else:
+            self._begin_load("image", Document(src), None, path)
 
     def _open_failed(self, msg: str | None, first: bool) -> None:
         if msg:
@@ -278,6 +333,8 @@ class Editor:
                 else:
                     self.fatal = job.error or "The default exemplar could not be loaded."
             return
+        if path and kind in ("project", "image", "exemplar") and path != self.autosave.path:
+            self.remember(path)
         if kind == "exemplar" and self.history is not None:
             self.edit(doc, "Load exemplar")
             return
@@ -285,11 +342,13 @@ class Editor:
         if kind == "project":
             self.view, self.display = proj.view, proj.display
             self.project_path = path if path != self.autosave.path else None
+        elif kind == "recovered":  # the unsaved work of a project (or of an untitled document)
+            self.view, self.display = proj.view, proj.display
+            self.project_path = proj.origin if proj.origin and os.path.isfile(proj.origin) else None
+            self.history.saved = None
         else:
             self.view, self.display = View(), Display()
             self.project_path = None
-        if kind == "recovered":
-            self.history.saved = None
 
     def _recover(self, proj: Project) -> None:
         self._begin_load("recovered", proj.document, proj, None)
@@ -324,18 +383,33 @@ class Editor:
             self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
             return False
         self.project_path = path
+        self.remember(path)
         self.history.mark_saved()
         self.autosave.clear()
         return True
 
-    def save_as(self) -> None:
-        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, self.save,
-                              default=self.project_path or "untitled" + PROJECT_SUFFIX)
+    def save_as(self, then=None) -> None:
+        """Ask where to save; ``then()`` runs once the project is saved."""
+        def done(path: str) -> None:
+            if self.save(path) and then is not None:
+                then()
+        folder = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else os.getcwd()
+        name = self.project_path or os.path.join(folder, "untitled" + PROJECT_SUFFIX)
+        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=os.path.abspath(name))
+
+    def save_then(self, action) -> None:
+        """Save (asking where for an untitled document), then run ``action``."""
+        if self.project_path is None:
+            self.save_as(then=action)
+        elif self.save():
+            action()
 
     def confirm_discard(self, action) -> None:
+        """Run ``action`` (which replaces the document), offering to save unsaved edits first."""
         if self.history is not None and self.history.dirty:
-            self.dialogs.ask("Unsaved changes", "The project has unsaved changes. Discard them?",
-                             [("Discard", action), ("Cancel", None)])
+            self.dialogs.ask("Unsaved changes", f"{self.title.split(' - ')[0].lstrip('*')} has unsaved changes. "
+                             "Save them first?",
+                             [("Save", lambda: self.save_then(action)), ("Discard", action), ("Cancel", None)])
         else:
             action()
 
@@ -347,8 +421,7 @@ class Editor:
             self.quit_requested = True
 
         def save_and_quit():
-            if self.save():
-                quit_now()
+            self.save_then(quit_now)
         if self.history is not None and self.history.dirty:
             self.dialogs.ask("Unsaved changes", "The project has unsaved changes. Save them before quitting?",
                              [("Save", save_and_quit), ("Discard", quit_now), ("Cancel", None)])
@@ -428,6 +501,7 @@ class Editor:
         imgui.end()
         if self.tool.name in ("paint-exemplar", "lattice") and self.doc is not None:
             self.tool.window()
+        self.shortcuts_window()
         self._after_frame()
 
     def _tick_fps(self) -> None:
@@ -440,7 +514,8 @@ class Editor:
     def _update_engine(self) -> None:
         s = self.session
         while self._dropped:
-            self.open_path(self._dropped.pop(0))
+            path = self._dropped.pop(0)
+            self.confirm_discard(lambda: self.open_path(path))
         job = s.poll()
         if job is not None and self.pending is not None and job.key == self.pending[1].analysis_key():
             self._finish_load(job)
@@ -457,9 +532,14 @@ class Editor:
                 job, self.export_job = self.export_job, None
                 if job.error:
                     self.dialogs.message("Export failed", job.error)
+                elif not job.cancelled:
+                    r = job.out_rect
+                    where = os.path.abspath(job.out_path)
+                    extra = f" and {os.path.abspath(job.coords_path)}" if job.coords_path else ""
+                    self.notice = (f"Exported {r.w}x{r.h} to {where}{extra}", time.monotonic())
         if self.doc is not None and self.history is not None:
             try:
-                self.autosave.tick(self.project(), self.history.dirty)
+                self.autosave.tick(self.autosave_project(), self.history.dirty)
             except ProjectError:
                 pass
 
@@ -480,6 +560,11 @@ class Editor:
         if imgui.is_key_chord_pressed(ctrl | imgui.Key.q):
             self.request_quit()
         io = imgui.get_io()
+        if imgui.is_key_pressed(imgui.Key.f1, False) or (
+                imgui.is_key_pressed(imgui.Key.slash, False) and io.key_shift):
+            self.show_shortcuts = not self.show_shortcuts
+        if not (io.key_ctrl or io.key_alt or io.key_super) and not imgui.is_any_item_active():
+            self._zoom_keys()
         # Tool keys act on the canvas (under the mouse), never while typing or dragging a control.
         if (self.cursor is not None and not (io.key_ctrl or io.key_alt or io.key_super)
                 and not imgui.is_any_item_active()):
@@ -489,6 +574,44 @@ class Editor:
             if imgui.is_key_pressed(imgui.Key.h, False):
                 self.show_fields = not self.show_fields
             self.tool.keys()
+
+    def _zoom_keys(self) -> None:
+        """1: actual size; + and -: zoom in and out around the canvas centre;
+        0: fit one exemplar across the canvas (as in Krita and Blender)."""
+        w, h = self.canvas_size
+        K = imgui.Key
+        if imgui.is_key_pressed(K._1, False) or imgui.is_key_pressed(K.keypad1, False):
+            self.view = replace(self.view, zoom=1.0).clamped()
+        elif imgui.is_key_pressed(K.equal) or imgui.is_key_pressed(K.keypad_add):
+            self.view = self.view.zoom_at(2.0, w / 2, h / 2, w, h)
+        elif imgui.is_key_pressed(K.minus) or imgui.is_key_pressed(K.keypad_subtract):
+            self.view = self.view.zoom_at(0.5, w / 2, h / 2, w, h)
+        elif (imgui.is_key_pressed(K._0, False) or imgui.is_key_pressed(K.keypad0, False)) and self.session.ready:
+            m = self.session.analysis.size
+            z = 2.0 ** math.floor(math.log2(max(1e-3, min(w, h) / m)))
+            self.view = replace(self.view, zoom=z).clamped()
+
+    def shortcuts_window(self) -> None:
+        """F1 or ?: every keyboard and mouse shortcut."""
+        if not self.show_shortcuts:
+            return
+        vp = imgui.get_main_viewport()
+        imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x / 2, vp.work_pos.y + vp.work_size.y / 2),
+                                  imgui.Cond_.appearing, (0.5, 0.5))
+        opened, keep = imgui.begin("Shortcuts (F1)", True, imgui.WindowFlags_.always_auto_resize
+                                   | imgui.WindowFlags_.no_collapse)
+        if opened and imgui.begin_table("shortcuts", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
+            for key, what in SHORTCUTS + [(f"{t.key}", f"{t.label} tool (cursor over the canvas)")
+                                          for t in self.tools if t.key]:
+                imgui.table_next_row()
+                imgui.table_next_column()
+                imgui.text(key)
+                imgui.table_next_column()
+                imgui.text(what)
+            imgui.end_table()
+        imgui.end()
+        if not keep:
+            self.show_shortcuts = False
 
     def _canvas(self) -> None:
         avail = imgui.get_content_region_avail()
@@ -606,7 +729,20 @@ class Editor:
         dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
         dl.pop_clip_rect()
 
+    def _update_title(self) -> None:
+        title = self.title
+        if title == self._title:
+            return
+        self._title = title
+        try:
+            import glfw
+            from imgui_bundle import glfw_utils
+            glfw.set_window_title(glfw_utils.glfw_window_hello_imgui(), title)
+        except Exception:
+            pass  # no window (a test driver's runner without one): nothing to title
+
     def _after_frame(self) -> None:
+        self._update_title()
         working = (self.export_job is not None or self.pending is not None
                    or (self.session is not None and self.session.job is not None))
         # Nothing to refine while no document is open and a question waits for the user.

@@ -11,17 +11,35 @@ from imgui_bundle import imgui
 from infinitex.engine.params import DEFAULT_JITTER, FIRST_CORRECTED_LEVEL
 from infinitex.engine.pyramid import Rect
 
+from infinitex.engine.safeio import printable
+
 from ..document import DISPLAY_MODES, View
+from ..settings import save_settings
 from .dialogs import IMAGE_FILTER, PNG_FILTER
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 MODE_LABELS = {"color": "Color", "coords": "Coordinate map", "patches": "Patch boundaries",
                "level": "Single pyramid level", "relief": "Shaded relief"}
+MODE_TIPS = {"color": "The texture",
+             "coords": "Where each pixel comes from in the exemplar (red = x, green = y)",
+             "patches": "The patches of exemplar the texture is made of, each tinted, their seams dark",
+             "level": "One scale of the synthesis pyramid on its own (the coarse levels are its mipmap)",
+             "relief": "The texture's brightness shaded as a height map (terrain, bump maps)"}
 MAGNIFY_LABELS = [("hires", "Synthesis magnification, hi-res exemplar"),
                   ("bilinear", "Synthesis magnification, bilinear"), ("nearest", "Nearest (texel blocks)")]
 FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square")]
 TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
 TILE_SIZES = [64, 128, 256, 512, 1024, 2048, 4096]
+
+
+LAST_TIP: list[str] = [""]  # the last tooltip shown (read by the GUI tests)
+
+
+def tip(text: str) -> None:
+    """A plain-words tooltip for the last item (the paper's name in brackets)."""
+    if imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip):
+        imgui.set_tooltip(text)
+        LAST_TIP[0] = text
 
 
 class Panels:
@@ -36,6 +54,15 @@ class Panels:
         ed = self.ed
         ed.confirm_discard(lambda: ed.dialogs.ask_path("Open exemplar or project", False, IMAGE_FILTER, ed.open_path))
 
+    def _open_recent(self, path: str) -> None:
+        ed = self.ed
+        if not os.path.exists(path):
+            ed.settings = ed.settings.without_recent(path)
+            save_settings(ed.settings)
+            ed.dialogs.message("Open Recent", f"{printable(path)} is no longer there; it was removed from the list.")
+            return
+        ed.open_path(path)
+
     def menu_bar(self) -> None:
         ed = self.ed
         if not imgui.begin_menu_bar():
@@ -45,6 +72,16 @@ class Panels:
                 ed.confirm_discard(ed.new_document)
             if imgui.menu_item_simple("Open...", "Ctrl+O"):
                 self.open_dialog()
+            if imgui.begin_menu("Open Recent", bool(ed.settings.recent)):
+                for i, path in enumerate(ed.settings.recent):
+                    if imgui.menu_item_simple(f"{os.path.basename(path)}##recent{i}"):
+                        ed.confirm_discard(lambda p=path: self._open_recent(p))
+                    tip(path)
+                imgui.separator()
+                if imgui.menu_item_simple("Clear the list"):
+                    ed.settings = replace(ed.settings, recent=())
+                    save_settings(ed.settings)
+                imgui.end_menu()
             imgui.separator()
             if imgui.menu_item_simple("Save", "Ctrl+S", enabled=ed.doc is not None):
                 ed.save()
@@ -73,8 +110,10 @@ class Panels:
                 ed.view = View(0.0, 0.0, ed.view.zoom)
             if imgui.menu_item_simple("Go to coordinates..."):
                 self._goto_open = True
-            if imgui.menu_item_simple("Actual size (1:1)"):
+            if imgui.menu_item_simple("Actual size (1:1)", "1"):
                 ed.view = View(ed.view.x, ed.view.y, 1.0)
+            if imgui.menu_item_simple("Shortcuts", "F1"):
+                ed.show_shortcuts = True
             imgui.separator()
             _, ed.show_fields = imgui.menu_item("Show painted randomness", "H", ed.show_fields)
             imgui.end_menu()
@@ -102,16 +141,17 @@ class Panels:
         if ed.tool.name != "navigate" and imgui.collapsing_header(
                 {"feature": "Features", "lattice": "Lattice"}.get(ed.tool.name, "Brush") + "###tool-options", flags):
             self.brush_panel()
-        if imgui.collapsing_header("Exemplar", flags):
-            self.exemplar_panel()
+        # Artists' controls first; the synthesis internals wait in Advanced (collapsed).
         if imgui.collapsing_header("Randomness", flags):
             self.randomness_panel()
-        if imgui.collapsing_header("Synthesis", flags):
-            self.synthesis_panel()
+        if imgui.collapsing_header("Exemplar", flags):
+            self.exemplar_panel()
         if imgui.collapsing_header("Display", flags):
             self.display_panel()
         if imgui.collapsing_header("Export"):
             self.export_panel()
+        if imgui.collapsing_header("Advanced"):
+            self.synthesis_panel()
 
     def toolbar(self) -> None:
         """The tool bar over the canvas: one button per tool, the field overlay toggle."""
@@ -165,8 +205,12 @@ class Panels:
         imgui.text_disabled(f"{ow}x{oh} -> {how}, {chans}, {an.L + 1} levels")
         if ex.hires is not None:
             imgui.text_disabled(f"hi-res {ex.hires.shape[1]}x{ex.hires.shape[0]} kept for magnification")
-        if imgui.button("Open image...", (-1, 0)):
-            ed.dialogs.ask_path("Open exemplar", False, IMAGE_FILTER, ed.open_path)
+        if imgui.button("Replace exemplar...", (-1, 0)):
+            ed.dialogs.ask_path("Replace the exemplar", False, IMAGE_FILTER,
+                                lambda p: ed.open_path(p, replace_exemplar=True))
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Use another image as the exemplar of this document, keeping its settings (undoable). "
+                              "File > Open makes a new document.")
         if lattice:
             imgui.push_text_wrap_pos(0)
             imgui.text_disabled("The exemplar is the lattice's block of cells, rectified (it tiles); "
@@ -184,12 +228,15 @@ class Panels:
         ed = self.ed
         fits = [f for f, _ in FIT_LABELS]
         changed, i = imgui.combo("Import", fits.index(doc.fit), [lbl for _, lbl in FIT_LABELS])
+        tip("How an image that is not a power-of-two square becomes the exemplar: resized (keeps the whole "
+            "image) or cropped (keeps its pixels exactly)")
         if changed:
             ed.edit(replace(doc, fit=fits[i]), "Import fit")
         cur = 0 if doc.toroidal is None else (1 if doc.toroidal else 2)
         labels = list(TOROIDAL_LABELS)
         labels[0] = f"Auto (guess: {'tiles' if ex.toroidal_guess else 'does not tile'})"
         changed, i = imgui.combo("Toroidal", cur, labels)
+        tip("Does the exemplar tile seamlessly? Then patches may cross its edges; Auto guesses from its border")
         if changed:
             ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
 
@@ -226,6 +273,8 @@ class Panels:
         imgui.push_item_width(-90)
         self.overall = sum(jit) / len(jit)
         changed, v = imgui.slider_float("All levels", self.overall, 0.0, 1.0, "%.2f")
+        tip("Randomness at every scale at once: 0 repeats the exemplar as it is (a plain tiling), "
+            "1 rearranges it the most (jitter r, LH05)")
         if changed:
             ed.edit(doc.with_all_jitter(L, v), "Randomness (all levels)", group="jitter-all")
         if imgui.is_item_deactivated():
@@ -233,8 +282,8 @@ class Panels:
         for l in range(L + 1):
             size = 1 << (L - l)
             changed, v = imgui.slider_float(f"{size} px##jit{l}", jit[l], 0.0, 1.0, "%.2f")
-            if imgui.is_item_hovered():
-                imgui.set_tooltip(f"Level {l}: moves features about {size} exemplar pixels across")
+            tip(f"How much features about {size} px across are moved: 0 keeps the exemplar's arrangement "
+                f"at this scale, 1 moves them up to their own size (level {l}, jitter r_{l})")
             if changed:
                 ed.edit(ed.doc.with_jitter(L, l, v), f"Randomness of level {l}", group=("jitter", l))
             if imgui.is_item_deactivated():
@@ -242,57 +291,76 @@ class Panels:
         imgui.pop_item_width()
         if imgui.button("Reset"):
             ed.edit(replace(doc, jitter=()), "Reset randomness")
+        tip(f"Back to the default randomness ({DEFAULT_JITTER}) at every scale")
         imgui.same_line()
         imgui.set_next_item_width(120)
         changed, seed = imgui.input_int("Seed", doc.seed, 1, 100, imgui.InputTextFlags_.enter_returns_true)
+        tip("Another seed gives another texture with the same look; the same seed always gives the same one")
         if changed:
             ed.edit(replace(ed.doc, seed=int(seed) % (2 ** 32)), "Seed")
         imgui.same_line()
         if imgui.button("New seed"):
             ed.new_seed()
+        tip("A random seed: a new variation")
 
     def synthesis_panel(self) -> None:
         ed = self.ed
         doc, L = ed.doc, ed.session.L
+        imgui.push_text_wrap_pos(0)
+        imgui.text_disabled("How the synthesis works inside; the defaults suit most exemplars.")
+        imgui.pop_text_wrap_pos()
         imgui.push_item_width(-150)
         changed, v = imgui.slider_int("Correction passes", doc.passes, 0, 4)
+        tip("How many times each scale is cleaned up to look like the exemplar: more looks closer to it, "
+            "costs more (correction passes, LH05 3.3)")
         if changed:
             ed.edit(replace(doc, passes=v), "Correction passes", group="passes")
         if imgui.is_item_deactivated():
             ed.history.end_group()
         changed, v = imgui.slider_int("Subpasses (s x s)", doc.subgrid, 1, 4)
+        tip("In how many interleaved groups a clean-up pass visits the pixels; 2 x 2 is the paper's choice "
+            "(subpasses s^2, LH05 3.3)")
         if changed:
             ed.edit(replace(ed.doc, subgrid=v), "Subpasses", group="subgrid")
         if imgui.is_item_deactivated():
             ed.history.end_group()
-        changed, v = imgui.slider_float("Coherence kappa", doc.kappa, 0.0, 2.0, "%.2f")
+        changed, v = imgui.slider_float("Coherence", doc.kappa, 0.0, 2.0, "%.2f")
+        tip("Preference for continuing the current patch of exemplar over jumping to a similar spot: "
+            "higher gives larger intact patches and less variety (coherence kappa, LH05)")
         if changed:
             ed.edit(replace(ed.doc, kappa=round(v, 3)), "Coherence", group="kappa")
         if imgui.is_item_deactivated():
             ed.history.end_group()
-        changed, v = imgui.slider_int("Candidates k", doc.k, 1, 4)
+        changed, v = imgui.slider_int("Similar spots", doc.k, 1, 4)
+        tip("How many similar exemplar spots each pixel may jump to: more gives more variety and a longer "
+            "analysis (k-coherence candidates k, LH05)")
         if changed:
             ed.edit(replace(ed.doc, k=v), "Candidates k", group="k")
         if imgui.is_item_deactivated():
             ed.history.end_group()
         models = ["appearance", "color"]
-        changed, i = imgui.combo("Neighborhoods", models.index(doc.model),
-                                 ["Appearance space (LH06)", "Colors 5x5 (LH05)"])
+        changed, i = imgui.combo("Matching", models.index(doc.model), ["Appearance (LH06)", "Colors 5x5 (LH05)"])
+        tip("What 'looks alike' means when cleaning up: Appearance compares smoothed, compressed "
+            "neighborhoods (better; appearance space, LH06); Colors compares 5x5 colors (LH05)")
         if changed:
             ed.edit(replace(ed.doc, model=models[i]), "Neighborhood model")
         imgui.pop_item_width()
-        imgui.text("Corrected levels:")
+        imgui.text("Cleaned-up levels:")
+        tip("The scales that get cleaned up; the coarsest three are left as jittered by default "
+            "(corrected levels, LH05)")
         cur = ed.doc.params(L).corrected_levels()
         for l in range(L + 1):
             if l % 6:
                 imgui.same_line()
             on = l in cur
             changed, on = imgui.checkbox(f"{l}##corr{l}", on)
+            tip(f"Clean up level {l} (features about {1 << (L - l)} px across)")
             if changed:
                 new = set(cur) | {l} if on else set(cur) - {l}
                 ed.edit(replace(ed.doc, corrected=tuple(sorted(new))), f"Correct level {l}")
         if imgui.small_button("Default levels"):
             ed.edit(replace(ed.doc, corrected=None), "Default corrected levels")
+        tip("Back to the default: every level but the coarsest three")
         imgui.same_line()
         imgui.text_disabled(f"(levels {FIRST_CORRECTED_LEVEL}..{L})")
 
@@ -303,6 +371,7 @@ class Panels:
         for mode in DISPLAY_MODES:
             if imgui.radio_button(MODE_LABELS[mode], d.mode == mode):
                 ed.display = replace(d, mode=mode)
+            tip(MODE_TIPS[mode])
         if ed.display.mode == "level":
             lvl = L if d.level < 0 else min(d.level, L)
             changed, v = imgui.slider_int("Level", lvl, 0, L)
@@ -313,25 +382,31 @@ class Panels:
                   for k, lbl in MAGNIFY_LABELS]
         imgui.set_next_item_width(-70)
         changed, i = imgui.combo("Zoom in", keys.index(d.magnify), labels)
+        tip("How the texture looks magnified: sharp patches drawn from the full-resolution image "
+            "(synthesis magnification, LH05 5), or plain enlarged texels")
         if changed:
             ed.display = replace(ed.display, magnify=keys[i])
         imgui.text(f"Zoom {_zoom_text(ed.view.zoom)}")
         imgui.same_line()
         if imgui.small_button("1:1"):
             ed.view = View(ed.view.x, ed.view.y, 1.0)
+        tip("Actual size: one texture pixel per screen pixel (1)")
         imgui.same_line()
         if imgui.small_button("Origin"):
             ed.view = View(0.0, 0.0, ed.view.zoom)
+        tip("Back to canvas position (0, 0)")
 
     def export_panel(self) -> None:
         ed = self.ed
         _, ed.write_coords = imgui.checkbox("Also write the coordinate map", ed.write_coords)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("NAME_coords.png: x = R + 256 (B & 15), y = G + 256 (B >> 4)")
+        tip("NAME_coords.png: the exemplar position of every pixel, exactly "
+            "(x = R + 256 (B & 15), y = G + 256 (B >> 4)); to look up other maps through the same synthesis")
         if imgui.button("Export view as PNG...", (-1, 0)):
             self.export_view()
+        tip("What the canvas shows now, at 1:1")
         imgui.set_next_item_width(-90)
         _, ed.export_rect = imgui.input_int4("x y w h", ed.export_rect)
+        tip("A rectangle of the infinite canvas: its top-left corner and size, in texture pixels")
         if imgui.button("Export rectangle as PNG...", (-1, 0)):
             x, y, w, h = ed.export_rect
             r = Rect.of(x, y, w, h)
@@ -342,8 +417,10 @@ class Panels:
         changed, i = imgui.combo("Tile size", TILE_SIZES.index(ed.tile_size), sizes)
         if changed:
             ed.tile_size = TILE_SIZES[i]
+        tip("Side of the seamless tile")
         if imgui.button("Export toroidal tile...", (-1, 0)):
             self.export_tile()
+        tip("A square that repeats without a seam (a periodic synthesis of the same look)")
         lat = ed.session.controls.lattice if ed.session is not None and ed.session.ready else None
         if lat is not None:
             cx, cy = lat.cell(ed.session.analysis.size)
@@ -377,11 +454,13 @@ class Panels:
         parts.append(f"zoom {_zoom_text(ed.view.zoom)}")
         if ed.frame is not None:
             parts.append(f"level {ed.frame.level}/{s.L}")
-        title = os.path.basename(ed.project_path) if ed.project_path else "untitled"
-        if ed.history is not None and ed.history.dirty:
-            title += " *"
-        parts.append(title)
+        parts.append(ed.title.rsplit(" - ", 1)[0])
         imgui.text("   |   ".join(parts))
+        if ed.notice is not None:
+            text, t = ed.notice
+            if time.monotonic() - t < 15.0:
+                imgui.same_line()
+                imgui.text_colored((0.55, 0.9, 0.55, 1.0), f"   {text}")
 
     def canvas_overlay(self, p0, w, h) -> None:
         ed = self.ed

@@ -1,0 +1,80 @@
+"""The user's settings kept between runs: recent files and the window size.
+
+A small JSON file in the user's config folder (``$INFINITEX_CONFIG``, else
+``$XDG_CONFIG_HOME/infinitex``, else ``~/.config/infinitex``; with
+``INFINITEX_STATE`` set, as in the tests, that folder). It is untrusted input
+like any file: size-limited, bounded parse, every field checked; a damaged
+file is ignored (and replaced on the next write). Writes are atomic. Imports
+neither GL nor imgui.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field, replace
+
+from infinitex.engine.safeio import JSONLimitError, ReadError, WriteError, atomic_write, parse_json, read_limited
+
+RECENT_MAX = 10
+MAX_BYTES = 256 * 1024
+
+
+def config_dir() -> str:
+    if os.environ.get("INFINITEX_CONFIG"):
+        return os.environ["INFINITEX_CONFIG"]
+    if os.environ.get("INFINITEX_STATE"):
+        return os.environ["INFINITEX_STATE"]
+    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
+    return os.path.join(base, "infinitex")
+
+
+def settings_path() -> str:
+    return os.path.join(config_dir(), "settings.json")
+
+
+@dataclass(frozen=True)
+class Settings:
+    recent: tuple[str, ...] = ()                  # absolute paths, most recent first
+    window: tuple[int, int] | None = None         # the window's size when the editor last closed
+
+    def with_recent(self, path: str) -> Settings:
+        p = os.path.abspath(path)
+        return replace(self, recent=(p, *[r for r in self.recent if r != p])[:RECENT_MAX])
+
+    def without_recent(self, path: str) -> Settings:
+        return replace(self, recent=tuple(r for r in self.recent if r != path))
+
+
+def load_settings(path: str | None = None) -> Settings:
+    """The saved settings, or the defaults when there are none or they are damaged."""
+    path = path or settings_path()
+    try:
+        d = parse_json(read_limited(path, MAX_BYTES, "settings file"), max_depth=3)
+    except (ReadError, JSONLimitError, ValueError, UnicodeDecodeError, FileNotFoundError):
+        return Settings()
+    except OSError:
+        return Settings()
+    if not isinstance(d, dict):
+        return Settings()
+    recent = d.get("recent", [])
+    if not isinstance(recent, list):
+        recent = []
+    recent = tuple(r for r in recent if isinstance(r, str) and 0 < len(r) <= 4096 and "\x00" not in r
+                   and os.path.isabs(r))[:RECENT_MAX]
+    window = d.get("window")
+    if not (isinstance(window, list) and len(window) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) and 320 <= v <= 16384 for v in window)):
+        window = None
+    return Settings(recent, None if window is None else (window[0], window[1]))
+
+
+def save_settings(s: Settings, path: str | None = None) -> bool:
+    """Write atomically; False (and nothing else) when it cannot be written."""
+    import json
+    path = path or settings_path()
+    data = {"recent": list(s.recent), "window": list(s.window) if s.window else None}
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        atomic_write(path, json.dumps(data, indent=1).encode("utf-8"))
+    except (OSError, WriteError):
+        return False
+    return True

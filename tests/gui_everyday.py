@@ -1,0 +1,155 @@
+"""Drive the real editor through what a user meets in the first minutes
+(run under Xvfb by test_editor.py):
+
+    xvfb-run -a python tests/gui_everyday.py OUT_DIR
+
+Advanced collapsed on start and its controls explained on hover; the zoom
+keys; the shortcuts window; Open Recent; opening an image makes a new
+document; the title names the document and its unsaved state; an export
+says where it wrote; Save offered before unsaved edits are lost. Writes
+"ok NAME" / "FAIL NAME: why" lines to OUT_DIR/report.txt.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, HERE)
+
+from imgui_bundle import imgui
+from imgui_bundle.immapp import testing
+
+from infinitex.app.ui import panels
+from infinitex.app.ui.editor import Editor
+
+GRAVEL = os.path.join(HERE, "infinitex", "assets", "gravel.png")
+BRICK = os.path.join(HERE, "infinitex", "assets", "brick.png")
+
+
+def main(out: str) -> int:
+    os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+    ed = Editor(recover=False, window_size=(1280, 800))
+    report: list[str] = []
+
+    def check(name: str, cond: bool, why: str = "") -> None:
+        report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
+
+    def settle(ctx, limit=3000) -> None:
+        for _ in range(limit):
+            ctx.yield_()
+            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
+                    and ed.pending is None and ed.session.job is None):
+                return
+        raise RuntimeError("the editor did not settle")
+
+    def test(ctx) -> None:
+        settle(ctx)
+        ctx.set_ref("//Infinitex")
+        check("advanced collapsed on start", not ctx.item_exists("**/Correction passes")
+              and ctx.item_exists("**/All levels"), "synthesis internals shown")
+        ctx.mouse_move("**/All levels")
+        ctx.yield_(40)
+        check("a tooltip explains the randomness", "every scale" in panels.LAST_TIP[0], panels.LAST_TIP[0])
+        for header in ("Randomness", "Exemplar", "Display"):  # make room: Advanced is the last section
+            ctx.item_close(f"**/{header}")
+        ctx.item_open("**/Advanced")
+        ctx.yield_(2)
+        check("advanced opens", ctx.item_exists("**/Correction passes"), "no Correction passes")
+        ctx.mouse_move("**/Coherence")
+        ctx.yield_(40)
+        check("advanced controls say what they do", "(coherence kappa, LH05)" in panels.LAST_TIP[0],
+              panels.LAST_TIP[0])
+        ctx.item_close("**/Advanced")
+        for header in ("Randomness", "Exemplar", "Display"):
+            ctx.item_open(f"**/{header}")
+
+        # Zoom keys (the mouse over the canvas, nothing being edited).
+        ctx.mouse_move("**/canvas")
+        z0 = ed.view.zoom
+        ctx.key_press(imgui.Key.equal)
+        ctx.yield_(2)
+        z_in = ed.view.zoom
+        ctx.key_press(imgui.Key.minus)
+        ctx.key_press(imgui.Key.minus)
+        ctx.yield_(2)
+        z_out = ed.view.zoom
+        ctx.key_press(imgui.Key._1)
+        ctx.yield_(2)
+        check("+ zooms in, - out, 1 is actual size", abs(z_in - 2 * z0) < 1e-9 and abs(z_out - z0 / 2) < 1e-9
+              and ed.view.zoom == 1.0, f"{z0} {z_in} {z_out} {ed.view.zoom}")
+        ctx.key_press(imgui.Key._0)
+        ctx.yield_(2)
+        w, h = ed.canvas_size
+        check("0 fits one exemplar across the canvas", ed.session.analysis.size * ed.view.zoom <= min(w, h)
+              < 2 * ed.session.analysis.size * ed.view.zoom, f"zoom {ed.view.zoom}")
+        ctx.key_press(imgui.Key._1)
+        ctx.key_press(imgui.Key.f1)
+        ctx.yield_(2)
+        check("F1 shows the shortcuts", ed.show_shortcuts and ctx.window_info("//Shortcuts (F1)").window is not None,
+              "no window")
+        ctx.key_press(imgui.Key.f1)
+        ctx.yield_(2)
+        check("F1 hides them again", not ed.show_shortcuts, "still shown")
+
+        # The title names the document and its unsaved state.
+        check("title of a new document", ed.title == "untitled (gravel.png) - Infinitex", ed.title)
+        ctx.set_ref("//Infinitex")
+        ctx.item_click("**/New seed")
+        ctx.yield_(2)
+        check("title marks unsaved edits", ed.title.startswith("*untitled"), ed.title)
+
+        # Opening an image with unsaved edits asks, offering Save; Discard opens it as a new document.
+        ed.confirm_discard(lambda: ed.open_path(BRICK))
+        ctx.yield_(3)
+        modal = ed.dialogs.modals[0] if ed.dialogs.modals else None
+        check("unsaved edits: Save offered", modal is not None and [b for b, _ in modal.buttons] ==
+              ["Save", "Discard", "Cancel"], str(modal and modal.buttons))
+        ctx.item_click("//**/Discard")
+        settle(ctx)
+        check("an image opens as a new document", ed.doc.exemplar.name == "brick.png" and ed.project_path is None
+              and not ed.history.can_undo() and not ed.history.dirty, f"{ed.doc.exemplar.name} {ed.project_path}")
+        check("open recent lists it", ed.settings.recent and ed.settings.recent[0] == os.path.abspath(BRICK),
+              str(ed.settings.recent))
+        ed.open_path(GRAVEL)
+        settle(ctx)
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Open Recent/brick.png##recent1")
+        settle(ctx)
+        check("File > Open Recent reopens it", ed.doc.exemplar.name == "brick.png"
+              and ed.settings.recent[:2] == (os.path.abspath(BRICK), os.path.abspath(GRAVEL)), str(ed.settings.recent))
+
+        # Save as a project, then the title is its name; an export says where it went.
+        proj = os.path.join(out, "bricks.itex")
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Save As...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", proj)
+        ctx.yield_(2)
+        check("saved title", ed.title == "bricks.itex - Infinitex", ed.title)
+        check("a saved project is recent too", ed.settings.recent[0] == os.path.abspath(proj), str(ed.settings.recent))
+        target = os.path.join(out, "view.png")
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Export view as PNG...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", target)
+        for _ in range(600):
+            ctx.yield_()
+            if ed.export_job is None:
+                break
+        check("an export says where it wrote", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
+              and os.path.isfile(target), str(ed.notice))
+        testing.capture(ctx, os.path.join(out, "everyday.png"))
+
+    try:
+        testing.run(test_function=test, runner_params=ed.runner_params(),
+                    run_speed=testing.TestRunSpeed.fast)
+    except Exception as exc:
+        report.append(f"FAIL driver: {exc}")
+    with open(os.path.join(out, "report.txt"), "w") as fh:
+        fh.write("\n".join(report) + "\n")
+    return 0 if report and all(r.startswith("ok") for r in report) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
