@@ -43,6 +43,13 @@ def main(out: str) -> int:
                 return
         raise RuntimeError("the editor did not settle")
 
+    def canvas(ctx):
+        settle(ctx)
+        ed.canvas_request = True
+        while ed.canvas_request:
+            ctx.yield_()
+        return ed.canvas_pixels
+
     def test(ctx) -> None:
         settle(ctx)
         ctx.set_ref("//Infinitex")
@@ -91,6 +98,19 @@ def main(out: str) -> int:
         ctx.key_press(imgui.Key.f1)
         ctx.yield_(2)
         check("F1 hides them again", not ed.show_shortcuts, "still shown")
+
+        # Tile mode: the canvas shows the periodic texture of the tile size (T toggles it).
+        import numpy as np
+        ed.tile_size = 64
+        ctx.mouse_move("**/canvas")
+        ctx.key_press(imgui.Key.t)
+        a = canvas(ctx)
+        check("tile mode shows the periodic texture", ed.tile_mode and ed.session.params.period == 64
+              and np.array_equal(a[:, :-64], a[:, 64:]) and np.array_equal(a[:-64], a[64:]), "not periodic")
+        ctx.key_press(imgui.Key.t)
+        b = canvas(ctx)
+        check("T turns tile mode off", not ed.tile_mode and ed.session.params.period == 0
+              and not np.array_equal(b[:, :-64], b[:, 64:]), "still periodic")
 
         # The title names the document and its unsaved state.
         check("title of a new document", ed.title == "untitled (gravel.png) - Infinitex", ed.title)

@@ -270,6 +270,7 @@ class Session:
         self.job: AnalysisJob | None = None
         self.generation = 0                    # bumps when a new analysis is installed
         self.params: SynthParams | None = None
+        self.period = 0  # tile mode: the canvas shows the periodic texture a toroidal export of this size makes
         self.controls: Controls = NO_CONTROLS
         self.failed: dict[tuple, str] = {}     # analysis keys that could not be loaded
 
@@ -301,7 +302,7 @@ class Session:
             if (self.job is None or self.job.key != key) and key not in self.failed:
                 self.load(doc)
             return
-        params = doc.params(self.L)
+        params = self.doc_params(doc)
         controls = doc.controls(self.analysis.size)
         if params != self.params:
             self.params, self.controls = params, controls
@@ -315,6 +316,11 @@ class Session:
             self.pyramid.update_controls(controls)
             self.refiner.version += 1
             self.refiner.extra_pixels += self.pyramid.pixels_synthesized
+
+    def doc_params(self, doc: Document, L: int | None = None) -> SynthParams:
+        """The document's parameters, periodic in tile mode."""
+        params = doc.params(self.L if L is None else L)
+        return replace(params, period=self.period) if self.period else params
 
     def poll(self) -> AnalysisJob | None:
         """Install a finished job; returns it once when it ends (success or not)."""
@@ -331,7 +337,7 @@ class Session:
     def install(self, doc: Document, ex: Exemplar, an: Analysis) -> None:
         self.release_synthesis()
         self.exemplar, self.analysis = ex, an
-        self.params = doc.params(an.L)
+        self.params = self.doc_params(doc, an.L)
         self.controls = doc.controls(an.size)
         self.synth = Synthesizer(an, self.params, self.gpu, controls=self.controls)
         self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16,

@@ -137,16 +137,21 @@ class Canvas:
             buf.tex.use(0)
             texel_px = view.zoom * (1 << k) / float(np.linalg.norm(G, 2))
             exact = geom is None and texel_px == 1.0 and tlx == ix and tly == iy and (ix % (1 << k)) == 0 and (iy % (1 << k)) == 0
-            # Synthesis magnification where the finest level is enlarged; a coarser
-            # level standing in while the view refines is drawn as plain texels (cheap).
-            magnify = int(display.magnify != "nearest" and l == frame.level and texel_px > 1.0)
+            # Synthesis magnification wherever texels are enlarged, the coarse levels
+            # standing in while the view refines included (a dragged slider shows
+            # real texture, patchy but sharp, LH05 5): each texel's coordinate is
+            # extrapolated across the pixels it covers and the view's own level
+            # (or the hi-res exemplar) is sampled there.
+            magnify = int(display.magnify != "nearest" and texel_px > 1.0)
             self.gpu.ctx.scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, M)
-            use_hires = int(self.hires_tex is not None and display.magnify == "hires" and l == L and texel_px > 1.0)
+            use_hires = int(self.hires_tex is not None and display.magnify == "hires" and frame.level == L
+                            and magnify)
             set_uniforms(p, coords=0, stack=1, hires=2, anchor=buf.anchor, cmask=buf.mask,
                          vlo=(buf.valid.x0, buf.valid.y0), vhi=(buf.valid.x1, buf.valid.y1),
                          tl_i=(ix, iy), tl_f=(tlx - ix, tly - iy), zoom=float(view.zoom), k=k, m=self.m,
                          geom=(float(M[0, 0]), float(M[0, 1]), float(M[1, 0]), float(M[1, 1])),
-                         layer=l, use_hires=use_hires, mode=mode, magnify=magnify, exact=int(exact),
+                         layer=l, mag_layer=frame.level if l < frame.level else l, use_hires=use_hires,
+                         mode=mode, magnify=magnify, exact=int(exact),
                          toroidal=int(self.toroidal), has_alpha=int(self.channels in (2, 4)),
                          relief_strength=float(self.m) / 24.0)
             self.vao.render(moderngl.TRIANGLES)

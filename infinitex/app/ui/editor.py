@@ -14,6 +14,7 @@ import sys
 import time
 from dataclasses import replace
 
+import numpy as np
 from imgui_bundle import (  # imported before glfw (bundled libglfw)
     hello_imgui,
     imgui,
@@ -61,6 +62,7 @@ SHORTCUTS = [
     ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"), ("Ctrl+O", "Open an image or a project"),
     ("Ctrl+S / Ctrl+Shift+S", "Save / save as"), ("Ctrl+Q", "Quit"),
     ("H", "Show or hide the painted randomness (cursor over the canvas)"),
+    ("T", "Tile mode: the periodic texture of the export tile size (cursor over the canvas)"),
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
     ("F1  or  ?", "This list"),
 ]
@@ -77,6 +79,7 @@ class Editor:
         # The size the window had when the editor last closed (a screenshot keeps the documented 1280 x 800).
         self.window_size = window_size or (None if screenshot else self.settings.window) or (1280, 800)
         self.show_shortcuts = False
+        self.tile_mode = False           # the canvas shows the periodic texture of the tile size
         self.offer_recovery = recover and screenshot is None
         self.history: History | None = None
         self.view = View()
@@ -573,6 +576,8 @@ class Editor:
                     self.set_tool(t.name)
             if imgui.is_key_pressed(imgui.Key.h, False):
                 self.show_fields = not self.show_fields
+            if imgui.is_key_pressed(imgui.Key.t, False):
+                self.tile_mode = not self.tile_mode
             self.tool.keys()
 
     def _zoom_keys(self) -> None:
@@ -612,6 +617,7 @@ class Editor:
         imgui.end()
         if not keep:
             self.show_shortcuts = False
+        self.tile_mode = False           # the canvas shows the periodic texture of the tile size
 
     def _canvas(self) -> None:
         avail = imgui.get_content_region_avail()
@@ -622,6 +628,7 @@ class Editor:
         # Input first, so this frame already shows what a tool or a pan did.
         hovered = self._canvas_input(p0, w, h)
         if s.ready and self.doc is not None:
+            s.period = self.tile_period()
             s.sync(self.doc)  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
             level = None
             if self.display.mode == "level":
@@ -645,7 +652,8 @@ class Editor:
                     c = s.refiner.preview(self.frame, PREVIEW_BUDGET_S)
                     self.refined = False
                     texel_px = self.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
-                    scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
+                    if self.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
+                        scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
                 else:
                     self.refined = s.refine(self.frame, REST_BUDGET_S)
             except SynthesisError as exc:
@@ -677,6 +685,8 @@ class Editor:
             self.panels.canvas_overlay(p0, w, h)
             if self.tool.name == "feature":
                 self.tool.draw_handles(dl, p0, w, h)
+            if s.period:
+                self._tile_borders(dl, p0, w, h, s.period)
             if hovered:
                 self.tool.overlay(dl, p0, w, h)
 
@@ -715,6 +725,49 @@ class Editor:
             at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
         self.cursor = at if hovered else None
         return hovered
+
+    def tile_period(self) -> int:
+        """The tile size while tile mode is on (whole lattice cells required), else 0."""
+        if not self.tile_mode or not self.session.ready:
+            return 0
+        n = self.tile_size
+        lat = self.session.controls.lattice
+        if lat is not None:
+            cx, cy = lat.cell(self.session.analysis.size)
+            if n % cx or n % cy:
+                self.tile_mode = False
+                self.dialogs.message("Tile mode", f"A tile of {n} px is not made of whole lattice cells "
+                                     f"({cx}x{cy} px); choose a larger tile size.")
+                return 0
+        return n
+
+    def _tile_borders(self, dl, p0, w: int, h: int, n: int) -> None:
+        """The tile's borders over the canvas (mapped into the input's geometry with a lattice)."""
+        z = self.view.zoom
+        x0, y0 = self.view.top_left(w, h)
+        G = self.geometry()
+        Ginv = None if G is None else np.linalg.inv(G)
+
+        def scr(px: float, py: float):
+            if Ginv is not None:
+                px, py = Ginv @ np.array([px, py])
+            return (p0.x + (px - x0) * z, p0.y + (py - y0) * z)
+        # The synthesized canvas rectangle the view covers (a bounding box with a lattice).
+        corners = np.array([[x0, y0], [x0 + w / z, y0], [x0, y0 + h / z], [x0 + w / z, y0 + h / z]])
+        if G is not None:
+            corners = corners @ G.T
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        i0, i1 = math.floor(lo[0] / n), math.ceil(hi[0] / n)
+        j0, j1 = math.floor(lo[1] / n), math.ceil(hi[1] / n)
+        if (i1 - i0) + (j1 - j0) > 400:
+            return  # tiles smaller than a few screen pixels: no lines
+        col = imgui.get_color_u32((1.0, 0.85, 0.2, 0.8))
+        dl.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
+        for i in range(i0, i1 + 1):
+            dl.add_line(scr(i * n, j0 * n), scr(i * n, j1 * n), col, 1.5)
+        for j in range(j0, j1 + 1):
+            dl.add_line(scr(i0 * n, j * n), scr(i1 * n, j * n), col, 1.5)
+        dl.pop_clip_rect()
 
     def _field_overlay(self, dl, p0, w: int, h: int) -> None:
         """The canvas randomness field as a translucent heat map over the canvas."""

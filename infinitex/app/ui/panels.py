@@ -116,6 +116,7 @@ class Panels:
                 ed.show_shortcuts = True
             imgui.separator()
             _, ed.show_fields = imgui.menu_item("Show painted randomness", "H", ed.show_fields)
+            _, ed.tile_mode = imgui.menu_item(f"Tile mode ({ed.tile_size} px)", "T", ed.tile_mode)
             imgui.end_menu()
         imgui.end_menu_bar()
         if getattr(self, "_goto_open", False):
@@ -418,6 +419,9 @@ class Panels:
         if changed:
             ed.tile_size = TILE_SIZES[i]
         tip("Side of the seamless tile")
+        _, ed.tile_mode = imgui.checkbox("Show the tile on the canvas (T)", ed.tile_mode)
+        tip("The canvas shows the periodic texture this tile size makes, tile borders drawn: "
+            "tune exactly what the toroidal export will write")
         if imgui.button("Export toroidal tile...", (-1, 0)):
             self.export_tile()
         tip("A square that repeats without a seam (a periodic synthesis of the same look)")

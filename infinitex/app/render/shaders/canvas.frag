@@ -19,6 +19,8 @@ uniform vec4 geom;            // screen px -> finest-level canvas px: (a, b, c, 
 uniform int k;                // L - l: one level texel is 2^k finest pixels
 uniform int m;                // exemplar size
 uniform int layer;            // stack layer (= level)
+uniform int mag_layer;        // stack layer sampled by magnification (the view's level: a coarse
+                              // level standing in during refinement still shows sharp texture)
 uniform sampler2DArray stack; // uint8 Gaussian stack, RGBA
 uniform sampler2D hires;      // high-resolution exemplar (mipmapped)
 uniform int use_hires;
@@ -73,7 +75,7 @@ vec4 magnified(ivec2 base, vec2 frac) {
             ivec2 u = S(base + ivec2(fb) + c);
             vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
             vec4 s = use_hires != 0 ? textureGrad(hires, uv, ddx, ddy)
-                                    : texture(stack, vec3(uv, float(layer)));
+                                    : texture(stack, vec3(uv, float(mag_layer)));
             float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
             acc += w * s;
         }
