@@ -23,6 +23,7 @@ from infinitex.app.ui.editor import Editor
 
 def main(out: str) -> int:
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+    os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the test types paths; gui_everyday also opens the browser
     ed = Editor(recover=False, window_size=(1000, 700))
     report: list[str] = []
 

@@ -29,6 +29,7 @@ BRICK = os.path.join(HERE, "infinitex", "assets", "brick.png")
 
 def main(out: str) -> int:
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+    os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the test types paths; gui_everyday also opens the browser
     ed = Editor(recover=False, window_size=(1280, 800))
     report: list[str] = []
 
@@ -98,6 +99,20 @@ def main(out: str) -> int:
         ctx.key_press(imgui.Key.f1)
         ctx.yield_(2)
         check("F1 hides them again", not ed.show_shortcuts, "still shown")
+
+        # Without a native chooser, File > Open is the in-window file browser (ImFileDialog).
+        ed.dialogs.prompt = False
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Open...")
+        ctx.yield_(3)
+        check("the in-window file browser opens", ctx.window_info("//Open exemplar or project###infinitex-path")
+              .window is not None and ed.dialogs.path_request is not None and ed.dialogs.path_request.browser,
+              "no browser window")
+        ctx.item_click("//Open exemplar or project###infinitex-path/Cancel")
+        ctx.yield_(3)
+        check("cancel closes it and changes nothing", ed.dialogs.path_request is None
+              and ed.doc.exemplar.name == "gravel.png", "still open")
+        ed.dialogs.prompt = True
 
         # Tile mode: the canvas shows the periodic texture of the tile size (T toggles it).
         import numpy as np

@@ -28,6 +28,7 @@ from infinitex.engine.exemplar import to_u8, write_png
 
 def main(out: str) -> int:
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+    os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the test types paths; gui_everyday also opens the browser
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
     path = os.path.join(out, "bricks.png")
     write_png(path, to_u8(img))

@@ -2,8 +2,10 @@
 
 Native dialogs come from imgui-bundle's portable-file-dialogs (asynchronous:
 polled each frame, so the editor keeps drawing). Where no native chooser
-exists (Linux without zenity/kdialog, or INFINITEX_NO_NATIVE_DIALOGS=1) an
-in-window path prompt is used instead.
+exists (Linux without zenity/kdialog, or INFINITEX_NO_NATIVE_DIALOGS=1) the
+in-window file browser imgui-bundle ships (ImFileDialog) is used, starting in
+the folder last used. INFINITEX_PATH_PROMPT=1 replaces it with a plain path
+box (for scripted GUI tests, which type paths).
 """
 from __future__ import annotations
 
@@ -13,8 +15,11 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from imgui_bundle import im_file_dialog as ifd
 from imgui_bundle import imgui
 from imgui_bundle import portable_file_dialogs as pfd
+
+BROWSER_KEY = "infinitex-path"
 
 IMAGE_FILTER = ["Images and projects", "*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp *.itex",
                 "All files", "*"]
@@ -38,6 +43,7 @@ class PathRequest:
     on_done: Callable[[str], None]
     default: str = ""
     native: object = None
+    browser: bool = False
     text: str = ""
     opened: bool = False
 
@@ -50,11 +56,26 @@ class Modal:
     opened: bool = False
 
 
+def browser_filter(filters: list[str]) -> str:
+    """Our ["Name", "*.png *.jpg", ...] pairs as an ImFileDialog filter string:
+    "Name (*.png;*.jpg){.png,.jpg},All files (*.*){.*}"."""
+    out = []
+    for name, patterns in zip(filters[::2], filters[1::2]):
+        exts = [p[1:] for p in patterns.split() if p.startswith("*.")]
+        if patterns.strip() == "*" or not exts:
+            out.append(f"{name} (*.*){{.*}}")
+        else:
+            out.append(f"{name} ({';'.join('*' + e for e in exts)}){{{','.join(exts)}}}")
+    return ",".join(out)
+
+
 class Dialogs:
     def __init__(self):
         self.path_request: PathRequest | None = None
         self.modals: list[Modal] = []
         self.native = native_dialogs_available()
+        self.prompt = bool(os.environ.get("INFINITEX_PATH_PROMPT"))
+        self.last_dir = os.getcwd()  # where the in-window browser starts (the folder last used)
 
     @property
     def busy(self) -> bool:
@@ -62,13 +83,31 @@ class Dialogs:
 
     def ask_path(self, title: str, save: bool, filters: list[str], on_done: Callable[[str], None],
                  default: str = "") -> None:
-        req = PathRequest(title, save, filters, on_done, default, text=default or os.getcwd() + os.sep)
+        """Ask for a file to open or write; ``on_done(absolute path)`` when chosen.
+        A relative ``default`` is taken in the folder last used."""
+        if default and not os.path.isabs(os.path.expanduser(default)):
+            default = os.path.join(self.last_dir, default)
+        default = os.path.abspath(os.path.expanduser(default)) if default else ""
+
+        def done(path: str) -> None:
+            path = os.path.abspath(os.path.expanduser(path))
+            self.last_dir = os.path.dirname(path)
+            on_done(path)
+        req = PathRequest(title, save, filters, done, default, text=default or self.last_dir + os.sep)
         if self.native:
             try:
                 req.native = (pfd.save_file(title, default, filters) if save
                               else pfd.open_file(title, default, filters))
             except Exception:
                 req.native = None
+        if req.native is None and not self.prompt:
+            start = os.path.dirname(default) if default else self.last_dir
+            if not os.path.isdir(start):
+                start = os.path.expanduser("~")
+            dlg = ifd.FileDialog.instance()
+            flt = browser_filter(filters)
+            req.browser = bool(dlg.save(BROWSER_KEY, title, flt, start) if save
+                               else dlg.open(BROWSER_KEY, title, flt, False, start))
         self.path_request = req
 
     def message(self, title: str, body: str) -> None:
@@ -84,6 +123,15 @@ class Dialogs:
     def _draw_path(self) -> None:
         req = self.path_request
         if req is None:
+            return
+        if req.browser:
+            dlg = ifd.FileDialog.instance()
+            if dlg.is_done(BROWSER_KEY):
+                path = dlg.get_result().path() if dlg.has_result() else ""
+                dlg.close()
+                self.path_request = None
+                if path:
+                    req.on_done(str(path))
             return
         if req.native is not None:
             if req.native.ready(0):

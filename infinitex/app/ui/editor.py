@@ -90,6 +90,8 @@ class Editor:
         self.session: Session | None = None
         self.canvas: Canvas | None = None
         self.dialogs = Dialogs()
+        if self.settings.recent:  # the file browser starts in the folder last used
+            self.dialogs.last_dir = os.path.dirname(self.settings.recent[0])
         self.autosave = Autosave()
         self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
         self.export_job: ExportJob | None = None
