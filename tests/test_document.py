@@ -181,7 +181,7 @@ def test_settings_keep_recent_files_and_survive_damage(tmp_path):
         s = s.with_recent(str(tmp_path / f"f{i}.png"))
     s = s.with_recent(str(tmp_path / "f5.png"))  # reopened: moves to the top, no duplicate
     assert len(s.recent) == RECENT_MAX and s.recent[0].endswith("f5.png") and len(set(s.recent)) == RECENT_MAX
-    s = Settings(s.recent, (1600, 900))
+    s = Settings(s.recent, (1600, 900), ("Advanced", "Randomness"))
     assert save_settings(s, path) and load_settings(path) == s
     for bad in (b"\xff\xfe", b"[" * 100000, b'{"recent": "x", "window": [1, 2]}', b'{"recent": [1, "rel.png"]}'):
         with open(path, "wb") as f:

@@ -60,6 +60,12 @@ def test_everyday_use_driven_by_the_test_engine(tmp_path):
     failures = [r for r in report if not r.startswith("ok")]
     assert not failures and len(report) >= 16, "\n".join(report) + "\n" + proc.stdout[-2000:]
     assert proc.returncode == 0
+    # On exit the editor kept the window size, the open side-panel sections and
+    # the recent files for the next run.
+    import json
+    saved = json.loads((tmp_path / "state" / "settings.json").read_text())
+    assert saved["window"] == [1280, 800] and saved["recent"] and "Randomness" in saved["panels"]
+    assert "Advanced" not in saved["panels"]  # opened, then closed again by the test
 
 
 def test_screenshot_option_writes_the_window(tmp_path):

@@ -1,4 +1,5 @@
-"""The user's settings kept between runs: recent files and the window size.
+"""The user's settings kept between runs: recent files, the window size, the
+side-panel sections left open.
 
 A small JSON file in the user's config folder (``$INFINITEX_CONFIG``, else
 ``$XDG_CONFIG_HOME/infinitex``, else ``~/.config/infinitex``; with
@@ -35,6 +36,7 @@ def settings_path() -> str:
 class Settings:
     recent: tuple[str, ...] = ()                  # absolute paths, most recent first
     window: tuple[int, int] | None = None         # the window's size when the editor last closed
+    panels: tuple[str, ...] | None = None         # the side-panel sections left open (None: the defaults)
 
     def with_recent(self, path: str) -> Settings:
         p = os.path.abspath(path)
@@ -64,14 +66,20 @@ def load_settings(path: str | None = None) -> Settings:
     if not (isinstance(window, list) and len(window) == 2
             and all(isinstance(v, int) and not isinstance(v, bool) and 320 <= v <= 16384 for v in window)):
         window = None
-    return Settings(recent, None if window is None else (window[0], window[1]))
+    panels = d.get("panels")
+    if isinstance(panels, list) and len(panels) <= 32 and all(isinstance(p, str) and len(p) <= 64 for p in panels):
+        panels = tuple(panels)
+    else:
+        panels = None
+    return Settings(recent, None if window is None else (window[0], window[1]), panels)
 
 
 def save_settings(s: Settings, path: str | None = None) -> bool:
     """Write atomically; False (and nothing else) when it cannot be written."""
     import json
     path = path or settings_path()
-    data = {"recent": list(s.recent), "window": list(s.window) if s.window else None}
+    data = {"recent": list(s.recent), "window": list(s.window) if s.window else None,
+            "panels": None if s.panels is None else list(s.panels)}
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
         atomic_write(path, json.dumps(data, indent=1).encode("utf-8"))

@@ -43,7 +43,7 @@ from ..document import (
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay
 from ..session import ExportJob, Frame, Session, frame_for
-from ..settings import load_settings, save_settings
+from ..settings import config_dir, load_settings, save_settings
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs
 from .tools import CANVAS_SPACE_TOOLS, make_tools
@@ -66,7 +66,8 @@ SHORTCUTS = [
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
     ("F1  or  ?", "This list"),
 ]
-IDLE_FPS = 0.25              # frames per second with nothing to do (input wakes the editor at once)
+IDLE_FPS = 0.25
+DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run              # frames per second with nothing to do (input wakes the editor at once)
 
 
 class Editor:
@@ -79,6 +80,7 @@ class Editor:
         # The size the window had when the editor last closed (a screenshot keeps the documented 1280 x 800).
         self.window_size = window_size or (None if screenshot else self.settings.window) or (1280, 800)
         self.show_shortcuts = False
+        self.panels_open = set(self.settings.panels if self.settings.panels is not None else DEFAULT_PANELS)
         self.tile_mode = False           # the canvas shows the periodic texture of the tile size
         self.offer_recovery = recover and screenshot is None
         self.history: History | None = None
@@ -136,7 +138,15 @@ class Editor:
         p.app_window_params.window_title = "Infinitex"
         p.app_window_params.window_geometry.size = self.window_size
         p.imgui_window_params.default_imgui_window_type = hello_imgui.DefaultImGuiWindowType.no_default_window
-        p.ini_disable = True
+        # Floating windows (Lattice, Exemplar randomness, Shortcuts) keep their place
+        # between runs: imgui's ini in the user's config folder (none for screenshots).
+        p.ini_disable = bool(self.screenshot)
+        try:
+            os.makedirs(config_dir(), exist_ok=True)
+        except OSError:
+            p.ini_disable = True
+        p.ini_folder_type = hello_imgui.IniFolderType.absolute_path
+        p.ini_filename = os.path.join(config_dir(), "imgui.ini")
         p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
         # Idle means idle: with nothing to refine and no job, the runner waits for
         # events (input wakes it at once) and draws one frame every few seconds
@@ -227,7 +237,7 @@ class Editor:
         except Exception:
             return
         if w >= 320 and h >= 320:
-            self.settings = replace(self.settings, window=(int(w), int(h)))
+            self.settings = replace(self.settings, window=(int(w), int(h)), panels=tuple(sorted(self.panels_open)))
             save_settings(self.settings)
 
     def before_exit(self) -> None:
@@ -619,6 +629,7 @@ class Editor:
         imgui.end()
         if not keep:
             self.show_shortcuts = False
+        self.panels_open = set(self.settings.panels if self.settings.panels is not None else DEFAULT_PANELS)
         self.tile_mode = False           # the canvas shows the periodic texture of the tile size
 
     def _canvas(self) -> None:

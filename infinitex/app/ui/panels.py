@@ -143,16 +143,15 @@ class Panels:
                 {"feature": "Features", "lattice": "Lattice"}.get(ed.tool.name, "Brush") + "###tool-options", flags):
             self.brush_panel()
         # Artists' controls first; the synthesis internals wait in Advanced (collapsed).
-        if imgui.collapsing_header("Randomness", flags):
-            self.randomness_panel()
-        if imgui.collapsing_header("Exemplar", flags):
-            self.exemplar_panel()
-        if imgui.collapsing_header("Display", flags):
-            self.display_panel()
-        if imgui.collapsing_header("Export"):
-            self.export_panel()
-        if imgui.collapsing_header("Advanced"):
-            self.synthesis_panel()
+        # Which sections are open is kept between runs (the user's settings).
+        for name, draw in (("Randomness", self.randomness_panel), ("Exemplar", self.exemplar_panel),
+                           ("Display", self.display_panel), ("Export", self.export_panel),
+                           ("Advanced", self.synthesis_panel)):
+            imgui.set_next_item_open(name in ed.panels_open, imgui.Cond_.once)
+            opened = imgui.collapsing_header(name)
+            ed.panels_open.add(name) if opened else ed.panels_open.discard(name)
+            if opened:
+                draw()
 
     def toolbar(self) -> None:
         """The tool bar over the canvas: one button per tool, the field overlay toggle."""
