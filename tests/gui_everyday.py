@@ -21,35 +21,15 @@ from imgui_bundle import imgui
 from imgui_bundle.immapp import testing
 
 from infinitex.app.ui import panels
-from infinitex.app.ui.editor import Editor
+from gui_harness import Harness
 
 GRAVEL = os.path.join(HERE, "infinitex", "assets", "gravel.png")
 BRICK = os.path.join(HERE, "infinitex", "assets", "brick.png")
 
 
 def main(out: str) -> int:
-    os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
-    os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the test types paths; gui_everyday also opens the browser
-    ed = Editor(recover=False, window_size=(1280, 800))
-    report: list[str] = []
-
-    def check(name: str, cond: bool, why: str = "") -> None:
-        report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
-
-    def settle(ctx, limit=3000) -> None:
-        for _ in range(limit):
-            ctx.yield_()
-            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
-                    and ed.pending is None and ed.session.job is None):
-                return
-        raise RuntimeError("the editor did not settle")
-
-    def canvas(ctx):
-        settle(ctx)
-        ed.canvas_request = True
-        while ed.canvas_request:
-            ctx.yield_()
-        return ed.canvas_pixels
+    h = Harness(out)
+    ed, check, settle, canvas = h.ed, h.check, h.settle, h.canvas
 
     def test(ctx) -> None:
         settle(ctx)
@@ -176,14 +156,7 @@ def main(out: str) -> int:
               and os.path.isfile(target), str(ed.notice))
         testing.capture(ctx, os.path.join(out, "everyday.png"))
 
-    try:
-        testing.run(test_function=test, runner_params=ed.runner_params(),
-                    run_speed=testing.TestRunSpeed.fast)
-    except Exception as exc:
-        report.append(f"FAIL driver: {exc}")
-    with open(os.path.join(out, "report.txt"), "w") as fh:
-        fh.write("\n".join(report) + "\n")
-    return 0 if report and all(r.startswith("ok") for r in report) else 1
+    return h.run(test)
 
 
 if __name__ == "__main__":

@@ -22,36 +22,16 @@ from imgui_bundle import imgui
 from imgui_bundle.immapp import testing
 from lattice_gen import bricks
 
-from infinitex.app.ui.editor import Editor
+from gui_harness import Harness
 from infinitex.engine.exemplar import to_u8, write_png
 
 
 def main(out: str) -> int:
-    os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
-    os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the test types paths; gui_everyday also opens the browser
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
     path = os.path.join(out, "bricks.png")
     write_png(path, to_u8(img))
-    ed = Editor(path, recover=False, window_size=(1280, 800))
-    report: list[str] = []
-
-    def check(name: str, cond: bool, why: str = "") -> None:
-        report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
-
-    def settle(ctx, limit=3000) -> None:
-        for _ in range(limit):
-            ctx.yield_()
-            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
-                    and ed.pending is None and ed.session.job is None):
-                return
-        raise RuntimeError("the editor did not settle")
-
-    def canvas(ctx) -> np.ndarray:
-        settle(ctx)
-        ed.canvas_request = True
-        while ed.canvas_request:
-            ctx.yield_()
-        return ed.canvas_pixels
+    h = Harness(out, path)
+    ed, check, settle, canvas = h.ed, h.check, h.settle, h.canvas
 
     def preview(ctx) -> bytes:
         ctx.yield_(2)  # the window re-rectifies during a frame (GL stays on the main thread)
@@ -106,14 +86,7 @@ def main(out: str) -> int:
         check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
         testing.capture(ctx, os.path.join(out, "lattice.png"))
 
-    try:
-        testing.run(test_function=test, runner_params=ed.runner_params(),
-                    run_speed=testing.TestRunSpeed.fast)
-    except Exception as exc:
-        report.append(f"FAIL driver: {exc}")
-    with open(os.path.join(out, "report.txt"), "w") as fh:
-        fh.write("\n".join(report) + "\n")
-    return 0 if report and all(r.startswith("ok") for r in report) else 1
+    return h.run(test)
 
 
 if __name__ == "__main__":

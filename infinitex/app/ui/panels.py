@@ -30,6 +30,17 @@ MAGNIFY_LABELS = [("hires", "Synthesis magnification, hi-res exemplar"),
 FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square")]
 TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
 TILE_SIZES = [64, 128, 256, 512, 1024, 2048, 4096]
+# The Advanced section's sliders: document field, label, range, what it does in plain words.
+ADVANCED_SLIDERS = [
+    ("passes", "Correction passes", 0, 4, "How many times each scale is cleaned up to look like the exemplar: "
+     "more looks closer to it, costs more (correction passes, LH05 3.3)"),
+    ("subgrid", "Subpasses (s x s)", 1, 4, "In how many interleaved groups a clean-up pass visits the pixels; "
+     "2 x 2 is the paper's choice (subpasses s^2, LH05 3.3)"),
+    ("kappa", "Coherence", 0.0, 2.0, "Preference for continuing the current patch of exemplar over jumping to a "
+     "similar spot: higher gives larger intact patches and less variety (coherence kappa, LH05)"),
+    ("k", "Similar spots", 1, 4, "How many similar exemplar spots each pixel may jump to: more gives more variety "
+     "and a longer analysis (k-coherence candidates k, LH05)"),
+]
 
 
 LAST_TIP: list[str] = [""]  # the last tooltip shown (read by the GUI tests)
@@ -310,34 +321,18 @@ class Panels:
         imgui.text_disabled("How the synthesis works inside; the defaults suit most exemplars.")
         imgui.pop_text_wrap_pos()
         imgui.push_item_width(-150)
-        changed, v = imgui.slider_int("Correction passes", doc.passes, 0, 4)
-        tip("How many times each scale is cleaned up to look like the exemplar: more looks closer to it, "
-            "costs more (correction passes, LH05 3.3)")
-        if changed:
-            ed.edit(replace(doc, passes=v), "Correction passes", group="passes")
-        if imgui.is_item_deactivated():
-            ed.history.end_group()
-        changed, v = imgui.slider_int("Subpasses (s x s)", doc.subgrid, 1, 4)
-        tip("In how many interleaved groups a clean-up pass visits the pixels; 2 x 2 is the paper's choice "
-            "(subpasses s^2, LH05 3.3)")
-        if changed:
-            ed.edit(replace(ed.doc, subgrid=v), "Subpasses", group="subgrid")
-        if imgui.is_item_deactivated():
-            ed.history.end_group()
-        changed, v = imgui.slider_float("Coherence", doc.kappa, 0.0, 2.0, "%.2f")
-        tip("Preference for continuing the current patch of exemplar over jumping to a similar spot: "
-            "higher gives larger intact patches and less variety (coherence kappa, LH05)")
-        if changed:
-            ed.edit(replace(ed.doc, kappa=round(v, 3)), "Coherence", group="kappa")
-        if imgui.is_item_deactivated():
-            ed.history.end_group()
-        changed, v = imgui.slider_int("Similar spots", doc.k, 1, 4)
-        tip("How many similar exemplar spots each pixel may jump to: more gives more variety and a longer "
-            "analysis (k-coherence candidates k, LH05)")
-        if changed:
-            ed.edit(replace(ed.doc, k=v), "Candidates k", group="k")
-        if imgui.is_item_deactivated():
-            ed.history.end_group()
+        for field, label, lo, hi, text in ADVANCED_SLIDERS:
+            value = getattr(ed.doc, field)
+            if isinstance(value, float):
+                changed, v = imgui.slider_float(label, value, lo, hi, "%.2f")
+                v = round(v, 3)
+            else:
+                changed, v = imgui.slider_int(label, value, lo, hi)
+            tip(text)
+            if changed:  # a drag is one undo step
+                ed.edit(replace(ed.doc, **{field: v}), label, group=field)
+            if imgui.is_item_deactivated():
+                ed.history.end_group()
         models = ["appearance", "color"]
         changed, i = imgui.combo("Matching", models.index(doc.model), ["Appearance (LH06)", "Colors 5x5 (LH05)"])
         tip("What 'looks alike' means when cleaning up: Appearance compares smoothed, compressed "

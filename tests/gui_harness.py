@@ -1,0 +1,57 @@
+"""What the GUI drivers (gui_driver.py, gui_lattice.py, gui_everyday.py) share:
+the real editor run by the imgui test engine, exact canvas read-backs, and a
+report of "ok NAME" / "FAIL NAME: why" lines in OUT_DIR/report.txt that
+test_editor.py reads."""
+from __future__ import annotations
+
+import os
+import sys
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if HERE not in sys.path:
+    sys.path.insert(0, HERE)
+
+from imgui_bundle.immapp import testing  # noqa: E402
+
+from infinitex.app.ui.editor import Editor  # noqa: E402
+
+
+class Harness:
+    def __init__(self, out: str, path: str | None = None, window_size=(1280, 800)):
+        os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
+        os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the drivers type paths (gui_everyday also opens the browser)
+        self.out = out
+        self.ed = Editor(path, recover=False, window_size=window_size)
+        self.report: list[str] = []
+
+    def check(self, name: str, cond: bool, why: str = "") -> None:
+        self.report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
+
+    def settle(self, ctx, limit: int = 3000) -> None:
+        """Frames until the document is loaded, analyzed and the view refined."""
+        ed = self.ed
+        for _ in range(limit):
+            ctx.yield_()
+            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
+                    and ed.pending is None and ed.session.job is None):
+                return
+        raise RuntimeError("the editor did not settle")
+
+    def canvas(self, ctx):
+        """The canvas read back exactly (RGB), by the editor itself during a frame."""
+        self.settle(ctx)
+        self.ed.canvas_request = True
+        while self.ed.canvas_request:
+            ctx.yield_()
+        return self.ed.canvas_pixels
+
+    def run(self, test) -> int:
+        """Run ``test(ctx)`` in the editor; write the report; 0 when every check passed."""
+        try:
+            testing.run(test_function=test, runner_params=self.ed.runner_params(),
+                        run_speed=testing.TestRunSpeed.fast)
+        except Exception as exc:
+            self.report.append(f"FAIL driver: {exc}")
+        with open(os.path.join(self.out, "report.txt"), "w") as fh:
+            fh.write("\n".join(self.report) + "\n")
+        return 0 if self.report and all(r.startswith("ok") for r in self.report) else 1
