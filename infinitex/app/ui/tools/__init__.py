@@ -39,6 +39,29 @@ class Tool:
         return False
 
 
+def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tuple[int, int],
+                      zoom_range: tuple[float, float], fmt: str) -> bool:
+    """A tool's own zoomable image window (Exemplar randomness, Lattice):
+    placed at the top right on first use, closing it goes back to Navigate,
+    a zoom slider (``tool.zoom``) and the image size on its first row. Returns
+    whether its content is visible; call ``imgui.end()`` after it, always."""
+    from imgui_bundle import imgui
+    vp = imgui.get_main_viewport()
+    imgui.set_next_window_size(size, imgui.Cond_.first_use_ever)
+    imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x - size[0] - 24, vp.work_pos.y + 64),
+                              imgui.Cond_.first_use_ever)
+    opened, keep = imgui.begin(title, True)
+    if not keep:
+        ed.set_tool("navigate")
+    if opened:
+        imgui.set_next_item_width(160)
+        _, tool.zoom = imgui.slider_float("Zoom", tool.zoom, zoom_range[0], zoom_range[1], fmt,
+                                          imgui.SliderFlags_.logarithmic)
+        imgui.same_line()
+        imgui.text_disabled(f"{image[0]}x{image[1]} px")
+    return opened
+
+
 CANVAS_SPACE_TOOLS = ("paint-canvas", "feature")  # tools that work on the synthesized (rectified) canvas
 
 

@@ -23,7 +23,7 @@ from infinitex.engine.exemplar import ExemplarError, decode_full, to_u8
 from infinitex.engine.lattice import Detection, Lattice, LatticeError, choose_block, detect
 
 from ...render.canvas import _to_rgba
-from . import Tool
+from . import Tool, begin_tool_window
 
 CELLS = (1, 2, 4, 8, 16)
 HANDLE_PX = 7.0
@@ -247,18 +247,8 @@ class LatticeTool(Tool):
         if img is None:
             return
         H, W = img.shape[:2]
-        vp = imgui.get_main_viewport()
-        imgui.set_next_window_size((min(760, W * self.zoom + 40), min(820, H * self.zoom + PREVIEW + 130)),
-                                   imgui.Cond_.first_use_ever)
-        imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x - 560, vp.work_pos.y + 64), imgui.Cond_.first_use_ever)
-        opened, keep = imgui.begin("Lattice", True)
-        if not keep:
-            ed.set_tool("navigate")
-        if opened:
-            imgui.set_next_item_width(160)
-            _, self.zoom = imgui.slider_float("Zoom", self.zoom, 0.25, 8.0, "%.2fx", imgui.SliderFlags_.logarithmic)
-            imgui.same_line()
-            imgui.text_disabled(f"{W}x{H} px")
+        size = (min(760, W * self.zoom + 40), min(820, H * self.zoom + PREVIEW + 130))
+        if begin_tool_window(ed, self, "Lattice", size, (W, H), (0.25, 8.0), "%.2fx"):
             self._preview(img)
             imgui.begin_child("lattice-view", (0, 0), 0, imgui.WindowFlags_.horizontal_scrollbar)
             p0 = imgui.get_cursor_screen_pos()

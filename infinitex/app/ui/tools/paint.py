@@ -14,7 +14,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField
 
-from . import Tool
+from . import Tool, begin_tool_window
 
 
 @dataclass
@@ -187,17 +187,7 @@ class PaintExemplarTool(Tool):
             return
         m = s.analysis.size
         w, h = min(760, m * self.zoom + 40), min(760, m * self.zoom + 90)
-        vp = imgui.get_main_viewport()
-        imgui.set_next_window_size((w, h), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x - w - 24, vp.work_pos.y + 64), imgui.Cond_.first_use_ever)
-        opened, keep = imgui.begin("Exemplar randomness", True)
-        if not keep:
-            ed.set_tool("navigate")
-        if opened:
-            imgui.set_next_item_width(160)
-            _, self.zoom = imgui.slider_float("Zoom", self.zoom, 0.5, 8.0, "%.1fx", imgui.SliderFlags_.logarithmic)
-            imgui.same_line()
-            imgui.text_disabled(f"{m}x{m} px")
+        if begin_tool_window(ed, self, "Exemplar randomness", (w, h), (m, m), (0.5, 8.0), "%.1fx"):
             imgui.begin_child("exemplar-view", (0, 0), 0, imgui.WindowFlags_.horizontal_scrollbar)
             size = m * self.zoom
             p0 = imgui.get_cursor_screen_pos()
