@@ -108,7 +108,8 @@ def test_bad_inputs_raise_clear_errors(tmp_path):
         data = f.read()
     with open(truncated, "wb") as f:
         f.write(data[: len(data) // 2])
-    tiny = _save(tmp_path, "tiny.png", Image.fromarray(np.zeros((20, 20), np.uint8)))
+    # A 20 px ramp: too small and it does not tile (a small seamless pattern is accepted, see below).
+    tiny = _save(tmp_path, "tiny.png", Image.fromarray(np.tile(np.arange(0, 200, 10, dtype=np.uint8), (20, 1))))
     huge = os.path.join(tmp_path, "huge.png")
     _png_claiming_size(huge, 60000, 60000)
     cases = {
@@ -127,3 +128,33 @@ def test_bad_inputs_raise_clear_errors(tmp_path):
         load_exemplar(good, fit="stretch")
     with pytest.raises(ExemplarError, match="not numbers"):
         from_array(np.full((32, 32), np.nan))
+
+
+def test_small_seamless_patterns_are_repeated_to_the_minimum_size(tmp_path):
+    """A pattern under 32 px that tiles is repeated (whole periods, resampled
+    periodically) instead of refused; one that does not tile still is."""
+    import io
+
+    from PIL import Image
+
+    from infinitex.engine.exemplar import ExemplarError, from_array, load_exemplar_bytes
+    rng = np.random.default_rng(3)
+    tile16 = rng.random((16, 16)).astype(np.float32)
+    ex = from_array(tile16, toroidal=True)
+    assert ex.size == 32 and ex.toroidal
+    assert np.allclose(ex.pixels[:, :, 0], np.tile(tile16, (2, 2)))  # 16 -> 32: repeated exactly
+    y, x = np.mgrid[0:25, 0:20]
+    pat = (0.5 + 0.4 * np.sin(2 * np.pi * x / 20) * np.cos(2 * np.pi * y / 25)).astype(np.float32)
+    buf = io.BytesIO()
+    Image.fromarray(np.rint(pat * 255).astype(np.uint8)).save(buf, "PNG")
+    ex = load_exemplar_bytes(buf.getvalue(), name="pattern.png")  # seamless: guessed, no flag needed
+    assert ex.size == 128 and ex.toroidal and ex.original_size == (20, 25)
+    p = ex.pixels[:, :, 0].astype(np.float64)
+    wrapped = np.concatenate([p, p], axis=1)  # the repeat has no seam: the wrap looks like the interior
+    assert np.abs(wrapped[:, 127] - wrapped[:, 128]).max() <= 1.2 * np.abs(np.diff(p, axis=1)).max()
+    ramp = np.tile(np.linspace(0, 1, 20, dtype=np.float32), (20, 1))
+    with pytest.raises(ExemplarError, match="tiles seamlessly"):
+        from_array(ramp)
+    assert from_array(ramp, toroidal=True).size == 32  # forced
+    with pytest.raises(ExemplarError, match="at least 4x4"):
+        from_array(np.zeros((2, 2), np.float32), toroidal=True)

@@ -40,6 +40,7 @@ from PIL import Image, UnidentifiedImageError
 from .safeio import ReadError, atomic_write, printable, read_limited
 
 MIN_SIZE = 32
+SMALL_MIN = 4                        # seamless patterns from this size up are repeated to MIN_SIZE
 MAX_SIZE = 512
 MAX_INPUT_PIXELS = 64 * 1024 * 1024  # 8192^2: bigger inputs are refused up front
 MAX_FILE_BYTES = 512 * 1024 * 1024   # image files larger than this are not read
@@ -225,6 +226,32 @@ def _finish(px: np.ndarray, hires, fit: str, toroidal: bool | None, source: str,
                     toroidal_guess=guess, source=source, fit=fit, original_size=size, hires=hires)
 
 
+def small_pattern(px: np.ndarray, toroidal: bool | None) -> np.ndarray:
+    """A pattern smaller than MIN_SIZE that tiles seamlessly (its wrap-around
+    seams match, or ``toroidal`` says so), repeated to the smallest square of
+    whole periods that is at least MIN_SIZE: nothing is lost, the result tiles.
+    Anything else smaller than MIN_SIZE is an ExemplarError."""
+    h, w = px.shape[:2]
+    tiles = toroidal if toroidal is not None else (min(h, w) >= 2 and guess_toroidal(px))
+    side = math.lcm(w, h)
+    if not tiles:
+        raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px (a smaller "
+                            "pattern is accepted when it tiles seamlessly; Toroidal: yes forces that).")
+    if min(w, h) < SMALL_MIN or side > MAX_SIZE:
+        raise ExemplarError(f"The pattern is {w}x{h} px; a seamless pattern must be at least {SMALL_MIN}x{SMALL_MIN} "
+                            f"px, and its repeat ({side} px) at most {MAX_SIZE} px.")
+    side *= -(-MIN_SIZE // side)
+    sq = np.tile(px, (side // h, side // w, 1))
+    m = _nearest_pow2(side)
+    if m == side:
+        return np.ascontiguousarray(sq, dtype=np.float32)
+    # Resample periodically: the 3 x 3 repetition resized, its middle kept (no seam).
+    big = np.tile(sq, (3, 3, 1))
+    planes = [np.asarray(_f_image(big[:, :, c]).resize((3 * m, 3 * m), Image.LANCZOS))[m:2 * m, m:2 * m]
+              for c in range(big.shape[2])]
+    return np.ascontiguousarray(np.clip(np.stack(planes, axis=2), 0.0, 1.0), dtype=np.float32)
+
+
 def from_array(arr: np.ndarray, *, fit: str = "resize", toroidal: bool | None = None,
                source: str = "<array>") -> Exemplar:
     """Build an exemplar from a float array (H, W) or (H, W, C) in [0, 1]."""
@@ -236,11 +263,13 @@ def from_array(arr: np.ndarray, *, fit: str = "resize", toroidal: bool | None = 
     h, w = arr.shape[:2]
     if h == 0 or w == 0:
         raise ExemplarError("The exemplar image is empty (0 pixels).")
-    if min(h, w) < MIN_SIZE:
-        raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px.")
     if not np.all(np.isfinite(arr)):
         raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
-    px, hires = fit_square(np.clip(arr, 0.0, 1.0), fit)
+    arr = np.clip(arr, 0.0, 1.0)
+    if min(h, w) < MIN_SIZE:
+        arr = small_pattern(arr, toroidal)
+        toroidal = True if toroidal is None else toroidal
+    px, hires = fit_square(arr, fit)
     return _finish(px, hires, fit, toroidal, source, (w, h))
 
 
@@ -387,7 +416,9 @@ def _open(data: bytes, name: str) -> Image.Image:
 def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
     if fit not in FIT_MODES:
         raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
-    px, hires, size = _decode_pixels(data, name, fit)
+    px, hires, size = _decode_pixels(data, name, fit, toroidal)
+    if min(size) < MIN_SIZE and toroidal is None:
+        toroidal = True  # a small pattern is accepted only when it tiles, and repeated it still does
     return _finish(px, hires, fit, toroidal, source, size)
 
 
@@ -414,14 +445,13 @@ def load_full(path: str | os.PathLike) -> np.ndarray:
     return decode_full(data, os.path.basename(path) or path)
 
 
-def _decode_pixels(data: bytes, name: str, fit: str):
+def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = None):
     """(pixels, hires or None, original size) by a fit rule, or "full"."""
     full = fit == "full"
     with _decoding(name):
         with _open(data, name) as im0:
             w, h = im0.size
-            if min(w, h) < MIN_SIZE:
-                raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px.")
+            small = min(w, h) < MIN_SIZE and not full  # a small seamless pattern: repeated (small_pattern)
             size = (w, h)
             side = min(w, h)
             if full and w * h > FULL_MAX_PIXELS:
@@ -440,8 +470,8 @@ def _decode_pixels(data: bytes, name: str, fit: str):
                                     f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
             im0.load()
             norm = _normalization(im0)
-            x0, y0, side = (0, 0, 0) if full else _crop_box(w, h, fit)
-            img = im0 if full or (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
+            x0, y0, side = (0, 0, 0) if full or small else _crop_box(w, h, fit)
+            img = im0 if full or small or (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
         del im0
         mode = img.mode
         if mode in _CANONICAL:
@@ -449,10 +479,13 @@ def _decode_pixels(data: bytes, name: str, fit: str):
             img = img.convert(target)
         elif not (mode in _CHANNELS or mode.startswith("I;16")):
             raise ExemplarError(f"{name}: images in Pillow mode {printable(mode)!r} are not supported.")
-        if full:
+        if full or small:
             px = np.ascontiguousarray(np.stack([np.asarray(p, dtype=np.float32) for p in _planes(img, norm)],
                                                axis=2))
-            return px, None, size
+            if full:
+                return px, None, size
+            px, hires = fit_square(small_pattern(px, toroidal), fit)
+            return px, hires, size
         px, hires = _fit_planes(_planes(img, norm), side, fit)
         del img
     return px, hires, size
