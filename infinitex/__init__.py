@@ -30,6 +30,12 @@ Step by step (an analysis and a GL context made once, many windows)::
         colors = s.colors(coords)                        # float32 (H, W, C) in [0, 1]
         seamless = s.toroidal(256)                       # coordinates of a toroidal tile
 
+Huge exports, tile by tile in bounded memory and resumable (``TiledExport``)::
+
+    with itx.Synthesizer(an) as s:
+        itx.TiledExport(s, itx.Rect.of(0, 0, 65536, 65536), "terrain.tif", "tiff", tile=1024).run()
+        itx.TiledExport(s, itx.Rect.of(0, 0, 8192, 8192), "set.png", "tiles", tile=2048).run()  # set.1001.png...
+
 Controls (one engine input, ``Controls``): ``CanvasField`` and
 ``ExemplarField`` (painted randomness, uint16, 32768 = neutral; ``painted()``
 adds a dab), ``Feature`` (an exemplar spot placed on the canvas), ``Lattice``
@@ -63,6 +69,7 @@ _EXPORTS = {
     "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
     "Lattice": "engine.lattice", "rectified_exemplar": "engine.lattice", "render_original": "engine.lattice",
     "original_geometry_box": "engine.lattice",
+    "TiledExport": "engine.tiled_export",
     "load_project": "app.document", "save_project": "app.document", "Document": "app.document",
     "Project": "app.document",
 }

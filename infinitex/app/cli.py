@@ -42,6 +42,13 @@ def build_parser() -> Parser:
     p.add_argument("--size", nargs=2, type=_integer, default=None, metavar=("W", "H"),
                    help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
     p.add_argument("--coords", action="store_true", help="also write OUT_coords.png (exact exemplar coordinates)")
+    p.add_argument("--format", choices=("png", "tiles", "tiff"), default="png",
+                   help="png: one image, made in memory (at most 16384 px a side); tiles: a set of PNG tiles "
+                        "with UDIM numbers (-o NAME.png writes NAME.1001.png ...); tiff: one tiled BigTIFF "
+                        "(-o NAME.tif). tiles and tiff are streamed in bounded memory, up to 2^20 px a side, "
+                        "and resume where an interrupted run stopped")
+    p.add_argument("--tile", type=_integer, default=1024, metavar="N",
+                   help="tile size of --format tiles|tiff: 256, 512, 1024 (default), 2048, 4096 or 8192")
     add_randomness_args(p)
     add_lattice_args(p)
     p.add_argument("--allow-outside-exemplar", action="store_true",
@@ -57,17 +64,23 @@ def run_export(argv: list[str]) -> int:
     from .document import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
 
     # Arguments first: nothing is read or computed before they are all good.
+    from infinitex.engine.tiled_export import TILE_SIZES
+    streamed = args.format != "png"
     if args.size is not None and (args.rect or args.toroidal is not None):
         raise CliError("--size goes with neither --rect nor --toroidal.", EXIT_USAGE)
     if args.rect:
         x, y, w, h = args.rect
-        check_window(x, y, w, h, "--rect")
+        check_window(x, y, w, h, "--rect", streamed)
     elif args.toroidal is not None:
         check_toroidal(args.toroidal)
     else:
         w, h = args.size or (1024, 1024)
-        check_window(0, 0, w, h, "--size")
-    check_out(args.output, (".png",), "output image")
+        check_window(0, 0, w, h, "--size", streamed)
+    check_out(args.output, (".tif", ".tiff") if args.format == "tiff" else (".png",), "output image")
+    if streamed and args.tile not in TILE_SIZES:
+        raise CliError(f"--tile must be one of {', '.join(map(str, TILE_SIZES))}, not {args.tile}.", EXIT_USAGE)
+    if streamed and args.coords:
+        raise CliError("--coords goes with --format png only.", EXIT_USAGE)
     coords_path = None
     if args.coords:
         coords_path = os.path.splitext(args.output)[0] + "_coords.png"
@@ -94,7 +107,7 @@ def run_export(argv: list[str]) -> int:
     else:
         cx, cy = (view.x, view.y) if view else (0.0, 0.0)
         rect, tor = Rect.of(int(cx - w / 2), int(cy - h / 2), w, h), 0
-        check_window(rect.x0, rect.y0, w, h, "--size")
+        check_window(rect.x0, rect.y0, w, h, "--size", streamed)
 
     # Decode and analyze before any GL: a bad exemplar fails fast.
     from infinitex.engine.analysis import AnalysisSettings, analyze
@@ -135,12 +148,44 @@ def run_export(argv: list[str]) -> int:
     session = Session(gpu)
     try:
         session.install(doc, ex, an)
+        if streamed:
+            return _run_streamed(session, doc, rect, tor, args, gpu.renderer, args.geometry or geometry)
         job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512,
                         geometry=args.geometry or geometry)
         return _run(job, args, rect, gpu.renderer)
     finally:
         session.release()
         gpu.release()
+
+
+def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str) -> int:
+    """--format tiles|tiff: tile by tile in bounded memory, resumable (engine.tiled_export)."""
+    import hashlib
+    import json
+    from dataclasses import replace
+
+    from infinitex.engine.tiled_export import TiledExport
+
+    from .document import Project, project_to_json
+    if session.controls.lattice is not None and geometry != "rectified" and not tor:
+        raise CliError("Tiled exports of a lattice are written rectified: pass --geometry rectified.", EXIT_USAGE)
+    synth = session.synth
+    if tor:
+        synth.set_params(replace(session.params, period=tor))
+    # What decides the pixels: the whole document (exemplar included) and the parameters used.
+    key = hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(synth.params)],
+                                    sort_keys=True).encode()).hexdigest()
+    job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key)
+    progress = ProgressBar("export", args.quiet)
+    t0 = time.perf_counter()
+    job.run(lambda done, total: progress(done / total, f"tile {done}/{total}"))
+    if not args.quiet:
+        kept = job.rows * job.cols - job.rendered
+        where = os.path.abspath(args.output if args.format == "tiff"
+                                else os.path.splitext(args.output)[0] + ".<UDIM>.png")
+        sys.stderr.write(f"{printable(where)}: {rect.w}x{rect.h} in {job.rows * job.cols} tiles of {args.tile} px "
+                         f"({kept} kept from an earlier run) in {time.perf_counter() - t0:.1f} s ({renderer})\n")
+    return 0
 
 
 def _run(job, args, rect, renderer: str) -> int:

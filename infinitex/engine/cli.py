@@ -69,9 +69,14 @@ def _number(text: str) -> float:
     return v
 
 
-def check_window(x: int, y: int, w: int, h: int, what: str) -> None:
-    """A canvas rectangle the engine can make in memory (before any work)."""
-    if not (1 <= w <= MAX_WINDOW_SIDE and 1 <= h <= MAX_WINDOW_SIDE) or w * h > MAX_WINDOW_PIXELS:
+def check_window(x: int, y: int, w: int, h: int, what: str, streamed: bool = False) -> None:
+    """A canvas rectangle the engine can make in memory (before any work); a
+    streamed (tiled) export may be up to 2^20 px a side."""
+    if streamed:
+        from .tiled_export import MAX_SIDE
+        if not (1 <= w <= MAX_SIDE and 1 <= h <= MAX_SIDE):
+            raise CliError(f"{what} must be between 1 and {MAX_SIDE} in each dimension, not {w}x{h}.", EXIT_USAGE)
+    elif not (1 <= w <= MAX_WINDOW_SIDE and 1 <= h <= MAX_WINDOW_SIDE) or w * h > MAX_WINDOW_PIXELS:
         raise CliError(f"{what} must be between 1 and {MAX_WINDOW_SIDE} in each dimension and at most "
                        f"{MAX_WINDOW_PIXELS >> 20} Mpixels, not {w}x{h}.", EXIT_USAGE)
     if min(x, y) < -COORD_LIMIT or max(x + w, y + h) > COORD_LIMIT:
