@@ -117,3 +117,49 @@ def test_cli_refuses_bad_tiled_arguments(tmp_path):
     assert r.returncode == 2 and "--coords goes with --format png" in r.stderr
     assert not list(tmp_path.iterdir())
 
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for task in os.listdir(f"/proc/{pid}/task"):
+        try:
+            with open(f"/proc/{pid}/task/{task}/children") as f:
+                out += [int(c) for c in f.read().split()]
+        except OSError:
+            pass
+    return out
+
+
+def test_worker_processes_give_the_same_bytes_and_survive_a_killed_worker(tmp_path):
+    env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
+    base = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiles",
+            "--rect", "-500", "300", "1536", "1536", "--tile", "256", "-q"]
+    one = subprocess.run([*base, "-o", str(tmp_path / "one.png")], env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert one.returncode == 0, one.stderr[-2000:]
+    proc = subprocess.Popen([*base, "-o", str(tmp_path / "two.png"), "--workers", "2"], env=env,
+                            stderr=subprocess.PIPE)
+    manifest = tmp_path / "two.png.parts" / "manifest.json"
+    killed = False
+    deadline = time.monotonic() + 300
+    while proc.poll() is None and time.monotonic() < deadline and not killed:
+        try:
+            started = len(json.loads(manifest.read_text())["tiles"]) >= 3
+        except (OSError, ValueError, KeyError):
+            started = False
+        if started:
+            for child in _children(proc.pid):
+                with open(f"/proc/{child}/cmdline", "rb") as f:
+                    if b"spawn_main" in f.read():
+                        os.kill(child, signal.SIGKILL)  # a worker dies mid-export
+                        killed = True
+                        break
+        time.sleep(0.02)
+    assert proc.wait(600) == 0, proc.stderr.read().decode()[-2000:]
+    assert killed
+    for row in range(6):
+        for col in range(6):
+            a = udim_name(str(tmp_path / "one"), col, row, 6)
+            b = udim_name(str(tmp_path / "two"), col, row, 6)
+            with open(a, "rb") as fa, open(b, "rb") as fb:
+                assert fa.read() == fb.read(), (col, row)

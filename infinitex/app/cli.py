@@ -49,6 +49,9 @@ def build_parser() -> Parser:
                         "and resume where an interrupted run stopped")
     p.add_argument("--tile", type=_integer, default=1024, metavar="N",
                    help="tile size of --format tiles|tiff: 256, 512, 1024 (default), 2048, 4096 or 8192")
+    p.add_argument("--workers", type=_integer, default=0, metavar="N",
+                   help="--format tiles|tiff: render with N worker processes, each with its own GL context "
+                        "(0: in this process); the files are the same bytes")
     add_randomness_args(p)
     add_lattice_args(p)
     p.add_argument("--allow-outside-exemplar", action="store_true",
@@ -81,6 +84,8 @@ def run_export(argv: list[str]) -> int:
         raise CliError(f"--tile must be one of {', '.join(map(str, TILE_SIZES))}, not {args.tile}.", EXIT_USAGE)
     if streamed and args.coords:
         raise CliError("--coords goes with --format png only.", EXIT_USAGE)
+    if not 0 <= args.workers <= 64 or (args.workers and not streamed):
+        raise CliError("--workers is 0 to 64, with --format tiles or tiff.", EXIT_USAGE)
     coords_path = None
     if args.coords:
         coords_path = os.path.splitext(args.output)[0] + "_coords.png"
@@ -178,7 +183,12 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
     job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key)
     progress = ProgressBar("export", args.quiet)
     t0 = time.perf_counter()
-    job.run(lambda done, total: progress(done / total, f"tile {done}/{total}"))
+    init = None
+    if args.workers:
+        from .session import ProjectSynthesizer
+        init = ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), tor)
+    job.run(lambda done, total: progress(done / total, f"tile {done}/{total}"), workers=args.workers,
+            worker_init=init)
     if not args.quiet:
         kept = job.rows * job.cols - job.rendered
         where = os.path.abspath(args.output if args.format == "tiff"

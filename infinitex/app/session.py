@@ -114,6 +114,39 @@ class AnalysisJob:
             self.error = f"Analyzing {d.exemplar.name} failed: {exc}"
 
 
+@dataclass
+class ProjectSynthesizer:
+    """Makes, in another process, the Synthesizer of a project: what export
+    workers receive (the project as JSON with its exemplar embedded, not
+    pickled engine objects). Each worker has its own headless GL context."""
+
+    project_json: str
+    period: int = 0
+
+    def __call__(self) -> Synthesizer:
+        from .document import parse_project_json, project_from_json
+        doc = project_from_json(parse_project_json(self.project_json.encode("utf-8"))).document
+        ex, settings = exemplar_for(doc)
+        an = analyze(ex, settings)  # the disk cache holds it: the parent analyzed it already
+        params = doc.params(an.L)
+        if self.period:
+            params = replace(params, period=self.period)
+        return Synthesizer(an, params, controls=doc.controls(an.size))
+
+
+def exemplar_for(doc: Document) -> tuple[Exemplar, AnalysisSettings]:
+    """The exemplar a document synthesizes from (a lattice's rectified block,
+    or the image by its fit rule) and the analysis settings for it."""
+    if doc.lattice is not None:
+        ex = rectified_exemplar(decode_full(doc.exemplar.data, doc.exemplar.name), doc.lattice,
+                                source=doc.exemplar.name)
+        grid = (doc.lattice.nx, doc.lattice.ny)
+    else:
+        ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+        grid = (0, 0)
+    return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid)
+
+
 # -- progressive refinement --------------------------------------------------
 
 

@@ -119,13 +119,20 @@ class TiledExport:
 
     # -- run --------------------------------------------------------------------------
 
-    def run(self, progress=None) -> None:
+    def run(self, progress=None, workers: int = 0, worker_init=None) -> None:
         """Render what is missing, then assemble. ``progress(done, total)`` is
         called after each tile; it may raise ExportInterrupted (or anything)
-        to stop, keeping the finished tiles for the next run."""
+        to stop, keeping the finished tiles for the next run.
+
+        With ``workers`` > 0 the tiles are rendered by that many processes,
+        each with its own headless GL context, made by ``worker_init`` (a
+        picklable callable returning the worker's Synthesizer; the project,
+        not engine objects, crosses the process boundary). A worker that dies
+        has its tiles given to a fresh pool. The files are the same bytes."""
         os.makedirs(self.parts, exist_ok=True)
         kept = self._load_manifest()
         done: dict = {}
+        todo = []
         total = self.rows * self.cols
         for col, row, r in self.tiles():
             name = f"{col},{row}"
@@ -134,25 +141,57 @@ class TiledExport:
             if isinstance(entry, list) and len(entry) == 2 and self._digest(path) == tuple(entry):
                 done[name] = entry
             else:
-                self._render(path, r)
-                size, sha = self._digest(path)
-                done[name] = [size, sha]
-                self.rendered += 1
-                self._save_manifest(done | {k: v for k, v in kept.items() if k not in done})
+                todo.append((name, path, r))
+        if progress is not None and done:
+            progress(len(done), total)
+
+        def finished(name: str, path: str) -> None:
+            size, sha = self._digest(path)
+            done[name] = [size, sha]
+            self.rendered += 1
+            self._save_manifest(done | {k: v for k, v in kept.items() if k not in done})
             if progress is not None:
                 progress(len(done), total)
+        if workers > 0 and todo:
+            self._run_pool(todo, workers, worker_init, finished)
+        else:
+            for name, path, r in todo:
+                render_tile(self.synth, self.fmt, path, r)
+                finished(name, path)
         if self.fmt == "tiff":
             self._assemble_tiff()
         shutil.rmtree(self.parts, ignore_errors=True)
 
-    def _render(self, path: str, r: Rect) -> None:
-        s = self.synth
-        img = to_u8(s.colors(s.window(r)))
-        if self.fmt == "tiles":
-            from .exemplar import write_png
-            write_png(path, img)
-        else:
-            atomic_write(path, writer=lambda f: np.save(f, img, allow_pickle=False))
+    def _run_pool(self, todo, workers: int, worker_init, finished) -> None:
+        import multiprocessing
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
+        ctx = multiprocessing.get_context("spawn")  # a fresh interpreter: no inherited GL state
+        pending = list(todo)
+        restarts = 0
+        while pending:
+            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_start,
+                                     initargs=(worker_init,)) as pool:
+                futures = {pool.submit(_worker_tile, self.fmt, path, (r.x0, r.y0, r.x1, r.y1)): (name, path, r)
+                           for name, path, r in pending}
+                broken = False
+                while futures:
+                    ready, _ = wait(futures, return_when=FIRST_COMPLETED)
+                    for fut in ready:
+                        item = futures.pop(fut)
+                        try:
+                            fut.result()
+                        except BrokenProcessPool:
+                            broken = True
+                            continue
+                        pending.remove(item)
+                        finished(item[0], item[1])
+                    if broken:
+                        break
+            if broken:
+                restarts += 1
+                if restarts > 3 * workers + 3:
+                    raise RuntimeError("export workers keep dying; the finished tiles are kept")
 
     def _assemble_tiff(self) -> None:
         import tifffile
@@ -181,6 +220,28 @@ class TiledExport:
         with open(tmp, "rb") as f:
             os.fsync(f.fileno())
         os.replace(tmp, self.out)
+
+
+def render_tile(synth, fmt: str, path: str, r: Rect) -> None:
+    """Render one tile and write it atomically (a PNG, or raw .npy for the TIFF)."""
+    img = to_u8(synth.colors(synth.window(r)))
+    if fmt == "tiles":
+        from .exemplar import write_png
+        write_png(path, img)
+    else:
+        atomic_write(path, writer=lambda f: np.save(f, img, allow_pickle=False))
+
+
+_WORKER: dict = {}
+
+
+def _worker_start(worker_init) -> None:
+    _WORKER["synth"] = worker_init()
+
+
+def _worker_tile(fmt: str, path: str, box: tuple[int, int, int, int]) -> str:
+    render_tile(_WORKER["synth"], fmt, path, Rect(*box))
+    return path
 
 
 def read_tiles(out: str, rect_w: int, rect_h: int, tile: int, channels: int) -> np.ndarray:
