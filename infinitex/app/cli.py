@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from dataclasses import replace
 
 from infinitex.engine.cli import (
     EXIT_INPUT,
@@ -115,40 +116,32 @@ def run_export(argv: list[str]) -> int:
         check_window(rect.x0, rect.y0, w, h, "--size", streamed)
 
     # Decode and analyze before any GL: a bad exemplar fails fast.
-    from infinitex.engine.analysis import AnalysisSettings, analyze
+    from infinitex.engine.analysis import analyze
     from infinitex.engine.cli import _progress
-    from infinitex.engine.exemplar import load_exemplar_bytes
     from infinitex.engine.gpu import Gpu
 
-    from .session import ExportJob, Session
-    from dataclasses import replace
+    from .session import ExportJob, Session, exemplar_for
     check_lattice_args(args)
+    image = None
     if args.lattice:  # replaces the project's lattice ('none' removes it)
         from infinitex.engine.exemplar import decode_full
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
-        del image
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
-    if doc.lattice is not None:
-        from infinitex.engine.exemplar import decode_full
-        from infinitex.engine.lattice import rectified_exemplar
-        ex = rectified_exemplar(decode_full(doc.exemplar.data, doc.exemplar.name), doc.lattice,
-                                source=doc.exemplar.name)
-        if tor:
-            cx, cy = doc.lattice.cell(ex.size)
-            if tor % cx or tor % cy:
-                raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar px) "
-                               f"divides; use --toroidal {max(cx, cy, 32)} or more.", EXIT_USAGE)
-    else:
-        ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+    ex, settings = exemplar_for(doc, image)
+    del image
+    if doc.lattice is not None and tor:
+        cx, cy = doc.lattice.cell(ex.size)
+        if tor % cx or tor % cy:
+            raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar px) "
+                           f"divides; use --toroidal {max(cx, cy, 32)} or more.", EXIT_USAGE)
     if args.randomness_exemplar or args.randomness_canvas or args.features:  # these replace the project's
         from infinitex.engine.cli import randomness_controls
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features)
-    grid = (doc.lattice.nx, doc.lattice.ny) if doc.lattice else (0, 0)
-    an = analyze(ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid), progress=_progress(args.quiet))
+    an = analyze(ex, settings, progress=_progress(args.quiet))
     gpu = Gpu()
     session = Session(gpu)
     try:
@@ -167,7 +160,6 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
     """--format tiles|tiff: tile by tile in bounded memory, resumable (engine.tiled_export)."""
     import hashlib
     import json
-    from dataclasses import replace
 
     from infinitex.engine.tiled_export import TiledExport
 

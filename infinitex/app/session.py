@@ -91,18 +91,9 @@ class AnalysisJob:
     def _run(self) -> None:
         d = self.doc
         try:
-            grid = (0, 0)
-            if d.lattice is not None:
-                image = decode_full(d.exemplar.data, d.exemplar.name)
-                self._progress(0.0, "Rectifying the lattice")
-                ex = rectified_exemplar(image, d.lattice, source=d.exemplar.name)
-                grid = (d.lattice.nx, d.lattice.ny)
-                del image
-            else:
-                ex = load_exemplar_bytes(d.exemplar.data, name=d.exemplar.name, fit=d.fit, toroidal=d.toroidal)
+            ex, settings = exemplar_for(d)
             self._progress(0.0, "Analyzing")
-            an = analyze(ex, AnalysisSettings(model=d.model, k=d.k, lattice=grid), cache_dir=self.cache_dir,
-                         progress=self._progress)
+            an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress)
             self.exemplar, self.analysis = ex, an
         except AnalysisCancelled:
             self.cancelled = True
@@ -134,12 +125,14 @@ class ProjectSynthesizer:
         return Synthesizer(an, params, controls=doc.controls(an.size))
 
 
-def exemplar_for(doc: Document) -> tuple[Exemplar, AnalysisSettings]:
+def exemplar_for(doc: Document, image: np.ndarray | None = None) -> tuple[Exemplar, AnalysisSettings]:
     """The exemplar a document synthesizes from (a lattice's rectified block,
-    or the image by its fit rule) and the analysis settings for it."""
+    or the image by its fit rule) and the analysis settings for it. ``image``:
+    the exemplar file already decoded whole (decode_full), if at hand."""
     if doc.lattice is not None:
-        ex = rectified_exemplar(decode_full(doc.exemplar.data, doc.exemplar.name), doc.lattice,
-                                source=doc.exemplar.name)
+        if image is None:
+            image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        ex = rectified_exemplar(image, doc.lattice, source=doc.exemplar.name)
         grid = (doc.lattice.nx, doc.lattice.ny)
     else:
         ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)

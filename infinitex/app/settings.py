@@ -11,7 +11,7 @@ neither GL nor imgui.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from infinitex.engine.safeio import JSONLimitError, ReadError, WriteError, atomic_write, parse_json, read_limited
 

@@ -14,8 +14,10 @@ Formats:
 
 Every tile is independent of every other (spatial determinism), so the result
 does not depend on the tile size used to render or on interruptions: a
-folder ``OUT.parts`` beside the output holds a manifest (the export's key,
-and the size and SHA-256 of each finished tile). Running the same export
+folder ``OUT.parts`` beside the output holds a manifest (``manifest.jsonl``:
+the export's key on the first line, then one line per finished tile with its
+size and SHA-256, appended as tiles finish, so it costs the same per tile at
+any export size). Running the same export
 again keeps the tiles that verify and renders the rest; the final TIFF is
 written atomically once every tile is there, and the parts folder removed.
 """
@@ -31,11 +33,13 @@ import numpy as np
 
 from .exemplar import to_u8
 from .pyramid import Rect
-from .safeio import atomic_write, parse_json, read_limited
+from .safeio import atomic_write, read_limited
 
 FORMATS = ("tiles", "tiff")
 TILE_SIZES = (256, 512, 1024, 2048, 4096, 8192)
 MAX_SIDE = 1 << 20
+MANIFEST = "manifest.jsonl"
+MANIFEST_MAX = 1 << 30  # about 100 bytes a tile: room for the 2^20 tiles of the largest export
 
 
 class ExportInterrupted(Exception):
@@ -72,7 +76,7 @@ class TiledExport:
         self.cols = -(-self.rect.w // self.tile)
         self.rows = -(-self.rect.h // self.tile)
         self.parts = self.out + ".parts"
-        self.manifest_path = os.path.join(self.parts, "manifest.json")
+        self.manifest_path = os.path.join(self.parts, MANIFEST)
         self.rendered = 0   # tiles rendered by this run (the others were kept)
 
     # -- plan ---------------------------------------------------------------------
@@ -97,16 +101,38 @@ class TiledExport:
     # -- manifest -------------------------------------------------------------------
 
     def _load_manifest(self) -> dict:
+        """Finished tiles {name: [size, sha256]} of an earlier run of this same
+        export; a foreign key, damage or a torn last line keep nothing or less."""
         try:
-            d = parse_json(read_limited(self.manifest_path, 16 << 20, "export manifest"), max_depth=4)
-        except (OSError, ValueError):
+            raw = read_limited(self.manifest_path, MANIFEST_MAX, "export manifest")
+        except OSError:
             return {}
-        if not isinstance(d, dict) or d.get("key") != self._export_key() or not isinstance(d.get("tiles"), dict):
+        lines = raw.decode("utf-8", "replace").split("\n")
+        try:
+            if json.loads(lines[0]).get("key") != self._export_key():
+                return {}
+        except (ValueError, AttributeError):
             return {}
-        return d["tiles"]
+        tiles = {}
+        for line in lines[1:]:
+            try:
+                name, size, sha = json.loads(line) if len(line) < 200 else (None, None, None)
+            except (ValueError, TypeError):
+                continue  # a line torn by a kill
+            if isinstance(name, str) and isinstance(size, int) and isinstance(sha, str):
+                tiles[name] = [size, sha]
+        return tiles
 
-    def _save_manifest(self, done: dict) -> None:
-        atomic_write(self.manifest_path, json.dumps({"key": self._export_key(), "tiles": done}).encode())
+    def _start_manifest(self, done: dict) -> None:
+        """A fresh manifest for this run holding the tiles kept."""
+        lines = [json.dumps({"key": self._export_key()})] + [json.dumps([k, *v]) for k, v in done.items()]
+        atomic_write(self.manifest_path, ("\n".join(lines) + "\n").encode())
+
+    def _append_manifest(self, name: str, entry: list) -> None:
+        with open(self.manifest_path, "a", encoding="utf-8") as f:
+            f.write(json.dumps([name, *entry]) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
 
     @staticmethod
     def _digest(path: str) -> tuple[int, str] | None:
@@ -142,6 +168,7 @@ class TiledExport:
                 done[name] = entry
             else:
                 todo.append((name, path, r))
+        self._start_manifest(done)
         if progress is not None and done:
             progress(len(done), total)
 
@@ -149,7 +176,7 @@ class TiledExport:
             size, sha = self._digest(path)
             done[name] = [size, sha]
             self.rendered += 1
-            self._save_manifest(done | {k: v for k, v in kept.items() if k not in done})
+            self._append_manifest(name, done[name])
             if progress is not None:
                 progress(len(done), total)
         if workers > 0 and todo:
