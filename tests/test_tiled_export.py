@@ -112,9 +112,13 @@ def test_cli_refuses_bad_tiled_arguments(tmp_path):
     assert r.returncode == 2 and "must end in .tif" in r.stderr
     r = run("-o", str(tmp_path / "x.png"), "--format", "tiles", "--rect", "0", "0", str(2 ** 20 + 1), "10")
     assert r.returncode == 2 and "1048576" in r.stderr
-    r = run("-o", str(tmp_path / "x.png"), "--format", "tiles", "--coords")
-    assert r.returncode == 2 and "--coords goes with --format png" in r.stderr
+    r = run("-o", str(tmp_path / "x.png"), "--scheduler")
+    assert r.returncode == 2 and "--scheduler goes with --format tiles or tiff" in r.stderr
     assert not list(tmp_path.iterdir())
+    r = run("-o", str(tmp_path / "x.png"), "--format", "tiles", "--scheduler", "tcp://127.0.0.1:9",
+            "--rect", "0", "0", "64", "64", "-q")
+    assert r.returncode == 3 and r.stderr.startswith("error: Cannot reach the Dask scheduler at tcp://127.0.0.1:9")
+    assert len(r.stderr.strip().splitlines()) == 1
 
 
 
@@ -167,3 +171,113 @@ def test_worker_processes_give_the_same_bytes_and_survive_a_killed_worker(tmp_pa
             b = udim_name(str(tmp_path / "two"), col, row, 6)
             with open(a, "rb") as fa, open(b, "rb") as fb:
                 assert fa.read() == fb.read(), (col, row)
+
+
+def test_streamed_coordinate_map_is_the_synthesis_coordinates(synth, tmp_path):
+    from infinitex.engine.tiled_export import decode_coords
+    rect = Rect.of(-300, 2**30 - 200, 700, 500)
+    TiledExport(synth, rect, str(tmp_path / "c.tif"), "tiff", 256, key="k", coords=True).run()
+    TiledExport(synth, rect, str(tmp_path / "c.png"), "tiles", 256, key="k", coords=True).run()
+    coords = synth.window(rect)
+    assert np.array_equal(decode_coords(tifffile.imread(tmp_path / "c_coords.tif")), coords)
+    assert np.array_equal(decode_coords(read_tiles(str(tmp_path / "c_coords.png"), 700, 500, 256, 3)), coords)
+    assert np.array_equal(tifffile.imread(tmp_path / "c.tif"), to_u8(synth.colors(coords))[..., 0])
+
+
+def test_cancel_event_stops_a_pool_export_promptly_and_keeps_its_tiles(tmp_path):
+    import json
+    import threading
+
+    from infinitex.app.document import Document, ExemplarSource, Project, project_to_json
+    from infinitex.app.session import ProjectSynthesizer
+    init = ProjectSynthesizer(json.dumps(project_to_json(Project(Document(ExemplarSource.from_file(GRAVEL))),
+                                                         embed=True)))
+    job = TiledExport(None, Rect.of(0, 0, 4096, 4096), str(tmp_path / "c.png"), "tiles", 256, key="k")
+    seen = []
+
+    def progress(done, total):
+        seen.append(done)
+        if done == 3:
+            threading.Thread(target=job.cancel_event.set).start()
+    with pytest.raises(ExportInterrupted):
+        job.run(progress, workers=2, worker_init=init)
+    assert 3 <= job.rendered <= 8  # the 256 tiles queued were dropped, not rendered
+    # The tiles it kept are whole and right: the same bytes as another export's first tile.
+    other = TiledExport(None, Rect.of(0, 0, 512, 512), str(tmp_path / "d.png"), "tiles", 256, key="k")
+    other.run(workers=1, worker_init=init)
+    assert (tmp_path / "d.1001.png").read_bytes() == (tmp_path / "c_u1_v1.png").read_bytes()
+
+
+def test_a_failed_write_is_one_sentence_and_the_export_resumes(tmp_path):
+    import resource
+    env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
+    args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "-o", str(tmp_path / "f.tif"),
+            "--format", "tiff", "--rect", "0", "0", "1024", "1024", "--tile", "256", "-q"]
+
+    def small_files():  # no file above 400 kB: the tiles fit, the assembled TIFF does not
+        resource.setrlimit(resource.RLIMIT_FSIZE, (400_000, 400_000))
+    r = subprocess.run(args, env=env, capture_output=True, text=True, timeout=300, preexec_fn=small_files)
+    assert r.returncode == 3, r.stderr[-2000:]
+    line = r.stderr.strip().splitlines()[-1]
+    assert line.startswith("error: ") and "f.tif" in line and "The finished tiles are kept" in line, line
+    assert "Traceback" not in r.stderr and not os.path.exists(tmp_path / "f.tif")
+    again = subprocess.run(args[:-1], env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "(16 kept from an earlier run)" in again.stderr, again.stderr[-2000:]
+    assert tifffile.imread(tmp_path / "f.tif").shape == (1024, 1024)
+
+
+def _dask_workers(pid: int) -> list[int]:
+    out = []
+    for child in _children(pid):
+        try:
+            with open(f"/proc/{child}/cmdline", "rb") as f:
+                if b"spawn_main" in f.read():
+                    out.append(child)
+        except OSError:
+            pass
+    return out
+
+
+def test_dask_local_cluster_gives_the_same_bytes_and_survives_a_killed_worker(synth, tmp_path):
+    env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
+    rect = Rect.of(-2048, 1000, 4096, 4096)
+    args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiff",
+            "--rect", str(rect.x0), str(rect.y0), "4096", "4096", "--tile", "512",
+            "--scheduler", "--workers", "2", "-o", str(tmp_path / "d.tif")]
+    proc = subprocess.Popen(args, env=env, stderr=subprocess.PIPE)
+    manifest = tmp_path / "d.tif.parts" / "manifest.jsonl"
+    killed = None
+    deadline = time.monotonic() + 400
+    while proc.poll() is None and time.monotonic() < deadline and killed is None:
+        try:
+            started = _finished(manifest) >= 4
+        except (OSError, ValueError, KeyError):
+            started = False
+        workers = _dask_workers(proc.pid)
+        if started and len(workers) >= 2:
+            killed = workers[0]
+            os.kill(killed, signal.SIGKILL)  # a Dask worker dies mid-export
+        time.sleep(0.02)
+    err = proc.stderr.read().decode()
+    assert proc.wait(600) == 0, err[-2000:]
+    assert killed is not None and "on a Dask LocalCluster" in err
+    assert np.array_equal(tifffile.imread(tmp_path / "d.tif"), to_u8(synth.colors(synth.window(rect)))[..., 0])
+
+
+def _peak_rss_kb(args, env) -> int:
+    proc = subprocess.Popen(args, env=env, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    assert proc.returncode == 0, proc.stderr.read().decode()[-2000:]
+    return usage.ru_maxrss
+
+
+def test_peak_memory_does_not_grow_with_the_export_size(tmp_path):
+    env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
+
+    def args(n):
+        return [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiff",
+                "--rect", "0", "0", str(n), str(n), "--tile", "256", "-q", "-o", str(tmp_path / f"m{n}.tif")]
+    small = _peak_rss_kb(args(512), env)
+    large = _peak_rss_kb(args(4096), env)  # 64 times the pixels (16 MB as one uint8 image)
+    assert large < small * 1.15 + 20_000, (small, large)

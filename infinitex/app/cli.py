@@ -42,7 +42,9 @@ def build_parser() -> Parser:
                    help="an N x N tile that wraps seamlessly (N a power of two, 32 to 4096)")
     p.add_argument("--size", nargs=2, type=_integer, default=None, metavar=("W", "H"),
                    help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
-    p.add_argument("--coords", action="store_true", help="also write OUT_coords.png (exact exemplar coordinates)")
+    p.add_argument("--coords", action="store_true",
+                   help="also write the exact exemplar-coordinate map: OUT_coords.png (or, streamed, "
+                        "OUT_coords.<UDIM>.png or OUT_coords.tif)")
     p.add_argument("--format", choices=("png", "tiles", "tiff"), default="png",
                    help="png: one image, made in memory (at most 16384 px a side); tiles: a set of PNG tiles "
                         "with UDIM numbers (-o NAME.png writes NAME.1001.png ...); tiff: one tiled BigTIFF "
@@ -52,7 +54,13 @@ def build_parser() -> Parser:
                    help="tile size of --format tiles|tiff: 256, 512, 1024 (default), 2048, 4096 or 8192")
     p.add_argument("--workers", type=_integer, default=0, metavar="N",
                    help="--format tiles|tiff: render with N worker processes, each with its own GL context "
-                        "(0: in this process); the files are the same bytes")
+                        "(0: in this process); with --scheduler, the LocalCluster's size (default: one per "
+                        "core); the files are the same bytes")
+    p.add_argument("--scheduler", nargs="?", const="local", default=None, metavar="ADDRESS",
+                   help="--format tiles|tiff: render the tiles on a Dask cluster (dask.distributed) whose "
+                        "scheduler is at ADDRESS (e.g. tcp://10.0.0.5:8786; its workers need infinitex "
+                        "installed), or, without ADDRESS, on a LocalCluster of --workers processes. Tiles of a "
+                        "worker that dies are rendered again elsewhere")
     add_randomness_args(p)
     add_lattice_args(p)
     p.add_argument("--allow-outside-exemplar", action="store_true",
@@ -83,12 +91,15 @@ def run_export(argv: list[str]) -> int:
     check_out(args.output, (".tif", ".tiff") if args.format == "tiff" else (".png",), "output image")
     if streamed and args.tile not in TILE_SIZES:
         raise CliError(f"--tile must be one of {', '.join(map(str, TILE_SIZES))}, not {args.tile}.", EXIT_USAGE)
-    if streamed and args.coords:
-        raise CliError("--coords goes with --format png only.", EXIT_USAGE)
     if not 0 <= args.workers <= 64 or (args.workers and not streamed):
         raise CliError("--workers is 0 to 64, with --format tiles or tiff.", EXIT_USAGE)
+    if args.scheduler is not None and not streamed:
+        raise CliError("--scheduler goes with --format tiles or tiff.", EXIT_USAGE)
     coords_path = None
-    if args.coords:
+    if args.coords and streamed:
+        base = os.path.splitext(args.output)[0] + "_coords"
+        check_out(base + (".tif" if args.format == "tiff" else ".png"), (".tif", ".png"), "coordinate map")
+    elif args.coords:
         coords_path = os.path.splitext(args.output)[0] + "_coords.png"
         check_out(coords_path, (".png",), "coordinate map")
 
@@ -172,21 +183,22 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
     # What decides the pixels: the whole document (exemplar included) and the parameters used.
     key = hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(synth.params)],
                                     sort_keys=True).encode()).hexdigest()
-    job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key)
+    job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key, coords=args.coords)
     progress = ProgressBar("export", args.quiet)
     t0 = time.perf_counter()
     init = None
-    if args.workers:
+    if args.workers or args.scheduler:
         from .session import ProjectSynthesizer
         init = ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), tor)
     job.run(lambda done, total: progress(done / total, f"tile {done}/{total}"), workers=args.workers,
-            worker_init=init)
+            worker_init=init, scheduler=args.scheduler)
     if not args.quiet:
-        kept = job.rows * job.cols - job.rendered
-        where = os.path.abspath(args.output if args.format == "tiff"
-                                else os.path.splitext(args.output)[0] + ".<UDIM>.png")
-        sys.stderr.write(f"{printable(where)}: {rect.w}x{rect.h} in {job.rows * job.cols} tiles of {args.tile} px "
-                         f"({kept} kept from an earlier run) in {time.perf_counter() - t0:.1f} s ({renderer})\n")
+        where = " and ".join(printable(os.path.abspath(o)) for o in job.outputs())
+        on = (f"on the Dask cluster at {args.scheduler}" if args.scheduler not in (None, "local")
+              else "on a Dask LocalCluster" if args.scheduler else
+              f"with {args.workers} worker processes" if args.workers else f"({renderer})")
+        sys.stderr.write(f"{where}: {rect.w}x{rect.h} in {job.total} tiles of {args.tile} px "
+                         f"({job.kept} kept from an earlier run) in {time.perf_counter() - t0:.1f} s {on}\n")
     return 0
 
 
@@ -208,5 +220,7 @@ def _run(job, args, rect, renderer: str) -> int:
 def main(argv: list[str]) -> int:
     from infinitex.engine.lattice import LatticeError
 
+    from infinitex.engine.tiled_export import ExportFailed
+
     from .document import ProjectError
-    return guarded(run_export, argv, (ProjectError, LatticeError, ValueError))
+    return guarded(run_export, argv, (ProjectError, LatticeError, ValueError, ExportFailed))

@@ -33,6 +33,7 @@ from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
 from infinitex.engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
 from infinitex.engine.synth import Synthesizer
+from infinitex.engine.tiled_export import decode_coords, encode_coords  # noqa: F401  (re-exported)
 
 from .document import Document, View
 
@@ -524,15 +525,3 @@ class ExportJob:
         if self.pyramid is not None:
             self.pyramid.release()
             self.pyramid = None
-
-
-def encode_coords(coords: np.ndarray) -> np.ndarray:
-    """Exemplar coordinates as an exact RGB8 image: R = x mod 256, G = y mod 256,
-    B = (x >> 8) + 16 * (y >> 8). Decode: x = R + 256 * (B & 15), y = G + 256 * (B >> 4)."""
-    x, y = coords[..., 0], coords[..., 1]
-    return np.stack([x & 255, y & 255, (x >> 8) + 16 * (y >> 8)], axis=-1).astype(np.uint8)
-
-
-def decode_coords(rgb: np.ndarray) -> np.ndarray:
-    rgb = rgb.astype(np.int32)
-    return np.stack([rgb[..., 0] + 256 * (rgb[..., 2] & 15), rgb[..., 1] + 256 * (rgb[..., 2] >> 4)], axis=-1)

@@ -1,5 +1,6 @@
 """Huge exports in bounded memory: a rectangle of the infinite texture rendered
-tile by tile and written as it goes, resumable after an interruption.
+tile by tile and written as it goes, resumable after an interruption, on this
+process, a pool of local worker processes or a Dask cluster.
 
 Formats:
 
@@ -10,40 +11,61 @@ Formats:
     ``NAME_u<U>_v<V>.png`` (1-based, the Mudbox/ZBrush "uvtile" names).
 ``tiff``
     One tiled, zlib-compressed BigTIFF (tifffile, the well-kept library for
-    it), which GIS and terrain tools open; written from the finished tiles.
+    it), which GIS and terrain tools open. Tiles are compressed where they are
+    rendered (horizontal predictor, zlib) and kept compressed until the file
+    is assembled from them, so the parts take no more disk than the result.
+
+With ``coords`` the exact exemplar-coordinate map (``encode_coords``) is
+written the same way beside the texture: ``NAME_coords.<UDIM>.png`` or
+``NAME_coords.tif``.
 
 Every tile is independent of every other (spatial determinism), so the result
-does not depend on the tile size used to render or on interruptions: a
-folder ``OUT.parts`` beside the output holds a manifest (``manifest.jsonl``:
-the export's key on the first line, then one line per finished tile with its
-size and SHA-256, appended as tiles finish, so it costs the same per tile at
-any export size). Running the same export
-again keeps the tiles that verify and renders the rest; the final TIFF is
-written atomically once every tile is there, and the parts folder removed.
+does not depend on the tile size used to render, on the workers or on
+interruptions: a folder ``OUT.parts`` beside the output holds a manifest
+(``manifest.jsonl``: the export's key on the first line, then one line per
+finished file with its size and SHA-256, appended as tiles finish, so it costs
+the same per tile at any export size). Running the same export again keeps the
+files that verify and renders the rest; the final TIFF is written atomically
+once every tile is there, and the parts folder removed.
+
+Workers (``workers`` > 0: spawned processes; ``scheduler``: a Dask cluster)
+receive the project (a picklable ``worker_init`` that builds a Synthesizer
+with its own headless GL context), never engine objects, and return the
+encoded tile bytes; this process writes them. A worker that dies has its tiles
+rendered again elsewhere.
 """
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import shutil
+import threading
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from .exemplar import to_u8
+from .exemplar import PIL_MODES, to_u8
 from .pyramid import Rect
-from .safeio import atomic_write, read_limited
+from .safeio import WriteError, atomic_write, name_of, read_limited
 
 FORMATS = ("tiles", "tiff")
 TILE_SIZES = (256, 512, 1024, 2048, 4096, 8192)
 MAX_SIDE = 1 << 20
 MANIFEST = "manifest.jsonl"
-MANIFEST_MAX = 1 << 30  # about 100 bytes a tile: room for the 2^20 tiles of the largest export
+MANIFEST_MAX = 1 << 30  # about 100 bytes a file: room for the 2^20 tiles of the largest export
+ZLIB_LEVEL = 6
 
 
 class ExportInterrupted(Exception):
     """Raised by a progress callback to stop; the finished tiles are kept."""
+
+
+class ExportFailed(RuntimeError):
+    """The workers could not finish (they keep dying, the cluster is out of
+    reach); a sentence for the user. The finished tiles are kept."""
 
 
 def udim_name(base: str, col: int, row: int, cols: int) -> str:
@@ -53,11 +75,54 @@ def udim_name(base: str, col: int, row: int, cols: int) -> str:
     return f"{base}_u{col + 1}_v{row + 1}.png"
 
 
+def encode_coords(coords: np.ndarray) -> np.ndarray:
+    """Exemplar coordinates as an exact RGB8 image: R = x mod 256, G = y mod 256,
+    B = (x >> 8) + 16 * (y >> 8). Decode: x = R + 256 * (B & 15), y = G + 256 * (B >> 4)."""
+    x, y = coords[..., 0], coords[..., 1]
+    return np.stack([x & 255, y & 255, (x >> 8) + 16 * (y >> 8)], axis=-1).astype(np.uint8)
+
+
+def decode_coords(rgb: np.ndarray) -> np.ndarray:
+    rgb = rgb.astype(np.int32)
+    return np.stack([rgb[..., 0] + 256 * (rgb[..., 2] & 15), rgb[..., 1] + 256 * (rgb[..., 2] >> 4)], axis=-1)
+
+
+def png_bytes(pixels: np.ndarray) -> bytes:
+    """uint8 (H, W, C) pixels as PNG file bytes."""
+    from PIL import Image
+    arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(arr), mode=PIL_MODES[pixels.shape[2]]).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def tiff_tile_bytes(pixels: np.ndarray, tile: int) -> bytes:
+    """One TIFF tile as stored: padded to ``tile x tile``, horizontal
+    predictor (TIFF predictor 2: each sample minus its left neighbour, mod
+    256), zlib-compressed."""
+    h, w, c = pixels.shape
+    a = np.zeros((tile, tile, c), dtype=np.uint8)
+    a[:h, :w] = pixels
+    d = a.copy()
+    d[:, 1:] -= a[:, :-1]
+    return zlib.compress(d.tobytes(), ZLIB_LEVEL)
+
+
+def encode_tile(synth, fmt: str, tile: int, r: Rect, coords: bool = False) -> list[bytes]:
+    """Render one tile: the bytes of its texture file (and coordinate map)."""
+    c = synth.window(r)
+    maps = [to_u8(synth.colors(c))]
+    if coords:
+        maps.append(encode_coords(c))
+    return [png_bytes(m) if fmt == "tiles" else tiff_tile_bytes(m, tile) for m in maps]
+
+
 @dataclass
 class TiledExport:
     """Render ``rect`` of ``synth`` (an engine Synthesizer with its parameters
-    and controls) tile by tile into ``out`` (``NAME.png`` for ``tiles``: the
-    tiles are ``NAME.1001.png``...; ``NAME.tif`` for ``tiff``)."""
+    and controls; None when only workers render) tile by tile into ``out``
+    (``NAME.png`` for ``tiles``: the tiles are ``NAME.1001.png``...;
+    ``NAME.tif`` for ``tiff``)."""
 
     synth: object
     rect: Rect
@@ -65,6 +130,7 @@ class TiledExport:
     fmt: str = "tiles"
     tile: int = 1024
     key: str = ""           # what decides the pixels (document, parameters): a changed key restarts
+    coords: bool = False    # also the coordinate map, NAME_coords...
 
     def __post_init__(self):
         if self.fmt not in FORMATS:
@@ -78,8 +144,26 @@ class TiledExport:
         self.parts = self.out + ".parts"
         self.manifest_path = os.path.join(self.parts, MANIFEST)
         self.rendered = 0   # tiles rendered by this run (the others were kept)
+        self.kept = 0       # tiles kept from an earlier run
+        self.cancel_event = threading.Event()  # set (from any thread) to stop after the tiles being rendered
 
     # -- plan ---------------------------------------------------------------------
+
+    @property
+    def total(self) -> int:
+        return self.rows * self.cols
+
+    @property
+    def maps(self) -> tuple[str, ...]:
+        """Suffixes of the maps written: the texture, then the coordinate map."""
+        return ("", "_coords") if self.coords else ("",)
+
+    def outputs(self) -> list[str]:
+        """What the user gets, for messages: the TIFF files or the tile patterns."""
+        base = os.path.splitext(self.out)[0]
+        if self.fmt == "tiff":
+            return [self.out if not m else f"{base}{m}.tif" for m in self.maps]
+        return [f"{base}{m}.<UDIM>.png" for m in self.maps]
 
     def tiles(self):
         for row in range(self.rows):
@@ -88,20 +172,22 @@ class TiledExport:
                 y0 = self.rect.y0 + row * self.tile
                 yield col, row, Rect(x0, y0, min(x0 + self.tile, self.rect.x1), min(y0 + self.tile, self.rect.y1))
 
-    def tile_path(self, col: int, row: int) -> str:
+    def tile_paths(self, col: int, row: int) -> list[str]:
+        """The files of one tile, one per map."""
         if self.fmt == "tiles":
             base = os.path.splitext(self.out)[0]
-            return udim_name(base, col, row, self.cols)
-        return os.path.join(self.parts, f"{col}_{row}.npy")
+            return [udim_name(base + m, col, row, self.cols) for m in self.maps]
+        return [os.path.join(self.parts, f"{col}_{row}{m}.zz") for m in self.maps]
 
     def _export_key(self) -> str:
         r = self.rect
-        return hashlib.sha256(json.dumps([self.key, self.fmt, self.tile, r.x0, r.y0, r.x1, r.y1]).encode()).hexdigest()
+        return hashlib.sha256(json.dumps([self.key, self.fmt, self.tile, r.x0, r.y0, r.x1, r.y1,
+                                          self.coords]).encode()).hexdigest()
 
     # -- manifest -------------------------------------------------------------------
 
     def _load_manifest(self) -> dict:
-        """Finished tiles {name: [size, sha256]} of an earlier run of this same
+        """Finished files {name: [size, sha256]} of an earlier run of this same
         export; a foreign key, damage or a torn last line keep nothing or less."""
         try:
             raw = read_limited(self.manifest_path, MANIFEST_MAX, "export manifest")
@@ -113,26 +199,37 @@ class TiledExport:
                 return {}
         except (ValueError, AttributeError):
             return {}
-        tiles = {}
+        files = {}
         for line in lines[1:]:
             try:
                 name, size, sha = json.loads(line) if len(line) < 200 else (None, None, None)
             except (ValueError, TypeError):
                 continue  # a line torn by a kill
             if isinstance(name, str) and isinstance(size, int) and isinstance(sha, str):
-                tiles[name] = [size, sha]
-        return tiles
+                files[name] = [size, sha]
+        return files
 
     def _start_manifest(self, done: dict) -> None:
-        """A fresh manifest for this run holding the tiles kept."""
+        """A fresh manifest for this run holding the files kept."""
         lines = [json.dumps({"key": self._export_key()})] + [json.dumps([k, *v]) for k, v in done.items()]
-        atomic_write(self.manifest_path, ("\n".join(lines) + "\n").encode())
+        self._guard(lambda: atomic_write(self.manifest_path, ("\n".join(lines) + "\n").encode()))
 
-    def _append_manifest(self, name: str, entry: list) -> None:
-        with open(self.manifest_path, "a", encoding="utf-8") as f:
-            f.write(json.dumps([name, *entry]) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
+    def _append_manifest(self, lines: list[str]) -> None:
+        def append():
+            with open(self.manifest_path, "a", encoding="utf-8") as f:
+                f.write("".join(lines))
+                f.flush()
+                os.fsync(f.fileno())
+        self._guard(append)
+
+    def _guard(self, write) -> None:
+        """A failed write (disk full, permissions) as one sentence that says the work is kept."""
+        try:
+            write()
+        except OSError as exc:
+            why = str(exc) if isinstance(exc, WriteError) else f"Writing {name_of(self.parts)} failed: {exc.strerror or exc}."
+            raise WriteError(f"{why.rstrip('.')}. The finished tiles are kept: run the same export again "
+                             f"to continue.") from None
 
     @staticmethod
     def _digest(path: str) -> tuple[int, str] | None:
@@ -145,48 +242,63 @@ class TiledExport:
 
     # -- run --------------------------------------------------------------------------
 
-    def run(self, progress=None, workers: int = 0, worker_init=None) -> None:
+    def run(self, progress=None, workers: int = 0, worker_init=None, scheduler: str | None = None) -> None:
         """Render what is missing, then assemble. ``progress(done, total)`` is
         called after each tile; it may raise ExportInterrupted (or anything)
-        to stop, keeping the finished tiles for the next run.
+        to stop, keeping the finished tiles for the next run; so does
+        ``cancel_event.set()`` from another thread.
 
-        With ``workers`` > 0 the tiles are rendered by that many processes,
-        each with its own headless GL context, made by ``worker_init`` (a
-        picklable callable returning the worker's Synthesizer; the project,
-        not engine objects, crosses the process boundary). A worker that dies
-        has its tiles given to a fresh pool. The files are the same bytes."""
-        os.makedirs(self.parts, exist_ok=True)
+        With ``workers`` > 0 the tiles are rendered by that many spawned
+        processes; with ``scheduler`` by a Dask cluster (``"local"``: a
+        LocalCluster of ``workers`` processes, else the scheduler's address).
+        Both need ``worker_init``: a picklable callable returning the
+        worker's Synthesizer (the project, not engine objects, crosses the
+        process boundary). The files are the same bytes in every case."""
+        self._guard(lambda: os.makedirs(self.parts, exist_ok=True))
         kept = self._load_manifest()
         done: dict = {}
         todo = []
-        total = self.rows * self.cols
         for col, row, r in self.tiles():
-            name = f"{col},{row}"
-            path = self.tile_path(col, row)
-            entry = kept.get(name)
-            if isinstance(entry, list) and len(entry) == 2 and self._digest(path) == tuple(entry):
-                done[name] = entry
+            names = [f"{col},{row}{m}" for m in self.maps]
+            paths = self.tile_paths(col, row)
+            if all(isinstance(kept.get(n), list) and len(kept[n]) == 2 and self._digest(p) == tuple(kept[n])
+                   for n, p in zip(names, paths)):
+                done.update({n: kept[n] for n in names})
             else:
-                todo.append((name, path, r))
+                todo.append((names, paths, r))
         self._start_manifest(done)
-        if progress is not None and done:
-            progress(len(done), total)
+        self.kept = self.total - len(todo)
+        finished_tiles = [self.kept]
+        if progress is not None and self.kept:
+            progress(self.kept, self.total)
 
-        def finished(name: str, path: str) -> None:
-            size, sha = self._digest(path)
-            done[name] = [size, sha]
+        def finished(item, blobs: list[bytes]) -> None:
+            names, paths, _ = item
+            lines = []
+            for name, path, data in zip(names, paths, blobs):
+                self._guard(lambda: atomic_write(path, data))
+                done[name] = [len(data), hashlib.sha256(data).hexdigest()]
+                lines.append(json.dumps([name, *done[name]]) + "\n")
+            self._append_manifest(lines)
             self.rendered += 1
-            self._append_manifest(name, done[name])
+            finished_tiles[0] += 1
             if progress is not None:
-                progress(len(done), total)
-        if workers > 0 and todo:
+                progress(finished_tiles[0], self.total)
+            if self.cancel_event.is_set():
+                raise ExportInterrupted()
+
+        if todo and scheduler:
+            self._run_dask(todo, scheduler, workers, worker_init, finished)
+        elif todo and workers > 0:
             self._run_pool(todo, workers, worker_init, finished)
         else:
-            for name, path, r in todo:
-                render_tile(self.synth, self.fmt, path, r)
-                finished(name, path)
+            for item in todo:
+                if self.cancel_event.is_set():
+                    raise ExportInterrupted()
+                finished(item, encode_tile(self.synth, self.fmt, self.tile, item[2], self.coords))
         if self.fmt == "tiff":
-            self._assemble_tiff()
+            for i, m in enumerate(self.maps):
+                self._assemble_tiff(i, self.outputs()[i])
         shutil.rmtree(self.parts, ignore_errors=True)
 
     def _run_pool(self, todo, workers: int, worker_init, finished) -> None:
@@ -197,66 +309,112 @@ class TiledExport:
         pending = list(todo)
         restarts = 0
         while pending:
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_start,
-                                     initargs=(worker_init,)) as pool:
-                futures = {pool.submit(_worker_tile, self.fmt, path, (r.x0, r.y0, r.x1, r.y1)): (name, path, r)
-                           for name, path, r in pending}
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_start,
+                                       initargs=(worker_init,))
+            try:
+                futures = {pool.submit(_worker_tile, self.fmt, self.tile, _box(item[2]), self.coords): item
+                           for item in pending}
                 broken = False
                 while futures:
                     ready, _ = wait(futures, return_when=FIRST_COMPLETED)
                     for fut in ready:
                         item = futures.pop(fut)
                         try:
-                            fut.result()
+                            blobs = fut.result()
                         except BrokenProcessPool:
                             broken = True
                             continue
                         pending.remove(item)
-                        finished(item[0], item[1])
+                        finished(item, blobs)
                     if broken:
                         break
+            finally:  # stopped (or done): drop the queued tiles, wait only for those being rendered
+                pool.shutdown(wait=True, cancel_futures=True)
             if broken:
                 restarts += 1
                 if restarts > 3 * workers + 3:
-                    raise RuntimeError("export workers keep dying; the finished tiles are kept")
+                    raise ExportFailed("The export's worker processes keep dying (out of memory?); the finished "
+                                       "tiles are kept: run the same export again to continue.")
 
-    def _assemble_tiff(self) -> None:
+    def _run_dask(self, todo, scheduler: str, workers: int, worker_init, finished) -> None:
+        """Tiles as Dask tasks: the cluster reschedules those of a worker that dies."""
+        import logging
+
+        from distributed import Client, KilledWorker, LocalCluster, as_completed
+        from distributed.client import FutureCancelledError
+        cluster = None
+        try:
+            if scheduler == "local":
+                cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                       processes=True, dashboard_address=None, silence_logs=logging.ERROR)
+                client = Client(cluster)
+            else:
+                client = Client(scheduler, timeout=10)
+        except (OSError, TimeoutError, ValueError) as exc:
+            if cluster is not None:
+                cluster.close()
+            raise ExportFailed(f"Cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        try:
+            init = client.scatter(worker_init, broadcast=True, hash=False)
+            key = self._export_key()
+            futures = {client.submit(_dask_tile, init, key, self.fmt, self.tile, _box(item[2]), self.coords,
+                                     pure=False, key=f"infinitex-tile-{key[:12]}-{i}"): item
+                       for i, item in enumerate(todo)}
+            try:
+                for fut in as_completed(futures):
+                    try:
+                        blobs = fut.result()
+                    except FutureCancelledError:
+                        continue
+                    except KilledWorker:
+                        raise ExportFailed("A tile killed every Dask worker it was given to (out of memory?); "
+                                           "the finished tiles are kept: run the same export again to "
+                                           "continue.") from None
+                    finished(futures[fut], blobs)
+            except BaseException:
+                client.cancel(list(futures))
+                raise
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+    def _assemble_tiff(self, index: int, out: str) -> None:
         import tifffile
         t = self.tile
-        first = np.load(self.tile_path(0, 0), allow_pickle=False)
-        channels = first.shape[2]
+        m = self.maps[index]
+        channels = 3 if m == "_coords" else None
+        if channels is None:  # the texture's channels, from the first tile's size
+            raw = zlib.decompress(self._read_part(0, 0, index))
+            channels = len(raw) // (t * t)
 
         def tiles():
-            for col, row, r in self.tiles():
-                a = np.load(self.tile_path(col, row), allow_pickle=False)
-                if a.shape[:2] != (t, t):  # edge tiles are padded to the TIFF tile size
-                    pad = np.zeros((t, t, channels), dtype=np.uint8)
-                    pad[:a.shape[0], :a.shape[1]] = a
-                    a = pad
-                yield a[..., 0] if channels == 1 else a
+            for col, row, _ in self.tiles():
+                yield self._read_part(col, row, index)
 
         shape = (self.rect.h, self.rect.w) if channels == 1 else (self.rect.h, self.rect.w, channels)
         photometric = "minisblack" if channels in (1, 2) else "rgb"
         extra = {"extrasamples": [2]} if channels in (2, 4) else {}
 
         # Written beside the output (the parts folder), then renamed over it: atomic.
-        tmp = os.path.join(self.parts, "assembling.tif")
-        with tifffile.TiffWriter(tmp, bigtiff=True) as tw:
-            tw.write(tiles(), shape=shape, dtype=np.uint8, tile=(t, t), compression="zlib",
-                     photometric=photometric, **extra)
-        with open(tmp, "rb") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, self.out)
+        tmp = os.path.join(self.parts, f"assembling{m}.tif")
+
+        def write():
+            with tifffile.TiffWriter(tmp, bigtiff=True) as tw:
+                tw.write(tiles(), shape=shape, dtype=np.uint8, tile=(t, t), compression="zlib",
+                         predictor="horizontal", photometric=photometric, **extra)
+            with open(tmp, "rb") as f:
+                os.fsync(f.fileno())
+            os.replace(tmp, out)
+        self._guard(write)
+
+    def _read_part(self, col: int, row: int, index: int) -> bytes:
+        with open(self.tile_paths(col, row)[index], "rb") as f:
+            return f.read()
 
 
-def render_tile(synth, fmt: str, path: str, r: Rect) -> None:
-    """Render one tile and write it atomically (a PNG, or raw .npy for the TIFF)."""
-    img = to_u8(synth.colors(synth.window(r)))
-    if fmt == "tiles":
-        from .exemplar import write_png
-        write_png(path, img)
-    else:
-        atomic_write(path, writer=lambda f: np.save(f, img, allow_pickle=False))
+def _box(r: Rect) -> tuple[int, int, int, int]:
+    return r.x0, r.y0, r.x1, r.y1
 
 
 _WORKER: dict = {}
@@ -266,9 +424,21 @@ def _worker_start(worker_init) -> None:
     _WORKER["synth"] = worker_init()
 
 
-def _worker_tile(fmt: str, path: str, box: tuple[int, int, int, int]) -> str:
-    render_tile(_WORKER["synth"], fmt, path, Rect(*box))
-    return path
+def _worker_tile(fmt: str, tile: int, box: tuple[int, int, int, int], coords: bool) -> list[bytes]:
+    return encode_tile(_WORKER["synth"], fmt, tile, Rect(*box), coords)
+
+
+def _dask_tile(worker_init, key: str, fmt: str, tile: int, box: tuple[int, int, int, int],
+               coords: bool) -> list[bytes]:
+    """A Dask task: the worker's Synthesizer is made once per export and
+    thread (a GL context is current in the thread that made it)."""
+    slot = (threading.get_ident(), key)
+    synth = _WORKER.get(slot)
+    if synth is None:
+        for old in [k for k in _WORKER if isinstance(k, tuple) and k[0] == slot[0]]:
+            _WORKER.pop(old)  # one export's engine per thread at a time
+        synth = _WORKER[slot] = worker_init()
+    return encode_tile(synth, fmt, tile, Rect(*box), coords)
 
 
 def read_tiles(out: str, rect_w: int, rect_h: int, tile: int, channels: int) -> np.ndarray:
@@ -283,6 +453,3 @@ def read_tiles(out: str, rect_w: int, rect_h: int, tile: int, channels: int) -> 
             a = a[..., None] if a.ndim == 2 else a
             img[row * tile:row * tile + a.shape[0], col * tile:col * tile + a.shape[1]] = a
     return img
-
-
-
