@@ -45,11 +45,19 @@ class Harness:
             ctx.yield_()
         return self.ed.canvas_pixels
 
-    def run(self, test) -> int:
-        """Run ``test(ctx)`` in the editor; write the report; 0 when every check passed."""
+    def run(self, test, watchdog_s: float = 60.0) -> int:
+        """Run ``test(ctx)`` in the editor; write the report; 0 when every check passed.
+        The test engine stops a test running longer than ``watchdog_s``."""
+        params = self.ed.runner_params()
+
+        def register_tests() -> None:
+            from imgui_bundle import hello_imgui, imgui
+            io = imgui.test_engine.get_io(hello_imgui.get_imgui_test_engine())
+            io.config_watchdog_warning = watchdog_s
+            io.config_watchdog_kill_test = watchdog_s
+        params.callbacks.register_tests = register_tests
         try:
-            testing.run(test_function=test, runner_params=self.ed.runner_params(),
-                        run_speed=testing.TestRunSpeed.fast)
+            testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
         except Exception as exc:
             self.report.append(f"FAIL driver: {exc}")
         with open(os.path.join(self.out, "report.txt"), "w") as fh:

@@ -64,6 +64,29 @@ def test_everyday_use_driven_by_the_test_engine(tmp_path):
     assert "Advanced" not in saved["panels"]  # opened, then closed again by the test
 
 
+def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
+    """The Export panel's formats and estimate; a BigTIFF by worker processes
+    while the editor draws; a tile set cancelled, then resumed
+    (tests/gui_export.py). The files equal the one-piece render."""
+    import numpy as np
+    import tifffile
+
+    from infinitex.engine.analysis import analyze
+    from infinitex.engine.exemplar import load_exemplar, to_u8
+    from infinitex.engine.pyramid import Rect
+    from infinitex.engine.synth import Synthesizer
+    from infinitex.engine.tiled_export import read_tiles
+    from gui_export import TILES_RECT, TIFF_RECT
+    _drive("gui_export.py", tmp_path, 10)
+    synth = Synthesizer(analyze(load_exemplar(os.path.join(os.path.dirname(HERE), "infinitex", "assets",
+                                                           "gravel.png"))), gpu=gpu)
+    whole = to_u8(synth.colors(synth.window(Rect.of(*TIFF_RECT))))
+    assert np.array_equal(tifffile.imread(tmp_path / "big.tif"), whole[..., 0])
+    x, y, w, h = TILES_RECT
+    whole = to_u8(synth.colors(synth.window(Rect.of(x, y, w, h))))
+    assert np.array_equal(read_tiles(str(tmp_path / "set.png"), w, h, 256, 1), whole)
+
+
 def test_screenshot_option_writes_the_window(tmp_path):
     from PIL import Image
     out = tmp_path / "shot.png"

@@ -45,19 +45,20 @@ def build_parser() -> Parser:
     p.add_argument("--coords", action="store_true",
                    help="also write the exact exemplar-coordinate map: OUT_coords.png (or, streamed, "
                         "OUT_coords.<UDIM>.png or OUT_coords.tif)")
-    p.add_argument("--format", choices=("png", "tiles", "tiff"), default="png",
+    p.add_argument("--format", choices=("png", "tiles", "tiff", "zarr"), default="png",
                    help="png: one image, made in memory (at most 16384 px a side); tiles: a set of PNG tiles "
                         "with UDIM numbers (-o NAME.png writes NAME.1001.png ...); tiff: one tiled BigTIFF "
-                        "(-o NAME.tif). tiles and tiff are streamed in bounded memory, up to 2^20 px a side, "
-                        "and resume where an interrupted run stopped")
+                        "(-o NAME.tif); zarr: a multiscale Zarr pyramid (-o NAME.zarr, OME-NGFF 0.4) whose "
+                        "coarser levels are the synthesis's own. tiles, tiff and zarr are streamed in bounded "
+                        "memory, up to 2^20 px a side, and resume where an interrupted run stopped")
     p.add_argument("--tile", type=_integer, default=1024, metavar="N",
-                   help="tile size of --format tiles|tiff: 256, 512, 1024 (default), 2048, 4096 or 8192")
+                   help="tile size of --format tiles|tiff|zarr: 256, 512, 1024 (default), 2048, 4096 or 8192")
     p.add_argument("--workers", type=_integer, default=0, metavar="N",
-                   help="--format tiles|tiff: render with N worker processes, each with its own GL context "
+                   help="--format tiles|tiff|zarr: render with N worker processes, each with its own GL context "
                         "(0: in this process); with --scheduler, the LocalCluster's size (default: one per "
                         "core); the files are the same bytes")
     p.add_argument("--scheduler", nargs="?", const="local", default=None, metavar="ADDRESS",
-                   help="--format tiles|tiff: render the tiles on a Dask cluster (dask.distributed) whose "
+                   help="--format tiles|tiff|zarr: render the tiles on a Dask cluster (dask.distributed) whose "
                         "scheduler is at ADDRESS (e.g. tcp://10.0.0.5:8786; its workers need infinitex "
                         "installed), or, without ADDRESS, on a LocalCluster of --workers processes. Tiles of a "
                         "worker that dies are rendered again elsewhere")
@@ -88,13 +89,23 @@ def run_export(argv: list[str]) -> int:
     else:
         w, h = args.size or (1024, 1024)
         check_window(0, 0, w, h, "--size", streamed)
-    check_out(args.output, (".tif", ".tiff") if args.format == "tiff" else (".png",), "output image")
+    if args.format == "zarr":
+        from infinitex.engine.safeio import WriteError
+        from infinitex.engine.tiled_export import check_zarr_output
+        try:
+            check_zarr_output(args.output)
+        except WriteError as exc:
+            raise CliError(str(exc), EXIT_USAGE) from None
+        if args.coords:
+            raise CliError("--coords goes with --format png, tiles or tiff.", EXIT_USAGE)
+    else:
+        check_out(args.output, (".tif", ".tiff") if args.format == "tiff" else (".png",), "output image")
     if streamed and args.tile not in TILE_SIZES:
         raise CliError(f"--tile must be one of {', '.join(map(str, TILE_SIZES))}, not {args.tile}.", EXIT_USAGE)
     if not 0 <= args.workers <= 64 or (args.workers and not streamed):
-        raise CliError("--workers is 0 to 64, with --format tiles or tiff.", EXIT_USAGE)
+        raise CliError("--workers is 0 to 64, with --format tiles, tiff or zarr.", EXIT_USAGE)
     if args.scheduler is not None and not streamed:
-        raise CliError("--scheduler goes with --format tiles or tiff.", EXIT_USAGE)
+        raise CliError("--scheduler goes with --format tiles, tiff or zarr.", EXIT_USAGE)
     coords_path = None
     if args.coords and streamed:
         base = os.path.splitext(args.output)[0] + "_coords"
@@ -168,7 +179,7 @@ def run_export(argv: list[str]) -> int:
 
 
 def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str) -> int:
-    """--format tiles|tiff: tile by tile in bounded memory, resumable (engine.tiled_export)."""
+    """--format tiles|tiff|zarr: tile by tile in bounded memory, resumable (engine.tiled_export)."""
     import hashlib
     import json
 
@@ -183,7 +194,8 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
     # What decides the pixels: the whole document (exemplar included) and the parameters used.
     key = hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(synth.params)],
                                     sort_keys=True).encode()).hexdigest()
-    job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key, coords=args.coords)
+    job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key, coords=args.coords,
+                      L=session.analysis.L)
     progress = ProgressBar("export", args.quiet)
     t0 = time.perf_counter()
     init = None

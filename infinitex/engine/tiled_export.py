@@ -42,6 +42,7 @@ import json
 import os
 import shutil
 import threading
+import time
 import zlib
 from dataclasses import dataclass
 
@@ -51,7 +52,7 @@ from .exemplar import PIL_MODES, to_u8
 from .pyramid import Rect
 from .safeio import WriteError, atomic_write, name_of, read_limited
 
-FORMATS = ("tiles", "tiff")
+FORMATS = ("tiles", "tiff", "zarr")
 TILE_SIZES = (256, 512, 1024, 2048, 4096, 8192)
 MAX_SIDE = 1 << 20
 MANIFEST = "manifest.jsonl"
@@ -108,13 +109,46 @@ def tiff_tile_bytes(pixels: np.ndarray, tile: int) -> bytes:
     return zlib.compress(d.tobytes(), ZLIB_LEVEL)
 
 
-def encode_tile(synth, fmt: str, tile: int, r: Rect, coords: bool = False) -> list[bytes]:
-    """Render one tile: the bytes of its texture file (and coordinate map)."""
-    c = synth.window(r)
-    maps = [to_u8(synth.colors(c))]
+def check_zarr_output(path: str) -> str:
+    """A Zarr store's path before any work (a folder ``NAME.zarr``): its parent
+    exists and is writable; an existing one must be a Zarr store (it is
+    replaced when the new one is complete). Raises WriteError with a sentence."""
+    from .safeio import check_output, printable
+    shown = printable(path)
+    real = os.path.realpath(path)
+    if os.path.splitext(path)[1].lower() != ".zarr":
+        raise WriteError(f"The Zarr store {shown} must end in .zarr.")
+    if os.path.lexists(real):
+        if not (os.path.isdir(real) and os.path.isfile(os.path.join(real, ".zgroup"))):
+            raise WriteError(f"{shown} exists and is not a Zarr store; it is not overwritten.")
+        return path
+    check_output(path, (".zarr",), "Zarr store")
+    return path
+
+
+def encode_tile(synth, fmt: str, tile: int, r: Rect, coords: bool = False, level: int | None = None) -> list[bytes]:
+    """Render one tile (``r`` in the pixels of synthesis ``level``, default the
+    finest): the bytes of its texture file (and coordinate map); for zarr the
+    raw (H, W, C) uint8 pixels, which this process writes into the store."""
+    c = synth.window(r, level)
+    maps = [to_u8(synth.colors(c, level))]
     if coords:
         maps.append(encode_coords(c))
+    if fmt == "zarr":
+        return [np.ascontiguousarray(m).tobytes() for m in maps]
     return [png_bytes(m) if fmt == "tiles" else tiff_tile_bytes(m, tile) for m in maps]
+
+
+def calibrate(worker_init, fmt: str, tile: int) -> tuple[float, float]:
+    """Seconds and bytes per pixel of a streamed export, measured on one tile
+    (at most 1024 px; larger tiles cost about the same per pixel) rendered
+    and encoded as the export does, in a worker made by ``worker_init``."""
+    synth = worker_init()
+    n = min(tile, 1024)
+    encode_tile(synth, fmt, 64, Rect(0, 0, 64, 64))  # compiles the shaders: not the export's cost per pixel
+    t0 = time.perf_counter()
+    blob = encode_tile(synth, fmt, n, Rect(n, 3 * n, 2 * n, 4 * n))[0]
+    return (time.perf_counter() - t0) / (n * n), len(blob) / (n * n)
 
 
 @dataclass
@@ -131,16 +165,28 @@ class TiledExport:
     tile: int = 1024
     key: str = ""           # what decides the pixels (document, parameters): a changed key restarts
     coords: bool = False    # also the coordinate map, NAME_coords...
+    L: int | None = None    # the synthesis's finest level (zarr's coarser levels); default synth.L
 
     def __post_init__(self):
         if self.fmt not in FORMATS:
-            raise ValueError(f"Unknown tiled format {self.fmt!r}; use tiles or tiff.")
+            raise ValueError(f"Unknown tiled format {self.fmt!r}; use tiles, tiff or zarr.")
+        if self.fmt == "zarr" and self.coords:
+            raise ValueError("The coordinate map is written with tiles or tiff, not zarr.")
         if self.tile not in TILE_SIZES:
             raise ValueError(f"The tile size must be one of {', '.join(map(str, TILE_SIZES))}, not {self.tile}.")
         if self.rect.empty or self.rect.w > MAX_SIDE or self.rect.h > MAX_SIDE:
             raise ValueError(f"A tiled export is 1 to {MAX_SIDE} px a side, not {self.rect.w}x{self.rect.h}.")
         self.cols = -(-self.rect.w // self.tile)
         self.rows = -(-self.rect.h // self.tile)
+        if self.L is None:
+            self.L = getattr(self.synth, "L", 0)
+        # Zarr: level k is the synthesis's level L - k over the rectangle's
+        # 2^k-reduced box (the mipmap comes free), down to one tile or level 0.
+        self.levels = [self.rect]
+        while self.fmt == "zarr" and len(self.levels) <= self.L and max(self.levels[-1].w, self.levels[-1].h) > self.tile:
+            k = len(self.levels)
+            r = self.rect
+            self.levels.append(Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)))
         self.parts = self.out + ".parts"
         self.manifest_path = os.path.join(self.parts, MANIFEST)
         self.rendered = 0   # tiles rendered by this run (the others were kept)
@@ -151,7 +197,7 @@ class TiledExport:
 
     @property
     def total(self) -> int:
-        return self.rows * self.cols
+        return sum(-(-r.w // self.tile) * -(-r.h // self.tile) for r in self.levels)
 
     @property
     def maps(self) -> tuple[str, ...]:
@@ -163,14 +209,27 @@ class TiledExport:
         base = os.path.splitext(self.out)[0]
         if self.fmt == "tiff":
             return [self.out if not m else f"{base}{m}.tif" for m in self.maps]
+        if self.fmt == "zarr":
+            return [self.out]
         return [f"{base}{m}.<UDIM>.png" for m in self.maps]
 
-    def tiles(self):
-        for row in range(self.rows):
-            for col in range(self.cols):
-                x0 = self.rect.x0 + col * self.tile
-                y0 = self.rect.y0 + row * self.tile
-                yield col, row, Rect(x0, y0, min(x0 + self.tile, self.rect.x1), min(y0 + self.tile, self.rect.y1))
+    def tiles(self, level: int = 0):
+        """(col, row, rect) of every tile of a level, row by row."""
+        lr = self.levels[level]
+        for row in range(-(-lr.h // self.tile)):
+            for col in range(-(-lr.w // self.tile)):
+                x0 = lr.x0 + col * self.tile
+                y0 = lr.y0 + row * self.tile
+                yield col, row, Rect(x0, y0, min(x0 + self.tile, lr.x1), min(y0 + self.tile, lr.y1))
+
+    def work(self):
+        """Every tile of the export: (manifest names, files, rect, synthesis level or None)."""
+        for k in range(len(self.levels)):
+            for col, row, r in self.tiles(k):
+                if self.fmt == "zarr":
+                    yield [f"{k}/{col},{row}"], [None], r, self.L - k
+                else:
+                    yield [f"{col},{row}{m}" for m in self.maps], self.tile_paths(col, row), r, None
 
     def tile_paths(self, col: int, row: int) -> list[str]:
         """The files of one tile, one per map."""
@@ -256,66 +315,96 @@ class TiledExport:
         process boundary). The files are the same bytes in every case."""
         self._guard(lambda: os.makedirs(self.parts, exist_ok=True))
         kept = self._load_manifest()
-        done: dict = {}
-        todo = []
-        for col, row, r in self.tiles():
-            names = [f"{col},{row}{m}" for m in self.maps]
-            paths = self.tile_paths(col, row)
-            if all(isinstance(kept.get(n), list) and len(kept[n]) == 2 and self._digest(p) == tuple(kept[n])
-                   for n, p in zip(names, paths)):
-                done.update({n: kept[n] for n in names})
-            else:
-                todo.append((names, paths, r))
-        self._start_manifest(done)
-        self.kept = self.total - len(todo)
-        finished_tiles = [self.kept]
-        if progress is not None and self.kept:
-            progress(self.kept, self.total)
+        self._start_manifest(kept)
+        store = self._open_zarr(fresh=not kept) if self.fmt == "zarr" else None
+        total = self.total
+        count = [0]
+        self.kept = self.rendered = 0
+
+        def todo():
+            """The tiles still to render, found lazily (memory does not grow
+            with the tile count); verified tiles count as done at once."""
+            for item in self.work():
+                names, paths, r, level = item
+                if all(isinstance(kept.get(n), list) and len(kept[n]) == 2
+                       and self._verify(store, n, p, r, level) == tuple(kept[n]) for n, p in zip(names, paths)):
+                    self.kept += 1
+                    count[0] += 1
+                    if progress is not None:
+                        progress(count[0], total)
+                    continue
+                yield item
 
         def finished(item, blobs: list[bytes]) -> None:
-            names, paths, _ = item
+            names, paths, r, level = item
             lines = []
             for name, path, data in zip(names, paths, blobs):
-                self._guard(lambda: atomic_write(path, data))
-                done[name] = [len(data), hashlib.sha256(data).hexdigest()]
-                lines.append(json.dumps([name, *done[name]]) + "\n")
+                if store is not None:
+                    self._guard(lambda: self._write_zarr(store, name, r, data))
+                else:
+                    self._guard(lambda: atomic_write(path, data))
+                lines.append(json.dumps([name, len(data), hashlib.sha256(data).hexdigest()]) + "\n")
             self._append_manifest(lines)
             self.rendered += 1
-            finished_tiles[0] += 1
+            count[0] += 1
             if progress is not None:
-                progress(finished_tiles[0], self.total)
+                progress(count[0], total)
             if self.cancel_event.is_set():
                 raise ExportInterrupted()
 
-        if todo and scheduler:
-            self._run_dask(todo, scheduler, workers, worker_init, finished)
-        elif todo and workers > 0:
-            self._run_pool(todo, workers, worker_init, finished)
+        if scheduler:
+            self._run_dask(todo(), scheduler, workers, worker_init, finished)
+        elif workers > 0:
+            self._run_pool(todo(), workers, worker_init, finished)
         else:
-            for item in todo:
+            for item in todo():
                 if self.cancel_event.is_set():
                     raise ExportInterrupted()
-                finished(item, encode_tile(self.synth, self.fmt, self.tile, item[2], self.coords))
+                finished(item, encode_tile(self.synth, self.fmt, self.tile, item[2], self.coords, item[3]))
         if self.fmt == "tiff":
             for i, m in enumerate(self.maps):
                 self._assemble_tiff(i, self.outputs()[i])
+        elif self.fmt == "zarr":
+            self._finish_zarr()
         shutil.rmtree(self.parts, ignore_errors=True)
+
+    def _verify(self, store, name: str, path: str | None, r: Rect, level: int | None):
+        """(size, sha256) of a tile already written, or None."""
+        if store is None:
+            return self._digest(path)
+        try:
+            data = self._read_zarr(store, name, r)
+        except Exception:  # noqa: BLE001 - a damaged or missing chunk: render it again
+            return None
+        return len(data), hashlib.sha256(data).hexdigest()
+
+    def _in_flight(self, workers: int) -> int:
+        return 2 * max(1, workers) + 2  # enough to keep the workers busy; a cancel drops the rest at once
 
     def _run_pool(self, todo, workers: int, worker_init, finished) -> None:
         import multiprocessing
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
         ctx = multiprocessing.get_context("spawn")  # a fresh interpreter: no inherited GL state
-        pending = list(todo)
+        retry: list = []  # tiles of a pool that broke (a worker died)
         restarts = 0
-        while pending:
+        more = True
+        while more or retry:
             pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_start,
                                        initargs=(worker_init,))
+            futures: dict = {}
+            broken = False
             try:
-                futures = {pool.submit(_worker_tile, self.fmt, self.tile, _box(item[2]), self.coords): item
-                           for item in pending}
-                broken = False
-                while futures:
+                while True:
+                    while len(futures) < self._in_flight(workers) and (retry or more):
+                        item = retry.pop() if retry else next(todo, None)
+                        if item is None:
+                            more = False
+                            break
+                        futures[pool.submit(_worker_tile, self.fmt, self.tile, _box(item[2]), self.coords,
+                                            item[3])] = item
+                    if not futures:
+                        break
                     ready, _ = wait(futures, return_when=FIRST_COMPLETED)
                     for fut in ready:
                         item = futures.pop(fut)
@@ -323,10 +412,11 @@ class TiledExport:
                             blobs = fut.result()
                         except BrokenProcessPool:
                             broken = True
+                            retry.append(item)
                             continue
-                        pending.remove(item)
                         finished(item, blobs)
                     if broken:
+                        retry.extend(futures.values())
                         break
             finally:  # stopped (or done): drop the queued tiles, wait only for those being rendered
                 pool.shutdown(wait=True, cancel_futures=True)
@@ -357,11 +447,27 @@ class TiledExport:
         try:
             init = client.scatter(worker_init, broadcast=True, hash=False)
             key = self._export_key()
-            futures = {client.submit(_dask_tile, init, key, self.fmt, self.tile, _box(item[2]), self.coords,
-                                     pure=False, key=f"infinitex-tile-{key[:12]}-{i}"): item
-                       for i, item in enumerate(todo)}
+            threads = sum(client.nthreads().values()) or 1
+            futures: dict = {}
+            serial = [0]
+
+            def submit() -> bool:
+                item = next(todo, None)
+                if item is None:
+                    return False
+                serial[0] += 1
+                fut = client.submit(_dask_tile, init, key, self.fmt, self.tile, _box(item[2]), self.coords, item[3],
+                                    pure=False, key=f"infinitex-tile-{key[:12]}-{serial[0]}")
+                futures[fut] = item
+                queue.add(fut)
+                return True
+            queue = as_completed([])
+            more = True
+            while more and len(futures) < self._in_flight(threads):
+                more = submit()
             try:
-                for fut in as_completed(futures):
+                for fut in queue:
+                    item = futures.pop(fut)
                     try:
                         blobs = fut.result()
                     except FutureCancelledError:
@@ -370,7 +476,9 @@ class TiledExport:
                         raise ExportFailed("A tile killed every Dask worker it was given to (out of memory?); "
                                            "the finished tiles are kept: run the same export again to "
                                            "continue.") from None
-                    finished(futures[fut], blobs)
+                    finished(item, blobs)
+                    while more and len(futures) < self._in_flight(threads):
+                        more = submit()
             except BaseException:
                 client.cancel(list(futures))
                 raise
@@ -378,6 +486,89 @@ class TiledExport:
             client.close()
             if cluster is not None:
                 cluster.close()
+
+    # -- zarr ---------------------------------------------------------------------
+
+    def _zarr_path(self) -> str:
+        return os.path.join(self.parts, "data.zarr")  # built here, moved to ``out`` when complete
+
+    def _open_zarr(self, fresh: bool):
+        """The multiscale store being built (OME-NGFF 0.4 metadata, zarr format
+        2, which napari's and most viewers' readers open): arrays "0" (full
+        resolution), "1" (half)... of (C, H, W) or (H, W) uint8 chunked by tile."""
+        import zarr
+        path = self._zarr_path()
+        if not fresh:
+            try:
+                return zarr.open_group(path, mode="r+", zarr_format=2)
+            except Exception:  # noqa: BLE001 - no usable store: start it again
+                pass
+        shutil.rmtree(path, ignore_errors=True)
+        return self._guard_value(lambda: zarr.open_group(path, mode="w", zarr_format=2))
+
+    def _guard_value(self, make):
+        out = []
+        self._guard(lambda: out.append(make()))
+        return out[0]
+
+    def _zarr_array(self, store, level: int, channels: int):
+        name = str(level)
+        if name in store:
+            return store[name]
+        r = self.levels[level]
+        t = self.tile
+        shape, chunks = ((r.h, r.w), (t, t)) if channels == 1 else ((channels, r.h, r.w), (channels, t, t))
+        return store.create_array(name, shape=shape, chunks=chunks, dtype="uint8", fill_value=0)
+
+    def _level_of(self, name: str) -> int:
+        return int(name.split("/", 1)[0])
+
+    def _write_zarr(self, store, name: str, r: Rect, data: bytes) -> None:
+        k = self._level_of(name)
+        lr = self.levels[k]
+        c = len(data) // (r.w * r.h)
+        a = np.frombuffer(data, dtype=np.uint8).reshape(r.h, r.w, c)
+        arr = self._zarr_array(store, k, c)
+        ys, xs = slice(r.y0 - lr.y0, r.y1 - lr.y0), slice(r.x0 - lr.x0, r.x1 - lr.x0)
+        if c == 1:
+            arr[ys, xs] = a[..., 0]
+        else:
+            arr[:, ys, xs] = np.moveaxis(a, 2, 0)
+
+    def _read_zarr(self, store, name: str, r: Rect) -> bytes:
+        k = self._level_of(name)
+        lr = self.levels[k]
+        arr = store[str(k)]
+        ys, xs = slice(r.y0 - lr.y0, r.y1 - lr.y0), slice(r.x0 - lr.x0, r.x1 - lr.x0)
+        a = arr[ys, xs][..., None] if arr.ndim == 2 else np.moveaxis(arr[:, ys, xs], 0, 2)
+        return np.ascontiguousarray(a).tobytes()
+
+    def _finish_zarr(self) -> None:
+        """Write the multiscale metadata, then move the complete store to ``out``."""
+        import zarr
+        store = zarr.open_group(self._zarr_path(), mode="r+", zarr_format=2)
+        color = store["0"].ndim == 3
+        axes = ([{"name": "c", "type": "channel"}] if color else []) + [
+            {"name": "y", "type": "space", "unit": "pixel"}, {"name": "x", "type": "space", "unit": "pixel"}]
+        r = self.rect
+        datasets = []
+        for k in range(len(self.levels)):
+            scale = ([1.0] if color else []) + [float(2 ** k)] * 2
+            origin = ([0.0] if color else []) + [float((r.y0 >> k) << k), float((r.x0 >> k) << k)]
+            datasets.append({"path": str(k), "coordinateTransformations": [
+                {"type": "scale", "scale": scale}, {"type": "translation", "translation": origin}]})
+        store.attrs["multiscales"] = [{
+            "version": "0.4", "name": os.path.splitext(os.path.basename(self.out))[0], "axes": axes,
+            "datasets": datasets, "type": "synthesis levels (LH05: the coarser levels are the mipmap)",
+            "metadata": {"canvas_rect": [r.x0, r.y0, r.w, r.h], "synthesis_levels": [self.L - k for k in
+                                                                                    range(len(self.levels))]}}]
+
+        def move():
+            old = os.path.join(self.parts, "replaced.zarr")
+            if os.path.lexists(self.out):
+                os.rename(self.out, old)  # an earlier export of the same name, removed below
+            os.rename(self._zarr_path(), self.out)
+        self._guard(move)
 
     def _assemble_tiff(self, index: int, out: str) -> None:
         import tifffile
@@ -424,12 +615,13 @@ def _worker_start(worker_init) -> None:
     _WORKER["synth"] = worker_init()
 
 
-def _worker_tile(fmt: str, tile: int, box: tuple[int, int, int, int], coords: bool) -> list[bytes]:
-    return encode_tile(_WORKER["synth"], fmt, tile, Rect(*box), coords)
+def _worker_tile(fmt: str, tile: int, box: tuple[int, int, int, int], coords: bool,
+                 level: int | None = None) -> list[bytes]:
+    return encode_tile(_WORKER["synth"], fmt, tile, Rect(*box), coords, level)
 
 
 def _dask_tile(worker_init, key: str, fmt: str, tile: int, box: tuple[int, int, int, int],
-               coords: bool) -> list[bytes]:
+               coords: bool, level: int | None = None) -> list[bytes]:
     """A Dask task: the worker's Synthesizer is made once per export and
     thread (a GL context is current in the thread that made it)."""
     slot = (threading.get_ident(), key)
@@ -438,7 +630,7 @@ def _dask_tile(worker_init, key: str, fmt: str, tile: int, box: tuple[int, int, 
         for old in [k for k in _WORKER if isinstance(k, tuple) and k[0] == slot[0]]:
             _WORKER.pop(old)  # one export's engine per thread at a time
         synth = _WORKER[slot] = worker_init()
-    return encode_tile(synth, fmt, tile, Rect(*box), coords)
+    return encode_tile(synth, fmt, tile, Rect(*box), coords, level)
 
 
 def read_tiles(out: str, rect_w: int, rect_h: int, tile: int, channels: int) -> np.ndarray:

@@ -25,6 +25,8 @@ IMAGE_FILTER = ["Images and projects", "*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.
                 "All files", "*"]
 PROJECT_FILTER = ["Infinitex project", "*.itex"]
 PNG_FILTER = ["PNG image", "*.png"]
+TIFF_FILTER = ["BigTIFF image", "*.tif *.tiff"]
+ZARR_FILTER = ["Zarr store", "*.zarr"]
 
 
 def native_dialogs_available() -> bool:

@@ -24,6 +24,7 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 from infinitex.engine.gpu import GLUnavailable, Gpu
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import ReadError, WriteError, check_output, printable
+from infinitex.engine.tiled_export import check_zarr_output
 
 from ..document import (
     PROJECT_SUFFIX,
@@ -42,7 +43,7 @@ from ..document import (
 )
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay
-from ..session import ExportJob, Frame, Session, frame_for
+from ..session import ExportEstimate, ExportJob, Frame, Session, StreamedExport, frame_for
 from ..settings import config_dir, load_settings, save_settings
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs
@@ -67,6 +68,7 @@ SHORTCUTS = [
     ("F1  or  ?", "This list"),
 ]
 IDLE_FPS = 0.25
+BACKGROUND_FPS = 4.0  # while worker processes export: progress, and the cores left to them
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run              # frames per second with nothing to do (input wakes the editor at once)
 
 
@@ -96,8 +98,12 @@ class Editor:
             self.dialogs.last_dir = os.path.dirname(self.settings.recent[0])
         self.autosave = Autosave()
         self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
-        self.export_job: ExportJob | None = None
+        self.export_job: ExportJob | StreamedExport | None = None
         self.export_rect = [0, 0, 2048, 2048]
+        self.export_format = "png"       # png (one image, in memory) | tiles (UDIM PNG set) | tiff (BigTIFF)
+        self.stream_tile = 1024          # tile size of the streamed formats
+        self.export_workers = max(1, (os.cpu_count() or 2) - 1)  # leave a core to the editor
+        self.estimate: ExportEstimate | None = None
         self.tile_size = 1024
         self.write_coords = False
         self.goto = [0, 0]
@@ -251,6 +257,10 @@ class Editor:
             self.autosave.clear()
         if self.export_job is not None:
             self.export_job.cancel()
+            if isinstance(self.export_job, StreamedExport):
+                self.export_job.wait(120)  # the tiles being rendered finish; every finished one is kept
+        if self.estimate is not None:
+            self.estimate.close()
         if self.session is not None:
             self.session.release()
         if self.canvas is not None:
@@ -471,6 +481,24 @@ class Editor:
         except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
 
+    def start_streamed_export(self, path: str, rect: Rect) -> None:
+        """A tile set or BigTIFF of ``rect``, rendered by worker processes while the editor stays live."""
+        fmt = self.export_format
+        ext = {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png")
+        if not os.path.splitext(path)[1]:
+            path += ext
+        try:
+            if fmt == "zarr":
+                check_zarr_output(path)
+            else:
+                check_output(path, (".tif", ".tiff") if ext == ".tif" else (".png",), "export")
+            if self.write_coords and fmt != "zarr":
+                check_output(os.path.splitext(path)[0] + "_coords" + ext, (ext,), "coordinate map")
+            self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.stream_tile,
+                                             self.export_workers, coords=self.write_coords and fmt != "zarr")
+        except (SynthesisError, ValueError, WriteError) as exc:
+            self.dialogs.message("Export", str(exc))
+
     # -- the frame ----------------------------------------------------------
 
     def gui(self) -> None:
@@ -540,7 +568,21 @@ class Editor:
             s.sync(self.doc)
         if self.canvas.generation != s.generation and s.ready:
             self.canvas.set_exemplar(s.stack, s.analysis.toroidal, s.exemplar.hires, s.generation)
-        if self.export_job is not None:
+        if isinstance(self.export_job, StreamedExport):
+            job = self.export_job
+            if job.finished:
+                self.export_job = None
+                if job.error:
+                    self.dialogs.message("Export failed", job.error)
+                elif job.cancelled:
+                    self.notice = (f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
+                                   f"export continues from them", time.monotonic())
+                else:
+                    r = job.rect
+                    where = " and ".join(os.path.abspath(o) for o in job.job.outputs())
+                    kept = f" ({job.kept} tiles kept from an earlier run)" if job.kept else ""
+                    self.notice = (f"Exported {r.w}x{r.h} to {where}{kept}", time.monotonic())
+        elif self.export_job is not None:
             self.export_job.step(FRAME_BUDGET_S)
             self.screen_fbo.use()
             if self.export_job.done or self.export_job.cancelled:
@@ -809,7 +851,12 @@ class Editor:
 
     def _after_frame(self) -> None:
         self._update_title()
-        working = (self.export_job is not None or self.pending is not None
+        # Worker processes doing the work (a streamed export, an estimate) need
+        # the cores more than a full frame rate: a few frames a second show progress.
+        background = (isinstance(self.export_job, StreamedExport)
+                      or (self.estimate is not None and not self.estimate.poll()))
+        self.params.fps_idling.fps_idle = BACKGROUND_FPS if background else IDLE_FPS
+        working = (isinstance(self.export_job, ExportJob) or self.pending is not None
                    or (self.session is not None and self.session.job is not None))
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)

@@ -15,7 +15,7 @@ from infinitex.engine.safeio import printable
 
 from ..document import DISPLAY_MODES, View
 from ..settings import save_settings
-from .dialogs import IMAGE_FILTER, PNG_FILTER
+from .dialogs import IMAGE_FILTER, PNG_FILTER, TIFF_FILTER, ZARR_FILTER
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 MODE_LABELS = {"color": "Color", "coords": "Coordinate map", "patches": "Patch boundaries",
@@ -30,6 +30,17 @@ MAGNIFY_LABELS = [("hires", "Synthesis magnification, hi-res exemplar"),
 FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square")]
 TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
 TILE_SIZES = [64, 128, 256, 512, 1024, 2048, 4096]
+# Formats of rectangle exports: key, label, tooltip.
+EXPORT_FORMATS = [
+    ("png", "PNG image", "One PNG, made in memory: up to 16384 px a side and 64 Mpixels"),
+    ("tiles", "PNG tiles (UDIM)", "A set of PNG tiles, NAME.1001.png, NAME.1002.png... (1001 + column + 10 x row; "
+                                  "past 10 columns NAME_u1_v1.png): any size up to 2^20 px a side"),
+    ("tiff", "BigTIFF (tiled)", "One tiled, compressed BigTIFF that GIS and terrain tools open: any size up to "
+                                "2^20 px a side"),
+    ("zarr", "Zarr pyramid", "A multiscale Zarr store (NAME.zarr, OME-NGFF 0.4) that napari and other zarr viewers "
+                             "open: full resolution, then the synthesis's own coarser levels (the mipmap comes "
+                             "free); any size up to 2^20 px a side"),
+]
 # The Advanced section's sliders: document field, label, range, what it does in plain words.
 ADVANCED_SLIDERS = [
     ("passes", "Correction passes", 0, 4, "How many times each scale is cleaned up to look like the exemplar: "
@@ -399,14 +410,9 @@ class Panels:
         if imgui.button("Export view as PNG...", (-1, 0)):
             self.export_view()
         tip("What the canvas shows now, at 1:1")
-        imgui.set_next_item_width(-90)
-        _, ed.export_rect = imgui.input_int4("x y w h", ed.export_rect)
-        tip("A rectangle of the infinite canvas: its top-left corner and size, in texture pixels")
-        if imgui.button("Export rectangle as PNG...", (-1, 0)):
-            x, y, w, h = ed.export_rect
-            r = Rect.of(x, y, w, h)
-            ed.dialogs.ask_path("Export rectangle", True, PNG_FILTER, lambda p: ed.start_export(p, r),
-                                default="rectangle.png")
+        imgui.separator_text("Rectangle")
+        self.rectangle_export()
+        imgui.separator_text("Seamless tile")
         imgui.set_next_item_width(-90)
         sizes = [str(s) for s in TILE_SIZES]
         changed, i = imgui.combo("Tile size", TILE_SIZES.index(ed.tile_size), sizes)
@@ -423,10 +429,102 @@ class Panels:
         if lat is not None:
             cx, cy = lat.cell(ed.session.analysis.size)
             imgui.push_text_wrap_pos(0)
-            imgui.text_disabled(f"Lattice: the view and rectangles export as the canvas shows them "
+            imgui.text_disabled(f"Lattice: the view and PNG rectangles export as the canvas shows them "
                                 f"({'input geometry' if ed.geometry() is not None else 'rectified'}); "
-                                f"tiles are rectified, whole {cx}x{cy} px cells.")
+                                f"tile sets, BigTIFFs and seamless tiles are rectified (tiles: whole {cx}x{cy} px "
+                                f"cells).")
             imgui.pop_text_wrap_pos()
+
+    def rectangle_export(self) -> None:
+        """A rectangle of the infinite canvas as one PNG, a UDIM tile set or a
+        BigTIFF, with its size and time estimated before it starts."""
+        from infinitex.engine.synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
+        from infinitex.engine.tiled_export import MAX_SIDE
+        from infinitex.engine.tiled_export import TILE_SIZES as STREAM_TILES
+
+        from ..session import ExportEstimate
+        ed = self.ed
+        imgui.set_next_item_width(-90)
+        _, ed.export_rect = imgui.input_int4("x y w h", ed.export_rect)
+        tip("A rectangle of the infinite canvas: its top-left corner and size, in texture pixels")
+        if imgui.small_button("The view"):
+            r = ed.view_rect()
+            ed.export_rect = [r.x0, r.y0, r.w, r.h]
+        tip("The rectangle the canvas shows now")
+        for n, label in ((8192, "8k"), (32768, "32k"), (65536, "64k")):
+            imgui.same_line()
+            if imgui.small_button(f"{label}##square"):
+                ed.export_rect = [ed.export_rect[0], ed.export_rect[1], n, n]
+                if ed.export_format == "png":
+                    ed.export_format = "tiff"
+            tip(f"{n} x {n} px from the same corner")
+        keys = [k for k, _, _ in EXPORT_FORMATS]
+        imgui.set_next_item_width(-90)
+        changed, i = imgui.combo("Format", keys.index(ed.export_format), [label for _, label, _ in EXPORT_FORMATS])
+        if changed:
+            ed.export_format = keys[i]
+        tip(EXPORT_FORMATS[keys.index(ed.export_format)][2])
+        x, y, w, h = ed.export_rect
+        streamed = ed.export_format != "png"
+        problem = None
+        if w < 1 or h < 1:
+            problem = "The rectangle is empty."
+        elif streamed and (w > MAX_SIDE or h > MAX_SIDE):
+            problem = f"At most {MAX_SIDE} px a side."
+        elif not streamed and (w > MAX_WINDOW_SIDE or h > MAX_WINDOW_SIDE or w * h > MAX_WINDOW_PIXELS):
+            problem = (f"Too large for one PNG (at most {MAX_WINDOW_SIDE} px a side and "
+                       f"{MAX_WINDOW_PIXELS // 2**20} Mpixels): choose PNG tiles or BigTIFF.")
+        elif abs(x) > 2**30 or abs(y) > 2**30:
+            problem = "The corner must be within +-2^30."
+        low = False
+        if streamed:
+            imgui.set_next_item_width(100)
+            sizes = [str(t) for t in STREAM_TILES]
+            changed, i = imgui.combo("Tile##stream", STREAM_TILES.index(ed.stream_tile), sizes)
+            if changed:
+                ed.stream_tile = STREAM_TILES[i]
+            tip("Side of the tiles the export is rendered in (and, for PNG tiles, of each file)")
+            imgui.same_line()
+            imgui.set_next_item_width(-60)
+            cores = os.cpu_count() or 1
+            _, ed.export_workers = imgui.slider_int("Workers", ed.export_workers, 1, max(2, cores))
+            tip("Processes rendering tiles, each with its own GL context, while the editor stays live "
+                f"(this machine has {cores} cores)")
+            if problem is None and ed.session is not None and ed.session.ready:
+                key = (ed.doc.analysis_key(), ed.export_format, ed.stream_tile)
+                if ed.estimate is None or ed.estimate.key != key:
+                    if ed.estimate is not None:
+                        ed.estimate.close()
+                    ed.estimate = ExportEstimate(ed.doc, ed.export_format, ed.stream_tile)
+                ed.estimate.poll()
+                text, low = ed.estimate.describe(w, h, ed.export_workers, ed.dialogs.last_dir or ".")
+                imgui.push_text_wrap_pos(0)
+                if low:
+                    imgui.text_colored((1.0, 0.55, 0.35, 1.0), text)
+                else:
+                    imgui.text_disabled(text)
+                imgui.pop_text_wrap_pos()
+        elif problem is None:
+            imgui.text_disabled(f"{w} x {h} px, {w * h / 1e6:.1f} Mpixels")
+        if problem:
+            imgui.push_text_wrap_pos(0)
+            imgui.text_colored((1.0, 0.55, 0.35, 1.0), problem)
+            imgui.pop_text_wrap_pos()
+        imgui.begin_disabled(problem is not None or ed.export_job is not None)
+        if imgui.button("Export rectangle...", (-1, 0)):
+            r = Rect.of(x, y, w, h)
+            if streamed:
+                fmt = ed.export_format
+                filt = {"tiff": TIFF_FILTER, "zarr": ZARR_FILTER}.get(fmt, PNG_FILTER)
+                ed.dialogs.ask_path("Export rectangle", True, filt, lambda p: ed.start_streamed_export(p, r),
+                                    default="rectangle" + {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png"))
+            else:
+                ed.dialogs.ask_path("Export rectangle", True, PNG_FILTER, lambda p: ed.start_export(p, r),
+                                    default="rectangle.png")
+        imgui.end_disabled()
+        if streamed:
+            tip("Rendered tile by tile in bounded memory. Stopped (Cancel, a crash), the same export continues "
+                "where it stopped: the finished tiles are kept in NAME.parts beside it")
 
     def export_view(self) -> None:
         ed = self.ed
@@ -494,14 +592,44 @@ class Panels:
         imgui.set_next_window_size((420, 0))
         opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
         if opened:
-            imgui.text(f"{os.path.basename(job.out_path)}: {job.rect.w} x {job.rect.h}")
+            imgui.text(f"{os.path.basename(job.out_path)}: {job.out_rect.w} x {job.out_rect.h}")
             elapsed = time.monotonic() - job.started
-            imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
-            if imgui.button("Cancel", (120, 0)):
+            streamed = hasattr(job, "done_tiles")
+            if streamed:
+                total = job.job.total
+                label = f"{job.done_tiles} / {total} tiles  ({elapsed:.0f} s)"
+                imgui.progress_bar(job.progress, (-1, 0), label)
+                rate, left = job.rate(), job.seconds_left()
+                if job.kept:
+                    imgui.text_disabled(f"{job.kept} tiles kept from an earlier run")
+                if rate is not None:
+                    imgui.text(f"{rate / 1e6:.2f} Mpixel/s with {job.workers} worker{'s' * (job.workers > 1)}, "
+                               f"{_left(left)} left")
+                else:
+                    imgui.text_disabled(f"Starting {job.workers} worker{'s' * (job.workers > 1)}...")
+            else:
+                imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
+            if streamed and job.cancelling:
+                imgui.text_disabled("Stopping after the tiles being rendered...")
+            elif imgui.button("Cancel", (120, 0)):
                 job.cancel()
-                ed.export_job = None
-                imgui.close_current_popup()
+                if not streamed:
+                    ed.export_job = None
+                    imgui.close_current_popup()
+            if streamed and not job.cancelling:
+                tip("Stops after the tiles being rendered; they and every finished tile are kept, and the "
+                    "same export continues from them")
             imgui.end_popup()
+
+
+def _left(seconds: float | None) -> str:
+    if seconds is None:
+        return "?"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
 
 
 PANEL_IMAGE = 160

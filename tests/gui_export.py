@@ -1,0 +1,134 @@
+"""Drive the real editor through a huge-export session (run under Xvfb by
+test_editor.py):
+
+    xvfb-run -a python tests/gui_export.py OUT_DIR
+
+The Export panel's formats; the size and time estimated before starting;
+a BigTIFF exported by worker processes while the editor keeps drawing
+frames, with progress; a tile set cancelled from the progress window, then
+the same export run again, which keeps the finished tiles. test_editor.py
+compares the files with the one-piece render. Writes "ok NAME" /
+"FAIL NAME: why" lines to OUT_DIR/report.txt.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, HERE)
+
+from imgui_bundle.immapp import testing  # noqa: E402
+
+from gui_harness import Harness  # noqa: E402
+
+TIFF_RECT = [-300, 1000, 1500, 1100]
+TILES_RECT = [4000, -2000, 2048, 2048]
+
+
+def choose(ctx, combo: str, item: str) -> None:
+    """Pick ``item`` in the side panel's combo box labelled ``combo`` (a
+    wildcard does not find combo boxes: the side panel is named)."""
+    ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
+    ctx.combo_click(f"{combo}/{item}")
+    ctx.yield_(2)
+    ctx.set_ref("//Infinitex")
+
+
+def main(out: str) -> int:
+    h = Harness(out)
+    ed, check, settle = h.ed, h.check, h.settle
+
+    def wait(ctx, cond, seconds: float) -> bool:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            if cond():
+                return True
+            ctx.yield_()
+            time.sleep(0.01)
+        return cond()
+
+    def test(ctx) -> None:
+        settle(ctx)
+        ctx.set_ref("//Infinitex")
+        for header in ("Randomness", "Exemplar", "Display"):  # make room for the Export section
+            ctx.item_close(f"**/{header}")
+        ctx.item_open("**/Export")
+        ctx.yield_(2)
+        ed.export_rect = list(TIFF_RECT)
+        choose(ctx, "Format", "BigTIFF (tiled)")
+        ctx.yield_(2)
+        check("the format is chosen in the panel", ed.export_format == "tiff", ed.export_format)
+        choose(ctx, "Tile##stream", "256")
+        ed.export_workers = 1
+        ctx.yield_(2)
+        check("an estimate starts in the background", ed.estimate is not None and ed.estimate.key[1:] == ("tiff", 256),
+              str(ed.estimate and ed.estimate.key))
+        measured = wait(ctx, lambda: ed.estimate is not None and ed.estimate.poll(), 120)
+        text, low = ed.estimate.describe(TIFF_RECT[2], TIFF_RECT[3], 1, out)
+        check("size and time are estimated before starting", measured and ed.estimate.result is not None
+              and text.startswith("About ") and " MB and " in text and not low, f"{text} {ed.estimate.error}")
+        testing.capture(ctx, os.path.join(out, "export-panel.png"))
+
+        # A BigTIFF by a worker process; the editor keeps drawing meanwhile.
+        target = os.path.join(out, "big.tif")
+        ctx.item_click("**/Export rectangle...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", target)
+        ctx.yield_(2)
+        started = ed.export_job is not None and hasattr(ed.export_job, "done_tiles")
+        check("the export runs as a streamed job", started, repr(ed.export_job))
+        frames0 = ed.frame_count
+        t0 = time.monotonic()
+        seen_progress = False
+        while ed.export_job is not None and time.monotonic() - t0 < 300:
+            job = ed.export_job
+            seen_progress = seen_progress or 0 < job.done_tiles < job.job.total
+            ctx.yield_()
+            time.sleep(0.01)
+        elapsed = time.monotonic() - t0
+        frames = ed.frame_count - frames0
+        check("the editor keeps drawing while workers export", frames >= 2 * elapsed and seen_progress,
+              f"{frames} frames in {elapsed:.1f} s, progress seen {seen_progress}")
+        check("the export says where it wrote", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
+              and os.path.isfile(target) and not os.path.exists(target + ".parts"), str(ed.notice))
+
+        # A tile set, cancelled in the progress window, then resumed.
+        ed.export_rect = list(TILES_RECT)
+        ctx.set_ref("//Infinitex")
+        choose(ctx, "Format", "PNG tiles (UDIM)")
+        ctx.yield_(2)
+        tiles = os.path.join(out, "set.png")
+        ctx.item_click("**/Export rectangle...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", tiles)
+        ctx.yield_(2)
+        running = wait(ctx, lambda: ed.export_job is not None and ed.export_job.done_tiles >= 3, 120)
+        check("the tile set starts", running, repr(ed.export_job))
+        ctx.item_click("//Exporting###export/Cancel")
+        t0 = time.monotonic()
+        stopped = wait(ctx, lambda: ed.export_job is None, 120)
+        check("Cancel stops it soon, keeping the tiles", stopped and time.monotonic() - t0 < 30
+              and ed.notice is not None and "tiles are kept" in ed.notice[0]
+              and os.path.isdir(tiles + ".parts"), str(ed.notice))
+        kept = len([f for f in os.listdir(out) if f.startswith("set.") and f.endswith(".png")])
+        ctx.set_ref("//Infinitex")
+        ctx.item_click("**/Export rectangle...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", tiles)
+        ctx.yield_(2)
+        done = wait(ctx, lambda: ed.export_job is None, 300)
+        check("the same export continues from the kept tiles", done and ed.notice is not None
+              and f"({kept} tiles kept from an earlier run)" in ed.notice[0] and kept >= 3, f"{kept} {ed.notice}")
+        ctx.set_ref("//Infinitex")
+        choose(ctx, "Format", "PNG image")
+        ed.export_rect = [0, 0, 20000, 100]
+        ctx.yield_(3)
+        check("too large for one PNG is said, not attempted", ed.export_format == "png", ed.export_format)
+
+    return h.run(test, watchdog_s=900)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
