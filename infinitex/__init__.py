@@ -35,6 +35,12 @@ Huge exports, tile by tile in bounded memory and resumable (``TiledExport``)::
     with itx.Synthesizer(an) as s:
         itx.TiledExport(s, itx.Rect.of(0, 0, 65536, 65536), "terrain.tif", "tiff", tile=1024).run()
         itx.TiledExport(s, itx.Rect.of(0, 0, 8192, 8192), "set.png", "tiles", tile=2048).run()  # set.1001.png...
+        itx.TiledExport(s, itx.Rect.of(0, 0, 8192, 8192), "set.zarr", "zarr").run()  # multiscale (OME-NGFF)
+
+    ``run(workers=N, worker_init=...)`` renders in N processes and
+    ``run(scheduler="local" | "tcp://HOST:8786", worker_init=...)`` on a Dask
+    cluster; ``worker_init`` makes a worker's Synthesizer from the project
+    (``infinitex.app.session.project_synthesizer(document)``).
 
 Controls (one engine input, ``Controls``): ``CanvasField`` and
 ``ExemplarField`` (painted randomness, uint16, 32768 = neutral; ``painted()``

@@ -45,9 +45,10 @@ class Harness:
             ctx.yield_()
         return self.ed.canvas_pixels
 
-    def run(self, test, watchdog_s: float = 60.0) -> int:
+    def run(self, test, watchdog_s: float = 600.0) -> int:
         """Run ``test(ctx)`` in the editor; write the report; 0 when every check passed.
-        The test engine stops a test running longer than ``watchdog_s``."""
+        The test engine stops a test running longer than ``watchdog_s`` (its own
+        default, 60 s, is too short for a driver on a loaded 2-core machine)."""
         params = self.ed.runner_params()
 
         def register_tests() -> None:

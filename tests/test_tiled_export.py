@@ -113,7 +113,13 @@ def test_cli_refuses_bad_tiled_arguments(tmp_path):
     r = run("-o", str(tmp_path / "x.png"), "--format", "tiles", "--rect", "0", "0", str(2 ** 20 + 1), "10")
     assert r.returncode == 2 and "1048576" in r.stderr
     r = run("-o", str(tmp_path / "x.png"), "--scheduler")
-    assert r.returncode == 2 and "--scheduler goes with --format tiles or tiff" in r.stderr
+    assert r.returncode == 2 and "--scheduler goes with --format tiles, tiff or zarr" in r.stderr
+    r = run("-o", str(tmp_path / "x.zarr"), "--format", "zarr", "--coords")
+    assert r.returncode == 2 and "--coords goes with --format png, tiles or tiff" in r.stderr
+    (tmp_path / "notzarr.zarr").mkdir()
+    r = run("-o", str(tmp_path / "notzarr.zarr"), "--format", "zarr")
+    assert r.returncode == 2 and "is not a Zarr store; it is not overwritten" in r.stderr
+    (tmp_path / "notzarr.zarr").rmdir()
     assert not list(tmp_path.iterdir())
     r = run("-o", str(tmp_path / "x.png"), "--format", "tiles", "--scheduler", "tcp://127.0.0.1:9",
             "--rect", "0", "0", "64", "64", "-q")

@@ -549,7 +549,7 @@ class TiledExport:
         store = zarr.open_group(self._zarr_path(), mode="r+", zarr_format=2)
         color = store["0"].ndim == 3
         axes = ([{"name": "c", "type": "channel"}] if color else []) + [
-            {"name": "y", "type": "space", "unit": "pixel"}, {"name": "x", "type": "space", "unit": "pixel"}]
+            {"name": "y", "type": "space"}, {"name": "x", "type": "space"}]
         r = self.rect
         datasets = []
         for k in range(len(self.levels)):

@@ -478,14 +478,13 @@ class Panels:
             problem = "The corner must be within +-2^30."
         low = False
         if streamed:
-            imgui.set_next_item_width(100)
+            imgui.set_next_item_width(-90)
             sizes = [str(t) for t in STREAM_TILES]
             changed, i = imgui.combo("Tile##stream", STREAM_TILES.index(ed.stream_tile), sizes)
             if changed:
                 ed.stream_tile = STREAM_TILES[i]
             tip("Side of the tiles the export is rendered in (and, for PNG tiles, of each file)")
-            imgui.same_line()
-            imgui.set_next_item_width(-60)
+            imgui.set_next_item_width(-90)
             cores = os.cpu_count() or 1
             _, ed.export_workers = imgui.slider_int("Workers", ed.export_workers, 1, max(2, cores))
             tip("Processes rendering tiles, each with its own GL context, while the editor stays live "
