@@ -657,6 +657,14 @@ class ExportEstimate:
         return True
 
     def close(self) -> None:
+        """Stop the measuring worker now (an estimate nobody waits for)."""
+        if not self.future.done():
+            terminate = getattr(self.pool, "terminate_workers", None)  # Python 3.14+
+            if terminate is not None:
+                terminate()
+            else:
+                for proc in list((getattr(self.pool, "_processes", None) or {}).values()):
+                    proc.terminate()
         self.pool.shutdown(wait=False, cancel_futures=True)
 
     def describe(self, w: int, h: int, workers: int, folder: str) -> tuple[str, bool]:

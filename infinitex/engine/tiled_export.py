@@ -40,6 +40,7 @@ import hashlib
 import io
 import json
 import os
+import secrets
 import shutil
 import threading
 import time
@@ -450,6 +451,7 @@ class TiledExport:
             threads = sum(client.nthreads().values()) or 1
             futures: dict = {}
             serial = [0]
+            run_id = secrets.token_hex(4)  # task names of this run only, on a cluster others may share
 
             def submit() -> bool:
                 item = next(todo, None)
@@ -457,7 +459,7 @@ class TiledExport:
                     return False
                 serial[0] += 1
                 fut = client.submit(_dask_tile, init, key, self.fmt, self.tile, _box(item[2]), self.coords, item[3],
-                                    pure=False, key=f"infinitex-tile-{key[:12]}-{serial[0]}")
+                                    pure=False, key=f"infinitex-tile-{key[:12]}-{run_id}-{serial[0]}")
                 futures[fut] = item
                 queue.add(fut)
                 return True
