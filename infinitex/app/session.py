@@ -9,7 +9,6 @@ go through the same path.
 """
 from __future__ import annotations
 
-import os
 import math
 import threading
 import time
@@ -688,7 +687,7 @@ class ExportEstimate:
             free = None
         need = size * (2.1 if self.key[1] == "tiff" else 1.1)  # a TIFF's parts and the file coexist a moment
         low = free is not None and need > free
-        text = f"About {_bytes(size)} and {_duration(seconds)} with {workers} worker{'s' * (workers > 1)}"
+        text = f"About {_bytes(size)} and {duration_text(seconds)} with {workers} worker{'s' * (workers > 1)}"
         if low:
             text += f"; only {_bytes(free)} free there"
         return text + ".", low
@@ -702,7 +701,8 @@ def _bytes(n: float) -> str:
     return ""
 
 
-def _duration(s: float) -> str:
+def duration_text(s: float) -> str:
+    """A duration for people: 42 s, 17 min, 3.2 h."""
     if s < 90:
         return f"{max(1, round(s))} s"
     if s < 5400:

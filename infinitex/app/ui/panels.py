@@ -14,6 +14,7 @@ from infinitex.engine.pyramid import Rect
 from infinitex.engine.safeio import printable
 
 from ..document import DISPLAY_MODES, View
+from ..session import duration_text
 from ..settings import save_settings
 from .dialogs import IMAGE_FILTER, PNG_FILTER, TIFF_FILTER, ZARR_FILTER
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
@@ -413,11 +414,7 @@ class Panels:
         imgui.separator_text("Rectangle")
         self.rectangle_export()
         imgui.separator_text("Seamless tile")
-        imgui.set_next_item_width(-90)
-        sizes = [str(s) for s in TILE_SIZES]
-        changed, i = imgui.combo("Tile size", TILE_SIZES.index(ed.tile_size), sizes)
-        if changed:
-            ed.tile_size = TILE_SIZES[i]
+        ed.tile_size = size_combo("Tile size", TILE_SIZES, ed.tile_size)
         tip("Side of the seamless tile")
         _, ed.tile_mode = imgui.checkbox("Show the tile on the canvas (T)", ed.tile_mode)
         tip("The canvas shows the periodic texture this tile size makes, tile borders drawn: "
@@ -478,11 +475,7 @@ class Panels:
             problem = "The corner must be within +-2^30."
         low = False
         if streamed:
-            imgui.set_next_item_width(-90)
-            sizes = [str(t) for t in STREAM_TILES]
-            changed, i = imgui.combo("Tile##stream", STREAM_TILES.index(ed.stream_tile), sizes)
-            if changed:
-                ed.stream_tile = STREAM_TILES[i]
+            ed.stream_tile = size_combo("Tile##stream", STREAM_TILES, ed.stream_tile)
             tip("Side of the tiles the export is rendered in (and, for PNG tiles, of each file)")
             imgui.set_next_item_width(-90)
             cores = os.cpu_count() or 1
@@ -603,7 +596,7 @@ class Panels:
                     imgui.text_disabled(f"{job.kept} tiles kept from an earlier run")
                 if rate is not None:
                     imgui.text(f"{rate / 1e6:.2f} Mpixel/s with {job.workers} worker{'s' * (job.workers > 1)}, "
-                               f"{_left(left)} left")
+                               f"{'?' if left is None else duration_text(left)} left")
                 else:
                     imgui.text_disabled(f"Starting {job.workers} worker{'s' * (job.workers > 1)}...")
             else:
@@ -621,14 +614,11 @@ class Panels:
             imgui.end_popup()
 
 
-def _left(seconds: float | None) -> str:
-    if seconds is None:
-        return "?"
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
+def size_combo(label: str, sizes, value: int) -> int:
+    """A combo box of sizes (px); returns the one chosen."""
+    imgui.set_next_item_width(-90)
+    changed, i = imgui.combo(label, list(sizes).index(value), [str(s) for s in sizes])
+    return sizes[i] if changed else value
 
 
 PANEL_IMAGE = 160
