@@ -23,8 +23,8 @@ from imgui_bundle.immapp import testing  # noqa: E402
 
 from gui_harness import Harness  # noqa: E402
 
-TIFF_RECT = [-300, 1000, 1500, 1100]
-TILES_RECT = [4000, -2000, 2048, 2048]
+TIFF_RECT = [-300, 1000, 1000, 700]
+TILES_RECT = [4000, -2000, 1280, 1024]
 
 
 def choose(ctx, combo: str, item: str) -> None:
