@@ -13,6 +13,7 @@ compares the files with the one-piece render. Writes "ok NAME" /
 from __future__ import annotations
 
 import os
+import re
 import sys
 import time
 
@@ -68,7 +69,8 @@ def main(out: str) -> int:
         measured = wait(ctx, lambda: ed.estimate is not None and ed.estimate.poll(), 120)
         text, low = ed.estimate.describe(TIFF_RECT[2], TIFF_RECT[3], 1, out)
         check("size and time are estimated before starting", measured and ed.estimate.result is not None
-              and text.startswith("About ") and " MB and " in text and not low, f"{text} {ed.estimate.error}")
+              and re.match(r"About [\d.]+ (KB|MB|GB) and [\d.]+ (s|min|h) with 1 worker\.$", text) is not None
+              and not low, f"{text} {ed.estimate.error}")
         testing.capture(ctx, os.path.join(out, "export-panel.png"))
 
         # A BigTIFF by a worker process; the editor keeps drawing meanwhile.
