@@ -630,41 +630,49 @@ class ExportEstimate:
     """The size and time of a streamed export, estimated before it starts:
     one worker process (as the export uses) renders and encodes a tile, in
     the background; ``result`` is (seconds per pixel, bytes per pixel) once
-    measured."""
+    measured. The process is started and awaited by a thread of its own, as
+    for StreamedExport: the GUI thread never spawns or joins processes."""
 
     def __init__(self, doc: Document, fmt: str, tile: int):
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
         self.key = (doc.analysis_key(), fmt, tile)
-        self.pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-        from infinitex.engine.tiled_export import calibrate
-        self.future = self.pool.submit(calibrate, project_synthesizer(doc), fmt, tile)
+        self.init = project_synthesizer(doc)
         self.result: tuple[float, float] | None = None
         self.error: str | None = None
+        self.pool = None
+        self.closed = False
+        self.finished = False
+        self.thread = threading.Thread(target=self._run, name="export-estimate", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        from infinitex.engine.tiled_export import calibrate
+        try:
+            with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+                self.pool = pool
+                if not self.closed:
+                    self.result = pool.submit(calibrate, self.init, self.key[1], self.key[2]).result()
+        except Exception as exc:  # noqa: BLE001 - an estimate that failed says so; the export may still work
+            if not self.closed:
+                self.error = str(exc) or type(exc).__name__
+        finally:
+            self.finished = True
 
     def poll(self) -> bool:
         """True once measured (or failed); the worker is then gone."""
-        if self.result is not None or self.error is not None:
-            return True
-        if not self.future.done():
-            return False
-        try:
-            self.result = self.future.result()
-        except Exception as exc:  # noqa: BLE001 - an estimate that failed says so; the export may still work
-            self.error = str(exc) or type(exc).__name__
-        self.close()
-        return True
+        return self.finished
 
-    def close(self) -> None:
+    def close(self, wait: float = 0.0) -> None:
         """Stop the measuring worker now (an estimate nobody waits for)."""
-        if not self.future.done():
-            terminate = getattr(self.pool, "terminate_workers", None)  # Python 3.14+
-            if terminate is not None:
-                terminate()
-            else:
-                for proc in list((getattr(self.pool, "_processes", None) or {}).values()):
-                    proc.terminate()
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        self.closed = True
+        pool = self.pool
+        if pool is not None and not self.finished:
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+        if wait:
+            self.thread.join(wait)
 
     def describe(self, w: int, h: int, workers: int, folder: str) -> tuple[str, bool]:
         """One line for the panel ("about 1.2 GB, about 25 min"), and whether the

@@ -260,7 +260,7 @@ class Editor:
             if isinstance(self.export_job, StreamedExport):
                 self.export_job.wait(120)  # the tiles being rendered finish; every finished one is kept
         if self.estimate is not None:
-            self.estimate.close()
+            self.estimate.close(wait=10.0)
         if self.session is not None:
             self.session.release()
         if self.canvas is not None:
