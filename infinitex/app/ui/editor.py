@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import random
+import subprocess
 import sys
 import time
 from dataclasses import replace
@@ -67,6 +68,11 @@ SHORTCUTS = [
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
     ("F1  or  ?", "This list"),
 ]
+# The editor spawns worker processes (streamed exports, their estimate) while
+# GL and the UI threads run. CPython's vfork() path for that (multiprocessing
+# uses it through subprocess) aborted the editor now and then, under the imgui
+# test engine, during a spawn; plain fork + exec (the documented switch) did not.
+subprocess._USE_VFORK = False
 IDLE_FPS = 0.25
 BACKGROUND_FPS = 4.0  # while worker processes export: progress, and the cores left to them
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run              # frames per second with nothing to do (input wakes the editor at once)
