@@ -33,8 +33,20 @@ from infinitex.engine.safeio import ReadError, printable
 def build_parser() -> Parser:
     p = Parser(prog="infinitex export",
                description="Export a project's texture (a rectangle, its view, or a toroidal tile).")
-    p.add_argument("project", help="an .itex project file (or an exemplar image: default settings)")
-    p.add_argument("-o", "--output", required=True, help="output PNG (.png)")
+    p.add_argument("project", help="an .itex project file, or an exemplar image or material (default settings): "
+                   "one map of a material (wood_basecolor.png) brings its siblings named by the rule "
+                   "(wood_normal.png, wood_height.tif...), a folder holds one material's maps")
+    p.add_argument("-o", "--output", required=True,
+                   help="output PNG (.png; .tif for a 32-bit float single image); a material writes one file "
+                        "per map: OUT_basecolor.png, OUT_height.png... (32-bit maps as .tif)")
+    p.add_argument("--maps", default=None, metavar="all|basecolor,height,...",
+                   help="the maps of a material to write (default all)")
+    p.add_argument("--depth", type=_integer, default=None, choices=(8, 16, 32),
+                   help="bit depth of every map written: 8 or 16 (PNG) or 32 (float TIFF); default: each map's "
+                        "own (8-bit sources 8, 16-bit 16, float 32)")
+    p.add_argument("--magnify", type=_integer, default=1, choices=(1, 2, 4, 8),
+                   help="--format png: N x N output pixels per texel, by synthesis magnification (LH05 5) from "
+                        "the full-resolution maps when the import kept them; normals are renormalized")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--rect", nargs=4, type=_integer, metavar=("X", "Y", "W", "H"),
                    help="canvas rectangle in finest-level pixels")
@@ -99,7 +111,13 @@ def run_export(argv: list[str]) -> int:
         if args.coords:
             raise CliError("--coords goes with --format png, tiles or tiff.", EXIT_USAGE)
     else:
-        check_out(args.output, (".tif", ".tiff") if args.format == "tiff" else (".png",), "output image")
+        check_out(args.output, (".tif", ".tiff") if args.format == "tiff" else (".png", ".tif", ".tiff"),
+                  "output image")
+    if streamed and (args.depth not in (None, 8) or args.magnify != 1):
+        raise CliError("--format tiles, tiff and zarr write 8-bit maps at 1:1; --depth 16/32 and --magnify go "
+                       "with --format png.", EXIT_USAGE)
+    if args.magnify != 1 and args.coords:
+        raise CliError("The coordinate map is written at 1:1: --coords does not go with --magnify.", EXIT_USAGE)
     if streamed and args.tile not in TILE_SIZES:
         raise CliError(f"--tile must be one of {', '.join(map(str, TILE_SIZES))}, not {args.tile}.", EXIT_USAGE)
     if not 0 <= args.workers <= 64 or (args.workers and not streamed):
@@ -122,8 +140,15 @@ def run_export(argv: list[str]) -> int:
         doc, view = proj.document, proj.view
         geometry = proj.display.geometry
     else:
+        from infinitex.engine.material import IMAGE, assign_roles
         try:
-            doc, view = Document(ExemplarSource.from_file(args.project)), None
+            found = assign_roles([args.project])
+            maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
+            doc, view = Document(maps[0][1]), None
+            if list(found) != [IMAGE]:
+                doc = doc.with_maps(maps)
+                if not args.quiet:
+                    sys.stderr.write(f"material: {', '.join(f'{r} {printable(os.path.basename(p))}' for r, p in found.items())}\n")
             geometry = "original"
         except ReadError as exc:
             raise CliError(str(exc), EXIT_INPUT) from None
@@ -142,17 +167,31 @@ def run_export(argv: list[str]) -> int:
     from infinitex.engine.cli import _progress
     from infinitex.engine.gpu import Gpu
 
-    from .session import ExportJob, Session, exemplar_for
+    from infinitex.engine.material import IMAGE, parse_maps
+
+    from .session import ExportJob, Session, exemplar_for, material_for
     check_lattice_args(args)
     image = None
+    if args.lattice and doc.maps:
+        raise CliError("A lattice works on a single image, not on a material.", EXIT_USAGE)
     if args.lattice:  # replaces the project's lattice ('none' removes it)
         from infinitex.engine.exemplar import decode_full
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
-    ex, settings = exemplar_for(doc, image)
+    material = material_for(doc) if doc.maps else None
+    ex, settings = exemplar_for(doc, image, material)
     del image
+    if material is not None:
+        roles = parse_maps(args.maps, material)
+        if streamed and len(roles) > 1:
+            raise CliError("--format tiles, tiff and zarr write one map per run: add --maps ROLE "
+                           f"(this material has {', '.join(material.roles)}), or use --format png.", EXIT_USAGE)
+    else:
+        roles = None
+        if args.maps is not None and args.maps.strip().lower() not in ("all", IMAGE):
+            raise CliError("--maps chooses among a material's maps; this exemplar is a single image.", EXIT_USAGE)
     if doc.lattice is not None and tor:
         cx, cy = doc.lattice.cell(ex.size)
         if tor % cx or tor % cy:
@@ -167,18 +206,19 @@ def run_export(argv: list[str]) -> int:
     gpu = Gpu()
     session = Session(gpu)
     try:
-        session.install(doc, ex, an)
+        session.install(doc, ex, an, material)
         if streamed:
-            return _run_streamed(session, doc, rect, tor, args, gpu.renderer, args.geometry or geometry)
+            role = roles[0] if roles else ""
+            return _run_streamed(session, doc, rect, tor, args, gpu.renderer, args.geometry or geometry, role)
         job = ExportJob(session, rect, args.output, toroidal=tor, coords_path=coords_path, tile=512,
-                        geometry=args.geometry or geometry)
+                        geometry=args.geometry or geometry, maps=roles, depth=args.depth, magnify=args.magnify)
         return _run(job, args, rect, gpu.renderer)
     finally:
         session.release()
         gpu.release()
 
 
-def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str) -> int:
+def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str, role: str = "") -> int:
     """--format tiles|tiff|zarr: tile by tile in bounded memory, resumable (engine.tiled_export)."""
     import hashlib
     import json
@@ -191,17 +231,23 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
     synth = session.synth
     if tor:
         synth.set_params(replace(session.params, period=tor))
-    # What decides the pixels: the whole document (exemplar included) and the parameters used.
-    key = hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(synth.params)],
-                                    sort_keys=True).encode()).hexdigest()
-    job = TiledExport(synth, rect, args.output, args.format, args.tile, key=key, coords=args.coords,
+    if role:  # one map of a material
+        synth.palette = session.material.stack(role)
+    # What decides the pixels: the whole document (exemplar included), the parameters used and the map.
+    key = hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(synth.params)]
+                                    + ([role] if role else []), sort_keys=True).encode()).hexdigest()
+    out = args.output
+    if role:  # NAME_ROLE.tif, NAME_ROLE.1001.png..., NAME_ROLE.zarr
+        base, ext = os.path.splitext(out)
+        out = f"{base}_{role}{ext}"
+    job = TiledExport(synth, rect, out, args.format, args.tile, key=key, coords=args.coords,
                       L=session.analysis.L)
     progress = ProgressBar("export", args.quiet)
     t0 = time.perf_counter()
     init = None
     if args.workers or args.scheduler:
         from .session import ProjectSynthesizer
-        init = ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), tor)
+        init = ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), tor, role)
     job.run(lambda done, total: progress(done / total, f"tile {done}/{total}"), workers=args.workers,
             worker_init=init, scheduler=args.scheduler)
     if not args.quiet:
@@ -224,8 +270,9 @@ def _run(job, args, rect, renderer: str) -> int:
         job.cancel()
         raise
     if not args.quiet:
-        sys.stderr.write(f"{printable(args.output)}: {rect.w}x{rect.h} in {time.perf_counter() - t0:.1f} s "
-                         f"({renderer})\n")
+        names = ", ".join(printable(os.path.basename(p)) for _, p, _ in job.outputs)
+        scale = f", magnified {args.magnify}x" if args.magnify > 1 else ""
+        sys.stderr.write(f"{names}: {rect.w}x{rect.h}{scale} in {time.perf_counter() - t0:.1f} s ({renderer})\n")
     return 0
 
 

@@ -41,6 +41,7 @@ from infinitex.engine.controls import (
 )
 from infinitex.engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
 from infinitex.engine.lattice import Lattice, LatticeError
+from infinitex.engine.material import IMAGE, ROLES
 from infinitex.engine.params import DEFAULT_JITTER, SynthParams
 from infinitex.engine.safeio import (
     JSONLimitError,
@@ -54,15 +55,16 @@ from infinitex.engine.safeio import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 3              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); files without them are written as 1
+VERSION = 4              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
-MAX_PROJECT_BYTES = 32 * 1024 * 1024  # an embedded 16 MB exemplar is 21.4 MB of base64
+MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
+MAX_PROJECT_BYTES = 96 * 1024 * 1024  # 64 MB of embedded maps are 85.4 MB of base64
 MAX_JSON_DEPTH = 8              # our files nest 3 deep
 MAX_INT_DIGITS = 18             # no field needs more; 10^309 or 5,000 digits are refused while parsing
 MAX_LEVELS = 13                 # jitter / corrected lists hold at most one entry per level
 MIN_ZOOM, MAX_ZOOM = 1.0 / 64.0, 16.0
-DISPLAY_MODES = ("color", "coords", "patches", "level", "relief")
+DISPLAY_MODES = ("color", "coords", "patches", "level", "relief", "lit")
 MAGNIFY_FILTERS = ("hires", "bilinear", "nearest")
 GEOMETRIES = ("original", "rectified")
 
@@ -110,12 +112,39 @@ class Document:
     randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
     features: tuple[Feature, ...] = ()                 # placed exemplar features, later ones win
     lattice: Lattice | None = None                     # near-regular mode: synthesize this lattice's block
+    # A material: every map as (role, file), the first being ``exemplar``; () for a single image.
+    maps: tuple[tuple[str, ExemplarSource], ...] = ()
+    weights: tuple[tuple[str, float], ...] | None = None  # maps feeding the analysis; None: the default
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on (a lattice's geometry: its
-        rectified block is the exemplar; not its number of lattice levels)."""
+        rectified block is the exemplar; not its number of lattice levels;
+        a material's maps and analysis weights)."""
         lat = None if self.lattice is None else replace(self.lattice, levels=None)
-        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat)
+        mat = tuple((r, s.sha256) for r, s in self.maps)
+        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat, mat, self.weights)
+
+    @property
+    def is_material(self) -> bool:
+        return bool(self.maps)
+
+    def sources(self) -> tuple[tuple[str, ExemplarSource], ...]:
+        """Every map as (role, file): a single image is the one map "image"."""
+        return self.maps or ((IMAGE, self.exemplar),)
+
+    def weight_dict(self) -> dict[str, float] | None:
+        return None if self.weights is None else dict(self.weights)
+
+    def with_maps(self, maps) -> Document:
+        """This document with another set of maps ([(role, source)]; one "image" map: a single image).
+        The analysis weights of maps that remain are kept."""
+        maps = tuple(sorted(maps, key=lambda rs: -1 if rs[0] == IMAGE else ROLES.index(rs[0])))
+        single = len(maps) == 1 and maps[0][0] == IMAGE
+        w = self.weights
+        if w is not None:
+            roles = {r for r, _ in maps}
+            w = tuple((r, v) for r, v in w if r in roles) or None
+        return replace(self, exemplar=maps[0][1], maps=() if single else maps, weights=None if single else w)
 
     def jitter_for(self, L: int) -> tuple[float, ...]:
         """r_l for levels 0..L. Stored values are matched from the finest level
@@ -177,6 +206,21 @@ class Document:
                 self.lattice.check_shape()
             except LatticeError as exc:
                 raise ProjectError(f"The project's lattice: {exc}") from None
+        if self.maps:
+            roles = [r for r, _ in self.maps]
+            if any(r not in ROLES for r in roles) or len(set(roles)) != len(roles):
+                raise ProjectError("Each map of a material has one of the roles "
+                                   f"{', '.join(ROLES)}, and each role is used once.")
+            if self.maps[0][1].sha256 != self.exemplar.sha256:
+                raise ProjectError("The material's first map must be its exemplar.")
+            if self.lattice is not None:
+                raise ProjectError("A lattice works on a single image, not on a material.")
+        if self.weights is not None:
+            roles = {r for r, _ in self.sources()}
+            if any(r not in roles or not (_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \
+                    or not any(v > 0 for _, v in self.weights):
+                raise ProjectError("Analysis weights are numbers from 0 to 4 for the material's own maps, "
+                                   "at least one above 0.")
 
 
 def _clamp01(v: float) -> float:
@@ -231,6 +275,10 @@ class Display:
     level: int = -1          # pyramid level shown in "level" mode; -1 = finest
     magnify: str = "hires"   # zoomed-in filter: "hires" (synthesis magnification), "bilinear", "nearest"
     geometry: str = "original"  # with a lattice: "original" (the input's geometry) or "rectified"
+    map: str = ""            # a material's map shown in "color" and "level" modes; "": its first map
+    light_azimuth: float = 135.0    # "lit" mode: the light's direction, degrees (0: from the right, 90: from above)
+    light_elevation: float = 40.0   # degrees above the surface, 5 to 90
+    relief: float = 1.0             # "lit" mode: height map strength (relief of the full height range, x 1/8 of m)
 
 
 @dataclass(frozen=True)
@@ -316,30 +364,54 @@ class History:
 # -- project files -----------------------------------------------------------
 
 
+def _reference(src: ExemplarSource, embed: bool, path: str | None) -> tuple[str | None, str | None]:
+    """(base64 data, None) when embedded, else (None, path relative to the project's folder)."""
+    if embed:
+        return base64.b64encode(src.data).decode("ascii"), None
+    if not src.path:
+        raise ProjectError(f"{src.name} is too large to embed and has no file to refer to.")
+    ref_path = src.path
+    if path:
+        try:
+            ref_path = os.path.relpath(src.path, os.path.dirname(os.path.abspath(path)))
+        except ValueError:  # another drive on Windows
+            ref_path = src.path
+    return None, ref_path
+
+
 def project_to_json(project: Project, path: str | None = None, embed: bool | None = None) -> dict:
     """The project as a JSON-ready dict. The exemplar is embedded when small
-    enough (or when ``embed``), else referenced by path and content hash."""
+    enough (or when ``embed``), else referenced by path and content hash; a
+    material's maps are embedded while each is at most EMBED_LIMIT and their
+    total at most MATERIAL_EMBED_TOTAL."""
     doc = project.document
     ex = doc.exemplar
-    embed = len(ex.data) <= EMBED_LIMIT if embed is None else embed
-    ref_path = None
-    if not embed:
-        if not ex.path:
-            raise ProjectError(f"{ex.name} is too large to embed and has no file to refer to.")
-        ref_path = ex.path
-        if path:
-            try:
-                ref_path = os.path.relpath(ex.path, os.path.dirname(os.path.abspath(path)))
-            except ValueError:  # another drive on Windows
-                ref_path = ex.path
+    total = 0
+
+    def embeds(src: ExemplarSource) -> bool:
+        nonlocal total
+        if embed is not None:
+            return embed
+        ok = len(src.data) <= EMBED_LIMIT and total + len(src.data) <= MATERIAL_EMBED_TOTAL
+        total += len(src.data) if ok else 0
+        return ok
+    embedded, ref_path = _reference(ex, embeds(ex), path)
+    material = None
+    if doc.maps:
+        entries = []
+        for role, src in doc.maps[1:]:
+            data, ref = _reference(src, embeds(src), path)
+            entries.append({"role": role, "name": src.name, "sha256": src.sha256, "embedded": data, "path": ref})
+        material = {"role": doc.maps[0][0], "maps": entries,
+                    "weights": None if doc.weights is None else [[r, w] for r, w in doc.weights]}
     fields = _fields_to_json(doc)
     return {
         "format": FORMAT,
-        "version": 3 if doc.lattice else (2 if fields or doc.features else 1),
+        "version": 4 if material else 3 if doc.lattice else (2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
             "sha256": ex.sha256,
-            "embedded": base64.b64encode(ex.data).decode("ascii") if embed else None,
+            "embedded": embedded,
             "path": ref_path,
             "fit": doc.fit,
             "toroidal": doc.toroidal,
@@ -353,6 +425,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
         **({"randomness": fields} if fields else {}),
         **({"features": features_to_json(doc.features)} if doc.features else {}),
         **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
+        **({"material": material} if material else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
         **({"autosave_of": project.origin} if project.origin else {}),
@@ -545,6 +618,59 @@ def _read_reference(ref: str, path: str | None, name: str, allow_outside) -> tup
         raise ProjectError(f"The project's exemplar cannot be read: {exc}") from None
 
 
+def _source_from_json(e: dict, where: str, path: str | None, name: str, allow_outside) -> ExemplarSource:
+    """One image file of a project (the exemplar or a material's map): embedded
+    or referenced, and hash-checked."""
+    ex_name = _get(e, "name", str, where)
+    if not ex_name or len(ex_name) > 1024:
+        raise ProjectError(f"{where}.name must be a file name of 1 to 1024 characters.")
+    sha = _get(e, "sha256", str, where)
+    if not re.fullmatch(r"[0-9a-f]{64}", sha):
+        raise ProjectError(f"{where}.sha256 is not a SHA-256 digest.")
+    embedded = _get(e, "embedded", str, where, optional=True)
+    ref = _get(e, "path", str, where, optional=True)
+    if embedded is not None:
+        try:
+            data = base64.b64decode(embedded, validate=True)
+        except ValueError:
+            raise ProjectError(f"The {where} embedded in the project is damaged.") from None
+        src_path = None
+    elif ref is not None:
+        data, src_path = _read_reference(ref, path, name, allow_outside)
+    else:
+        raise ProjectError(f"The project holds neither an embedded {where} nor a path to one.")
+    if hashlib.sha256(data).hexdigest() != sha:
+        what = "exemplar" if where == "exemplar" else "map"
+        raise ProjectError(f"The {what} {printable(ex_name)} does not match the project (its content changed), "
+                           "so the texture could not be reproduced.")
+    return ExemplarSource(name=ex_name, data=data, sha256=sha, path=src_path)
+
+
+def _material_from_json(mat: object, primary: ExemplarSource, path: str | None, name: str, allow_outside):
+    """(maps, weights) of a project's material section (none: a single image)."""
+    if mat is None:
+        return (), None
+    bad = ProjectError("The project's material is damaged.")
+    if not isinstance(mat, dict) or not isinstance(mat.get("maps"), list) or len(mat["maps"]) >= len(ROLES):
+        raise bad
+    role = mat.get("role")
+    if role not in ROLES:
+        raise bad
+    maps = [(role, primary)]
+    for i, entry in enumerate(mat["maps"]):
+        if not isinstance(entry, dict) or entry.get("role") not in ROLES:
+            raise bad
+        maps.append((entry["role"], _source_from_json(entry, f"material.maps[{i}]", path, name, allow_outside)))
+    w = mat.get("weights")
+    weights = None
+    if w is not None:
+        if not isinstance(w, list) or len(w) > len(ROLES) or not all(
+                isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) and _number(p[1]) for p in w):
+            raise bad
+        weights = tuple((str(r), float(v)) for r, v in w)
+    return tuple(maps), weights
+
+
 def project_from_json(d: object, path: str | None = None, allow_outside=False) -> Project:
     """Parse and check a project dict; raise ProjectError with a clear sentence.
 
@@ -569,29 +695,8 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         raise ProjectError(f"This project was written by a newer version (format {version}); "
                            "update Infinitex to open it.")
     e = _get(d, "exemplar", dict, "project")
-    ex_name = _get(e, "name", str, "exemplar")
-    if not ex_name or len(ex_name) > 1024:
-        raise ProjectError("exemplar.name must be a file name of 1 to 1024 characters.")
-    sha = _get(e, "sha256", str, "exemplar")
-    if not re.fullmatch(r"[0-9a-f]{64}", sha):
-        raise ProjectError("exemplar.sha256 is not a SHA-256 digest.")
-    embedded = _get(e, "embedded", str, "exemplar", optional=True)
-    ref = _get(e, "path", str, "exemplar", optional=True)
-    if embedded is not None:
-        try:
-            data = base64.b64decode(embedded, validate=True)
-        except ValueError:
-            raise ProjectError("The exemplar embedded in the project is damaged.") from None
-        src_path = None
-    elif ref is not None:
-        data, src_path = _read_reference(ref, path, name, allow_outside)
-    else:
-        raise ProjectError("The project holds neither an embedded exemplar nor a path to one.")
-    if hashlib.sha256(data).hexdigest() != sha:
-        raise ProjectError(f"The exemplar {printable(ex_name)} does not match the project (its content changed), "
-                           "so the texture could not be reproduced.")
-    source = ExemplarSource(name=ex_name, data=data, sha256=sha, path=src_path)
-
+    source = _source_from_json(e, "exemplar", path, name, allow_outside)
+    maps, weights = _material_from_json(d.get("material"), source, path, name, allow_outside)
     a = _get(d, "analysis", dict, "project")
     s = _get(d, "synthesis", dict, "project")
     jitter = _get(s, "jitter", list, "synthesis")
@@ -626,6 +731,8 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         randomness_canvas=fields[1],
         features=features,
         lattice=_lattice_from_json(d.get("lattice")),
+        maps=maps,
+        weights=weights,
     )
     doc.validate()
     view, display = View(), Display()
@@ -640,11 +747,15 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
             raise ProjectError("The project's display settings are damaged.")
         mode, level, mag = g.get("mode", "color"), g.get("level", -1), g.get("magnify", "hires")
         geom = g.get("geometry", "original")
+        shown = g.get("map", "")
+        az, el, relief = g.get("light_azimuth", 135.0), g.get("light_elevation", 40.0), g.get("relief", 1.0)
         if (not isinstance(mode, str) or mode not in DISPLAY_MODES or not isinstance(mag, str)
                 or mag not in MAGNIFY_FILTERS or not isinstance(level, int) or isinstance(level, bool)
-                or not -1 <= level <= 12 or geom not in GEOMETRIES):
+                or not -1 <= level <= 12 or geom not in GEOMETRIES
+                or shown not in ("", IMAGE, *ROLES) or not all(_number(v) for v in (az, el, relief))
+                or not (-360.0 <= az <= 360.0 and 5.0 <= el <= 90.0 and 0.0 <= relief <= 16.0)):
             raise ProjectError("The project's display settings are damaged.")
-        display = Display(mode, level, mag, geom)
+        display = Display(mode, level, mag, geom, shown, float(az), float(el), float(relief))
     origin = d.get("autosave_of")
     if origin is not None and not (isinstance(origin, str) and 0 < len(origin) <= 4096 and "\x00" not in origin):
         raise ProjectError("The project's autosave origin is damaged.")

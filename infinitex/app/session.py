@@ -24,9 +24,19 @@ from infinitex.engine.exemplar import (
     decode_full,
     load_exemplar_bytes,
     to_u8,
+    write_image,
     write_png,
 )
 from infinitex.engine.gpu import Gpu
+from infinitex.engine.material import (
+    IMAGE,
+    Material,
+    MaterialError,
+    export_depths,
+    load_material,
+    output_paths,
+    single,
+)
 from infinitex.engine.lattice import LatticeError, original_geometry_box, rectified_exemplar, render_original
 from infinitex.engine.params import SynthParams
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
@@ -37,6 +47,7 @@ from infinitex.engine.tiled_export import decode_coords, encode_coords  # noqa: 
 
 from .document import Document, View
 
+MAGNIFY_FACTORS = (1, 2, 4, 8)  # exports: output pixels per synthesized texel (synthesis magnification)
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
 
 
@@ -65,6 +76,7 @@ class AnalysisJob:
         self.message = "Reading the exemplar"
         self.exemplar: Exemplar | None = None
         self.analysis: Analysis | None = None
+        self.material: Material | None = None
         self.error: str | None = None
         self.cancelled = False
         self.started = time.monotonic()
@@ -92,10 +104,17 @@ class AnalysisJob:
     def _run(self) -> None:
         d = self.doc
         try:
-            ex, settings = exemplar_for(d)
+            material = material_for(d) if d.maps else None
+            ex, settings = exemplar_for(d, material=material)
             self._progress(0.0, "Analyzing")
             an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress)
-            self.exemplar, self.analysis = ex, an
+            if material is None:
+                material = single(ex)
+                material._stacks[IMAGE] = [lv.stack for lv in an.levels]  # the same Gaussian stack
+            for i, role in enumerate(material.roles):  # every map's stack, off the GUI thread
+                self.message = f"Filtering the {role} map"
+                material.stack(role)
+            self.exemplar, self.analysis, self.material = ex, an, material
         except AnalysisCancelled:
             self.cancelled = True
         except (ExemplarError, LatticeError) as exc:
@@ -114,22 +133,42 @@ class ProjectSynthesizer:
 
     project_json: str
     period: int = 0
+    role: str = ""  # a material's map the tiles show ("": the first map)
 
     def __call__(self) -> Synthesizer:
         from .document import parse_project_json, project_from_json
         doc = project_from_json(parse_project_json(self.project_json.encode("utf-8"))).document
-        ex, settings = exemplar_for(doc)
+        material = material_for(doc) if doc.maps else None
+        ex, settings = exemplar_for(doc, material=material)
         an = analyze(ex, settings)  # the disk cache holds it: the parent analyzed it already
         params = doc.params(an.L)
         if self.period:
             params = replace(params, period=self.period)
-        return Synthesizer(an, params, controls=doc.controls(an.size))
+        synth = Synthesizer(an, params, controls=doc.controls(an.size))
+        if material is not None:
+            synth.palette = material.stack(self.role or material.primary)
+        return synth
 
 
-def exemplar_for(doc: Document, image: np.ndarray | None = None) -> tuple[Exemplar, AnalysisSettings]:
+def material_for(doc: Document) -> Material:
+    """The maps of a material document, decoded and fitted (all or nothing)."""
+    return load_material([(role, src.name, src.data) for role, src in doc.maps], fit=doc.fit, toroidal=doc.toroidal)
+
+
+def exemplar_for(doc: Document, image: np.ndarray | None = None,
+                 material: Material | None = None) -> tuple[Exemplar, AnalysisSettings]:
     """The exemplar a document synthesizes from (a lattice's rectified block,
-    or the image by its fit rule) and the analysis settings for it. ``image``:
-    the exemplar file already decoded whole (decode_full), if at hand."""
+    the image by its fit rule, or a material's analysis maps side by side)
+    and the analysis settings for it. ``image``: the exemplar file already
+    decoded whole (decode_full), if at hand; ``material``: the document's
+    material, if already loaded."""
+    if doc.maps:
+        material = material or material_for(doc)
+        ex = material.guide(doc.weight_dict())
+        if doc.model == "color" and ex.channels > 4:
+            raise MaterialError(f"The color model compares at most 4 channels, and this material's analysis maps "
+                                f"have {ex.channels}; use the appearance model or fewer analysis maps.")
+        return ex, AnalysisSettings(model=doc.model, k=doc.k)
     if doc.lattice is not None:
         if image is None:
             image = decode_full(doc.exemplar.data, doc.exemplar.name)
@@ -290,6 +329,8 @@ class Session:
         self.key: tuple | None = None          # analysis key installed
         self.exemplar: Exemplar | None = None
         self.analysis: Analysis | None = None
+        self.material: Material | None = None  # every map (a single image: its one map)
+        self._display: dict[str, np.ndarray] = {}  # uint8 stacks of the maps shown so far
         self.synth: Synthesizer | None = None
         self.pyramid: Pyramid | None = None
         self.refiner: Refiner | None = None
@@ -356,23 +397,46 @@ class Session:
             return None
         self.job = None
         if job.analysis is not None:
-            self.install(job.doc, job.exemplar, job.analysis)
+            self.install(job.doc, job.exemplar, job.analysis, job.material)
         elif job.error:
             self.failed[job.key] = job.error
         return job
 
-    def install(self, doc: Document, ex: Exemplar, an: Analysis) -> None:
+    def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None) -> None:
+        if material is None:
+            if doc.maps:
+                material = material_for(doc)
+            else:
+                material = single(ex)
+                material._stacks[IMAGE] = [lv.stack for lv in an.levels]
         self.release_synthesis()
-        self.exemplar, self.analysis = ex, an
+        self.exemplar, self.analysis, self.material = ex, an, material
+        self._display = {}
         self.params = self.doc_params(doc, an.L)
         self.controls = doc.controls(an.size)
         self.synth = Synthesizer(an, self.params, self.gpu, controls=self.controls)
         self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16,
                                controls=self.controls)
         self.refiner = Refiner(self.pyramid, self.gpu)
-        self.stack = stack_u8(an)
+        self.stack = stack_u8(an) if material.single else None
+        self.stack = self.display_stack(material.primary)
         self.key = doc.analysis_key()
         self.generation += 1
+
+    def shown_map(self, role: str) -> str:
+        """The map the canvas shows for a display setting ("": the first map)."""
+        mat = self.material
+        return role if mat is not None and role in mat.maps else (mat.primary if mat else IMAGE)
+
+    def display_stack(self, role: str) -> np.ndarray:
+        """A map's Gaussian stack as uint8 (L+1, m, m, C), as the canvas shows it."""
+        role = self.shown_map(role)
+        st = self._display.get(role)
+        if st is None:
+            st = self.stack if role == IMAGE and self.stack is not None else \
+                np.stack([to_u8(lv) for lv in self.material.stack(role)])
+            self._display[role] = st
+        return st
 
     def load_now(self, doc: Document) -> None:
         """Analyze and install synchronously (CLI, tests); raises on failure."""
@@ -420,11 +484,29 @@ class ExportJob:
     """
 
     def __init__(self, session: Session, rect: Rect, out_path: str, *, toroidal: int = 0,
-                 coords_path: str | None = None, tile: int = 128, geometry: str = "rectified"):
+                 coords_path: str | None = None, tile: int = 128, geometry: str = "rectified",
+                 maps: list[str] | None = None, depth: int | None = None, magnify: int = 1):
         if session.synth is None:
             raise SynthesisError("Nothing to export yet: the exemplar is still being analyzed.")
         if rect.empty:
             raise SynthesisError("The export rectangle is empty.")
+        if magnify not in MAGNIFY_FACTORS:
+            raise SynthesisError(f"Magnification is one of {', '.join(map(str, MAGNIFY_FACTORS))}, not {magnify}.")
+        self.magnify = magnify
+        mat = session.material
+        roles = mat.roles if maps is None else maps
+        try:
+            self.outputs = output_paths(out_path, roles, export_depths(mat, roles, depth, out_path))
+        except MaterialError as exc:
+            raise SynthesisError(str(exc)) from None
+        if magnify > 1:
+            if coords_path:
+                raise SynthesisError("The coordinate map is exported at 1:1 (without magnification).")
+            if rect.w * magnify > MAX_EXPORT_SIDE or rect.h * magnify > MAX_EXPORT_SIDE \
+                    or rect.w * rect.h * magnify * magnify > MAX_EXPORT_PIXELS:
+                raise SynthesisError(f"Magnified {magnify}x, {rect.w}x{rect.h} is {rect.w * magnify}x{rect.h * magnify}, "
+                                     f"more than the {MAX_EXPORT_SIDE} px a side and "
+                                     f"{MAX_EXPORT_PIXELS // 2**20} Mpixels an export may be.")
         if rect.w > MAX_EXPORT_SIDE or rect.h > MAX_EXPORT_SIDE or rect.w * rect.h > MAX_EXPORT_PIXELS:
             raise SynthesisError(f"Exports are limited to {MAX_EXPORT_SIDE} px a side and "
                                  f"{MAX_EXPORT_PIXELS // 2**20} Mpixels; {rect.w}x{rect.h} is too large.")
@@ -440,10 +522,14 @@ class ExportJob:
             if coords_path:
                 raise SynthesisError("The coordinate map is exported in the rectified geometry only "
                                      "(each pixel of the original geometry blends four texels).")
+            if magnify > 1:
+                raise SynthesisError("A lattice in its original geometry is exported at 1:1 (without magnification).")
             rect = Rect(*original_geometry_box(self.lattice, an.size, rect.x0, rect.y0, rect.w, rect.h))
             if rect.w > MAX_EXPORT_SIDE or rect.h > MAX_EXPORT_SIDE or rect.w * rect.h > MAX_EXPORT_PIXELS:
                 raise SynthesisError(f"This export reads {rect.w}x{rect.h} rectified texels, more than the "
                                      f"{MAX_EXPORT_SIDE} px a side and {MAX_EXPORT_PIXELS // 2**20} Mpixels allowed.")
+        if magnify > 1:  # synthesis magnification blends each pixel's 4 nearest texels: one more on every side
+            rect = Rect(rect.x0 - 1, rect.y0 - 1, rect.x1 + 1, rect.y1 + 1)
         self.rect = rect
         params = session.params
         if toroidal:
@@ -507,17 +593,32 @@ class ExportJob:
         if self.error:
             raise SynthesisError(self.error)
 
-    def image(self) -> np.ndarray:
+    def pixels(self, role: str) -> np.ndarray:
+        """One map of the export, float32 (H, W, C) in [0, 1]."""
+        mat = self.session.material
         if self.lattice is not None:
             ex, r = self.session.exemplar, self.out_rect
             source = ex.hires if ex.hires is not None else ex.pixels
             box = (self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1)
-            return to_u8(render_original(self.coords, box, self.lattice, self.session.analysis.size, source,
-                                         r.x0, r.y0, r.w, r.h))
-        return colors_u8(self.stack, self.coords, self.L)
+            return render_original(self.coords, box, self.lattice, self.session.analysis.size, source,
+                                   r.x0, r.y0, r.w, r.h)
+        if self.magnify > 1:
+            return mat.magnified(role, self.coords, self.magnify)
+        return mat.lookup(role, self.coords)
+
+    def image(self) -> np.ndarray:
+        """The first exported map as uint8 (what the editor's preview shows)."""
+        if self.lattice is None and self.magnify == 1 and self.outputs[0][0] == self.session.material.primary:
+            return colors_u8(self.stack, self.coords, self.L)
+        return to_u8(self.pixels(self.outputs[0][0]))
 
     def _write(self) -> None:
-        write_png(self.out_path, self.image())
+        mat = self.session.material
+        for role, path, depth in self.outputs:
+            if depth == 8 and self.lattice is None and self.magnify == 1 and role == mat.primary:
+                write_png(path, colors_u8(self.stack, self.coords, self.L))
+            else:
+                write_image(path, self.pixels(role), depth, mat.maps[role].exemplar.value_range)
         if self.coords_path:
             write_png(self.coords_path, encode_coords(self.coords))
 
@@ -542,11 +643,11 @@ def export_key(doc: Document, params: SynthParams) -> str:
                                      sort_keys=True).encode()).hexdigest()
 
 
-def project_synthesizer(doc: Document, period: int = 0) -> ProjectSynthesizer:
+def project_synthesizer(doc: Document, period: int = 0, role: str = "") -> ProjectSynthesizer:
     import json
 
     from .document import Project, project_to_json
-    return ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), period)
+    return ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), period, role)
 
 
 class StreamedExport:

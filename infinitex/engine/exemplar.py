@@ -87,6 +87,55 @@ def to_u8(a: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
 
 
+def to_u16(a: np.ndarray) -> np.ndarray:
+    """[0, 1] floats to uint16, rounded (16-bit exports)."""
+    return np.clip(np.rint(a * 65535.0), 0, 65535).astype(np.uint16)
+
+
+DEPTHS = (8, 16, 32)
+
+
+def depth_extension(depth: int) -> str:
+    """The file extension a map of this depth is written with: PNG, or TIFF for float."""
+    return ".tif" if depth == 32 else ".png"
+
+
+def encode_image(pixels: np.ndarray, depth: int, value_range: tuple[float, float] = (0.0, 1.0)) -> bytes:
+    """Float (H, W, C) pixels in [0, 1] as the bytes of a file of ``depth`` bits:
+    8 or 16: PNG (Pillow; 16-bit color through imagecodecs, which Pillow cannot
+    write); 32: a float32 TIFF (tifffile), in the source's units (``value_range``)."""
+    if depth not in DEPTHS:
+        raise ValueError(f"A bit depth is 8, 16 or 32, not {depth}.")
+    c = pixels.shape[2]
+    if depth == 8:
+        buf = io.BytesIO()
+        arr = to_u8(pixels)
+        Image.fromarray(np.ascontiguousarray(arr[..., 0] if c == 1 else arr), mode=PIL_MODES[c]).save(buf, "PNG")
+        return buf.getvalue()
+    if depth == 16:
+        arr = to_u16(pixels)
+        if c == 1:
+            buf = io.BytesIO()
+            Image.fromarray(np.ascontiguousarray(arr[..., 0])).save(buf, "PNG")
+            return buf.getvalue()
+        import imagecodecs
+        return bytes(imagecodecs.png_encode(np.ascontiguousarray(arr), level=6))
+    import tifffile
+    lo, hi = value_range
+    arr = np.ascontiguousarray((lo + pixels.astype(np.float64) * (hi - lo)).astype(np.float32))
+    buf = io.BytesIO()
+    extra = {"extrasamples": ["unassalpha"]} if c in (2, 4) else {}
+    tifffile.imwrite(buf, arr[..., 0] if c == 1 else arr, photometric="rgb" if c >= 3 else "minisblack",
+                     compression="zlib", predictor=True, **extra)
+    return buf.getvalue()
+
+
+def write_image(path: str, pixels: np.ndarray, depth: int = 8, value_range: tuple[float, float] = (0.0, 1.0)) -> None:
+    """Write float pixels as an 8/16-bit PNG or a float TIFF (``encode_image``), atomically."""
+    data = encode_image(pixels, depth, value_range)
+    atomic_write(path, data)
+
+
 def write_png(path: str, pixels: np.ndarray) -> None:
     """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
     arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
@@ -114,6 +163,8 @@ class Exemplar:
     fit: str = "resize"
     original_size: tuple[int, int] = (0, 0)
     hires: np.ndarray | None = field(default=None, repr=False)
+    depth: int = 8                     # the source's precision: 8, 16 (integer) or 32 (float) bits
+    value_range: tuple[float, float] = (0.0, 1.0)  # pixel 0 and 1 in the source's units (float images)
 
     @property
     def size(self) -> int:
@@ -218,12 +269,13 @@ def fit_square(arr: np.ndarray, fit: str) -> tuple[np.ndarray, np.ndarray | None
 
 
 def _finish(px: np.ndarray, hires, fit: str, toroidal: bool | None, source: str,
-            size: tuple[int, int]) -> Exemplar:
+            size: tuple[int, int], depth: int = 8, value_range: tuple[float, float] = (0.0, 1.0)) -> Exemplar:
     if not np.all(np.isfinite(px)):
         raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
     guess = guess_toroidal(px)
     return Exemplar(pixels=px, toroidal=guess if toroidal is None else bool(toroidal),
-                    toroidal_guess=guess, source=source, fit=fit, original_size=size, hires=hires)
+                    toroidal_guess=guess, source=source, fit=fit, original_size=size, hires=hires,
+                    depth=depth, value_range=value_range)
 
 
 def small_pattern(px: np.ndarray, toroidal: bool | None) -> np.ndarray:
@@ -416,10 +468,11 @@ def _open(data: bytes, name: str) -> Image.Image:
 def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
     if fit not in FIT_MODES:
         raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
-    px, hires, size = _decode_pixels(data, name, fit, toroidal)
+    info: dict = {}
+    px, hires, size = _decode_pixels(data, name, fit, toroidal, info)
     if min(size) < MIN_SIZE and toroidal is None:
         toroidal = True  # a small pattern is accepted only when it tiles, and repeated it still does
-    return _finish(px, hires, fit, toroidal, source, size)
+    return _finish(px, hires, fit, toroidal, source, size, info.get("depth", 8), info.get("range", (0.0, 1.0)))
 
 
 def decode_full(data: bytes, name: str = "image") -> np.ndarray:
@@ -445,11 +498,103 @@ def load_full(path: str | os.PathLike) -> np.ndarray:
     return decode_full(data, os.path.basename(path) or path)
 
 
-def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = None):
-    """(pixels, hires or None, original size) by a fit rule, or "full"."""
+def _png_bit_depth(data: bytes) -> int:
+    """The bit depth in a PNG's IHDR (0 if ``data`` is not a PNG)."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n" or len(data) < 29 or data[12:16] != b"IHDR":
+        return 0
+    return data[24]
+
+
+def _decode_png16(data: bytes, name: str, fit: str, toroidal: bool | None, w: int, h: int, info: dict):
+    """A 16-bit color PNG, which Pillow would read as 8 bits, decoded at full
+    precision by imagecodecs (the README says why it is a dependency)."""
+    import imagecodecs
+    cost = len(data) + w * h * 4 * (2 + 4 + 4) + (16 << 20)
+    if cost > IMPORT_BUDGET:
+        raise ExemplarError(f"{name} ({w}x{h} px, 16-bit color) would need about {cost // 2**20} MB to import, "
+                            f"more than the {IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
+    a = imagecodecs.png_decode(data)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.shape[:2] != (h, w) or a.dtype != np.uint16:
+        raise ExemplarError(f"{name} could not be read: the file looks damaged (its header and pixels disagree).")
+    info.update(depth=16, range=(0.0, 1.0))
+    px = np.empty(a.shape, dtype=np.float32)
+    for c in range(a.shape[2]):
+        px[:, :, c] = a[:, :, c] / np.float32(65535.0)
+    del a
+    if fit == "full":
+        return px, None, (w, h)
+    if min(w, h) < MIN_SIZE:
+        px = small_pattern(px, toroidal)
+    out, hires = fit_square(px, fit)
+    return out, hires, (w, h)
+
+
+def _is_tiff(data: bytes) -> bool:
+    return data[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
+
+
+def _decode_tiff_multi(data: bytes, name: str, fit: str, toroidal: bool | None, info: dict):
+    """A TIFF Pillow cannot read (2 to 4 channels of 16-bit integers or
+    floats: float normal maps, RGB heights...) through tifffile, with the same
+    size and memory limits."""
+    import tifffile
+    with tifffile.TiffFile(io.BytesIO(data)) as tif:
+        page = tif.pages.first
+        shape, dtype = tuple(page.shape), np.dtype(page.dtype)
+        if len(shape) == 3 and shape[0] <= 4 < shape[2]:
+            raise ExemplarError(f"{name}: planar (channel-first) TIFFs are not supported; save it interleaved.")
+        if len(shape) not in (2, 3) or (len(shape) == 3 and not 1 <= shape[2] <= 4) \
+                or dtype.kind not in "uf" or dtype.itemsize > 8:
+            raise ExemplarError(f"{name}: this TIFF layout ({'x'.join(map(str, shape))} {dtype}) is not supported.")
+        h, w = shape[:2]
+        if w * h > MAX_INPUT_PIXELS:
+            raise ExemplarError(f"{name} is {w}x{h} px, too large to import (at most {MAX_INPUT_PIXELS // 2**20} Mpixels).")
+        c = shape[2] if len(shape) == 3 else 1
+        cost = len(data) + w * h * c * (dtype.itemsize + 8 + 4) + (16 << 20)
+        if cost > IMPORT_BUDGET:
+            raise ExemplarError(f"{name} ({w}x{h} px, {c} x {dtype}) would need about {cost // 2**20} MB to import, "
+                                f"more than the {IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
+        a = page.asarray()
+    a = a.reshape(h, w, c)
+    if dtype.kind == "f":
+        if not np.all(np.isfinite(a)):
+            raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
+        lo, hi = float(a.min()), float(a.max())
+        scale = hi - lo if hi > lo else 1.0
+        px = ((a.astype(np.float64) - lo) / scale).astype(np.float32)
+        info.update(depth=32, range=(lo, lo + scale))
+    else:
+        top = float(np.iinfo(dtype).max) if dtype.itemsize <= 2 else max(1.0, float(a.max()))
+        px = (a / top).astype(np.float32)
+        info.update(depth=8 if dtype.itemsize == 1 else 16, range=(0.0, 1.0))
+    del a
+    if fit == "full":
+        return px, None, (w, h)
+    if min(w, h) < MIN_SIZE:
+        px = small_pattern(px, toroidal)
+    out, hires = fit_square(px, fit)
+    return out, hires, (w, h)
+
+
+def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = None, info: dict | None = None):
+    """(pixels, hires or None, original size) by a fit rule, or "full". ``info``
+    receives the source's "depth" (8, 16, 32) and "range" (pixel 0 and 1 in its units)."""
     full = fit == "full"
+    info = {} if info is None else info
+    if _is_tiff(data):
+        with _decoding(name):
+            try:
+                Image.open(io.BytesIO(data), formats=["TIFF"]).close()
+            except UnidentifiedImageError:
+                return _decode_tiff_multi(data, name, fit, toroidal, info)
     with _decoding(name):
         with _open(data, name) as im0:
+            if im0.format == "PNG" and im0.mode in ("RGB", "RGBA", "LA") and _png_bit_depth(data) == 16:
+                w, h = im0.size
+                im0.close()
+                return _decode_png16(data, name, fit, toroidal, w, h, info)
             w, h = im0.size
             small = min(w, h) < MIN_SIZE and not full  # a small seamless pattern: repeated (small_pattern)
             size = (w, h)
@@ -470,6 +615,9 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
                                     f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
             im0.load()
             norm = _normalization(im0)
+            if norm is not None:
+                info.update(depth=32 if im0.mode == "F" else 16,
+                            range=(norm[0], norm[0] + norm[1]) if im0.mode == "F" else (0.0, 1.0))
             x0, y0, side = (0, 0, 0) if full or small else _crop_box(w, h, fit)
             img = im0 if full or small or (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
         del im0

@@ -41,6 +41,9 @@ class Synthesizer:
         self.gan = GpuAnalysis(self.gpu, analysis)
         self.params = params or SynthParams.default(analysis.L)
         self.params.validate(analysis.L)
+        # What ``colors`` looks up: the analyzed exemplar's Gaussian stack, or
+        # another map aligned with it (a material's, ``engine.material``).
+        self.palette: list[np.ndarray] | None = None
 
     @property
     def L(self) -> int:
@@ -86,7 +89,7 @@ class Synthesizer:
     def colors(self, coords: np.ndarray, level: int | None = None) -> np.ndarray:
         """E_l[S]: float32 (H, W, C) colors of coordinates at ``level``."""
         level = self.L if level is None else level
-        stack = self.analysis.levels[level].stack
+        stack = self.palette[level] if self.palette is not None else self.analysis.levels[level].stack
         return stack[coords[..., 1], coords[..., 0]]
 
     def release(self) -> None:
