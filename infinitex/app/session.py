@@ -438,6 +438,23 @@ class Session:
             self._display[role] = st
         return st
 
+    def shape_map(self) -> tuple[str, str]:
+        """(kind, map) that shapes the lit preview: the normal map, else the
+        height map, else the first map's luminance read as height ("luma")."""
+        maps = self.material.maps
+        if "normal" in maps:
+            return "normal", "normal"
+        if "height" in maps:
+            return "height", "height"
+        return "height", "luma"
+
+    def shape_stack(self, role: str) -> list[np.ndarray]:
+        """The float stack of a lit preview's shaping map ("luma": the first map's luminance)."""
+        if role != "luma":
+            return self.material.stack(role)
+        from infinitex.engine.material import luma
+        return [luma(lv) for lv in self.material.stack(self.material.primary)]
+
     def load_now(self, doc: Document) -> None:
         """Analyze and install synchronously (CLI, tests); raises on failure."""
         job = self.load(doc)
@@ -631,7 +648,7 @@ class ExportJob:
 # -- streamed exports (tile sets, BigTIFF) --------------------------------------
 
 
-def export_key(doc: Document, params: SynthParams) -> str:
+def export_key(doc: Document, params: SynthParams, role: str = "") -> str:
     """What decides a streamed export's pixels: the whole document (exemplar
     embedded) and the parameters. The editor and the CLI compute the same key,
     so either resumes what the other left."""
@@ -639,8 +656,8 @@ def export_key(doc: Document, params: SynthParams) -> str:
     import json
 
     from .document import Project, project_to_json
-    return hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(params)],
-                                     sort_keys=True).encode()).hexdigest()
+    return hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(params)]
+                                     + ([role] if role else []), sort_keys=True).encode()).hexdigest()
 
 
 def project_synthesizer(doc: Document, period: int = 0, role: str = "") -> ProjectSynthesizer:
@@ -658,11 +675,11 @@ class StreamedExport:
     the finished ones for a later run (the same export resumes)."""
 
     def __init__(self, doc: Document, L: int, rect: Rect, out_path: str, fmt: str, tile: int,
-                 workers: int, coords: bool = False):
+                 workers: int, coords: bool = False, role: str = ""):
         from infinitex.engine.tiled_export import TiledExport
         params = doc.params(L)
-        self.job = TiledExport(None, rect, out_path, fmt, tile, key=export_key(doc, params), coords=coords, L=L)
-        self.init = project_synthesizer(doc)
+        self.job = TiledExport(None, rect, out_path, fmt, tile, key=export_key(doc, params, role), coords=coords, L=L)
+        self.init = project_synthesizer(doc, role=role)
         self.out_path, self.rect, self.out_rect, self.fmt, self.workers = out_path, rect, rect, fmt, max(1, workers)
         self.done_tiles = 0
         self.started = time.monotonic()

@@ -190,7 +190,7 @@ def read_maps(found: dict[str, str], limit: int) -> list[tuple[str, str, bytes]]
 # -- the material ----------------------------------------------------------------
 
 
-def _luma(px: np.ndarray) -> np.ndarray:
+def luma(px: np.ndarray) -> np.ndarray:
     c = px.shape[2]
     if c == 1:
         return px
@@ -208,7 +208,7 @@ def _shape_for_role(role: str, px: np.ndarray, name: str) -> np.ndarray:
         if px.shape[2] < 3:
             raise MaterialError(f"The normal map {printable(name)} has {px.shape[2]} channel(s); a normal map is RGB.")
         return np.ascontiguousarray(px[..., :3])
-    return _luma(px)
+    return luma(px)
 
 
 def renormalize(encoded: np.ndarray) -> np.ndarray:
@@ -316,7 +316,7 @@ class Material:
         if role == "normal" and src.shape[2] > 3:
             src = src[..., :3]
         if role not in ("basecolor", "normal", IMAGE) and src.shape[2] != 1:
-            src = _luma(src)
+            src = luma(src)
         if src.shape[0] > m * scale:  # pre-filter the hi-res copy to the output's resolution
             n = m * scale
             src = np.stack([np.asarray(Image.fromarray(np.ascontiguousarray(src[..., c]), mode="F")

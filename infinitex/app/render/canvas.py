@@ -22,7 +22,8 @@ from ..document import Display, View
 from ..session import Frame, level_rect
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
-MODES = {"color": 0, "coords": 1, "patches": 2, "level": 3, "relief": 4}
+MODES = {"color": 0, "coords": 1, "patches": 2, "level": 3, "relief": 4, "lit": 5}
+SHAPE_KINDS = {"normal": 0, "height": 1}
 MAX_HIRES = 4096
 
 
@@ -41,6 +42,10 @@ class Canvas:
         self.stack_tex: moderngl.TextureArray | None = None
         self.hires_tex: moderngl.Texture | None = None
         self.exemplar_tex: moderngl.Texture | None = None
+        self.shape_tex: moderngl.TextureArray | None = None  # "lit": the normal or height map's stack (half floats)
+        self.shape_kind = 1
+        self.shape_key: tuple | None = None
+        self.shown: tuple | None = None  # (generation, map) of the stack uploaded
         self.generation = -1
         self.m = 0
         self.channels = 3
@@ -73,6 +78,24 @@ class Canvas:
         self.m = m
         self.channels = stack_u8.shape[3]
         self.toroidal = bool(toroidal)
+
+    def set_shape(self, stack: list[np.ndarray], kind: str, toroidal: bool, key: tuple) -> None:
+        """Upload the map that shapes the lit preview: a normal map's stack
+        (encoded normals, RGB) or a height stack (1 channel), float32 levels
+        (L+1) of (m, m, C), kept as half floats (11 bits: no stair steps)."""
+        self.gpu.activate()
+        if self.shape_tex is not None:
+            self.shape_tex.release()
+            self.shape_tex = None
+        n, m = len(stack), stack[0].shape[0]
+        a = np.zeros((n, m, m, 4), dtype=np.float16)
+        for i, lv in enumerate(stack):
+            a[i, :, :, :lv.shape[2]] = lv[..., :4]
+        self.shape_tex = self.gpu.ctx.texture_array((m, m, n), 4, np.ascontiguousarray(a).tobytes(), dtype="f2")
+        self.shape_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.shape_tex.repeat_x = self.shape_tex.repeat_y = bool(toroidal)
+        self.shape_kind = SHAPE_KINDS[kind]
+        self.shape_key = key
 
     @property
     def has_hires(self) -> bool:
@@ -131,6 +154,12 @@ class Canvas:
         self.stack_tex.use(1)
         if self.hires_tex is not None:
             self.hires_tex.use(2)
+        if mode == MODES["lit"] and self.shape_tex is None:
+            mode = MODES["relief"]
+        if self.shape_tex is not None:
+            self.shape_tex.use(3)
+        az, el = math.radians(display.light_azimuth), math.radians(display.light_elevation)
+        light = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
         for i, l in enumerate(reversed(levels)):  # coarse first, finer partial levels on top
             buf = pyramid.buffers[l]
             k = L - l
@@ -153,7 +182,8 @@ class Canvas:
                          layer=l, mag_layer=frame.level if l < frame.level else l, use_hires=use_hires,
                          mode=mode, magnify=magnify, exact=int(exact),
                          toroidal=int(self.toroidal), has_alpha=int(self.channels in (2, 4)),
-                         relief_strength=float(self.m) / 24.0)
+                         relief_strength=float(self.m) / 24.0, shape=3, shape_kind=self.shape_kind,
+                         light=light, relief=float(display.relief) * self.m / 8.0)
             self.vao.render(moderngl.TRIANGLES)
         self.gpu.ctx.scissor = None
         return levels[-1]
@@ -186,6 +216,9 @@ class Canvas:
     def release(self) -> None:
         self.gpu.activate()
         self._release_exemplar()
+        if self.shape_tex is not None:
+            self.shape_tex.release()
+            self.shape_tex, self.shape_key = None, None
         if self.tex is not None:
             self.fbo.release()
             self.tex.release()

@@ -23,6 +23,7 @@ BROWSER_KEY = "infinitex-path"
 
 IMAGE_FILTER = ["Images and projects", "*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp *.itex",
                 "All files", "*"]
+MAPS_FILTER = ["Images", "*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp *.tga", "All files", "*"]
 PROJECT_FILTER = ["Infinitex project", "*.itex"]
 PNG_FILTER = ["PNG image", "*.png"]
 TIFF_FILTER = ["BigTIFF image", "*.tif *.tiff"]
@@ -48,6 +49,7 @@ class PathRequest:
     browser: bool = False
     text: str = ""
     opened: bool = False
+    multi: bool = False  # several files (on_done gets a list; the path box takes them separated by ";")
 
 
 @dataclass
@@ -112,6 +114,24 @@ class Dialogs:
                                else dlg.open(BROWSER_KEY, title, flt, False, start))
         self.path_request = req
 
+    def ask_paths(self, title: str, filters: list[str], on_done: Callable[[list[str]], None]) -> None:
+        """Ask for one or more files to open (a material's maps; one file or a
+        folder brings its siblings); ``on_done(absolute paths)`` when chosen."""
+        def done(paths: list[str]) -> None:
+            paths = [os.path.abspath(os.path.expanduser(p)) for p in paths]
+            self.last_dir = os.path.dirname(paths[0])
+            on_done(paths)
+        req = PathRequest(title, False, filters, done, text=self.last_dir + os.sep, multi=True)
+        if self.native:
+            try:
+                req.native = pfd.open_file(title, self.last_dir, filters, pfd.opt.multiselect)
+            except Exception:
+                req.native = None
+        if req.native is None and not self.prompt:
+            start = self.last_dir if os.path.isdir(self.last_dir) else os.path.expanduser("~")
+            req.browser = bool(ifd.FileDialog.instance().open(BROWSER_KEY, title, browser_filter(filters), True, start))
+        self.path_request = req
+
     def message(self, title: str, body: str) -> None:
         self.modals.append(Modal(title, body, [("OK", None)]))
 
@@ -129,19 +149,23 @@ class Dialogs:
         if req.browser:
             dlg = ifd.FileDialog.instance()
             if dlg.is_done(BROWSER_KEY):
-                path = dlg.get_result().path() if dlg.has_result() else ""
+                if req.multi:
+                    found = [str(p.path()) if hasattr(p, "path") else str(p) for p in dlg.get_results()] \
+                        if dlg.has_result() else []
+                else:
+                    found = [str(dlg.get_result().path())] if dlg.has_result() else []
                 dlg.close()
                 self.path_request = None
-                if path:
-                    req.on_done(str(path))
+                if found:
+                    req.on_done(found if req.multi else found[0])
             return
         if req.native is not None:
             if req.native.ready(0):
                 res = req.native.result()
                 self.path_request = None
-                path = res if isinstance(res, str) else (res[0] if res else "")
-                if path:
-                    req.on_done(path)
+                found = [res] if isinstance(res, str) else [p for p in (res or []) if p]
+                if found and found[0]:
+                    req.on_done(found if req.multi else found[0])
             return
         name = f"{req.title}###pathprompt"
         if not req.opened:
@@ -153,7 +177,8 @@ class Dialogs:
         opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
         if not opened:
             return
-        imgui.text("Path of the file to " + ("write:" if req.save else "open:"))
+        imgui.text("Path of the file to " + ("write:" if req.save else "open:") +
+                   (" (several: separated by ;  a folder: a material's maps)" if req.multi else ""))
         imgui.set_next_item_width(-1)
         if imgui.is_window_appearing():
             imgui.set_keyboard_focus_here()
@@ -164,7 +189,10 @@ class Dialogs:
                 self.path_request = None
                 imgui.close_current_popup()
                 imgui.end_popup()
-                req.on_done(path)
+                if req.multi:
+                    req.on_done([p.strip() for p in req.text.split(";") if p.strip()])
+                else:
+                    req.on_done(path)
                 return
         imgui.same_line()
         if imgui.button("Cancel", (120, 0)) or imgui.is_key_pressed(imgui.Key.escape):

@@ -23,6 +23,7 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 )
 
 from infinitex.engine.gpu import GLUnavailable, Gpu
+from infinitex.engine.material import IMAGE, MaterialError, assign_roles
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import ReadError, WriteError, check_output, printable
 from infinitex.engine.tiled_export import check_zarr_output
@@ -65,6 +66,7 @@ SHORTCUTS = [
     ("Ctrl+S / Ctrl+Shift+S", "Save / save as"), ("Ctrl+Q", "Quit"),
     ("H", "Show or hide the painted randomness (cursor over the canvas)"),
     ("T", "Tile mode: the periodic texture of the export tile size (cursor over the canvas)"),
+    ("M", "Show the next map of a material (cursor over the canvas)"),
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
     ("F1  or  ?", "This list"),
 ]
@@ -112,6 +114,8 @@ class Editor:
         self.estimate: ExportEstimate | None = None
         self.tile_size = 1024
         self.write_coords = False
+        self.export_depth: int | None = None  # bit depth of exported maps; None: each map's own
+        self.export_magnify = 1               # exported pixels per texel (synthesis magnification)
         self.goto = [0, 0]
         self.frame: Frame | None = None
         self.canvas_size = (1, 1)
@@ -312,6 +316,8 @@ class Editor:
         """Open a project, or an image as a new document (untitled, default
         settings); with ``replace_exemplar`` the image replaces the exemplar of
         the open document instead (undoable; the Exemplar panel's button).
+        One map of a material brings its siblings (named by the rule), and a
+        folder is one material's maps.
 
         A project whose exemplar file lies outside the project's folder is
         opened only after the user confirms that file."""
@@ -321,7 +327,6 @@ class Editor:
                 proj = load_project(path, allow_outside=allow_outside)
                 self._begin_load("project", proj.document, proj, path)
                 return
-            src = ExemplarSource.from_file(path)
         except ExemplarOutside as exc:
             allow = {exc.path}  # (exc itself is gone once the except block ends)
             self.dialogs.ask("Exemplar outside the project's folder",
@@ -330,17 +335,35 @@ class Editor:
                                                                  replace_exemplar=replace_exemplar)),
                               ("Cancel", lambda: self._open_failed(None, first))])
             return
-        except (ProjectError, ReadError) as exc:
+        except ProjectError as exc:
             self._open_failed(str(exc), first)
             return
         except OSError as exc:
             self._open_failed(f"{printable(os.path.basename(path))} could not be read: {exc.strerror or exc}.", first)
             return
-        if replace_exemplar and self.doc is not None:
+        self.open_paths([path], first, replace_exemplar)
+
+    def open_paths(self, paths: list[str], first: bool = False, replace_exemplar: bool = False) -> None:
+        """Open images as a document: one image, one map of a material (its
+        siblings come along), a material's folder, or several maps at once
+        (their roles from their names). All or nothing."""
+        try:
+            found = assign_roles([os.path.expanduser(p) for p in paths])
+            maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
+        except (MaterialError, ReadError) as exc:
+            self._open_failed(str(exc), first)
+            return
+        except OSError as exc:
+            self._open_failed(f"The maps could not be read: {exc.strerror or exc}.", first)
+            return
+        path = paths[0] if len(paths) == 1 else None
+        base = self.doc if replace_exemplar and self.doc is not None else None
+        if base is not None:
             # A lattice is marked in the old image's pixels: the new image starts without one.
-            self._begin_load("exemplar", replace(self.doc, exemplar=src, toroidal=None, lattice=None), None, path)
+            doc = replace(base, toroidal=None, lattice=None, weights=None).with_maps(maps)
+            self._begin_load("exemplar", doc, None, path)
         else:
-            self._begin_load("image", Document(src), None, path)
+            self._begin_load("image", Document(maps[0][1]).with_maps(maps), None, path)
 
     def _open_failed(self, msg: str | None, first: bool) -> None:
         if msg:
@@ -348,8 +371,12 @@ class Editor:
         if first and self.history is None:
             self.new_document()
 
-    def _begin_load(self, kind: str, doc: Document, proj: Project | None, path: str | None) -> None:
+    def _begin_load(self, kind: str, doc: Document, proj: Project | None, path: str | None,
+                    label: str = "Load exemplar") -> None:
+        """Analyze ``doc`` and make it current only when that succeeds (a new
+        document, or with kind "exemplar" an edit named ``label``)."""
         self.pending = (kind, doc, proj, path)
+        self.pending_label = label
         self.session.load(doc)
 
     def _finish_load(self, job) -> None:
@@ -367,7 +394,7 @@ class Editor:
         if path and kind in ("project", "image", "exemplar") and path != self.autosave.path:
             self.remember(path)
         if kind == "exemplar" and self.history is not None:
-            self.edit(doc, "Load exemplar")
+            self.edit(doc, getattr(self, "pending_label", "Load exemplar"))
             return
         self.history = History(doc)
         if kind == "project":
@@ -478,12 +505,19 @@ class Editor:
             path += ".png"
         coords = os.path.splitext(path)[0] + "_coords.png" if self.write_coords else None
         try:
-            check_output(path, (".png",), "export")  # before any work
+            check_output(path, (".png", ".tif", ".tiff"), "export")  # before any work
             if coords:
                 check_output(coords, (".png",), "coordinate map")
             geometry = "original" if self.geometry() is not None else "rectified"  # what the canvas shows
-            self.export_job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords,
-                                        geometry=geometry)
+            job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords,
+                            geometry=geometry, depth=self.export_depth, magnify=1 if coords else self.export_magnify)
+            try:
+                for _, out, _ in job.outputs:
+                    check_output(out, (".png", ".tif"), "export")
+            except WriteError:
+                job.cancel()
+                raise
+            self.export_job = job
         except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
 
@@ -500,8 +534,13 @@ class Editor:
                 check_output(path, (".tif", ".tiff") if ext == ".tif" else (".png",), "export")
             if self.write_coords and fmt != "zarr":
                 check_output(os.path.splitext(path)[0] + "_coords" + ext, (ext,), "coordinate map")
+            role = "" if self.session.material.single else self.shown_role()
+            if role:  # one map per streamed export: the one shown
+                base, ext = os.path.splitext(path)
+                path = f"{base}_{role}{ext}"
             self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.stream_tile,
-                                             self.export_workers, coords=self.write_coords and fmt != "zarr")
+                                             self.export_workers, coords=self.write_coords and fmt != "zarr",
+                                             role=role)
         except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
 
@@ -572,8 +611,8 @@ class Editor:
             self.dialogs.message("Analysis failed", job.error)
         if self.doc is not None and (self.pending is None or s.job is None):
             s.sync(self.doc)
-        if self.canvas.generation != s.generation and s.ready:
-            self.canvas.set_exemplar(s.stack, s.analysis.toroidal, s.exemplar.hires, s.generation)
+        if s.ready:
+            self._show_maps()
         if isinstance(self.export_job, StreamedExport):
             job = self.export_job
             if job.finished:
@@ -597,7 +636,8 @@ class Editor:
                     self.dialogs.message("Export failed", job.error)
                 elif not job.cancelled:
                     r = job.out_rect
-                    where = os.path.abspath(job.out_path)
+                    names = [os.path.abspath(o) for _, o, _ in job.outputs]
+                    where = names[0] if len(names) == 1 else f"{len(names)} maps ({', '.join(names)})"
                     extra = f" and {os.path.abspath(job.coords_path)}" if job.coords_path else ""
                     self.notice = (f"Exported {r.w}x{r.h} to {where}{extra}", time.monotonic())
         if self.doc is not None and self.history is not None:
@@ -605,6 +645,30 @@ class Editor:
                 self.autosave.tick(self.autosave_project(), self.history.dirty)
             except ProjectError:
                 pass
+
+    def shown_role(self) -> str:
+        """The map the canvas shows: the Display panel's choice; the lit preview
+        shows the base color (or the first map) shaded."""
+        s = self.session
+        mat = s.material
+        if self.display.mode == "lit":
+            return next((r for r in ("basecolor", IMAGE) if r in mat.maps), mat.primary)
+        return s.shown_map(self.display.map)
+
+    def _show_maps(self) -> None:
+        """Upload the shown map's stack (and, lit, the shaping map's) when they change."""
+        s = self.session
+        role = self.shown_role()
+        key = (s.generation, role)
+        if self.canvas.shown != key:
+            ex = s.material.maps[role].exemplar
+            self.canvas.set_exemplar(s.display_stack(role), s.analysis.toroidal, ex.hires, s.generation)
+            self.canvas.shown = key
+        if self.display.mode == "lit":
+            kind, shape_role = s.shape_map()
+            skey = (s.generation, shape_role)
+            if self.canvas.shape_key != skey:
+                self.canvas.set_shape(s.shape_stack(shape_role), kind, s.analysis.toroidal, skey)
 
     def _shortcuts(self) -> None:
         if self.dialogs.busy or imgui.get_io().want_text_input:
@@ -638,6 +702,10 @@ class Editor:
                 self.show_fields = not self.show_fields
             if imgui.is_key_pressed(imgui.Key.t, False):
                 self.tile_mode = not self.tile_mode
+            if imgui.is_key_pressed(imgui.Key.m, False) and self.session.ready:
+                roles = self.session.material.roles  # the next map of a material
+                cur = self.session.shown_map(self.display.map)
+                self.display = replace(self.display, map=roles[(roles.index(cur) + 1) % len(roles)])
             self.tool.keys()
 
     def _zoom_keys(self) -> None:

@@ -8,24 +8,29 @@ from dataclasses import replace
 import numpy as np
 from imgui_bundle import imgui
 
+from infinitex.engine.material import IMAGE, ROLE_LABELS, ROLES, role_of
 from infinitex.engine.params import DEFAULT_JITTER, FIRST_CORRECTED_LEVEL
 from infinitex.engine.pyramid import Rect
 
 from infinitex.engine.safeio import printable
 
-from ..document import DISPLAY_MODES, View
+from ..document import DISPLAY_MODES, ExemplarSource, View
 from ..session import duration_text
 from ..settings import save_settings
-from .dialogs import IMAGE_FILTER, PNG_FILTER, TIFF_FILTER, ZARR_FILTER
+from .dialogs import IMAGE_FILTER, MAPS_FILTER, PNG_FILTER, TIFF_FILTER, ZARR_FILTER
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 MODE_LABELS = {"color": "Color", "coords": "Coordinate map", "patches": "Patch boundaries",
-               "level": "Single pyramid level", "relief": "Shaded relief"}
+               "level": "Single pyramid level", "relief": "Shaded relief", "lit": "Lit material"}
 MODE_TIPS = {"color": "The texture",
              "coords": "Where each pixel comes from in the exemplar (red = x, green = y)",
              "patches": "The patches of exemplar the texture is made of, each tinted, their seams dark",
              "level": "One scale of the synthesis pyramid on its own (the coarse levels are its mipmap)",
-             "relief": "The texture's brightness shaded as a height map (terrain, bump maps)"}
+             "relief": "The texture's brightness shaded as a height map (terrain, bump maps)",
+             "lit": "The material under a light you move: its normal map (else its height map, else the "
+                    "brightness as height) shades the base color"}
+DEPTH_CHOICES = [(None, "Each map's own depth"), (8, "8-bit PNG"), (16, "16-bit PNG"), (32, "32-bit float TIFF")]
+MAGNIFY_CHOICES = [1, 2, 4, 8]
 MAGNIFY_LABELS = [("hires", "Synthesis magnification, hi-res exemplar"),
                   ("bilinear", "Synthesis magnification, bilinear"), ("nearest", "Nearest (texel blocks)")]
 FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square")]
@@ -77,6 +82,10 @@ class Panels:
         ed = self.ed
         ed.confirm_discard(lambda: ed.dialogs.ask_path("Open exemplar or project", False, IMAGE_FILTER, ed.open_path))
 
+    def open_material_dialog(self) -> None:
+        ed = self.ed
+        ed.confirm_discard(lambda: ed.dialogs.ask_paths("Open material", MAPS_FILTER, ed.open_paths))
+
     def _open_recent(self, path: str) -> None:
         ed = self.ed
         if not os.path.exists(path):
@@ -95,6 +104,10 @@ class Panels:
                 ed.confirm_discard(ed.new_document)
             if imgui.menu_item_simple("Open...", "Ctrl+O"):
                 self.open_dialog()
+            if imgui.menu_item_simple("Open material..."):
+                self.open_material_dialog()
+            tip("A material's maps: choose them all, or one map (its siblings named NAME_normal, NAME_height... "
+                "come along), or their folder")
             if imgui.begin_menu("Open Recent", bool(ed.settings.recent)):
                 for i, path in enumerate(ed.settings.recent):
                     if imgui.menu_item_simple(f"{os.path.basename(path)}##recent{i}"):
@@ -168,6 +181,7 @@ class Panels:
         # Artists' controls first; the synthesis internals wait in Advanced (collapsed).
         # Which sections are open is kept between runs (the user's settings).
         for name, draw in (("Randomness", self.randomness_panel), ("Exemplar", self.exemplar_panel),
+                           ("Material", self.material_panel),
                            ("Display", self.display_panel), ("Export", self.export_panel),
                            ("Advanced", self.synthesis_panel)):
             imgui.set_next_item_open(name in ed.panels_open, imgui.Cond_.once)
@@ -221,6 +235,11 @@ class Panels:
             size = min(PANEL_IMAGE, imgui.get_content_region_avail().x)
             self.exemplar_thumbnail(size)
         imgui.text(doc.exemplar.name)
+        if doc.is_material and s.material is not None and not s.material.single:
+            n = len(s.material.roles)
+            imgui.same_line()
+            imgui.text_disabled(f"+ {n - 1} map{'s' if n > 2 else ''}")
+            ex = s.material.maps[s.material.primary].exemplar  # the first map describes the import
         ow, oh = ex.original_size
         chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
         lattice = ex.fit == "lattice"
@@ -246,6 +265,101 @@ class Panels:
             imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
             if imgui.button("Cancel analysis"):
                 job.cancel()
+
+    # -- material ------------------------------------------------------------
+
+    def material_panel(self) -> None:
+        """The maps of the document, their roles and analysis weights."""
+        ed = self.ed
+        doc, mat = ed.doc, ed.session.material
+        sources = list(doc.sources())
+        single = not doc.is_material
+        weights = doc.weight_dict() or mat.default_weights()
+        imgui.push_text_wrap_pos(0)
+        if single:
+            imgui.text_disabled("A single image. Add its other maps (normal, height, roughness...) to make a "
+                                "material: every map follows the same synthesis.")
+        imgui.pop_text_wrap_pos()
+        busy = ed.pending is not None
+        imgui.begin_disabled(busy or doc.lattice is not None)
+        for i, (role, src) in enumerate(sources):
+            imgui.push_id(f"map{i}")
+            roles = [IMAGE, *ROLES] if single else list(ROLES)
+            imgui.set_next_item_width(140)
+            changed, j = imgui.combo("##role", roles.index(role), [ROLE_LABELS[r] for r in roles])
+            tip("What this map is; a role another map has swaps the two")
+            if changed and roles[j] != role:
+                self._set_role(sources, i, roles[j])
+            imgui.same_line()
+            imgui.text(src.name)
+            mp = mat.maps.get(role)
+            if mp is not None:
+                ex = mp.exemplar
+                chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
+                kind = "float" if ex.depth == 32 else f"{ex.depth}-bit"
+                imgui.text_disabled(f"{ex.original_size[0]}x{ex.original_size[1]}, {kind} {chans}")
+            if not single:
+                imgui.same_line()
+                imgui.set_next_item_width(90)
+                w = float(weights.get(role, 0.0))
+                changed, v = imgui.slider_float("Analysis", w, 0.0, 2.0, "%.2f")
+                tip("How much this map decides which exemplar spots look alike (0: it only follows). "
+                    "Applied when you let go: the exemplar is analyzed again")
+                if imgui.is_item_deactivated_after_edit():
+                    nw = {**weights, role: float(v)}
+                    self._set_weights(nw)
+                imgui.same_line()
+                if imgui.small_button("Remove"):
+                    rest = [m for k, m in enumerate(sources) if k != i]
+                    ed._begin_load("exemplar", doc.with_maps(rest), None, None, f"Remove the {role} map")
+                tip("Drop this map from the material")
+            imgui.pop_id()
+        if imgui.button("Add map...", (-1, 0)):
+            ed.dialogs.ask_path("Add a map", False, MAPS_FILTER, self._add_map)
+        tip("Another map aligned with these (same size): its role comes from its name (NAME_normal, "
+            "NAME_height...), else the first free role")
+        imgui.end_disabled()
+        if doc.lattice is not None:
+            imgui.text_disabled("A lattice works on a single image.")
+
+    def _set_role(self, sources, i: int, new: str) -> None:
+        ed = self.ed
+        maps = list(sources)
+        role, src = maps[i]
+        taken = next((k for k, (r, _) in enumerate(maps) if r == new), None)
+        if taken is not None:
+            maps[taken] = (role, maps[taken][1])
+        maps[i] = (new, src)
+        ed._begin_load("exemplar", ed.doc.with_maps(maps), None, None, "Map role")
+
+    def _set_weights(self, weights: dict) -> None:
+        ed = self.ed
+        w = tuple((r, float(weights.get(r, 0.0))) for r, _ in ed.doc.sources())
+        if not any(v > 0 for _, v in w):
+            ed.dialogs.message("Analysis weights", "At least one map must feed the analysis (a weight above 0).")
+            return
+        ed._begin_load("exemplar", replace(ed.doc, weights=w), None, None, "Analysis weights")
+
+    def _add_map(self, path: str) -> None:
+        ed = self.ed
+        try:
+            src = ExemplarSource.from_file(path)
+        except OSError as exc:
+            ed.dialogs.message("Add a map", str(exc))
+            return
+        maps = list(ed.doc.sources())
+        used = {r for r, _ in maps}
+        named = role_of(path)
+        if maps[0][0] == IMAGE:  # a single image becomes the base color (or the first free role)
+            new_role = named[1] if named else None
+            first = "basecolor" if new_role != "basecolor" else next(r for r in ROLES if r != "basecolor")
+            maps = [(first, maps[0][1])]
+            used = {first}
+        role = named[1] if named and named[1] not in used else next((r for r in ROLES if r not in used), None)
+        if role is None:
+            ed.dialogs.message("Add a map", "The material already has a map for every role.")
+            return
+        ed._begin_load("exemplar", ed.doc.with_maps(maps + [(role, src)]), None, None, f"Add the {role} map")
 
     def _fit_options(self, doc, ex) -> None:
         ed = self.ed
@@ -384,6 +498,33 @@ class Panels:
             changed, v = imgui.slider_int("Level", lvl, 0, L)
             if changed:
                 ed.display = replace(ed.display, level=v)
+        mat = ed.session.material
+        if mat is not None and not mat.single and ed.display.mode != "lit":
+            roles = mat.roles
+            cur = ed.session.shown_map(ed.display.map)
+            imgui.set_next_item_width(-70)
+            changed, i = imgui.combo("Map", roles.index(cur), [ROLE_LABELS[r] for r in roles])
+            tip("The material's map the canvas shows (M: the next one)")
+            if changed:
+                ed.display = replace(ed.display, map=roles[i])
+        if ed.display.mode == "lit":
+            kind, shape = ed.session.shape_map()
+            imgui.text_disabled({"normal": "Shaded by the normal map", "height": "Shaded by the height map",
+                                 "luma": "Shaded by the brightness (no normal or height map)"}[shape])
+            imgui.push_item_width(-110)
+            changed, az = imgui.slider_float("Light direction", ed.display.light_azimuth % 360.0, 0.0, 360.0, "%.0f deg")
+            tip("Where the light comes from, around the surface (0: from the right, 90: from the top)")
+            if changed:
+                ed.display = replace(ed.display, light_azimuth=float(az))
+            changed, el = imgui.slider_float("Light height", ed.display.light_elevation, 5.0, 90.0, "%.0f deg")
+            tip("How high the light stands over the surface: low lights show the relief most")
+            if changed:
+                ed.display = replace(ed.display, light_elevation=float(el))
+            changed, rel = imgui.slider_float("Relief", ed.display.relief, 0.0, 4.0, "%.2f")
+            tip("How strongly the normal or height map tilts the surface (1: as authored)")
+            if changed:
+                ed.display = replace(ed.display, relief=float(rel))
+            imgui.pop_item_width()
         keys = [k for k, _ in MAGNIFY_LABELS]
         labels = [lbl if k != "hires" or ed.canvas.has_hires else lbl + " (none: same as bilinear)"
                   for k, lbl in MAGNIFY_LABELS]
@@ -408,9 +549,29 @@ class Panels:
         _, ed.write_coords = imgui.checkbox("Also write the coordinate map", ed.write_coords)
         tip("NAME_coords.png: the exemplar position of every pixel, exactly "
             "(x = R + 256 (B & 15), y = G + 256 (B >> 4)); to look up other maps through the same synthesis")
+        keys = [k for k, _ in DEPTH_CHOICES]
+        imgui.set_next_item_width(-70)
+        changed, i = imgui.combo("Depth", keys.index(ed.export_depth), [lbl for _, lbl in DEPTH_CHOICES])
+        tip("Bits per channel of the exported maps: each map's own (8-bit sources 8, 16-bit 16, float 32), "
+            "or the same for all; 32-bit maps are float TIFFs")
+        if changed:
+            ed.export_depth = keys[i]
+        imgui.set_next_item_width(-70)
+        changed, i = imgui.combo("Scale", MAGNIFY_CHOICES.index(ed.export_magnify),
+                                 ["1:1"] + [f"{f}x (magnified)" for f in MAGNIFY_CHOICES[1:]])
+        tip("View and tile exports: N x N pixels per synthesized pixel, sharp from the full-resolution maps "
+            "(synthesis magnification, LH05 5); normals stay unit length")
+        if changed:
+            ed.export_magnify = MAGNIFY_CHOICES[i]
+        mat = ed.session.material
+        if mat is not None and not mat.single:
+            imgui.push_text_wrap_pos(0)
+            imgui.text_disabled(f"A material: one file per map, NAME_{mat.roles[0]}.png, ... ({', '.join(mat.roles)}); "
+                                "tile sets, BigTIFFs and Zarr write the map shown.")
+            imgui.pop_text_wrap_pos()
         if imgui.button("Export view as PNG...", (-1, 0)):
             self.export_view()
-        tip("What the canvas shows now, at 1:1")
+        tip("What the canvas shows now, at 1:1 (or the scale above); a material: every map")
         imgui.separator_text("Rectangle")
         self.rectangle_export()
         imgui.separator_text("Seamless tile")
@@ -521,13 +682,22 @@ class Panels:
     def export_view(self) -> None:
         ed = self.ed
         r = ed.view_rect()
-        ed.dialogs.ask_path("Export view", True, PNG_FILTER, lambda p: ed.start_export(p, r), default="view.png")
+        flt, ext = self._export_filter()
+        ed.dialogs.ask_path("Export view", True, flt, lambda p: ed.start_export(p, r), default="view" + ext)
+
+    def _export_filter(self) -> tuple[list[str], str]:
+        """A single image exported at 32 bits is a float TIFF; everything else is named .png."""
+        ed = self.ed
+        if ed.export_depth == 32 and ed.session.material is not None and ed.session.material.single:
+            return ["Float TIFF", "*.tif *.tiff"], ".tif"
+        return PNG_FILTER, ".png"
 
     def export_tile(self) -> None:
         ed = self.ed
         n = ed.tile_size
-        ed.dialogs.ask_path("Export toroidal tile", True, PNG_FILTER,
-                            lambda p: ed.start_export(p, Rect(0, 0, n, n), toroidal=n), default=f"tile{n}.png")
+        flt, ext = self._export_filter()
+        ed.dialogs.ask_path("Export toroidal tile", True, flt,
+                            lambda p: ed.start_export(p, Rect(0, 0, n, n), toroidal=n), default=f"tile{n}{ext}")
 
     # -- status and overlays --------------------------------------------------
 

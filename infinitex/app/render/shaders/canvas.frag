@@ -24,7 +24,11 @@ uniform int mag_layer;        // stack layer sampled by magnification (the view'
 uniform sampler2DArray stack; // uint8 Gaussian stack, RGBA
 uniform sampler2D hires;      // high-resolution exemplar (mipmapped)
 uniform int use_hires;
-uniform int mode;             // 0 color, 1 coords, 2 patches, 3 level (nearest color), 4 relief
+uniform int mode;             // 0 color, 1 coords, 2 patches, 3 level (nearest color), 4 relief, 5 lit
+uniform sampler2DArray shape; // "lit": the normal map (encoded, rgb) or height (r) stack, half floats
+uniform int shape_kind;       // 0 normal map, 1 height
+uniform vec3 light;           // unit vector towards the light (x right, y up, z out of the surface)
+uniform float relief;         // height: finest-level pixels of relief for the full [0, 1] range; normals: tilt gain
 uniform int magnify;          // 0 nearest, 1 LH05 synthesis magnification
 uniform int exact;            // texels are exactly one screen pixel: fetch, no filtering
 uniform int toroidal;
@@ -57,6 +61,31 @@ bool coherent(ivec2 g, ivec2 e) {
     ivec2 d = S(g + e) - S(g) - h * e;
     if (toroidal != 0) d = d & (m - 1);
     return d == ivec2(0);
+}
+
+// Synthesis magnification of any aligned map's stack (the lit preview's shape).
+vec4 magnified_map(sampler2DArray tex, ivec2 base, vec2 frac) {
+    vec2 F = frac - 0.5;
+    vec2 fb = floor(F);
+    vec2 t = F - fb;
+    float h = float(1 << k);
+    vec4 acc = vec4(0.0);
+    for (int j = 0; j < 2; j++) {
+        for (int i = 0; i < 2; i++) {
+            ivec2 c = ivec2(i, j);
+            ivec2 u = S(base + ivec2(fb) + c);
+            vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
+            float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
+            acc += w * texture(tex, vec3(uv, float(mag_layer)));
+        }
+    }
+    return acc;
+}
+
+// The shape map at level position frac: magnified, or the texel's value.
+vec4 shape_at(ivec2 base, vec2 frac, bool mag) {
+    if (mag) return magnified_map(shape, base, frac);
+    return texelFetch(shape, ivec3(S(base + ivec2(floor(frac))), layer), 0);
 }
 
 // LH05 section 5: extrapolate each of the 4 nearest texels' coordinates to
@@ -107,7 +136,25 @@ void main() {
     } else {
         c = magnified(base, frac);
     }
-    if (has_alpha != 0 && (mode == 0 || mode == 3)) {
+    if (mode == 5) {
+        // Lit material: the normal map (or the height map's slopes) shaded by a
+        // directional light, the base color on top. Surface frame: x right, y up.
+        bool mag = exact == 0 && magnify != 0;
+        vec3 n;
+        if (shape_kind == 0) {
+            vec3 e = shape_at(base, frac, mag).rgb * 2.0 - 1.0;
+            n = normalize(vec3(e.xy * relief, max(e.z, 1e-3)));
+        } else {
+            float d = mag ? 0.5 : 1.0;  // texels between the samples
+            float hx = shape_at(base, frac + vec2(d, 0.0), mag).r - shape_at(base, frac - vec2(d, 0.0), mag).r;
+            float hy = shape_at(base, frac + vec2(0.0, d), mag).r - shape_at(base, frac - vec2(0.0, d), mag).r;
+            float g = relief / (2.0 * d * float(s));  // height per finest pixel
+            n = normalize(vec3(-hx * g, hy * g, 1.0));  // rows go down, y goes up
+        }
+        float diffuse = max(dot(n, light), 0.0);
+        c.rgb = c.rgb * (0.22 + 0.95 * diffuse);
+    }
+    if (has_alpha != 0 && (mode == 0 || mode == 3 || mode == 5)) {
         ivec2 chk = ivec2(q) / 8;
         float bg = ((chk.x + chk.y) & 1) == 0 ? 0.8 : 0.6;
         c = vec4(mix(vec3(bg), c.rgb, c.a), 1.0);
