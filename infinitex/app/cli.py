@@ -116,6 +116,11 @@ def run_export(argv: list[str]) -> int:
     if streamed and (args.depth not in (None, 8) or args.magnify != 1):
         raise CliError("--format tiles, tiff and zarr write 8-bit maps at 1:1; --depth 16/32 and --magnify go "
                        "with --format png.", EXIT_USAGE)
+    from infinitex.engine.material import MaterialError, check_maps_spec
+    try:
+        check_maps_spec(args.maps)
+    except MaterialError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
     if args.magnify != 1 and args.coords:
         raise CliError("The coordinate map is written at 1:1: --coords does not go with --magnify.", EXIT_USAGE)
     if streamed and args.tile not in TILE_SIZES:

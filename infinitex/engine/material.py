@@ -432,6 +432,20 @@ def output_paths(out: str, roles: list[str], depths: dict[str, int]) -> list[tup
     return [(r, f"{base}_{r}{depth_extension(depths[r])}", depths[r]) for r in roles]
 
 
+def check_maps_spec(spec: str | None) -> None:
+    """``--maps`` names only known roles (checked before any work)."""
+    if spec is None or spec.strip().lower() == "all":
+        return
+    alias = {**_SUFFIX, IMAGE: IMAGE}
+    words = [w.strip().lower() for w in spec.split(",") if w.strip()]
+    if not words:
+        raise MaterialError("--maps names no map.")
+    for w in words:
+        if w not in alias:
+            raise MaterialError(f"--maps: {printable(w, 40)!r} is not a map role; use all or some of "
+                                f"{', '.join(ROLES)}.")
+
+
 def parse_maps(spec: str | None, material: Material) -> list[str]:
     """``--maps all|basecolor,height,...`` as roles of the material (canonical order)."""
     if spec is None or spec.strip().lower() == "all":
