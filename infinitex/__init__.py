@@ -42,6 +42,15 @@ Huge exports, tile by tile in bounded memory and resumable (``TiledExport``)::
     cluster; ``worker_init`` makes a worker's Synthesizer from the project
     (``infinitex.app.session.project_synthesizer(document)``).
 
+Materials: aligned maps (base color, normal, height, roughness...) that one
+synthesis drives, each looked up through the same coordinates::
+
+    mat = itx.open_material("wood_basecolor.png")   # its siblings wood_normal.png... come along
+    with itx.Synthesizer(itx.analyze(mat.guide())) as s:   # guide: base color + height
+        coords = s.window(itx.Rect.of(0, 0, 512, 512))
+        height = mat.lookup("height", coords)              # float32 (H, W, 1), 16-bit precision kept
+        itx.write_image("wood_height.png", height, depth=16)  # 8, 16 (PNG) or 32 (float TIFF)
+
 Controls (one engine input, ``Controls``): ``CanvasField`` and
 ``ExemplarField`` (painted randomness, uint16, 32768 = neutral; ``painted()``
 adds a dab), ``Feature`` (an exemplar spot placed on the canvas), ``Lattice``
@@ -76,6 +85,7 @@ _EXPORTS = {
     "Lattice": "engine.lattice", "rectified_exemplar": "engine.lattice", "render_original": "engine.lattice",
     "original_geometry_box": "engine.lattice",
     "TiledExport": "engine.tiled_export",
+    "Material": "engine.material", "open_material": "engine.material", "write_image": "engine.exemplar",
     "load_project": "app.document", "save_project": "app.document", "Document": "app.document",
     "Project": "app.document",
 }

@@ -48,7 +48,7 @@ def cobbles(m: int = 512, seed: int = 7, stones: int | None = None) -> dict[str,
     shade = 0.75 + 0.35 * _noise(m, rng, 24.0)[..., None]
     t = np.clip(edge, 0.0, 1.0)[..., None]
     base = np.clip((joint + (stone - joint) * t) * shade, 0.0, 1.0)
-    strength = m / 48.0
+    strength = m / 160.0  # height 1 = m/160 px of relief: the slopes of real cobbles
     gx = (np.roll(height, -1, axis=1) - np.roll(height, 1, axis=1)) * 0.5 * strength
     gy = (np.roll(height, -1, axis=0) - np.roll(height, 1, axis=0)) * 0.5 * strength
     nrm = np.stack([-gx, gy, np.ones_like(gx)], axis=-1)  # +Y up (OpenGL): image rows go down

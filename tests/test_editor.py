@@ -87,6 +87,18 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     assert np.array_equal(read_tiles(str(tmp_path / "set.png"), w, h, 256, 1), whole)
 
 
+def test_material_session_driven_by_the_test_engine(tmp_path):
+    """Open a material through the menu, reassign a role, switch the shown map,
+    light it, export every map through the menu (tests/gui_material.py)."""
+    import imagecodecs
+    import numpy as np
+    _drive("gui_material.py", tmp_path, 9)
+    height = imagecodecs.png_decode((tmp_path / "view_height.png").read_bytes())
+    normal = imagecodecs.png_decode((tmp_path / "view_normal.png").read_bytes())
+    assert height.dtype == np.uint16 and height.ndim == 2 and len(np.unique(height)) > 256
+    assert normal.dtype == np.uint16 and normal.shape[2] == 3
+
+
 def test_screenshot_option_writes_the_window(tmp_path):
     from PIL import Image
     out = tmp_path / "shot.png"

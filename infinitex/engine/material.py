@@ -466,3 +466,12 @@ def parse_maps(spec: str | None, material: Material) -> list[str]:
     if not roles:
         raise MaterialError("--maps names no map.")
     return ordered(roles)
+
+
+def open_material(paths, fit: str = "resize", toroidal: bool | None = None) -> Material:
+    """A material from files: one map (its siblings come along), a folder, or
+    several maps (roles from their names); a plain image is a one-map material."""
+    from .exemplar import MAX_FILE_BYTES
+    paths = [os.fspath(paths)] if isinstance(paths, (str, os.PathLike)) else [os.fspath(p) for p in paths]
+    found = assign_roles(paths)
+    return load_material([(r, p, data) for r, p, data in read_maps(found, MAX_FILE_BYTES)], fit, toroidal)

@@ -299,8 +299,8 @@ class Panels:
                 kind = "float" if ex.depth == 32 else f"{ex.depth}-bit"
                 imgui.text_disabled(f"{ex.original_size[0]}x{ex.original_size[1]}, {kind} {chans}")
             if not single:
-                imgui.same_line()
-                imgui.set_next_item_width(90)
+                imgui.same_line(150)
+                imgui.set_next_item_width(70)
                 w = float(weights.get(role, 0.0))
                 changed, v = imgui.slider_float("Analysis", w, 0.0, 2.0, "%.2f")
                 tip("How much this map decides which exemplar spots look alike (0: it only follows). "

@@ -151,8 +151,10 @@ void main() {
             float g = relief / (2.0 * d * float(s));  // height per finest pixel
             n = normalize(vec3(-hx * g, hy * g, 1.0));  // rows go down, y goes up
         }
-        float diffuse = max(dot(n, light), 0.0);
-        c.rgb = c.rgb * (0.22 + 0.95 * diffuse);
+        // Lambert, scaled so a flat surface keeps its base color at any light
+        // height: slopes facing the light brighten, the others darken to the ambient.
+        float diffuse = max(dot(n, light), 0.0) / max(light.z, 0.2);
+        c.rgb = min(c.rgb * (0.25 + 0.75 * diffuse), vec3(1.0));
     }
     if (has_alpha != 0 && (mode == 0 || mode == 3 || mode == 5)) {
         ivec2 chk = ivec2(q) / 8;
