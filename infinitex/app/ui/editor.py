@@ -601,6 +601,9 @@ class Editor:
 
     def _update_engine(self) -> None:
         s = self.session
+        if len(self._dropped) > 1 and not any(is_project_file(p) for p in self._dropped if os.path.isfile(p)):
+            paths, self._dropped = list(self._dropped), []  # several images dropped at once: one material's maps
+            self.confirm_discard(lambda: self.open_paths(paths))
         while self._dropped:
             path = self._dropped.pop(0)
             self.confirm_discard(lambda: self.open_path(path))
