@@ -404,8 +404,16 @@ class TiledExport:
                         if item is None:
                             more = False
                             break
-                        futures[pool.submit(_worker_tile, self.fmt, self.tile, _box(item[2]), self.coords,
-                                            item[3])] = item
+                        try:
+                            fut = pool.submit(_worker_tile, self.fmt, self.tile, _box(item[2]), self.coords, item[3])
+                        except BrokenProcessPool:  # a worker died since the last wait: this pool is done
+                            retry.append(item)
+                            broken = True
+                            break
+                        futures[fut] = item
+                    if broken:
+                        retry.extend(futures.values())
+                        break
                     if not futures:
                         break
                     ready, _ = wait(futures, return_when=FIRST_COMPLETED)
