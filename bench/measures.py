@@ -138,10 +138,65 @@ def histogram_distance(exemplar: np.ndarray, output: np.ndarray) -> float:
                           for c in range(ex.shape[2])]))
 
 
-def all_measures(exemplar, output, coords=None, m=None, toroidal=False) -> dict:
+PS_SCALES = 4  # steerable pyramid scales of the Portilla-Simoncelli statistics
+
+
+def _ps_luma(img: np.ndarray) -> np.ndarray:
+    """Luminance (Rec. 709) of an image, cropped to a multiple of 2^(PS_SCALES + 1) a side."""
+    x = _chan(np.asarray(img, dtype=np.float64))
+    if x.shape[2] >= 3:
+        y = x[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    else:
+        y = x[..., 0]
+    q = 1 << (PS_SCALES + 1)
+    h, w = (y.shape[0] // q) * q, (y.shape[1] // q) * q
+    if h < 2 * q or w < 2 * q:
+        raise ValueError(f"An image for the Portilla-Simoncelli statistics needs at least {2 * q} px a side.")
+    return y[:h, :w]
+
+
+_PS_MODELS: dict = {}
+
+
+def ps_statistics(img: np.ndarray) -> dict:
+    """The Portilla-Simoncelli (2000) texture statistics of an image's luminance,
+    by group (plenoptic's ``PortillaSimoncelli``, 4 scales, 4 orientations, on
+    CPU torch): {group name: float64 array of its finite values}."""
+    import torch
+    from plenoptic.models import PortillaSimoncelli
+    y = _ps_luma(img)
+    model = _PS_MODELS.get(y.shape)
+    if model is None:
+        model = _PS_MODELS[y.shape] = PortillaSimoncelli(y.shape, n_scales=PS_SCALES, n_orientations=4)
+    with torch.no_grad():
+        stats_ = model(torch.tensor(y, dtype=torch.float64)[None, None])
+        groups = model.convert_to_dict(stats_)
+    return {k: v.detach().cpu().numpy().astype(np.float64).ravel() for k, v in groups.items()}
+
+
+def ps_distance(exemplar: np.ndarray, output: np.ndarray) -> float:
+    """Portilla-Simoncelli texture-statistics distance: for each group of
+    statistics (pixel moments, auto-correlations, magnitude and cross-scale
+    correlations...), the relative L2 difference ||s_out - s_ex|| / ||s_ex||,
+    averaged over the groups (so no group's units dominate). 0 for the same
+    statistics; an image of another texture (or noise) scores around 1 or more."""
+    a, b = ps_statistics(exemplar), ps_statistics(output)
+    rel = []
+    for k, sa in a.items():
+        sb = b[k]
+        ok = np.isfinite(sa) & np.isfinite(sb)
+        if not ok.any():
+            continue
+        rel.append(np.linalg.norm(sb[ok] - sa[ok]) / max(np.linalg.norm(sa[ok]), 1e-12))
+    return float(np.mean(rel))
+
+
+def all_measures(exemplar, output, coords=None, m=None, toroidal=False, ps: bool = False) -> dict:
     energy, complete = neighborhood_energy(exemplar, output)
     d = {"energy": energy, "completeness": complete, "repetition": repetition(output),
          "histogram": histogram_distance(exemplar, output)}
+    if ps:
+        d["ps"] = ps_distance(exemplar, output)
     if coords is not None:
         d["coverage"], d["used"] = coverage(coords, m)
         d["verbatim_mean_px"], d["verbatim_max_px"] = verbatim_regions(coords, m, toroidal)

@@ -1,9 +1,10 @@
 """Quality and speed side by side: this project, the exemplar tiled, and G'MIC.
 
-    python -m bench.quality [--json OUT.json] [--sheet OUT.png] [--sizes 256 512] [--exemplars DIR]
+    python -m bench.quality [--json OUT.json] [--sheet OUT.png] [--sizes 256 512] [--exemplars DIR ...]
 
-For every exemplar (default ``../shared/exemplars``) and output size it measures
-(bench/measures.py):
+For every exemplar (default ``../shared/exemplars`` and our own structured ones,
+``bench/exemplars``: spots, cells, cracks, weave, text) and output size it
+measures (bench/measures.py):
 
 - ``energy`` / ``completeness``: multi-scale 5x5 neighborhood matching, output
   to exemplar and back (mean squared difference per value; lower is better);
@@ -12,7 +13,13 @@ For every exemplar (default ``../shared/exemplars``) and output size it measures
 - ``verbatim_mean_px`` (area-weighted mean size of regions copied verbatim)
   and ``verbatim_max_px``, from the coordinate map;
 - ``repetition``: highest autocorrelation peak away from the origin (1 = tiled);
-- ``histogram``: mean 1-D Wasserstein distance of the value histograms.
+- ``histogram``: mean 1-D Wasserstein distance of the value histograms;
+- ``ps``: Portilla-Simoncelli texture-statistics distance (plenoptic on CPU
+  torch, luminance, 4 scales x 4 orientations; relative difference per group
+  of statistics, averaged; 0 = the exemplar's statistics).
+
+and, over all exemplars, the medians of each measure per method and size, with
+ours / peer ratios and how many exemplars each method wins.
 
 for ``ours`` (default settings, a window at canvas position (10007, -20011)),
 ``tiled`` (the exemplar repeated) and ``peer`` (G'MIC ``syntexturize_matchpatch``,
@@ -133,16 +140,18 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--sheet", metavar="OUT.png", default=os.path.join(ROOT, "out", "contact-sheet.png"))
     ap.add_argument("--sizes", nargs="+", type=int, default=[256, 512])
-    ap.add_argument("--exemplars", default=os.path.join(os.path.dirname(ROOT), "shared", "exemplars"))
+    ap.add_argument("--exemplars", nargs="+", default=[os.path.join(os.path.dirname(ROOT), "shared", "exemplars"),
+                                                       os.path.join(ROOT, "bench", "exemplars")])
     args = ap.parse_args(argv)
     try:
         import gmic
+        import plenoptic  # noqa: F401  (the Portilla-Simoncelli statistics)
     except ImportError:
         sys.stderr.write("bench.quality needs the peer: run `bash scripts/setup.sh --bench` "
                          "(or .venv/bin/pip install -r requirements-bench.txt)\n")
         return 2
-    paths = sorted(p for p in glob.glob(os.path.join(args.exemplars, "*"))
-                   if p.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")))
+    paths = [p for folder in args.exemplars for p in sorted(glob.glob(os.path.join(folder, "*")))
+             if p.lower().endswith((".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"))]
     if not paths:
         sys.stderr.write(f"no exemplars in {args.exemplars}\n")
         return 2
@@ -187,9 +196,9 @@ def main(argv=None) -> int:
                                 "--size", str(n), str(n), "--origin", *map(str, ORIGIN), "-q"], env)
             peer_cold = _timed([sys.executable, "-c", f"import gmic; gmic.run({cmd!r})"], env)
             row = {
-                "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal),
-                "tiled": all_measures(ex.pixels, tiled, tiled_coords, m, an.toroidal),
-                "peer": all_measures(ex.pixels, peer),
+                "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal, ps=True),
+                "tiled": all_measures(ex.pixels, tiled, tiled_coords, m, an.toroidal, ps=True),
+                "peer": all_measures(ex.pixels, peer, ps=True),
                 "time": {"ours_warm_s": ours_warm, "peer_warm_s": peer_warm, "ours_cold_s": ours_cold,
                          "peer_cold_s": peer_cold, "warm_ratio_peer_over_ours": peer_warm / ours_warm,
                          "cold_ratio_peer_over_ours": peer_cold / ours_cold},
@@ -197,7 +206,7 @@ def main(argv=None) -> int:
             lat_out = None
             if case is not None:
                 lat_out = lattice_output(lat, full, n, scale)
-                row["lattice"] = all_measures(ex.pixels, lat_out)
+                row["lattice"] = all_measures(ex.pixels, lat_out, ps=True)
                 for method, img in (("ours", ours), ("tiled", tiled), ("peer", peer), ("lattice", lat_out)):
                     row[method]["lattice_regularity"] = regularity(ex.pixels, img, vectors)
             entry[str(n)] = row
@@ -211,7 +220,9 @@ def main(argv=None) -> int:
         results["exemplars"][name] = entry
         synth.release()
     results["renderer"] = renderer
+    results["summary"] = summarize(results)
     _print_table(results)
+    _print_summary(results["summary"])
     os.makedirs(os.path.dirname(os.path.abspath(args.sheet)), exist_ok=True)
     gap = 4
     rows = [np.pad(r, ((0, gap), (0, 0), (0, 0)), constant_values=255) for r in sheet_rows]
@@ -223,10 +234,48 @@ def main(argv=None) -> int:
     return 0
 
 
+SUMMARY_MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "histogram")
+
+
+def summarize(results: dict) -> dict:
+    """Per size: the median of each measure per method over all exemplars, ours / peer,
+    and how many exemplars ours beats the peer on (lower is better for each)."""
+    out = {}
+    for n in results["sizes"]:
+        rows = [e[str(n)] for e in results["exemplars"].values()]
+        s: dict = {"exemplars": len(rows)}
+        for meas in SUMMARY_MEASURES:
+            per = {}
+            for method in ("ours", "peer", "tiled"):
+                vals = [r[method][meas] for r in rows if meas in r[method]]
+                if vals:
+                    per[method] = float(np.median(vals))
+            if "ours" in per and "peer" in per:
+                per["ours_over_peer"] = per["ours"] / per["peer"] if per["peer"] else float("inf")
+                per["ours_wins"] = int(sum(r["ours"][meas] < r["peer"][meas] for r in rows
+                                           if meas in r["ours"] and meas in r["peer"]))
+            s[meas] = per
+        out[str(n)] = s
+    return out
+
+
+def _print_summary(summary: dict) -> None:
+    print("
+medians over all exemplars (lower is better); ours/peer; exemplars where ours beats the peer")
+    for n, s in summary.items():
+        for meas in SUMMARY_MEASURES:
+            d = s.get(meas, {})
+            if "ours" not in d:
+                continue
+            peer = f"peer {d['peer']:.5f}  ours/peer {d['ours_over_peer']:.2f}  ours wins {d['ours_wins']}/{s['exemplars']}" \
+                if "peer" in d else ""
+            print(f"{n:>5} {meas:<17} ours {d['ours']:.5f}  {peer}")
+
+
 def _print_table(results: dict) -> None:
     print(f"\nrenderer: {results['renderer']}")
     hdr = (f"{'exemplar':<13}{'size':>5} {'method':<6}{'energy':>9}{'complete':>9}{'cover':>7}{'used':>6}"
-           f"{'verb.mean':>10}{'verb.max':>9}{'repeat':>7}{'hist':>7}")
+           f"{'verb.mean':>10}{'verb.max':>9}{'repeat':>7}{'hist':>7}{'PS':>7}")
     print(hdr)
     for name, entry in results["exemplars"].items():
         for n in results["sizes"]:
@@ -240,8 +289,9 @@ def _print_table(results: dict) -> None:
                     else f"{'-':>10}{'-':>9}"
                 reg = d.get("lattice_regularity")
                 reg = f"  lattice regularity {reg[0]:.2f} / {reg[1]:.2f}" if reg else ""
+                ps = f"{d['ps']:7.3f}" if "ps" in d else f"{'-':>7}"
                 print(f"{name:<13}{n:>5} {method:<6}{d['energy']:9.5f}{d['completeness']:9.5f}{cov}{verb}"
-                      f"{d['repetition']:7.2f}{d['histogram']:7.3f}{reg}")
+                      f"{d['repetition']:7.2f}{d['histogram']:7.3f}{ps}{reg}")
             t = row["time"]
             print(f"{'':<19}time: ours {t['ours_warm_s'] * 1000:.0f} ms warm, {t['ours_cold_s']:.1f} s cold; "
                   f"peer {t['peer_warm_s'] * 1000:.0f} ms warm, {t['peer_cold_s']:.1f} s cold; "

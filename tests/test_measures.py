@@ -70,3 +70,29 @@ def test_coverage_even_and_single_pixel():
     assert abs(even - 1.0) < 1e-9 and used == 1.0
     one, used1 = coverage(np.zeros((64, 64, 2), dtype=int), m)
     assert one == 0.0 and used1 == 1 / (m * m)
+
+
+def test_portilla_simoncelli_distance_has_known_answers():
+    """The field's texture statistics (benchmark-only: plenoptic on CPU torch;
+    skipped where the bench extras are not installed): the same texture scores
+    about 0, another texture, a shuffle and noise score high."""
+    import pytest
+    pytest.importorskip("plenoptic")
+    from bench.measures import ps_distance
+    g = _gravel()
+    brick = np.asarray(Image.open(os.path.join(ROOT, "infinitex", "assets", "brick.png")).convert("L"),
+                       dtype=np.float64) / 255.0
+    rng = np.random.default_rng(0)
+    tiled = np.tile(g, (2, 2))
+    assert ps_distance(g, g) == 0.0
+    assert ps_distance(g, tiled) < 1e-3
+    shuffled = rng.permutation(tiled.ravel()).reshape(tiled.shape)
+    noise = rng.random((256, 256))
+    assert ps_distance(g, shuffled) > 0.8
+    assert ps_distance(g, noise) > 2.0
+    assert ps_distance(g, brick) > 0.8
+    # a synthesized gravel is far closer to the gravel than any of those
+    import infinitex as itx
+    ours = itx.synthesize(os.path.join(ROOT, "infinitex", "assets", "gravel.png"), size=(256, 256))
+    d = ps_distance(g, ours.astype(np.float64) / 255.0)
+    assert d < 0.5 * ps_distance(g, shuffled), d
