@@ -260,8 +260,7 @@ def summarize(results: dict) -> dict:
 
 
 def _print_summary(summary: dict) -> None:
-    print("
-medians over all exemplars (lower is better); ours/peer; exemplars where ours beats the peer")
+    print("\nmedians over all exemplars (lower is better); ours/peer; exemplars where ours beats the peer")
     for n, s in summary.items():
         for meas in SUMMARY_MEASURES:
             d = s.get(meas, {})

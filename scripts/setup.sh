@@ -4,7 +4,7 @@
 # the Python dependencies. Safe to run again; it only installs what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# --bench: also install the benchmark-only packages (requirements-bench.txt: the G'MIC peer).
+# --bench: also install the benchmark-only packages (requirements-bench.txt: the G'MIC peer, plenoptic on CPU torch).
 BENCH=0
 if [ "${1:-}" = "--bench" ]; then BENCH=1; fi
 

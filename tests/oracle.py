@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from infinitex.engine import fixed
-from infinitex.engine.analysis import Analysis
+from infinitex.engine.analysis import Analysis, border_margin
 from infinitex.engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
 from infinitex.engine.params import SynthParams, subpass_order
 
@@ -149,7 +149,7 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
 
 
 def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
-                    params: SynthParams, level: int, controls: Controls = NO_CONTROLS) -> np.ndarray:
+                    params: SynthParams, level: int, controls: Controls = NO_CONTROLS, subpass: int = 0) -> np.ndarray:
     s = params.subgrid
     lv = an.levels[level]
     h, m = an.h(level), an.size
@@ -174,6 +174,26 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
             better = cost < best
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
+    if params.walk and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
+        gx, gy = xs + origin[0], ys + origin[1]
+        period = params.level_period(level)
+        if period:
+            gx, gy = gx & (period - 1), gy & (period - 1)
+        wseed = fixed.walk_seed(params.seed, subpass)
+        border = None if an.toroidal else border_margin(m, h)
+        R = m >> 1
+        for t in range(params.walk):
+            if R < 2:
+                break
+            ox, oy = fixed.walk_offsets(gx, gy, level, wseed, t, R)
+            u = best_u + np.stack([ox, oy], axis=1)
+            u = (u & (m - 1)) if border is None else np.clip(u, border, m - 1 - border)
+            e = nbhd[u[:, 1], u[:, 0]] - ns
+            cost = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP) * psi
+            better = cost < best
+            best = np.where(better, cost, best)
+            best_u = np.where(better[:, None], u, best_u)
+            R >>= 1
     out = S.copy()
     out[ys, xs] = best_u
     return out
@@ -204,9 +224,11 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
         wx0, wy0, wx1, wy1 = wins[l]
         S = upsample(parent, porigin, (wx0, wy0), (wy1 - wy0, wx1 - wx0), an, params, l, controls)
         if l != uncorrected_level and l in params.corrected_levels():
+            n_sub = 0
             for order in subpass_order(s, params.passes):
                 for phase in order:
-                    S = correct_subpass(S, phase, (wx0, wy0), an, params, l, controls)
+                    S = correct_subpass(S, phase, (wx0, wy0), an, params, l, controls, n_sub)
+                    n_sub += 1
             S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]

@@ -83,3 +83,16 @@ def test_no_gl_gives_a_clear_message(tmp_path, monkeypatch, capsys):
     assert code == cli.EXIT_GL
     assert "No usable OpenGL 3.3" in err and "libegl1" in err and "Traceback" not in err
     assert not (tmp_path / "o.png").exists()
+
+
+def test_synth_random_walk_option(tmp_path):
+    """--walk N adds TBN10's random walk (another texture, the same for the same
+    arguments); out of range is a one-line usage error."""
+    a, b, c = (str(tmp_path / f"{n}.png") for n in "abc")
+    for out, extra in ((a, []), (b, ["--walk", "6"]), (c, ["--walk", "6"])):
+        r = run(GRAVEL, "-o", out, "--size", "64", "48", *extra, "-q")
+        assert r.returncode == 0, r.stderr
+    ia, ib, ic = (np.asarray(Image.open(p)) for p in (a, b, c))
+    assert np.array_equal(ib, ic) and not np.array_equal(ia, ib)
+    r = run(GRAVEL, "-o", a, "--walk", "13")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "walk" in r.stderr.lower()

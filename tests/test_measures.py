@@ -72,7 +72,7 @@ def test_coverage_even_and_single_pixel():
     assert one == 0.0 and used1 == 1 / (m * m)
 
 
-def test_portilla_simoncelli_distance_has_known_answers():
+def test_portilla_simoncelli_distance_has_known_answers(gpu):
     """The field's texture statistics (benchmark-only: plenoptic on CPU torch;
     skipped where the bench extras are not installed): the same texture scores
     about 0, another texture, a shuffle and noise score high."""
@@ -92,7 +92,12 @@ def test_portilla_simoncelli_distance_has_known_answers():
     assert ps_distance(g, noise) > 2.0
     assert ps_distance(g, brick) > 0.8
     # a synthesized gravel is far closer to the gravel than any of those
-    import infinitex as itx
-    ours = itx.synthesize(os.path.join(ROOT, "infinitex", "assets", "gravel.png"), size=(256, 256))
-    d = ps_distance(g, ours.astype(np.float64) / 255.0)
+    from infinitex.engine.analysis import analyze
+    from infinitex.engine.exemplar import load_exemplar
+    from infinitex.engine.pyramid import Rect
+    from infinitex.engine.synth import Synthesizer
+    synth = Synthesizer(analyze(load_exemplar(os.path.join(ROOT, "infinitex", "assets", "gravel.png"))), gpu=gpu)
+    ours = synth.colors(synth.window(Rect.of(0, 0, 256, 256)))
+    synth.release()
+    d = ps_distance(g, ours.astype(np.float64))
     assert d < 0.5 * ps_distance(g, shuffled), d

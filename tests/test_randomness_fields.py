@@ -56,6 +56,7 @@ def test_modulation_arithmetic(gpu):
             result = ivec4(modulated_rq(int(v.x), v.y, v.z), 0, 0, 0);
         }"""
     vert = GLSL_VERSION + "\n" + read_shader("fullscreen.vert")
+    gpu.activate()  # another test may have made its own context current
     prog = gpu.ctx.program(vertex_shader=vert, fragment_shader=src)
     vao = gpu.ctx.vertex_array(prog, [(gpu.quad, "2f", "in_pos")])
     inp = gpu.uint_texture((n, n), np.stack([rq, e, c, np.zeros_like(rq)], axis=-1))

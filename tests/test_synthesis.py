@@ -199,3 +199,32 @@ def test_several_headless_contexts_in_one_process(analyses, gpu):
     Synthesizer(an, gpu=other).window(Rect.of(0, 0, 16, 16))
     other.release()
     assert np.array_equal(synth.window(Rect.of(5, 7, 40, 30)), before)
+
+
+@pytest.mark.parametrize("name", ["gravel-appearance", "gravel-color", "torus-appearance"])
+def test_random_walk_matches_the_oracle_and_stays_deterministic(analyses, gpu, name):
+    """TBN10's coherent random walk (every choice from the hash): GL equals the
+    numpy oracle, overlapping windows agree near 0 and far away, toroidal
+    outputs stay periodic, and the walk changes the result."""
+    an = analyses[name]
+    params = replace(SynthParams.default(an.L), walk=6, seed=4)
+    synth = Synthesizer(an, params, gpu=gpu)
+    for x, y in [(3, -5), (-FAR + 17, FAR - 64)]:
+        gl = synth.window(Rect.of(x, y, 24, 20))
+        assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 24, 20)), (x, y)
+        big = synth.window(Rect.of(x - 40, y - 30, 100, 90))
+        assert np.array_equal(big[30:50, 40:64], gl)
+    plain = Synthesizer(an, replace(params, walk=0), gpu=gpu)
+    a, b = synth.window(Rect.of(0, 0, 96, 96)), plain.window(Rect.of(0, 0, 96, 96))
+    assert (a != b).any(axis=-1).mean() > 0.05
+    if name == "gravel-appearance":
+        n = 64
+        tile = synth.toroidal(n)
+        saved, synth.params = synth.params, replace(params, period=n)
+        try:
+            wide = synth.window(Rect.of(-n // 2, -n, 2 * n, 2 * n))
+        finally:
+            synth.params = saved
+        assert np.array_equal(wide, np.tile(tile, (3, 3, 1))[n:3 * n, n // 2:n // 2 + 2 * n])
+    plain.release()
+    synth.release()

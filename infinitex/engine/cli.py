@@ -115,6 +115,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--k", type=int, default=2, choices=(1, 2, 3, 4), help="similarity-set size")
     p.add_argument("--passes", type=_integer, default=2, help="correction passes c (0 to 8)")
     p.add_argument("--kappa", type=_number, default=0.5, help="coherence penalty (0 to 4)")
+    p.add_argument("--walk", type=_integer, default=0, metavar="N",
+                   help="TBN10 random-walk steps added to each correction (0 to 12; default 0: off)")
     p.add_argument("--fit", choices=("resize", "crop"), default="resize",
                    help="how a non power-of-two or non-square image becomes the exemplar")
     p.add_argument("--exemplar-toroidal", choices=("auto", "yes", "no"), default="auto",
@@ -267,7 +269,7 @@ def run_synth(argv: list[str]) -> int:
     if args.toroidal and (w != h or w & (w - 1) or not 32 <= w <= 4096):
         raise CliError(f"--toroidal needs a square power-of-two --size from 32 to 4096, not {w}x{h}.", EXIT_USAGE)
     try:
-        SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes, kappa=args.kappa).validate(0)
+        SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes, kappa=args.kappa, walk=args.walk).validate(0)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     check_out(args.output, (".png",), "output image")
@@ -313,7 +315,7 @@ def run_synth(argv: list[str]) -> int:
     an = analyze(ex, AnalysisSettings(model=args.model, k=args.k, lattice=grid), use_cache=not args.no_cache,
                  progress=_progress(args.quiet))
     try:
-        params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa)
+        params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa, walk=args.walk)
         params.validate(an.L)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None

@@ -101,6 +101,21 @@ def hash2(gx: np.ndarray, gy: np.ndarray, level: int, seed: int) -> tuple[np.nda
     return hx, hy
 
 
+WALK_STEP = 0x9E3779B9  # the walk's step t hashes with walk_seed + t * WALK_STEP (mod 2^32)
+
+
+def walk_seed(seed: int, subpass: int) -> int:
+    """The seed of the random walk in correction subpass number ``subpass`` (counted over all passes)."""
+    with np.errstate(over="ignore"):
+        return int(lowbias32(np.uint32((seed ^ ((subpass + 1) * 0x85EBCA6B)) & 0xFFFFFFFF)))
+
+
+def walk_offsets(gx: np.ndarray, gy: np.ndarray, level: int, wseed: int, t: int, radius: int):
+    """Step t's offset of the random walk, in [-radius, radius) per axis, as the correction shader computes it."""
+    hx, hy = hash2(gx, gy, level, (wseed + t * WALK_STEP) & 0xFFFFFFFF)
+    return (hx * radius) >> 10, (hy * radius) >> 10
+
+
 def jitter(gx: np.ndarray, gy: np.ndarray, level: int, seed: int, h: int, rq: int):
     """J_l(p) = floor(h * H(p) * r + 1/2), exactly as the upsample shader computes it."""
     hx, hy = hash2(gx, gy, level, seed)

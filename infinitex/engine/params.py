@@ -26,6 +26,7 @@ class SynthParams:
     kappa: float = 0.5
     corrected: tuple[int, ...] | None = None
     period: int = 0
+    walk: int = 0              # TBN10 random-walk steps added to each correction (0: off; radius m/2 halved)
 
     @classmethod
     def default(cls, levels: int, **kw) -> "SynthParams":
@@ -53,6 +54,8 @@ class SynthParams:
         fixed.psi_q(self.kappa)
         if not 0 <= self.passes <= 8:
             raise ValueError("Correction passes must be between 0 and 8.")
+        if not 0 <= self.walk <= 12:
+            raise ValueError("Random-walk steps must be between 0 and 12.")
         if not 1 <= self.subgrid <= 4:
             raise ValueError("The subpass grid size s must be between 1 and 4.")
         bad = [l for l in self.corrected_levels() if not 0 <= l <= levels]

@@ -23,6 +23,7 @@ import numpy as np
 from . import fixed
 from .controls import NO_CONTROLS, Controls
 from .gpu import Gpu, GpuAnalysis
+from .analysis import border_margin
 from .params import SynthParams, correction_margins, subpass_order
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
@@ -438,10 +439,15 @@ class Pyramid:
                          dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,
                          shift=lt.shift, psi=fixed.psi_q(p.kappa))
             prog["P"].write(lt.proj)
+            walk = p.walk if lshift is None else 0  # lattice levels keep their lattice candidates only
+            set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
+                         border=-1 if an.toroidal else border_margin(an.size, h))
+            n_sub = 0
             for order in subpass_order(s, p.passes):
                 for phase in order:
                     a.use(0)
-                    set_uniforms(prog, active_phase=phase)
+                    set_uniforms(prog, active_phase=phase, walk_seed=fixed.walk_seed(p.seed, n_sub))
+                    n_sub += 1
                     fb.use()
                     fb.viewport = (0, 0, region.w, region.h)
                     vao.render(moderngl.TRIANGLES)

@@ -27,6 +27,17 @@ uniform int m;
 uniform int shift;
 uniform int psi;              // (1 + kappa) in sixteenths
 uniform ivec4 P[2 * PROJ_ROWS];
+// TBN10 coherent random walk after the k-coherence candidates: `walk` steps
+// around the current best, radius m/2 halved each step (stops below 2), each
+// offset from the hash of the pixel's global position (mod the level's period),
+// the level, the seed and the subpass. Candidates stay within [border, m-1-border]
+// on a non-toroidal exemplar (border < 0: toroidal, wrap).
+uniform int walk;
+uniform ivec2 origin;         // global level-l position of scratch pixel (0, 0)
+uniform int level;
+uniform uint walk_seed;       // the synthesis seed mixed with the subpass number
+uniform int period;           // n_l, or 0
+uniform int border;
 
 out ivec4 result;
 
@@ -114,6 +125,28 @@ void main() {
                 best = cost;
                 best_u = u;
             }
+        }
+    }
+    if (walk > 0) {
+        ivec2 g = origin + p;
+        if (period > 0) g &= period - 1;
+        int R = m >> 1;
+        for (int t = 0; t < walk && R >= 2; ++t) {
+            ivec2 H = hash2(g, level, walk_seed + uint(t) * 0x9E3779B9u);  // in [-1024, 1024)
+            ivec2 off = floor_shift(ivec4(H * R, 0, 0), 10).xy;           // in [-R, R)
+            ivec2 u = best_u + off;
+            u = border < 0 ? (u & wrap) : clamp(u, ivec2(border), ivec2(m - 1 - border));
+            ivec4 e0, e1;
+            unpack8(texelFetch(nbhd, u, 0), e0, e1);
+            e0 -= lo;
+            e1 -= hi;
+            ivec4 sq = e0 * e0 + e1 * e1;
+            uint cost = uint(min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP)) * uint(psi);
+            if (cost < best) {
+                best = cost;
+                best_u = u;
+            }
+            R >>= 1;
         }
     }
     result = ivec4(best_u, 0, 0);

@@ -1,0 +1,118 @@
+"""What each synthesis setting does to quality and variety, on every bench exemplar.
+
+    python -m bench.experiments [--size 256] [--variants base,walk6,...] [--json OUT.json]
+
+For every exemplar of ``../shared/exemplars`` and ``bench/exemplars`` and every
+variant below (a change from the defaults), a SIZE^2 window at (10007, -20011)
+is measured (bench/measures.py): neighborhood energy, Portilla-Simoncelli
+distance, repetition and the mean size of verbatim copies (lower is better for
+all four), and the warm window time. Prints the medians per variant, writes
+them and every value to JSON (default bench/results/quality-experiments.json).
+Quality for the G'MIC peer comes from ``bench/quality.py``.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from bench.measures import neighborhood_energy, ps_distance, repetition, verbatim_regions  # noqa: E402
+from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
+from infinitex.engine.exemplar import load_exemplar  # noqa: E402
+from infinitex.engine.params import SynthParams  # noqa: E402
+from infinitex.engine.pyramid import Rect  # noqa: E402
+from infinitex.engine.synth import Synthesizer  # noqa: E402
+
+ORIGIN = (10007, -20011)
+# name: (what it changes, SynthParams changes, analysis changes, fine-level jitter (value, levels) or None)
+VARIANTS = {
+    "base": ("defaults (appearance, k 2, 2 passes, kappa 0.5, jitter 0.6)", {}, {}, None),
+    "walk6": ("TBN10 random walk, 6 steps, after the k-coherence candidates", {"walk": 6}, {}, None),
+    "passes3": ("3 correction passes", {"passes": 3}, {}, None),
+    "passes4": ("4 correction passes", {"passes": 4}, {}, None),
+    "kappa0": ("coherence kappa 0", {"kappa": 0.0}, {}, None),
+    "kappa1.5": ("coherence kappa 1.5", {"kappa": 1.5}, {}, None),
+    "k4": ("k = 4 similar spots", {}, {"k": 4}, None),
+    "color": ("LH05 5x5 color neighborhoods", {}, {"model": "color"}, None),
+    "color-passes3": ("color neighborhoods, 3 passes", {"passes": 3}, {"model": "color"}, None),
+    "subgrid3": ("3 x 3 subpasses", {"subgrid": 3}, {}, None),
+    "fine0.2": ("jitter 0.2 on the 2 finest levels", {}, {}, (0.2, 2)),
+    "fine0-5": ("no jitter on the 5 finest levels", {}, {}, (0.0, 5)),
+}
+MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "seconds")
+
+
+def exemplar_paths() -> list[str]:
+    folders = [os.path.join(os.path.dirname(ROOT), "shared", "exemplars"), os.path.join(ROOT, "bench", "exemplars")]
+    return [p for f in folders for p in sorted(glob.glob(os.path.join(f, "*.png")))]
+
+
+def params_for(L: int, changes: dict, fine) -> SynthParams:
+    p = replace(SynthParams.default(L), **changes)
+    if fine is not None:
+        value, levels = fine
+        p = replace(p, jitter=tuple(value if l > L - levels else r for l, r in enumerate(p.jitter)))
+    return p
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--json", default=os.path.join(ROOT, "bench", "results", "quality-experiments.json"))
+    a = ap.parse_args(argv)
+    names = [v for v in a.variants.split(",") if v]
+    unknown = [v for v in names if v not in VARIANTS]
+    if unknown:
+        sys.stderr.write(f"unknown variants {unknown}; choose among {', '.join(VARIANTS)}\n")
+        return 2
+    values = {v: {m: [] for m in MEASURES} for v in names}
+    paths = exemplar_paths()
+    for path in paths:
+        ex = load_exemplar(path)
+        analyses = {}
+        line = f"{os.path.splitext(os.path.basename(path))[0]:<12}"
+        for v in names:
+            _, changes, settings, fine = VARIANTS[v]
+            key = tuple(sorted(settings.items()))
+            if key not in analyses:
+                analyses[key] = analyze(ex, AnalysisSettings(**settings))
+            an = analyses[key]
+            with Synthesizer(an, params_for(an.L, changes, fine)) as s:
+                s.window(Rect.of(0, 0, 32, 32))  # shaders compiled
+                t0 = time.perf_counter()
+                coords = s.window(Rect.of(ORIGIN[0], ORIGIN[1], a.size, a.size))
+                dt = time.perf_counter() - t0
+                out = s.colors(coords)
+            e, _ = neighborhood_energy(ex.pixels, out)
+            row = {"energy": e, "ps": ps_distance(ex.pixels, out), "repetition": repetition(out),
+                   "verbatim_mean_px": verbatim_regions(coords, an.size, an.toroidal)[0], "seconds": dt}
+            for m in MEASURES:
+                values[v][m].append(float(row[m]))
+            line += f"  {v} E {e:.5f} PS {row['ps']:.3f}"
+        print(line, flush=True)
+    medians = {v: {m: float(np.median(values[v][m])) for m in MEASURES} for v in names}
+    print(f"\nmedians over {len(paths)} exemplars, {a.size}^2 windows (lower is better)")
+    print(f"{'variant':<15}{'energy':>9}{'PS':>8}{'repeat':>8}{'verbatim':>10}{'ms':>7}")
+    for v in names:
+        d = medians[v]
+        print(f"{v:<15}{d['energy']:9.5f}{d['ps']:8.3f}{d['repetition']:8.3f}{d['verbatim_mean_px']:10.1f}"
+              f"{d['seconds'] * 1000:7.0f}")
+    os.makedirs(os.path.dirname(a.json), exist_ok=True)
+    with open(a.json, "w") as f:
+        json.dump({"size": a.size, "origin": ORIGIN, "exemplars": [os.path.basename(p) for p in paths],
+                   "variants": {v: VARIANTS[v][0] for v in names}, "medians": medians, "values": values}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
