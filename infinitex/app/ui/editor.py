@@ -502,7 +502,8 @@ class Editor:
 
     def start_export(self, path: str, rect: Rect, toroidal: int = 0) -> None:
         if not os.path.splitext(path)[1]:
-            path += ".png"
+            single = self.session.material is None or self.session.material.single
+            path += ".tif" if self.export_depth == 32 and single else ".png"
         coords = os.path.splitext(path)[0] + "_coords.png" if self.write_coords else None
         try:
             check_output(path, (".png", ".tif", ".tiff"), "export")  # before any work

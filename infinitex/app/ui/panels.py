@@ -672,8 +672,9 @@ class Panels:
                 ed.dialogs.ask_path("Export rectangle", True, filt, lambda p: ed.start_streamed_export(p, r),
                                     default="rectangle" + {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png"))
             else:
-                ed.dialogs.ask_path("Export rectangle", True, PNG_FILTER, lambda p: ed.start_export(p, r),
-                                    default="rectangle.png")
+                flt, ext = self._export_filter()
+                ed.dialogs.ask_path("Export rectangle", True, flt, lambda p: ed.start_export(p, r),
+                                    default="rectangle" + ext)
         imgui.end_disabled()
         if streamed:
             tip("Rendered tile by tile in bounded memory. Stopped (Cancel, a crash), the same export continues "
