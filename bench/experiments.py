@@ -5,8 +5,10 @@
 For every exemplar of ``../shared/exemplars`` and ``bench/exemplars`` and every
 variant below (a change from the defaults), a SIZE^2 window at (10007, -20011)
 is measured (bench/measures.py): neighborhood energy, Portilla-Simoncelli
-distance, repetition and the mean size of verbatim copies (lower is better for
-all four), and the warm window time. Prints the medians per variant, writes
+distance, repetition, the mean size of verbatim copies, the fraction of seams
+sheared by one pixel (the zipper lines of 800% zoom) and the usage peak (the
+most used 16 px block of the exemplar over the mean: what makes gravel's
+zoomed-out streaks) - lower is better for all - and the warm window time. Prints the medians per variant, writes
 them and every value to JSON (default bench/results/quality-experiments.json).
 Quality for the G'MIC peer comes from ``bench/quality.py``.
 """
@@ -25,7 +27,14 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from bench.measures import neighborhood_energy, ps_distance, repetition, verbatim_regions  # noqa: E402
+from bench.measures import (  # noqa: E402
+    neighborhood_energy,
+    ps_distance,
+    repetition,
+    sheared_seams,
+    usage_peak,
+    verbatim_regions,
+)
 from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
 from infinitex.engine.params import SynthParams  # noqa: E402
@@ -48,7 +57,7 @@ VARIANTS = {
     "fine0.2": ("jitter 0.2 on the 2 finest levels", {}, {}, (0.2, 2)),
     "fine0-5": ("no jitter on the 5 finest levels", {}, {}, (0.0, 5)),
 }
-MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "seconds")
+MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "sheared", "usage_peak", "seconds")
 
 
 def exemplar_paths() -> list[str]:
@@ -95,18 +104,19 @@ def main(argv: list[str]) -> int:
                 out = s.colors(coords)
             e, _ = neighborhood_energy(ex.pixels, out)
             row = {"energy": e, "ps": ps_distance(ex.pixels, out), "repetition": repetition(out),
-                   "verbatim_mean_px": verbatim_regions(coords, an.size, an.toroidal)[0], "seconds": dt}
+                   "verbatim_mean_px": verbatim_regions(coords, an.size, an.toroidal)[0],
+                   "sheared": sheared_seams(coords, an.size), "usage_peak": usage_peak(coords, an.size), "seconds": dt}
             for m in MEASURES:
                 values[v][m].append(float(row[m]))
             line += f"  {v} E {e:.5f} PS {row['ps']:.3f}"
         print(line, flush=True)
     medians = {v: {m: float(np.median(values[v][m])) for m in MEASURES} for v in names}
     print(f"\nmedians over {len(paths)} exemplars, {a.size}^2 windows (lower is better)")
-    print(f"{'variant':<15}{'energy':>9}{'PS':>8}{'repeat':>8}{'verbatim':>10}{'ms':>7}")
+    print(f"{'variant':<15}{'energy':>9}{'PS':>8}{'repeat':>8}{'verbatim':>10}{'sheared':>9}{'usage':>7}{'ms':>7}")
     for v in names:
         d = medians[v]
         print(f"{v:<15}{d['energy']:9.5f}{d['ps']:8.3f}{d['repetition']:8.3f}{d['verbatim_mean_px']:10.1f}"
-              f"{d['seconds'] * 1000:7.0f}")
+              f"{d['sheared']:9.3f}{d['usage_peak']:7.2f}{d['seconds'] * 1000:7.0f}")
     os.makedirs(os.path.dirname(a.json), exist_ok=True)
     with open(a.json, "w") as f:
         json.dump({"size": a.size, "origin": ORIGIN, "exemplars": [os.path.basename(p) for p in paths],

@@ -81,6 +81,31 @@ def coverage(coords: np.ndarray, m: int) -> tuple[float, float]:
     return evenness, float((counts > 0).mean())
 
 
+def sheared_seams(coords: np.ndarray, m: int) -> float:
+    """Fraction of neighbor pairs (horizontal and vertical) whose coordinates
+    continue each other but for one exemplar pixel (S[p + e] - S[p] - e has
+    components in {-1, 0, 1}, not all 0): seams that magnification shows as
+    zipper lines (a strip repeated or skipped). Coordinates compare mod m."""
+    c = coords.astype(np.int64)
+    fractions = []
+    for a, b, e in ((c[:, :-1], c[:, 1:], np.array([1, 0])), (c[:-1], c[1:], np.array([0, 1]))):
+        d = (b - a - e) % m
+        d = np.where(d > m // 2, d - m, d)
+        cheb = np.abs(d).max(axis=-1)
+        fractions.append(float((cheb == 1).mean()))
+    return float(np.mean(fractions))
+
+
+def usage_peak(coords: np.ndarray, m: int, block: int = 16) -> float:
+    """How unevenly the exemplar is used, by blocks of ``block`` px: the most
+    used block's share over the mean share (1 = even; a block that recurs
+    everywhere, like gravel's dark band behind its zoomed-out streaks, scores high)."""
+    b = max(1, m // block)
+    idx = ((coords[..., 1].astype(np.int64) % m) * b // m) * b + ((coords[..., 0].astype(np.int64) % m) * b // m)
+    counts = np.bincount(idx.ravel(), minlength=b * b).astype(np.float64)
+    return float(counts.max() / counts.mean())
+
+
 def verbatim_regions(coords: np.ndarray, m: int, toroidal: bool = False,
                      mask: np.ndarray | None = None) -> tuple[float, int]:
     """(mean, max) size in pixels of verbatim-copied regions: connected pixels
@@ -200,4 +225,6 @@ def all_measures(exemplar, output, coords=None, m=None, toroidal=False, ps: bool
     if coords is not None:
         d["coverage"], d["used"] = coverage(coords, m)
         d["verbatim_mean_px"], d["verbatim_max_px"] = verbatim_regions(coords, m, toroidal)
+        d["sheared"] = sheared_seams(coords, m)
+        d["usage_peak"] = usage_peak(coords, m)
     return d

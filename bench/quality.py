@@ -14,6 +14,9 @@ measures (bench/measures.py):
   and ``verbatim_max_px``, from the coordinate map;
 - ``repetition``: highest autocorrelation peak away from the origin (1 = tiled);
 - ``histogram``: mean 1-D Wasserstein distance of the value histograms;
+- ``sheared`` (fraction of neighbor pairs one exemplar pixel off: zipper lines
+  when magnified) and ``usage_peak`` (the most used 16 px block of the
+  exemplar over the mean), from the coordinate map;
 - ``ps``: Portilla-Simoncelli texture-statistics distance (plenoptic on CPU
   torch, luminance, 4 scales x 4 orientations; relative difference per group
   of statistics, averaged; 0 = the exemplar's statistics).
@@ -234,7 +237,7 @@ def main(argv=None) -> int:
     return 0
 
 
-SUMMARY_MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "histogram")
+SUMMARY_MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "histogram", "sheared", "usage_peak")
 
 
 def summarize(results: dict) -> dict:

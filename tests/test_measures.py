@@ -6,6 +6,8 @@ from PIL import Image
 
 from bench.measures import (
     coverage,
+    sheared_seams,
+    usage_peak,
     histogram_distance,
     neighborhood_energy,
     repetition,
@@ -101,3 +103,20 @@ def test_portilla_simoncelli_distance_has_known_answers(gpu):
     synth.release()
     d = ps_distance(g, ours.astype(np.float64))
     assert d < 0.5 * ps_distance(g, shuffled), d
+
+
+def test_sheared_seams_and_usage_peak_have_known_answers():
+    """The defect figures: a plain tiling has no sheared seams and even usage;
+    a tiling whose rows slip by one pixel every 4 rows shears a quarter of the
+    vertical pairs; coordinates that keep returning to one block peak there."""
+    m = 64
+    yy, xx = np.mgrid[0:128, 0:128]
+    tiled = np.stack([xx % m, yy % m], axis=-1)
+    assert sheared_seams(tiled, m) == 0.0 and usage_peak(tiled, m) == 1.0
+    slipped = tiled.copy()
+    slipped[..., 0] = (xx + yy // 4) % m  # every 4th row starts one pixel further
+    assert abs(sheared_seams(slipped, m) - 0.5 * (31 / 127)) < 1e-9
+    rng = np.random.default_rng(1)
+    stuck = rng.integers(0, m, (128, 128, 2))
+    stuck[:64] = rng.integers(0, 16, (64, 128, 2))  # half the pixels from the first 16 px block
+    assert usage_peak(stuck, m) > 8.0 and usage_peak(tiled, m) == 1.0
