@@ -105,7 +105,7 @@ def text(m: int = M, seed: int = 5) -> np.ndarray:
     font = ImageFont.load_default(size=11)
     y = 1
     while y < m - 10:
-        line, x = [], 1
+        x = 1
         while True:
             w = words[int(rng.integers(len(words)))]
             width = draw.textlength(w + " ", font=font)

@@ -225,34 +225,25 @@ def run_export(argv: list[str]) -> int:
 
 def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str, role: str = "") -> int:
     """--format tiles|tiff|zarr: tile by tile in bounded memory, resumable (engine.tiled_export)."""
-    import hashlib
-    import json
-
+    from infinitex.engine.material import map_path
     from infinitex.engine.tiled_export import TiledExport
 
-    from .document import Project, project_to_json
+    from .session import export_key, project_synthesizer
     if session.controls.lattice is not None and geometry != "rectified" and not tor:
         raise CliError("Tiled exports of a lattice are written rectified: pass --geometry rectified.", EXIT_USAGE)
     synth = session.synth
     if tor:
         synth.set_params(replace(session.params, period=tor))
-    if role:  # one map of a material
+    if role:  # one map of a material: NAME_ROLE.tif, NAME_ROLE.1001.png..., NAME_ROLE.zarr
         synth.palette = session.material.stack(role)
-    # What decides the pixels: the whole document (exemplar included), the parameters used and the map.
-    key = hashlib.sha256(json.dumps([project_to_json(Project(doc), embed=True), repr(synth.params)]
-                                    + ([role] if role else []), sort_keys=True).encode()).hexdigest()
-    out = args.output
-    if role:  # NAME_ROLE.tif, NAME_ROLE.1001.png..., NAME_ROLE.zarr
-        base, ext = os.path.splitext(out)
-        out = f"{base}_{role}{ext}"
-    job = TiledExport(synth, rect, out, args.format, args.tile, key=key, coords=args.coords,
-                      L=session.analysis.L)
+    out = map_path(args.output, role) if role else args.output
+    job = TiledExport(synth, rect, out, args.format, args.tile, key=export_key(doc, synth.params, role),
+                      coords=args.coords, L=session.analysis.L)
     progress = ProgressBar("export", args.quiet)
     t0 = time.perf_counter()
     init = None
     if args.workers or args.scheduler:
-        from .session import ProjectSynthesizer
-        init = ProjectSynthesizer(json.dumps(project_to_json(Project(doc), embed=True)), tor, role)
+        init = project_synthesizer(doc, tor, role)
     job.run(lambda done, total: progress(done / total, f"tile {done}/{total}"), workers=args.workers,
             worker_init=init, scheduler=args.scheduler)
     if not args.quiet:

@@ -51,11 +51,6 @@ MAGNIFY_FACTORS = (1, 2, 4, 8)  # exports: output pixels per synthesized texel (
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
 
 
-def stack_u8(analysis: Analysis) -> np.ndarray:
-    """The Gaussian stack as uint8 (L+1, m, m, C): exactly what is displayed and exported."""
-    return np.stack([to_u8(lv.stack) for lv in analysis.levels])
-
-
 def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
     """uint8 (H, W, C) colors of exemplar coordinates (H, W, 2) at ``level``."""
     return stack[level][coords[..., 1], coords[..., 0]]
@@ -109,9 +104,8 @@ class AnalysisJob:
             self._progress(0.0, "Analyzing")
             an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress)
             if material is None:
-                material = single(ex)
-                material._stacks[IMAGE] = [lv.stack for lv in an.levels]  # the same Gaussian stack
-            for i, role in enumerate(material.roles):  # every map's stack, off the GUI thread
+                material = single(ex, [lv.stack for lv in an.levels])  # the same Gaussian stack
+            for role in material.roles:  # every map's stack, off the GUI thread
                 self.message = f"Filtering the {role} map"
                 material.stack(role)
             self.exemplar, self.analysis, self.material = ex, an, material
@@ -404,11 +398,7 @@ class Session:
 
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None) -> None:
         if material is None:
-            if doc.maps:
-                material = material_for(doc)
-            else:
-                material = single(ex)
-                material._stacks[IMAGE] = [lv.stack for lv in an.levels]
+            material = material_for(doc) if doc.maps else single(ex, [lv.stack for lv in an.levels])
         self.release_synthesis()
         self.exemplar, self.analysis, self.material = ex, an, material
         self._display = {}
@@ -418,7 +408,6 @@ class Session:
         self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16,
                                controls=self.controls)
         self.refiner = Refiner(self.pyramid, self.gpu)
-        self.stack = stack_u8(an) if material.single else None
         self.stack = self.display_stack(material.primary)
         self.key = doc.analysis_key()
         self.generation += 1
@@ -433,9 +422,7 @@ class Session:
         role = self.shown_map(role)
         st = self._display.get(role)
         if st is None:
-            st = self.stack if role == IMAGE and self.stack is not None else \
-                np.stack([to_u8(lv) for lv in self.material.stack(role)])
-            self._display[role] = st
+            st = self._display[role] = np.stack([to_u8(lv) for lv in self.material.stack(role)])
         return st
 
     def shape_map(self) -> tuple[str, str]:
@@ -560,7 +547,10 @@ class ExportJob:
                                          f"({cx}x{cy} px) divides: {max(cx, cy, 32)} px or more.")
         self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
                                controls=session.controls)
-        self.stack = session.stack
+        # What the files are made from, fixed now (the editor may install another analysis meanwhile).
+        self.material, self.exemplar = session.material, session.exemplar
+        self.stacks = {role: session.display_stack(role) for role, _, depth in self.outputs
+                       if depth == 8 and self.lattice is None and magnify == 1}
         self.L = an.L
         self.coords = np.zeros((rect.h, rect.w, 2), dtype=np.int32)
         self.tiles = [Rect(x, y, min(x + tile, rect.x1), min(y + tile, rect.y1))
@@ -612,30 +602,21 @@ class ExportJob:
 
     def pixels(self, role: str) -> np.ndarray:
         """One map of the export, float32 (H, W, C) in [0, 1]."""
-        mat = self.session.material
         if self.lattice is not None:
-            ex, r = self.session.exemplar, self.out_rect
+            ex, r = self.exemplar, self.out_rect
             source = ex.hires if ex.hires is not None else ex.pixels
             box = (self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1)
-            return render_original(self.coords, box, self.lattice, self.session.analysis.size, source,
-                                   r.x0, r.y0, r.w, r.h)
+            return render_original(self.coords, box, self.lattice, ex.size, source, r.x0, r.y0, r.w, r.h)
         if self.magnify > 1:
-            return mat.magnified(role, self.coords, self.magnify)
-        return mat.lookup(role, self.coords)
-
-    def image(self) -> np.ndarray:
-        """The first exported map as uint8 (what the editor's preview shows)."""
-        if self.lattice is None and self.magnify == 1 and self.outputs[0][0] == self.session.material.primary:
-            return colors_u8(self.stack, self.coords, self.L)
-        return to_u8(self.pixels(self.outputs[0][0]))
+            return self.material.magnified(role, self.coords, self.magnify)
+        return self.material.lookup(role, self.coords)
 
     def _write(self) -> None:
-        mat = self.session.material
         for role, path, depth in self.outputs:
-            if depth == 8 and self.lattice is None and self.magnify == 1 and role == mat.primary:
-                write_png(path, colors_u8(self.stack, self.coords, self.L))
+            if role in self.stacks:  # 8 bits at 1:1: looked up in the uint8 stack (a quarter of the memory)
+                write_png(path, colors_u8(self.stacks[role], self.coords, self.L))
             else:
-                write_image(path, self.pixels(role), depth, mat.maps[role].exemplar.value_range)
+                write_image(path, self.pixels(role), depth, self.material.maps[role].exemplar.value_range)
         if self.coords_path:
             write_png(self.coords_path, encode_coords(self.coords))
 

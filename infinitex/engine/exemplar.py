@@ -498,6 +498,17 @@ def load_full(path: str | os.PathLike) -> np.ndarray:
     return decode_full(data, os.path.basename(path) or path)
 
 
+def _fit_decoded(px: np.ndarray, fit: str, toroidal: bool | None, size: tuple[int, int]):
+    """(pixels, hires or None, size) of a whole decoded image by the fit rule
+    ("full": as it is; a small seamless pattern is repeated first)."""
+    if fit == "full":
+        return px, None, size
+    if min(size) < MIN_SIZE:
+        px = small_pattern(px, toroidal)
+    out, hires = fit_square(px, fit)
+    return out, hires, size
+
+
 def _png_bit_depth(data: bytes) -> int:
     """The bit depth in a PNG's IHDR (0 if ``data`` is not a PNG)."""
     if data[:8] != b"\x89PNG\r\n\x1a\n" or len(data) < 29 or data[12:16] != b"IHDR":
@@ -523,12 +534,7 @@ def _decode_png16(data: bytes, name: str, fit: str, toroidal: bool | None, w: in
     for c in range(a.shape[2]):
         px[:, :, c] = a[:, :, c] / np.float32(65535.0)
     del a
-    if fit == "full":
-        return px, None, (w, h)
-    if min(w, h) < MIN_SIZE:
-        px = small_pattern(px, toroidal)
-    out, hires = fit_square(px, fit)
-    return out, hires, (w, h)
+    return _fit_decoded(px, fit, toroidal, (w, h))
 
 
 def _is_tiff(data: bytes) -> bool:
@@ -570,12 +576,7 @@ def _decode_tiff_multi(data: bytes, name: str, fit: str, toroidal: bool | None, 
         px = (a / top).astype(np.float32)
         info.update(depth=8 if dtype.itemsize == 1 else 16, range=(0.0, 1.0))
     del a
-    if fit == "full":
-        return px, None, (w, h)
-    if min(w, h) < MIN_SIZE:
-        px = small_pattern(px, toroidal)
-    out, hires = fit_square(px, fit)
-    return out, hires, (w, h)
+    return _fit_decoded(px, fit, toroidal, (w, h))
 
 
 def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = None, info: dict | None = None):
@@ -583,14 +584,14 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
     receives the source's "depth" (8, 16, 32) and "range" (pixel 0 and 1 in its units)."""
     full = fit == "full"
     info = {} if info is None else info
-    if _is_tiff(data):
-        with _decoding(name):
-            try:
-                Image.open(io.BytesIO(data), formats=["TIFF"]).close()
-            except UnidentifiedImageError:
-                return _decode_tiff_multi(data, name, fit, toroidal, info)
     with _decoding(name):
-        with _open(data, name) as im0:
+        try:
+            im0 = _open(data, name)
+        except UnidentifiedImageError:
+            if _is_tiff(data):  # a TIFF Pillow cannot read: 2 to 4 channels of 16-bit integers or floats
+                return _decode_tiff_multi(data, name, fit, toroidal, info)
+            raise
+        with im0:
             if im0.format == "PNG" and im0.mode in ("RGB", "RGBA", "LA") and _png_bit_depth(data) == 16:
                 w, h = im0.size
                 im0.close()
@@ -630,10 +631,7 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
         if full or small:
             px = np.ascontiguousarray(np.stack([np.asarray(p, dtype=np.float32) for p in _planes(img, norm)],
                                                axis=2))
-            if full:
-                return px, None, size
-            px, hires = fit_square(small_pattern(px, toroidal), fit)
-            return px, hires, size
+            return _fit_decoded(px, fit, toroidal, size)
         px, hires = _fit_planes(_planes(img, norm), side, fit)
         del img
     return px, hires, size

@@ -400,9 +400,13 @@ def load_material(files: list[tuple[str, str, bytes]], fit: str = "resize", toro
     return Material(maps, tor)
 
 
-def single(ex: Exemplar) -> Material:
-    """The material of a single-image exemplar: its one map."""
-    return Material({IMAGE: MaterialMap(IMAGE, ex)}, ex.toroidal)
+def single(ex: Exemplar, stack: list[np.ndarray] | None = None) -> Material:
+    """The material of a single-image exemplar: its one map (``stack``: its
+    Gaussian stack when already computed, e.g. by the analysis)."""
+    mat = Material({IMAGE: MaterialMap(IMAGE, ex)}, ex.toroidal)
+    if stack is not None:
+        mat._stacks[IMAGE] = list(stack)
+    return mat
 
 
 def export_depths(material: Material, roles: list[str], depth: int | None, out: str) -> dict[str, int]:
@@ -422,14 +426,19 @@ def export_depths(material: Material, roles: list[str], depth: int | None, out: 
     return {r: depth or material.maps[r].depth for r in roles}
 
 
+def map_path(out: str, role: str, ext: str | None = None) -> str:
+    """A material map's file beside ``out``: NAME.png -> NAME_ROLE.png (or NAME_ROLE + ``ext``)."""
+    base, own = os.path.splitext(out)
+    return f"{base}_{role}{own if ext is None else ext}"
+
+
 def output_paths(out: str, roles: list[str], depths: dict[str, int]) -> list[tuple[str, str, int]]:
     """[(role, path, depth)]: ``OUT.png`` for a single image, else one file per
     map, ``OUT_basecolor.png``, ``OUT_height.tif`` (32-bit maps are TIFF)..."""
     from .exemplar import depth_extension
     if roles == [IMAGE]:
         return [(IMAGE, out, depths[IMAGE])]
-    base = os.path.splitext(out)[0]
-    return [(r, f"{base}_{r}{depth_extension(depths[r])}", depths[r]) for r in roles]
+    return [(r, map_path(out, r, depth_extension(depths[r])), depths[r]) for r in roles]
 
 
 def check_maps_spec(spec: str | None) -> None:

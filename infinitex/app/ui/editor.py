@@ -23,7 +23,7 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 )
 
 from infinitex.engine.gpu import GLUnavailable, Gpu
-from infinitex.engine.material import IMAGE, MaterialError, assign_roles
+from infinitex.engine.material import IMAGE, MaterialError, assign_roles, map_path
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import ReadError, WriteError, check_output, printable
 from infinitex.engine.tiled_export import check_zarr_output
@@ -537,8 +537,7 @@ class Editor:
                 check_output(os.path.splitext(path)[0] + "_coords" + ext, (ext,), "coordinate map")
             role = "" if self.session.material.single else self.shown_role()
             if role:  # one map per streamed export: the one shown
-                base, ext = os.path.splitext(path)
-                path = f"{base}_{role}{ext}"
+                path = map_path(path, role)
             self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.stream_tile,
                                              self.export_workers, coords=self.write_coords and fmt != "zarr",
                                              role=role)

@@ -63,34 +63,10 @@ bool coherent(ivec2 g, ivec2 e) {
     return d == ivec2(0);
 }
 
-// Synthesis magnification of any aligned map's stack (the lit preview's shape).
-vec4 magnified_map(sampler2DArray tex, ivec2 base, vec2 frac) {
-    vec2 F = frac - 0.5;
-    vec2 fb = floor(F);
-    vec2 t = F - fb;
-    float h = float(1 << k);
-    vec4 acc = vec4(0.0);
-    for (int j = 0; j < 2; j++) {
-        for (int i = 0; i < 2; i++) {
-            ivec2 c = ivec2(i, j);
-            ivec2 u = S(base + ivec2(fb) + c);
-            vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
-            float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
-            acc += w * texture(tex, vec3(uv, float(mag_layer)));
-        }
-    }
-    return acc;
-}
-
-// The shape map at level position frac: magnified, or the texel's value.
-vec4 shape_at(ivec2 base, vec2 frac, bool mag) {
-    if (mag) return magnified_map(shape, base, frac);
-    return texelFetch(shape, ivec3(S(base + ivec2(floor(frac))), layer), 0);
-}
-
 // LH05 section 5: extrapolate each of the 4 nearest texels' coordinates to
-// this point, sample the exemplar there, blend bilinearly.
-vec4 magnified(ivec2 base, vec2 frac) {
+// this point, sample there, blend bilinearly. source: 0 the stack, 1 the
+// hi-res exemplar, 2 the lit preview's shape map.
+vec4 magnified_from(ivec2 base, vec2 frac, int source) {
     vec2 F = frac - 0.5;
     vec2 fb = floor(F);
     vec2 t = F - fb;
@@ -103,13 +79,25 @@ vec4 magnified(ivec2 base, vec2 frac) {
             ivec2 c = ivec2(i, j);
             ivec2 u = S(base + ivec2(fb) + c);
             vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
-            vec4 s = use_hires != 0 ? textureGrad(hires, uv, ddx, ddy)
-                                    : texture(stack, vec3(uv, float(mag_layer)));
+            vec4 s;
+            if (source == 1) s = textureGrad(hires, uv, ddx, ddy);
+            else if (source == 2) s = texture(shape, vec3(uv, float(mag_layer)));
+            else s = texture(stack, vec3(uv, float(mag_layer)));
             float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
             acc += w * s;
         }
     }
     return acc;
+}
+
+vec4 magnified(ivec2 base, vec2 frac) {
+    return magnified_from(base, frac, use_hires != 0 ? 1 : 0);
+}
+
+// The shape map at level position frac: magnified, or the texel's value.
+vec4 shape_at(ivec2 base, vec2 frac, bool mag) {
+    if (mag) return magnified_from(base, frac, 2);
+    return texelFetch(shape, ivec3(S(base + ivec2(floor(frac))), layer), 0);
 }
 
 void main() {
