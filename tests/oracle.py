@@ -130,7 +130,7 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
     def at(dx, dy):
         return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
 
-    feat = lv.feat.astype(np.int64)
+    feat = lv.feat
     parts = []
     if an.model == "appearance":
         for dx, dy in fixed.DIAGONALS:
@@ -139,12 +139,12 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
                 u = at(ddx, ddy)
                 ux = (u[:, 0] + h * (dx - ddx)) & (m - 1)
                 uy = (u[:, 1] + h * (dy - ddy)) & (m - 1)
-                acc = acc + feat[uy, ux]
+                acc = acc + feat[uy, ux].astype(np.int64)
             parts.append(acc)
     else:
         for dx, dy in fixed.COLOR_TAPS:
             u = at(dx, dy) & (m - 1)
-            parts.append(feat[u[:, 1], u[:, 0]])
+            parts.append(feat[u[:, 1], u[:, 0]].astype(np.int64))
     return fixed.project(np.concatenate(parts, axis=1), lv.proj, lv.shift)
 
 
@@ -158,23 +158,29 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
     ys, xs = ys[sel], xs[sel]
     ns = synthesized_neighborhood(S, ys, xs, an, level)
-    nbhd = lv.nbhd.astype(np.int64)
+    nbhd = lv.nbhd
     best = np.full(len(ys), np.iinfo(np.int64).max)
     best_u = S[ys, xs].astype(np.int64)
     psi = fixed.psi_q(params.kappa)
     for dx, dy in fixed.CANDIDATE_OFFSETS:
         nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
         bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
-        for i in range(an.k):
-            sims = lv.lattice_simset if controls.lattice_shift(m, level) is not None else lv.simset
-            u = sims[by, bx, i].astype(np.int64)
-            e = nbhd[u[:, 1], u[:, 0]] - ns
+        for i in range(max(an.k, 1)):
+            if an.k == 0:  # no similarity sets: the coherent candidate, off the border band
+                u = np.stack([bx, by], axis=1)
+                if not an.toroidal:
+                    u = np.clip(u, border_margin(m, h), m - 1 - border_margin(m, h))
+            else:
+                sims = lv.lattice_simset if controls.lattice_shift(m, level) is not None else lv.simset
+                u = sims[by, bx, i].astype(np.int64)
+            e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
             dist = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP)
             cost = dist * (fixed.PSI_ONE if i == 0 else psi)
             better = cost < best
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
-    if params.walk and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
+    steps = params.walk_steps(an.k)
+    if steps and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
         gx, gy = xs + origin[0], ys + origin[1]
         period = params.level_period(level)
         if period:
@@ -182,13 +188,13 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
         wseed = fixed.walk_seed(params.seed, subpass)
         border = None if an.toroidal else border_margin(m, h)
         R = m >> 1
-        for t in range(params.walk):
+        for t in range(steps):
             if R < 2:
                 break
             ox, oy = fixed.walk_offsets(gx, gy, level, wseed, t, R)
             u = best_u + np.stack([ox, oy], axis=1)
             u = (u & (m - 1)) if border is None else np.clip(u, border, m - 1 - border)
-            e = nbhd[u[:, 1], u[:, 0]] - ns
+            e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
             cost = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP) * psi
             better = cost < best
             best = np.where(better, cost, best)

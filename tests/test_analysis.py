@@ -100,6 +100,7 @@ def test_cancel(tmp_path, small_ex):
 
 
 def test_bad_settings_rejected(small_ex):
-    for bad in (AnalysisSettings(k=5), AnalysisSettings(k=0), AnalysisSettings(model="fft")):
+    for bad in (AnalysisSettings(k=5), AnalysisSettings(k=-1), AnalysisSettings(model="fft"),
+                AnalysisSettings(k=0, lattice=(4, 4))):
         with pytest.raises(ValueError):
             analyze(small_ex, bad, use_cache=False)

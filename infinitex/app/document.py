@@ -187,11 +187,11 @@ class Document:
     def validate(self) -> None:
         """Raise ProjectError with a sentence if any setting is out of range."""
         if self.fit not in FIT_MODES:
-            raise ProjectError(f"Unknown import fit {self.fit!r} (use {' or '.join(FIT_MODES)}).")
+            raise ProjectError(f"Unknown import fit {self.fit!r} (use {', '.join(FIT_MODES)}).")
         if self.model not in MODELS:
             raise ProjectError(f"Unknown neighborhood model {self.model!r} (use {' or '.join(MODELS)}).")
-        if not 1 <= self.k <= 4:
-            raise ProjectError("k (similarity-set size) must be between 1 and 4.")
+        if not 0 <= self.k <= 4:
+            raise ProjectError("k (similarity-set size) must be between 0 (random-walk search) and 4.")
         if any(not (0.0 <= r <= 1.0) for r in self.jitter):
             raise ProjectError("Randomness values must lie between 0 and 1.")
         try:
@@ -720,7 +720,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         fit=_get(e, "fit", str, "exemplar"),
         toroidal=toroidal,
         model=_get(a, "model", str, "analysis"),
-        k=_int_in(a, "k", "analysis", 1, 4),
+        k=_int_in(a, "k", "analysis", 0, 4),
         jitter=tuple(float(r) for r in jitter),
         seed=_int_in(s, "seed", "synthesis", 0, 2 ** 32 - 1),
         passes=_int_in(s, "passes", "synthesis", 0, 8),

@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Callable
 
 import numpy as np
+from scipy import fft as sfft
 from scipy.spatial import cKDTree
 
 from . import fixed
@@ -41,7 +42,7 @@ from .exemplar import Exemplar
 from .lattice import lattice_level_limit
 from .safeio import atomic_write
 
-ANALYSIS_VERSION = 4
+ANALYSIS_VERSION = 5
 MODELS = ("appearance", "color")
 NDIM = fixed.NDIM
 
@@ -49,6 +50,11 @@ ProgressFn = Callable[[float, str], None]
 # Approximate nearest neighbors, as LH05 (Arya et al. 1998): each match is
 # within (1 + eps) of the exact one; 4x faster than exact search at 512^2.
 ANN_EPS = 1.0
+# Exemplars up to this side get k-coherence similarity sets; larger ones are
+# searched by TBN10's random walk (k = 0), which needs no precomputation.
+SIMSET_MAX = 512
+# Above SIMSET_MAX, PCA axes come from the statistics of PCA_SAMPLES^2 texels (a regular grid).
+PCA_SAMPLES = 256
 
 
 class AnalysisCancelled(Exception):
@@ -60,7 +66,7 @@ class AnalysisSettings:
     """What the analysis depends on besides the exemplar pixels."""
 
     model: str = "appearance"      # "appearance" (LH06, default) or "color" (LH05)
-    k: int = 2                     # similarity-set size, 1..4
+    k: int = 2                     # similarity-set size, 1..4; 0: none (TBN10 random-walk search)
     spacing: float = 0.05          # min distance between set entries, fraction of m
     appearance_sigma: float = 1.5  # Gaussian weight of the 5x5 appearance taps, in taps
     lattice: tuple[int, int] = (0, 0)  # (nx, ny) cells of a rectified near-regular exemplar; (0, 0): none
@@ -68,11 +74,13 @@ class AnalysisSettings:
     def validate(self) -> None:
         if self.model not in MODELS:
             raise ValueError(f"Unknown neighborhood model {self.model!r}; use 'appearance' or 'color'.")
-        if not 1 <= int(self.k) <= 4:
-            raise ValueError(f"k must be between 1 and 4, not {self.k}.")
+        if not 0 <= int(self.k) <= 4:
+            raise ValueError(f"k must be between 0 (random-walk search) and 4, not {self.k}.")
         if not 0.0 <= self.spacing < 0.5:
             raise ValueError("spacing must be a fraction of the exemplar size in [0, 0.5).")
         nx, ny = self.lattice
+        if (nx, ny) != (0, 0) and int(self.k) == 0:
+            raise ValueError("A lattice needs similarity sets: use k of 1 or more.")
         if (nx, ny) != (0, 0) and not all(n >= 1 and n & (n - 1) == 0 and n <= 16 for n in (nx, ny)):
             raise ValueError(f"Lattice cell counts must be powers of two up to 16, not {nx}x{ny}.")
 
@@ -80,11 +88,11 @@ class AnalysisSettings:
 @dataclass
 class LevelData:
     stack: np.ndarray      # float32 (m, m, C): E_l
-    feat: np.ndarray       # int16 (m, m, F): A_l (F=8) or colors (F=C)
+    feat: np.ndarray       # int8 (m, m, F): A_l (F=8) or colors (F=C)
     proj: np.ndarray       # int32 (T*F, 8): runtime neighborhood PCA, fixed point
     shift: int             # right shift applied to the projection
     nbhd: np.ndarray       # int16 (m, m, 8): N_E(u)
-    simset: np.ndarray     # int16 (m, m, k, 2): C^i(u) as (x, y)
+    simset: np.ndarray | None  # int16 (m, m, k, 2): C^i(u) as (x, y); None when k = 0
     lattice_simset: np.ndarray | None = None  # int16 (m, m, k, 2): restricted to u + cells, or None
 
 
@@ -114,7 +122,14 @@ class Analysis:
 
     @property
     def k(self) -> int:
-        return self.settings.k
+        """Similarity-set size in use; 0: none, the correction searches by random walk."""
+        return search_k(self.settings, self.size)
+
+
+def search_k(settings: AnalysisSettings, m: int) -> int:
+    """The similarity-set size an m x m exemplar gets: ``settings.k``, or 0 (random-walk
+    search, no sets) above SIMSET_MAX, where building the sets would take minutes."""
+    return int(settings.k) if m <= SIMSET_MAX else 0
 
 
 # ----------------------------------------------------------------------------
@@ -137,35 +152,110 @@ def augmented_period(pixels: np.ndarray, toroidal: bool) -> np.ndarray:
 def gaussian_stack(pixels: np.ndarray, toroidal: bool) -> list[np.ndarray]:
     """E_0..E_L, each m x m: E_L = E, E_l blurred with sigma = h_l / 2, E_0 = mean.
 
-    Filtering is done on the periodic augmentation by FFT, so borders see the
-    wrapped or mirrored texture, never a zero pad.
+    Filtering is done on the periodic augmentation, so borders see the wrapped
+    or mirrored texture, never a zero pad: by FFT of the exemplar when it is
+    toroidal, else by DCT-II, whose basis is exactly the mirrored 2m period
+    (a quarter of the work of filtering the 2m x 2m augmentation).
     """
-    m = pixels.shape[0]
+    m, C = pixels.shape[0], pixels.shape[2]
     L = m.bit_length() - 1
-    aug = augmented_period(pixels.astype(np.float64), toroidal)
-    n = aug.shape[0]
-    spectrum = np.fft.rfft2(aug, axes=(0, 1))
-    fy = np.fft.fftfreq(n)[:, None]
-    fx = np.fft.rfftfreq(n)[None, :]
+    if toroidal:
+        fy, fx = np.fft.fftfreq(m)[:, None], np.fft.rfftfreq(m)[None, :]
+    else:
+        fy, fx = (np.arange(m) / (2.0 * m))[:, None], (np.arange(m) / (2.0 * m))[None, :]
     f2 = fx * fx + fy * fy
-    out = []
-    for level in range(L + 1):
-        h = 1 << (L - level)
-        if level == 0:
-            e = np.broadcast_to(pixels.mean(axis=(0, 1), dtype=np.float64), pixels.shape)
-        elif h == 1:
-            e = pixels
+    out = [np.empty_like(pixels, dtype=np.float32) for _ in range(1, L)]
+    for c in range(C):  # one channel at a time: a fraction of the memory
+        plane = pixels[:, :, c].astype(np.float64)
+        if toroidal:
+            spectrum = sfft.rfft2(plane, workers=-1)
         else:
-            sigma = h / 2.0
-            gain = np.exp(-2.0 * (np.pi ** 2) * (sigma ** 2) * f2)[:, :, None]
-            e = np.fft.irfft2(spectrum * gain, s=(n, n), axes=(0, 1))[:m, :m]
-        out.append(np.ascontiguousarray(e, dtype=np.float32))
+            spectrum = sfft.dctn(plane, type=2, norm="ortho", workers=-1)
+        for level in range(1, L):
+            gain = np.exp(-2.0 * (np.pi ** 2) * ((1 << (L - level)) / 2.0) ** 2 * f2)
+            if toroidal:
+                out[level - 1][:, :, c] = sfft.irfft2(spectrum * gain, s=(m, m), workers=-1)
+            else:
+                out[level - 1][:, :, c] = sfft.idctn(spectrum * gain, type=2, norm="ortho", workers=-1)
+    # E_0 is the mean (a read-only broadcast: no memory), E_L the exemplar itself.
+    mean = np.broadcast_to(pixels.mean(axis=(0, 1), dtype=np.float64).astype(np.float32), pixels.shape)
+    return [mean] + out + [np.asarray(pixels, dtype=np.float32)]
+
+
+def _tap_index(n: int, offset: int, m: int, mirror: bool, sample: int = 1) -> np.ndarray:
+    """Indices (into an m-wide axis) of positions ``0, sample, ... < n`` moved by
+    ``offset`` in the periodic augmentation: wrapped mod m, or mirrored (period 2m)."""
+    i = (np.arange(0, n, sample) + offset) % (2 * m if mirror else m)
+    return np.where(i < m, i, 2 * m - 1 - i) if mirror else i
+
+
+def _tap(img: np.ndarray, dx: int, dy: int, mirror: bool, sample: int = 1,
+         rows: tuple[int, int] | None = None) -> np.ndarray:
+    """img'[y, x] = img_aug[y + dy, x + dx] on the (sampled) grid, for the rows
+    [y0, y1) of the result when ``rows`` is given."""
+    m = img.shape[0]
+    ri = _tap_index(m, dy, m, mirror, sample)
+    if rows is not None:
+        ri = ri[rows[0]:rows[1]]
+    return img[np.ix_(ri, _tap_index(m, dx, m, mirror, sample))]
+
+
+def _runs(idx: np.ndarray) -> list[tuple[int, int, slice]]:
+    """``idx`` as runs (a, b, source slice) with idx[a:b] == range(...)[source]:
+    tap indices are a few stretches of step +1 or -1 (wrapped or mirrored), so
+    a tap is copied by slices instead of a gather, 4x faster."""
+    d = np.diff(idx)
+    starts = [0] + [j + 1 for j in np.nonzero(np.abs(d) != 1)[0]] + \
+        [j + 2 for j in np.nonzero(d[1:] != d[:-1])[0]] + [len(idx)]
+    starts = sorted(set(starts))
+    out = []
+    for a, b in zip(starts[:-1], starts[1:]):
+        i0 = int(idx[a])
+        step = int(idx[a + 1] - i0) if b - a > 1 else 1
+        stop = i0 + step * (b - a)
+        out.append((a, b, slice(i0, stop if stop >= 0 else None, step)))
     return out
 
 
-def _periodic_shift(img: np.ndarray, dx: int, dy: int) -> np.ndarray:
-    """img'[y, x] = img[(y + dy) mod n, (x + dx) mod n]."""
-    return np.roll(img, shift=(-dy, -dx), axis=(0, 1))
+def _row_chunks(m: int, texels: int = 1 << 17):
+    """Row ranges of about ``texels`` texels: a tap matrix of that many rows fits
+    the CPU caches' neighborhood and keeps the analysis' peak memory small."""
+    step = max(1, texels // m)
+    for y0 in range(0, m, step):
+        yield y0, min(m, y0 + step)
+
+
+def _projected(img: np.ndarray, taps, weights: np.ndarray, mirror: bool, out: np.ndarray,
+               finish=lambda band: band) -> np.ndarray:
+    """out[u] = finish(sum_t img_aug[u + taps[t]] @ weights[t*C:(t+1)*C]) for
+    every texel u; ``out`` is (m*m, D). Built a band of rows at a time in
+    float32: the band's taps side by side (copied by slices, see :func:`_runs`),
+    one matrix product (BLAS) each."""
+    m, C = img.shape[0], img.shape[2]
+    planes = np.ascontiguousarray(np.moveaxis(img, 2, 0))   # (C, m, m): every tap copy is whole rows
+    wt = np.ascontiguousarray(weights.T, dtype=np.float32)  # (D, T*C)
+    plan = [(_runs(_tap_index(m, dy, m, mirror)), _runs(_tap_index(m, dx, m, mirror))) for dx, dy in taps]
+    for y0, y1 in _row_chunks(m):
+        x = np.empty((len(taps) * C, y1 - y0, m), dtype=np.float32)
+        for t, (rows, cols) in enumerate(plan):
+            for ra, rb, rs in rows:
+                a, b = max(ra, y0), min(rb, y1)
+                if a >= b:
+                    continue
+                r0 = rs.start + rs.step * (a - ra)
+                r1 = r0 + rs.step * (b - a)
+                rsl = slice(r0, r1 if r1 >= 0 else None, rs.step)
+                for ca, cb, cs in cols:
+                    x[t * C:(t + 1) * C, a - y0:b - y0, ca:cb] = planes[:, rsl, cs]
+        out[y0 * m:y1 * m] = finish((wt @ x.reshape(len(taps) * C, -1)).T)
+    return out
+
+
+def sample_step(m: int) -> int:
+    """Grid step of the texels whose statistics give the PCA axes: every texel
+    up to SIMSET_MAX a side; above, a regular subgrid of PCA_SAMPLES^2 of them
+    (plenty for a 75 x 75 covariance, and a small fraction of the memory)."""
+    return 1 if m <= SIMSET_MAX else max(1, m // PCA_SAMPLES)
 
 
 # ----------------------------------------------------------------------------
@@ -188,43 +278,73 @@ def _pca(x: np.ndarray, dims: int) -> np.ndarray:
     return v * signs
 
 
-def appearance_features(stack_aug: np.ndarray, m: int, h: int, sigma: float) -> np.ndarray:
-    """LH06 appearance vectors of one level, quantized to int16 in [-127, 127].
+def appearance_features(stack: np.ndarray, h: int, sigma: float, toroidal: bool) -> np.ndarray:
+    """LH06 appearance vectors of one level, quantized to int8 in [-127, 127].
 
-    ``stack_aug`` is the level's periodic augmentation (m or 2m wide). Taps are
-    ``E_l[u + h*d]``, d in [-2, 2]^2, weighted by exp(-|d|^2 / 2 sigma^2).
+    Taps are ``E_l[u + h*d]`` of the level's periodic augmentation, d in
+    [-2, 2]^2, weighted by exp(-|d|^2 / 2 sigma^2); the PCA axes come from the
+    taps on the :func:`sample_step` grid, and every texel is projected on them
+    a band of rows at a time, so the 25 * C-wide matrix never exists at full size.
     """
-    taps = []
-    for dy in range(-2, 3):
-        for dx in range(-2, 3):
-            wgt = np.exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma))
-            taps.append(wgt * _periodic_shift(stack_aug, dx * h, dy * h)[:m, :m])
-    x = np.concatenate(taps, axis=2).reshape(m * m, -1)
+    m, C = stack.shape[0], stack.shape[2]
+    mirror = not toroidal
+    offsets = [(dx * h, dy * h) for dy in range(-2, 3) for dx in range(-2, 3)]
+    wgt = np.repeat([np.exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma * h * h)) for dx, dy in offsets], C)
+    st = sample_step(m)
+    x = np.concatenate([_tap(stack, dx, dy, mirror, st).astype(np.float64) for dx, dy in offsets],
+                       axis=2).reshape(-1, len(offsets) * C) * wgt
     axes = _pca(x, NDIM)
-    a = (x - x.mean(axis=0, keepdims=True)) @ axes
-    peak = np.abs(a).max()
-    scale = fixed.FEAT_MAX / peak if peak > 1e-12 else 0.0
-    return np.rint(a * scale).reshape(m, m, NDIM).astype(np.int16)
+    offset = (x.mean(axis=0) @ axes).astype(np.float32)
+    # The scale comes from the sampled texels (all of them up to PCA_SAMPLES a
+    # side); on a larger exemplar the rare vector beyond their peak is clipped.
+    peak = float(np.abs(x @ axes - offset).max())
+    del x
+    scale = np.float32(fixed.FEAT_MAX / peak if peak > 1e-12 else 0.0)
+
+    def quantized(band: np.ndarray) -> np.ndarray:
+        band -= offset
+        band *= scale
+        return np.clip(np.rint(band, out=band), -fixed.FEAT_MAX, fixed.FEAT_MAX).astype(np.int8)
+
+    out = np.empty((m * m, NDIM), np.int8)
+    return _projected(stack, offsets, wgt[:, None] * axes, mirror, out, quantized).reshape(m, m, NDIM)
 
 
 def color_features(stack: np.ndarray) -> np.ndarray:
-    """LH05 color model: colors quantized to int16 in [0, 127]."""
-    return np.rint(np.clip(stack, 0.0, 1.0) * fixed.FEAT_MAX).astype(np.int16)
+    """LH05 color model: colors quantized to int8 in [0, 127]."""
+    return np.rint(np.clip(stack, 0.0, 1.0) * fixed.FEAT_MAX).astype(np.int8)
 
 
-def gather_exemplar_neighborhood(feat: np.ndarray, h: int, model: str) -> np.ndarray:
-    """The unprojected runtime neighborhood of every exemplar texel, int64 (m*m, T*F).
-
-    Appearance: 3 * A[u + h*d] for the 4 diagonals (the synthesized side sums 3
-    predictions). Color: E[u + h*d] for d in [-2, 2]^2. Reads wrap mod m, as
-    the shader's do.
-    """
+def _neighborhood_taps(feat: np.ndarray, h: int, model: str, sample: int = 1):
+    """The taps of the unprojected runtime neighborhood, each (n, F) float64
+    (integers, exact): 3 * A[u + h*d] for the 4 diagonals (the synthesized side
+    sums 3 predictions), or E[u + h*d] for d in [-2, 2]^2. Reads wrap mod m, as
+    the shader's do."""
     m = feat.shape[0]
-    f64 = feat.astype(np.int64)
-    parts = [fixed.APPEARANCE_PREDICTIONS * _periodic_shift(f64, dx * h, dy * h) if model == "appearance"
-             else _periodic_shift(f64, dx * h, dy * h)
-             for dx, dy in fixed.taps(model)]
-    return np.concatenate(parts, axis=2).reshape(m * m, -1)
+    mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
+    for dx, dy in fixed.taps(model):
+        yield mult * _tap(feat, dx * h, dy * h, False, sample).reshape(-1, feat.shape[2]).astype(np.float64)
+
+
+def gather_exemplar_neighborhood(feat: np.ndarray, h: int, model: str, sample: int = 1) -> np.ndarray:
+    """The unprojected runtime neighborhood of every (sampled) exemplar texel, int64 (n, T*F)."""
+    return np.concatenate(list(_neighborhood_taps(feat, h, model, sample)), axis=1).astype(np.int64)
+
+
+def exemplar_neighborhoods(feat: np.ndarray, h: int, model: str, proj: np.ndarray, shift: int) -> np.ndarray:
+    """N_E(u) for every texel, int16 (m, m, 8): exactly fixed.project of the
+    gathered neighborhood. Every product and partial sum is an integer below
+    2^24 in magnitude (features <= 3 * 127, projection entries <= PROJ_ONE, at
+    most 100 terms), so float32 BLAS computes it exactly, in any order."""
+    m, F = feat.shape[0], feat.shape[2]
+    mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
+    offsets = [(dx * h, dy * h) for dx, dy in fixed.taps(model)]
+    p = proj.astype(np.int64)
+    assert mult * fixed.FEAT_MAX * int(np.abs(p).sum(axis=0).max()) < 1 << 24
+    out = np.empty((m * m, NDIM), np.int16)
+    _projected(feat, offsets, mult * p, False, out,
+               lambda band: np.right_shift(band.astype(np.int64), shift).astype(np.int16))
+    return out.reshape(m, m, NDIM)
 
 
 def runtime_projection(n_raw: np.ndarray, feat_max_abs: int, model: str) -> tuple[np.ndarray, int]:
@@ -379,7 +499,7 @@ def default_cache_dir() -> str:
 
 def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | None) -> list[LevelData]:
     m, L = ex.size, ex.levels
-    k = int(settings.k)
+    k = search_k(settings, m)
     report = progress or (lambda f, msg: None)
     report(0.0, "Gaussian stack")
     stack = gaussian_stack(ex.pixels, ex.toroidal)
@@ -391,15 +511,17 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
         step = 0.95 / (L + 1)
         report(base, f"level {level}/{L}: neighborhoods")
         if settings.model == "appearance":
-            aug = augmented_period(stack[level].astype(np.float64), ex.toroidal)
-            feat = appearance_features(aug, m, h, settings.appearance_sigma)
+            feat = appearance_features(stack[level], h, settings.appearance_sigma, ex.toroidal)
         else:
             feat = color_features(stack[level])
-        n_raw = gather_exemplar_neighborhood(feat, h, settings.model)
-        proj, shift = runtime_projection(n_raw, int(np.abs(feat).max()), settings.model)
-        nbhd = fixed.project(n_raw, proj, shift).reshape(m, m, NDIM).astype(np.int16)
+        sampled = gather_exemplar_neighborhood(feat, h, settings.model, sample_step(m))
+        proj, shift = runtime_projection(sampled, int(np.abs(feat).max()), settings.model)
+        del sampled
+        nbhd = exemplar_neighborhoods(feat, h, settings.model, proj, shift)
         report(base + 0.3 * step, f"level {level}/{L}: similarity sets")
-        if level == 0:
+        if k == 0:
+            sims = None
+        elif level == 0:
             ys, xs = np.mgrid[0:m, 0:m]
             ident = np.stack([xs, ys], axis=-1)[:, :, None, :]
             sims = np.repeat(ident, k, axis=2).astype(np.int16)
@@ -417,8 +539,10 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
 def _save(path: str, an: Analysis) -> None:
     arrays = {}
     for i, lv in enumerate(an.levels):
-        for name in ("stack", "feat", "proj", "nbhd", "simset"):
+        for name in ("stack", "feat", "proj", "nbhd"):
             arrays[f"{name}{i}"] = getattr(lv, name)
+        if lv.simset is not None:
+            arrays[f"simset{i}"] = lv.simset
         arrays[f"shift{i}"] = np.array(lv.shift)
         if lv.lattice_simset is not None:
             arrays[f"lattice_simset{i}"] = lv.lattice_simset
@@ -442,13 +566,14 @@ def _load(path: str, key: str, settings: AnalysisSettings, ex: Exemplar) -> Anal
             levels = []
             for i in range(L + 1):
                 lsims = z[f"lattice_simset{i}"] if f"lattice_simset{i}" in z.files else None
+                k = search_k(settings, m)
                 lv = LevelData(stack=z[f"stack{i}"], feat=z[f"feat{i}"], proj=z[f"proj{i}"],
-                               shift=int(z[f"shift{i}"]), nbhd=z[f"nbhd{i}"], simset=z[f"simset{i}"],
-                               lattice_simset=lsims)
+                               shift=int(z[f"shift{i}"]), nbhd=z[f"nbhd{i}"],
+                               simset=z[f"simset{i}"] if k else None, lattice_simset=lsims)
                 if (lsims is None) == (settings.lattice != (0, 0) and 0 < i <= lattice_level_limit(m, *settings.lattice)):
                     return None
                 if lv.stack.shape != (m, m, ex.channels) or lv.nbhd.shape != (m, m, NDIM) \
-                        or lv.simset.shape != (m, m, settings.k, 2):
+                        or (k and lv.simset.shape != (m, m, k, 2)):
                     return None
                 levels.append(lv)
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, json.JSONDecodeError,

@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .exemplar import FIT_MODES
 from .pyramid import COORD_LIMIT
 from .safeio import WriteError, atomic_write, check_output, printable
 from .synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
@@ -112,13 +113,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--coords", metavar="OUT.npy", help="save the (H, W, 2) int32 exemplar (x, y) map")
     p.add_argument("--model", choices=("appearance", "color"), default="appearance",
                    help="neighborhood model: appearance space (LH06) or 5x5 colors (LH05)")
-    p.add_argument("--k", type=int, default=2, choices=(1, 2, 3, 4), help="similarity-set size")
+    p.add_argument("--k", type=int, default=2, choices=(0, 1, 2, 3, 4),
+                   help="similarity-set size; 0: none, TBN10 random-walk search (always so over 512 px)")
     p.add_argument("--passes", type=_integer, default=2, help="correction passes c (0 to 8)")
     p.add_argument("--kappa", type=_number, default=0.5, help="coherence penalty (0 to 4)")
-    p.add_argument("--walk", type=_integer, default=0, metavar="N",
-                   help="TBN10 random-walk steps added to each correction (0 to 12; default 0: off)")
-    p.add_argument("--fit", choices=("resize", "crop"), default="resize",
-                   help="how a non power-of-two or non-square image becomes the exemplar")
+    p.add_argument("--walk", type=_integer, default=None, metavar="N",
+                   help="TBN10 random-walk steps added to each correction (0 to 12; default: 6 when the "
+                        "analysis has no similarity sets, --k 0 or an exemplar over 512 px, else 0)")
+    p.add_argument("--fit", choices=FIT_MODES, default="resize",
+                   help="how a non power-of-two or non-square image becomes the exemplar: resize or crop to at "
+                        "most 512 px, or with -2048 to at most 2048 px (large photos)")
     p.add_argument("--exemplar-toroidal", choices=("auto", "yes", "no"), default="auto",
                    help="does the exemplar tile? (auto: guessed from its wrap-around seam)")
     add_randomness_args(p)

@@ -1,18 +1,20 @@
 """Exemplar import: any image Pillow reads, brought to a power-of-two square.
 
-The synthesis needs an ``m x m`` exemplar with ``m = 2^L`` between 32 and 512
-(ALGORITHM.md section 1). Images that already are such squares are used as
-they are. Anything else is brought there by one of two rules, chosen by the
-user and never applied silently:
+The synthesis needs an ``m x m`` exemplar with ``m = 2^L`` between 32 and 2048
+(ALGORITHM.md section 1). Images that already are such squares (up to the
+rule's limit) are used as they are. Anything else is brought there by one of
+two rules, chosen by the user and never applied silently, each up to 512 px
+(``"resize"``, ``"crop"``) or up to 2048 px (``"resize-2048"``,
+``"crop-2048"``: large photos, analyzed with the random-walk search):
 
 ``"resize"`` (default)
     Center-crop the largest square (so the aspect ratio is never distorted),
     then resample it (Lanczos) to the power of two nearest to its side in
-    log scale, clamped to 32..512. The square before resampling is kept as
+    log scale, clamped to 32..512 (or 2048). The square before resampling is kept as
     ``hires`` when it was larger, for synthesis magnification.
 ``"crop"``
     Center-crop a square whose side is the largest power of two that fits,
-    at most 512. No resampling: pixels stay as they were.
+    at most 512 (or 2048). No resampling: pixels stay as they were.
 
 Pixel values become float32 in [0, 1] with 1 (L), 2 (LA), 3 (RGB) or 4 (RGBA)
 channels; 16-bit and float images keep their precision up to that point.
@@ -41,7 +43,8 @@ from .safeio import ReadError, atomic_write, printable, read_limited
 
 MIN_SIZE = 32
 SMALL_MIN = 4                        # seamless patterns from this size up are repeated to MIN_SIZE
-MAX_SIZE = 512
+MAX_SIZE = 2048                      # the largest exemplar side (the "-2048" fit rules)
+DEFAULT_MAX = 512                    # the largest side the plain fit rules make
 MAX_INPUT_PIXELS = 64 * 1024 * 1024  # 8192^2: bigger inputs are refused up front
 MAX_FILE_BYTES = 512 * 1024 * 1024   # image files larger than this are not read
 IMPORT_BUDGET = 1024 * 1024 * 1024   # bytes an import may use at its peak (file + decoded + floats)
@@ -51,7 +54,7 @@ FULL_MAX_PIXELS = 16 * 1024 * 1024   # a whole image kept unfitted (a lattice's 
 # a program (EPS runs Ghostscript) or is a container of other formats.
 DECODERS = ("PNG", "JPEG", "BMP", "TIFF", "WEBP", "TGA", "GIF", "PPM", "QOI", "SGI", "PCX")
 FORMAT_NAMES = "PNG, JPEG, BMP, TIFF, WebP, TGA, GIF, PNM, QOI, SGI or PCX"
-FIT_MODES = ("resize", "crop")
+FIT_MODES = ("resize", "crop", "resize-2048", "crop-2048")
 PIL_MODES = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}  # channels -> Pillow mode
 
 
@@ -209,20 +212,29 @@ def guess_toroidal(pixels: np.ndarray, tolerance: float = 1.6) -> bool:
     return bool(seam_x <= tolerance * inner_x + eps and seam_y <= tolerance * inner_y + eps)
 
 
-def _nearest_pow2(n: int) -> int:
+def fit_rule(fit: str) -> tuple[str, int]:
+    """("resize" or "crop", the largest side it makes) of a fit mode: the plain
+    rules stop at DEFAULT_MAX (fast to analyze and synthesize), the "-2048" ones
+    keep up to MAX_SIZE of a large photo."""
+    if fit not in FIT_MODES:
+        raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
+    rule, _, limit = fit.partition("-")
+    return rule, int(limit) if limit else DEFAULT_MAX
+
+
+def _nearest_pow2(n: int, limit: int = DEFAULT_MAX) -> int:
     k = int(round(np.log2(max(n, 1))))
-    return int(min(max(2 ** k, MIN_SIZE), MAX_SIZE))
+    return int(min(max(2 ** k, MIN_SIZE), limit))
 
 
 def _crop_box(w: int, h: int, fit: str) -> tuple[int, int, int]:
     """(x0, y0, side) of the square the fit rule starts from."""
-    if fit not in FIT_MODES:
-        raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
-    if h == w and _is_pow2(w) and MIN_SIZE <= w <= MAX_SIZE:
+    rule, limit = fit_rule(fit)
+    if h == w and _is_pow2(w) and MIN_SIZE <= w <= limit:
         return 0, 0, w
     side = min(h, w)
-    if fit == "crop":
-        side = min(MAX_SIZE, 1 << (side.bit_length() - 1))
+    if rule == "crop":
+        side = min(limit, 1 << (side.bit_length() - 1))
     return (w - side) // 2, (h - side) // 2, side
 
 
@@ -245,7 +257,8 @@ def _fit_planes(planes, side: int, fit: str) -> tuple[np.ndarray, np.ndarray | N
     ``planes`` yields Pillow "F" images (side x side) in [0, 1]; returns the
     exemplar (m, m, C) and the hires copy (at most HIRES_MAX a side) or None.
     """
-    target = _nearest_pow2(side) if fit == "resize" else side
+    rule, limit = fit_rule(fit)
+    target = _nearest_pow2(side, limit) if rule == "resize" else side
     out, hires = [], []
     for plane in planes:
         if target == side:
@@ -289,9 +302,9 @@ def small_pattern(px: np.ndarray, toroidal: bool | None) -> np.ndarray:
     if not tiles:
         raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px (a smaller "
                             "pattern is accepted when it tiles seamlessly; Toroidal: yes forces that).")
-    if min(w, h) < SMALL_MIN or side > MAX_SIZE:
+    if min(w, h) < SMALL_MIN or side > DEFAULT_MAX:
         raise ExemplarError(f"The pattern is {w}x{h} px; a seamless pattern must be at least {SMALL_MIN}x{SMALL_MIN} "
-                            f"px, and its repeat ({side} px) at most {MAX_SIZE} px.")
+                            f"px, and its repeat ({side} px) at most {DEFAULT_MAX} px.")
     side *= -(-MIN_SIZE // side)
     sq = np.tile(px, (side // h, side // w, 1))
     m = _nearest_pow2(side)
@@ -381,7 +394,8 @@ def import_cost(w: int, h: int, mode: str, file_bytes: int, fit: str, fmt: str =
     crop = sq * pb if (side, side) != (w, h) else 0
     convert = sq * 4 if mode in _CANONICAL else 0
     channel = sq * (2 + 4)
-    target = _nearest_pow2(side) if fit == "resize" else side
+    rule, limit = fit_rule(fit)
+    target = _nearest_pow2(side, limit) if rule == "resize" else side
     keep = min(side, HIRES_MAX)
     resample = side * max(target, keep) * 4 if target != side else 0
     hires = 4 * 4 * keep * keep if target != side else 0
@@ -466,8 +480,7 @@ def _open(data: bytes, name: str) -> Image.Image:
 
 
 def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
-    if fit not in FIT_MODES:
-        raise ExemplarError(f"Unknown fit rule {fit!r}; use one of {', '.join(FIT_MODES)}.")
+    fit_rule(fit)
     info: dict = {}
     px, hires, size = _decode_pixels(data, name, fit, toroidal, info)
     if min(size) < MIN_SIZE and toroidal is None:
@@ -603,7 +616,7 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
             if full and w * h > FULL_MAX_PIXELS:
                 raise ExemplarError(f"{name} is {w}x{h} px; a lattice image may have at most "
                                     f"{FULL_MAX_PIXELS // 2**20} Mpixels (reduce it first).")
-            if fit == "resize" and im0.format == "JPEG" and side >= 2 * HIRES_MAX:
+            if not full and fit_rule(fit)[0] == "resize" and im0.format == "JPEG" and side >= 2 * HIRES_MAX:
                 # Far more pixels than we keep: let libjpeg decode at 1/2..1/8 scale.
                 im0.draft(im0.mode, (max(1, w * HIRES_MAX // side), max(1, h * HIRES_MAX // side)))
                 w, h = im0.size

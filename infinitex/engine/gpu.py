@@ -138,7 +138,7 @@ class LevelTextures:
         else:
             self.feat = gpu.int_texture((m, m), 4, _rgba(lv.feat))
         self.nbhd = gpu.uint_texture((m, m), pack8(lv.nbhd))
-        self.sim = _sim_textures(gpu, lv.simset)
+        self.sim = [] if lv.simset is None else _sim_textures(gpu, lv.simset)
         self.lattice_sim = None if lv.lattice_simset is None else _sim_textures(gpu, lv.lattice_simset)
         # Row r of the projection -> uniform P[2r] (dims 0-3), P[2r+1] (dims 4-7).
         self.proj = np.ascontiguousarray(lv.proj, dtype=np.int32).tobytes()

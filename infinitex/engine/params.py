@@ -6,6 +6,8 @@ from dataclasses import dataclass, replace
 from . import fixed
 
 DEFAULT_JITTER = 0.6
+# TBN10 random-walk steps when the analysis has no similarity sets (k = 0).
+DEFAULT_WALK = 6
 FIRST_CORRECTED_LEVEL = 3  # LH05: correction is skipped on levels 0-2
 
 
@@ -26,7 +28,8 @@ class SynthParams:
     kappa: float = 0.5
     corrected: tuple[int, ...] | None = None
     period: int = 0
-    walk: int = 0              # TBN10 random-walk steps added to each correction (0: off; radius m/2 halved)
+    walk: int | None = None    # TBN10 random-walk steps added to each correction (0: off; radius m/2 halved);
+                               # None: DEFAULT_WALK without similarity sets (k = 0), else off
 
     @classmethod
     def default(cls, levels: int, **kw) -> "SynthParams":
@@ -54,7 +57,7 @@ class SynthParams:
         fixed.psi_q(self.kappa)
         if not 0 <= self.passes <= 8:
             raise ValueError("Correction passes must be between 0 and 8.")
-        if not 0 <= self.walk <= 12:
+        if self.walk is not None and not 0 <= self.walk <= 12:
             raise ValueError("Random-walk steps must be between 0 and 12.")
         if not 1 <= self.subgrid <= 4:
             raise ValueError("The subpass grid size s must be between 1 and 4.")
@@ -72,11 +75,17 @@ class SynthParams:
             return 0
         return max(1, self.period >> (self.L - level))
 
+    def walk_steps(self, k: int) -> int:
+        """Random-walk steps of a correction with similarity sets of size k."""
+        if self.walk is not None:
+            return int(self.walk)
+        return DEFAULT_WALK if k == 0 else 0
+
     def level_signature(self, level: int) -> tuple:
         """What level ``level`` itself depends on (beyond coarser levels)."""
         corr = level in self.corrected_levels()
         return (self.jitter[level], self.seed, self.level_period(level), corr,
-                (self.passes, self.subgrid, self.kappa) if corr else None)
+                (self.passes, self.subgrid, self.kappa, self.walk) if corr else None)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:

@@ -432,14 +432,14 @@ class Pyramid:
         if l in self.corrected:
             lt = self.gan.level(l)
             prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
-            sims = lt.lattice_sim if lshift is not None else lt.sim
+            sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
             for unit, tex in enumerate([lt.feat, lt.nbhd] + sims, start=1):
                 tex.use(unit)
             set_uniforms(prog, src=0, feat=1, nbhd=2, sim01=3, sim23=4,
                          dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,
                          shift=lt.shift, psi=fixed.psi_q(p.kappa))
             prog["P"].write(lt.proj)
-            walk = p.walk if lshift is None else 0  # lattice levels keep their lattice candidates only
+            walk = p.walk_steps(an.k) if lshift is None else 0  # lattice levels keep their lattice candidates only
             set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
                          border=-1 if an.toroidal else border_margin(an.size, h))
             n_sub = 0

@@ -33,7 +33,8 @@ DEPTH_CHOICES = [(None, "Each map's own depth"), (8, "8-bit PNG"), (16, "16-bit 
 MAGNIFY_CHOICES = [1, 2, 4, 8]
 MAGNIFY_LABELS = [("hires", "Synthesis magnification, hi-res exemplar"),
                   ("bilinear", "Synthesis magnification, bilinear"), ("nearest", "Nearest (texel blocks)")]
-FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square")]
+FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square"),
+              ("resize-2048", "Resize, up to 2048 px"), ("crop-2048", "Crop, up to 2048 px")]
 TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
 TILE_SIZES = [64, 128, 256, 512, 1024, 2048, 4096]
 # Formats of rectangle exports: key, label, tooltip.
@@ -55,8 +56,9 @@ ADVANCED_SLIDERS = [
      "2 x 2 is the paper's choice (subpasses s^2, LH05 3.3)"),
     ("kappa", "Coherence", 0.0, 2.0, "Preference for continuing the current patch of exemplar over jumping to a "
      "similar spot: higher gives larger intact patches and less variety (coherence kappa, LH05)"),
-    ("k", "Similar spots", 1, 4, "How many similar exemplar spots each pixel may jump to: more gives more variety "
-     "and a longer analysis (k-coherence candidates k, LH05)"),
+    ("k", "Similar spots", 0, 4, "How many similar exemplar spots each pixel may jump to: more gives more variety "
+     "and a longer analysis (k-coherence candidates k, LH05); 0: none, a random walk over the whole exemplar "
+     "searches instead, with no analysis time (random-walk search, TBN10). Exemplars over 512 px always use it"),
 ]
 
 
@@ -366,7 +368,8 @@ class Panels:
         fits = [f for f, _ in FIT_LABELS]
         changed, i = imgui.combo("Import", fits.index(doc.fit), [lbl for _, lbl in FIT_LABELS])
         tip("How an image that is not a power-of-two square becomes the exemplar: resized (keeps the whole "
-            "image) or cropped (keeps its pixels exactly)")
+            "image) or cropped (keeps its pixels exactly), to at most 512 px, or to at most 2048 px for large "
+            "photos (more detail; analyzed in seconds with the random-walk search, slower to synthesize)")
         if changed:
             ed.edit(replace(doc, fit=fits[i]), "Import fit")
         cur = 0 if doc.toroidal is None else (1 if doc.toroidal else 2)
@@ -459,6 +462,9 @@ class Panels:
                 ed.edit(replace(ed.doc, **{field: v}), label, group=field)
             if imgui.is_item_deactivated():
                 ed.history.end_group()
+            an = ed.session.analysis
+            if field == "k" and an is not None and an.k != ed.doc.k:
+                imgui.text_disabled(f"The exemplar is {an.size} px: a random walk searches it (k = 0).")
         models = ["appearance", "color"]
         changed, i = imgui.combo("Matching", models.index(doc.model), ["Appearance (LH06)", "Colors 5x5 (LH05)"])
         tip("What 'looks alike' means when cleaning up: Appearance compares smoothed, compressed "

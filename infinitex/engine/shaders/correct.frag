@@ -5,7 +5,7 @@
 //     MODEL_APPEARANCE: for each diagonal d, sum over d' in {d, (d.x,0), (0,d.y)}
 //                       of A_l[S[p+d'] + h (d - d')]   (3x the LH06 average)
 //     MODEL_COLOR:      E_l[S[p+d]], d in [-2,2]^2     (LH05)
-//   candidates u = C^i(S[p+d] - h d), d in [-1,1]^2, i = 1..k
+//   candidates u = C^i(S[p+d] - h d), d in [-1,1]^2, i = 1..k (k = 0: u = S[p+d] - h d)
 //   keep the u minimizing psi(i) ||N_S(p) - N_E(u)||^2, first one on ties.
 // All arithmetic is integer (engine/fixed.py), so results are exact.
 
@@ -110,10 +110,13 @@ void main() {
     for (int j = 0; j < 9; ++j) {
         ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
         ivec2 base = (S[j] - h * d) & wrap;
-        ivec4 s01 = texelFetch(sim01, base, 0);
+        ivec4 s01 = k > 0 ? texelFetch(sim01, base, 0) : ivec4(0);
         ivec4 s23 = k > 2 ? texelFetch(sim23, base, 0) : ivec4(0);
-        for (int i = 0; i < k; ++i) {
-            ivec2 u = i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw));
+        for (int i = 0; i < max(k, 1); ++i) {
+            // k = 0 (no similarity sets): the coherent candidate itself, kept off
+            // a non-toroidal exemplar's border band like the walk's.
+            ivec2 u = k == 0 ? (border < 0 ? base : clamp(base, ivec2(border), ivec2(m - 1 - border)))
+                             : (i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw)));
             ivec4 e0, e1;
             unpack8(texelFetch(nbhd, u, 0), e0, e1);
             e0 -= lo;
