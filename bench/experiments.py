@@ -46,6 +46,8 @@ ORIGIN = (10007, -20011)
 VARIANTS = {
     "base": ("defaults (appearance, k 2, 2 passes, kappa 0.5, jitter 0.6)", {}, {}, None),
     "walk6": ("TBN10 random walk, 6 steps, after the k-coherence candidates", {"walk": 6}, {}, None),
+    "k0": ("no similarity sets (k 0): coherent candidates + random walk, 6 steps", {}, {"k": 0}, None),
+    "k0-walk10": ("no similarity sets (k 0): coherent candidates + random walk, 10 steps", {"walk": 10}, {"k": 0}, None),
     "passes3": ("3 correction passes", {"passes": 3}, {}, None),
     "passes4": ("4 correction passes", {"passes": 4}, {}, None),
     "kappa0": ("coherence kappa 0", {"kappa": 0.0}, {}, None),
