@@ -27,7 +27,8 @@ from infinitex.app.document import (
 )
 from infinitex.app.render.canvas import Canvas
 from infinitex.app.session import ExportJob, Session, decode_coords, frame_for, material_for
-from infinitex.engine.exemplar import ExemplarError, encode_image, load_exemplar_bytes
+import infinitex.engine.material as material_module
+from infinitex.engine.exemplar import ExemplarError, encode_image, from_array, load_exemplar_bytes
 from infinitex.engine.material import (
     IMAGE,
     MaterialError,
@@ -36,6 +37,7 @@ from infinitex.engine.material import (
     load_material,
     role_of,
     siblings,
+    single,
 )
 from infinitex.engine.pyramid import Rect, SynthesisError
 
@@ -413,3 +415,30 @@ def test_cli_finds_siblings_and_writes_each_map(folder, tmp_path, maps):
     assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1 and "gloss" in r.stderr
     r = _cli(str(folder), "-o", str(tmp_path / "g.tif"), "--format", "tiff")
     assert r.returncode != 0 and "--maps" in r.stderr
+
+
+def test_magnification_warps_a_1px_shear_instead_of_doubling_it():
+    """Two patches 1 px apart (a sheared seam: the right half reads one row
+    lower) magnified 8x: a thin dark line stays one line at full depth that
+    steps smoothly by a pixel, where LH05's plain blend drew two half-dark
+    copies (the comb or zipper lines of 800%). Texel centers keep their colors."""
+    m, z = 32, 8
+    px = np.full((m, m, 1), 0.8, np.float32)
+    px[16] = 0.1                                     # a 1 px dark line, row 16
+    mat = single(from_array(px, toroidal=False))
+    ys, xs = np.mgrid[0:10, 0:12]
+    coords = np.stack([xs + 10, ys + 10 + (xs >= 6)], axis=-1)  # columns 6.. read one row lower
+    out = mat.magnified(mat.primary, coords, z)[..., 0]
+    depth = 0.8 - out.min(axis=0)                    # how dark the line gets in each output column
+    assert depth.min() >= depth[:z].max() - 1e-6 > 0.6  # as dark across the seam as away from it
+    rows = out.argmin(axis=0)
+    assert np.all(np.diff(rows) <= 0) and rows[0] - rows[-1] == z  # one line, moving up by one texel
+    straight = mat.magnified(mat.primary, np.stack([xs + 10, ys + 10], axis=-1), z)[..., 0]
+    assert np.array_equal(out[:, :3 * z], straight[:, :3 * z])  # away from the seam: LH05's magnification
+    saved = material_module.shear_pull
+    material_module.shear_pull = lambda pred, wgt, c, *_: np.zeros_like(pred[c])
+    try:
+        plain = mat.magnified(mat.primary, coords, z)[..., 0]
+    finally:
+        material_module.shear_pull = saved
+    assert (0.8 - plain.min(axis=0)).min() < 0.75 * depth[:z].max()  # the plain blend: two fainter copies

@@ -136,3 +136,23 @@ def test_export_cli_matches_the_editor_export(session, tmp_path):
     bad = subprocess.run([sys.executable, "main.py", "export", str(tmp_path / "nope.itex"), "-o", str(out)],
                          cwd=ROOT, capture_output=True, text=True)
     assert bad.returncode != 0 and "error:" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_canvas_magnification_equals_the_exports(session, gpu):
+    """At 800% the canvas draws what an export magnified 8x writes (LH05
+    section 5 with the shear pull, canvas.frag = Material.magnified), within
+    the 8-bit display stack's rounding; gravel's 1 px sheared seams included."""
+    canvas = Canvas(gpu)
+    canvas.set_exemplar(session.stack, session.analysis.toroidal, None, session.generation)
+    W, H, z = 160, 96, 8
+    canvas.ensure_size(W, H)
+    view = View(-4000.0 + W / (2 * z), 7000.0 + H / (2 * z), float(z))
+    assert view.top_left(W, H) == (-4000.0, 7000.0)
+    frame = frame_for(view, W, H, session.L)
+    _refine(session, frame)
+    canvas.render(session.pyramid, frame, view, Display())
+    shown = canvas.read().astype(np.int64)
+    coords = session.synth.window(Rect.of(-4001, 6999, W // z + 2, H // z + 2))
+    want = _rgb(np.rint(session.material.magnified(session.material.primary, coords, z) * 255)).astype(np.int64)
+    assert np.abs(shown - want).max() <= 3
+    canvas.release()

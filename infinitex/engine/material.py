@@ -330,15 +330,38 @@ class Material:
         bx, by = np.floor(X).astype(np.int64), np.floor(Y).astype(np.int64)
         tx, ty = (X - bx)[None, :], (Y - by)[:, None]
         out = np.zeros((H * scale, W * scale, src.shape[2]), dtype=np.float64)
-        for j in (0, 1):
-            for i in (0, 1):
-                u = coords[(by + j + 1)[:, None], (bx + i + 1)[None, :]].astype(np.float64)  # (h, w, 2)
-                ux = (u[..., 0] + 0.5 + (tx - i)) * ratio - 0.5
-                uy = (u[..., 1] + 0.5 + (ty - j)) * ratio - 0.5
-                wgt = (tx if i else 1.0 - tx) * (ty if j else 1.0 - ty)
-                out += wgt[..., None] * _bilinear(src, ux, uy, self.toroidal)
+        corners = [(i, j) for j in (0, 1) for i in (0, 1)]
+        pred, wgt = [], []
+        for i, j in corners:
+            u = coords[(by + j + 1)[:, None], (bx + i + 1)[None, :]].astype(np.float64)  # (h, w, 2)
+            pred.append(np.stack([u[..., 0] + 0.5 + (tx - i), u[..., 1] + 0.5 + (ty - j)], axis=-1))
+            wgt.append((tx if i else 1.0 - tx) * (ty if j else 1.0 - ty))
+        for c in range(4):
+            P = pred[c] + shear_pull(pred, wgt, c, m, self.toroidal, 1)
+            out += wgt[c][..., None] * _bilinear(src, P[..., 0] * ratio - 0.5, P[..., 1] * ratio - 0.5, self.toroidal)
         out = np.clip(out, 0.0, 1.0).astype(np.float32)
         return renormalize(out) if role == "normal" else out
+
+
+def shear_pull(pred: list[np.ndarray], wgt: list[np.ndarray], c: int, m: int, toroidal: bool, h: int) -> np.ndarray:
+    """How far corner c's extrapolated position moves towards the others that
+    nearly agree with it (at most one texel, h exemplar pixels, apart): the
+    weighted sum of their differences. Where two patches meet with a 1 px shear
+    (fine-level jitter), the magnified image then warps smoothly from one to the
+    other instead of blending two copies 1 px apart (the comb or zipper lines
+    along edges at 800%); coherent corners (no difference) and real seams (far
+    apart) are drawn as LH05 section 5 does. Continuous across texels; exact at
+    texel centers. The canvas shader does the same (canvas.frag)."""
+    pull = np.zeros_like(pred[c])
+    for o in range(4):
+        if o == c:
+            continue
+        d = pred[o] - pred[c]  # an integer per corner pair: (u_o - u_c) - h (o - c)
+        if toroidal:
+            d -= m * np.floor(d / m + 0.5)
+        near = (np.abs(d).max(axis=-1) <= h)[..., None]
+        pull += wgt[o][..., None] * np.where(near, d, 0.0)
+    return pull
 
 
 def _bilinear(src: np.ndarray, x: np.ndarray, y: np.ndarray, wrap: bool) -> np.ndarray:

@@ -64,28 +64,40 @@ bool coherent(ivec2 g, ivec2 e) {
 }
 
 // LH05 section 5: extrapolate each of the 4 nearest texels' coordinates to
-// this point, sample there, blend bilinearly. source: 0 the stack, 1 the
-// hi-res exemplar, 2 the lit preview's shape map.
+// this point, sample there, blend bilinearly. A corner's position is first
+// pulled towards the corners that nearly agree with it (at most one texel
+// apart: a 1 px shear from fine-level jitter), so two such patches warp into
+// each other instead of showing two copies 1 px apart (the comb or zipper
+// lines along edges at 800%); engine/material.py shear_pull does the same.
+// source: 0 the stack, 1 the hi-res exemplar, 2 the lit preview's shape map.
 vec4 magnified_from(ivec2 base, vec2 frac, int source) {
     vec2 F = frac - 0.5;
     vec2 fb = floor(F);
     vec2 t = F - fb;
     float h = float(1 << k);
+    vec2 P[4];
+    float W[4];
+    for (int c = 0; c < 4; c++) {
+        ivec2 o = ivec2(c & 1, c >> 1);
+        P[c] = vec2(S(base + ivec2(fb) + o)) + 0.5 + h * (t - vec2(o));
+        W[c] = (o.x == 0 ? 1.0 - t.x : t.x) * (o.y == 0 ? 1.0 - t.y : t.y);
+    }
     vec4 acc = vec4(0.0);
     vec2 ddx = vec2(geom.x, geom.z) / float(m);   // uv derivatives per screen pixel
     vec2 ddy = vec2(geom.y, geom.w) / float(m);
-    for (int j = 0; j < 2; j++) {
-        for (int i = 0; i < 2; i++) {
-            ivec2 c = ivec2(i, j);
-            ivec2 u = S(base + ivec2(fb) + c);
-            vec2 uv = (vec2(u) + 0.5 + h * (t - vec2(c))) / float(m);
-            vec4 s;
-            if (source == 1) s = textureGrad(hires, uv, ddx, ddy);
-            else if (source == 2) s = texture(shape, vec3(uv, float(mag_layer)));
-            else s = texture(stack, vec3(uv, float(mag_layer)));
-            float w = (i == 0 ? 1.0 - t.x : t.x) * (j == 0 ? 1.0 - t.y : t.y);
-            acc += w * s;
+    for (int c = 0; c < 4; c++) {
+        vec2 pull = vec2(0.0);
+        for (int o = 0; o < 4; o++) {
+            vec2 d = P[o] - P[c];
+            if (toroidal != 0) d -= float(m) * floor(d / float(m) + 0.5);
+            if (o != c && max(abs(d.x), abs(d.y)) <= h) pull += W[o] * d;
         }
+        vec2 uv = (P[c] + pull) / float(m);
+        vec4 s;
+        if (source == 1) s = textureGrad(hires, uv, ddx, ddy);
+        else if (source == 2) s = texture(shape, vec3(uv, float(mag_layer)));
+        else s = texture(stack, vec3(uv, float(mag_layer)));
+        acc += W[c] * s;
     }
     return acc;
 }
