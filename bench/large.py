@@ -7,7 +7,7 @@ imports the engine, reads an m x m PNG (a cobblestone base color made by
 ``scripts/make_material.py``: the same 100 stones at every side, 3 channels) with the fit rule that
 keeps it, and analyzes it without the cache (default settings: similarity
 sets up to 512 px, the random-walk search above; at 512 px also k = 0). It
-reports the analysis seconds, the process's peak resident memory (ru_maxrss:
+reports the analysis seconds, the process's peak resident memory (VmHWM:
 interpreter, libraries, the decoded image and the analysis) and the memory
 just after importing, then the time of a warm 512^2 window at the finest
 level (GL, llvmpipe here) at (10007, -20011), and the analysis cache file's size.
@@ -25,9 +25,12 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 CHILD = r"""
-import json, os, resource, sys, time
+import json, os, sys, time
 sys.path.insert(0, ROOT)
-def rss(): return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+def rss():  # VmHWM: this process's peak; ru_maxrss would include the parent's at fork time
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
 from infinitex.engine.analysis import AnalysisSettings, analyze
 from infinitex.engine.exemplar import load_exemplar
 from infinitex.engine.params import SynthParams

@@ -99,6 +99,12 @@ def test_material_session_driven_by_the_test_engine(tmp_path):
     assert normal.dtype == np.uint16 and normal.shape[2] == 3
 
 
+def test_large_photo_driven_by_the_test_engine(tmp_path):
+    """A large photo: Import up to 2048 px keeps 1024 px of it, analyzed in the
+    background with the random-walk search; undo goes back (tests/gui_large.py)."""
+    _drive("gui_large.py", tmp_path, 7)
+
+
 def test_screenshot_option_writes_the_window(tmp_path):
     from PIL import Image
     out = tmp_path / "shot.png"

@@ -82,7 +82,7 @@ def test_exemplar_neighborhoods_are_the_exact_integer_projection(model):
 
 
 def test_appearance_features_are_the_pca_of_the_weighted_taps():
-    """Up to SIMSET_MAX every texel's statistics give the axes: the vectors
+    """Up to PCA_SAMPLES a side every texel's statistics give the axes: the vectors
     span what the 25 weighted taps hold (their first axis carries the most)."""
     m, h = 64, 2
     img = periodic_noise(m, seed=9)
@@ -172,3 +172,13 @@ def test_a_2048_px_exemplar_synthesizes_deterministically(large, gpu):
         assert wide.max() > 1024 and wide.min() >= 0 and wide.max() < 2048  # beyond 10 bits, inside the exemplar
     finally:
         synth.release()
+
+
+def test_analyses_without_similarity_sets_are_not_cached(toroidal_ex, tmp_path):
+    """k = 0 takes seconds, less than reading its cache entry back (1.7 GB at
+    2048 px): nothing is written; with sets the entry is written and reused."""
+    analyze(toroidal_ex, AnalysisSettings(k=0), cache_dir=str(tmp_path))
+    assert list(tmp_path.iterdir()) == []
+    a = analyze(toroidal_ex, AnalysisSettings(k=1), cache_dir=str(tmp_path))
+    assert len(list(tmp_path.iterdir())) == 1 and a.seconds > 0
+    assert analyze(toroidal_ex, AnalysisSettings(k=1), cache_dir=str(tmp_path)).seconds == 0

@@ -42,7 +42,7 @@ from .exemplar import Exemplar
 from .lattice import lattice_level_limit
 from .safeio import atomic_write
 
-ANALYSIS_VERSION = 5
+ANALYSIS_VERSION = 6
 MODELS = ("appearance", "color")
 NDIM = fixed.NDIM
 
@@ -53,7 +53,7 @@ ANN_EPS = 1.0
 # Exemplars up to this side get k-coherence similarity sets; larger ones are
 # searched by TBN10's random walk (k = 0), which needs no precomputation.
 SIMSET_MAX = 512
-# Above SIMSET_MAX, PCA axes come from the statistics of PCA_SAMPLES^2 texels (a regular grid).
+# PCA axes come from the statistics of at most PCA_SAMPLES^2 texels (a regular grid).
 PCA_SAMPLES = 256
 
 
@@ -253,9 +253,9 @@ def _projected(img: np.ndarray, taps, weights: np.ndarray, mirror: bool, out: np
 
 def sample_step(m: int) -> int:
     """Grid step of the texels whose statistics give the PCA axes: every texel
-    up to SIMSET_MAX a side; above, a regular subgrid of PCA_SAMPLES^2 of them
-    (plenty for a 75 x 75 covariance, and a small fraction of the memory)."""
-    return 1 if m <= SIMSET_MAX else max(1, m // PCA_SAMPLES)
+    up to PCA_SAMPLES a side, a regular subgrid of PCA_SAMPLES^2 of them above
+    (plenty for a 75 x 75 covariance, and a small fraction of the time and memory)."""
+    return max(1, m // PCA_SAMPLES)
 
 
 # ----------------------------------------------------------------------------
@@ -594,6 +594,9 @@ def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
     settings.validate()
     key = analysis_key(ex, settings)
     path = os.path.join(cache_dir or default_cache_dir(), f"{key}.npz")
+    # Without similarity sets the analysis takes seconds, less than reading a
+    # cache entry that large (1.7 GB at 2048 px): only analyses with sets are cached.
+    use_cache = use_cache and search_k(settings, ex.size) > 0
     if use_cache:
         cached = _load(path, key, settings, ex)
         if cached is not None:

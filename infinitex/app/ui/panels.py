@@ -464,7 +464,9 @@ class Panels:
                 ed.history.end_group()
             an = ed.session.analysis
             if field == "k" and an is not None and an.k != ed.doc.k:
+                imgui.push_text_wrap_pos(0)
                 imgui.text_disabled(f"The exemplar is {an.size} px: a random walk searches it (k = 0).")
+                imgui.pop_text_wrap_pos()
         models = ["appearance", "color"]
         changed, i = imgui.combo("Matching", models.index(doc.model), ["Appearance (LH06)", "Colors 5x5 (LH05)"])
         tip("What 'looks alike' means when cleaning up: Appearance compares smoothed, compressed "
