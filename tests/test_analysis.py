@@ -104,3 +104,27 @@ def test_bad_settings_rejected(small_ex):
                 AnalysisSettings(k=0, lattice=(4, 4))):
         with pytest.raises(ValueError):
             analyze(small_ex, bad, use_cache=False)
+
+
+def test_feature_distance_marks_the_elements_and_changes_the_appearance(small_ex):
+    """LH06's feature-distance channel from the exemplar's own elements: bright
+    disks on a dark ground give 1 deep inside a disk, 0 far outside, 1/2 on its
+    edge, the same through the wrap; the channel changes the appearance vectors."""
+    from infinitex.engine.analysis import feature_distance, otsu_threshold
+    m = 64
+    ys, xs = np.mgrid[0:m, 0:m]
+    img = np.full((m, m, 3), 0.2, np.float32)
+    for cx, cy in ((20, 20), (50, 40), (62, 8)):   # the last one wraps around the border
+        d = np.hypot(((xs - cx + m / 2) % m) - m / 2, ((ys - cy + m / 2) % m) - m / 2)
+        img[d < 8] = 0.9
+    assert 0.2 < otsu_threshold(img.mean(axis=2)) < 0.9
+    f = feature_distance(img, True)[..., 0]
+    assert f.shape == (m, m) and f.min() == 0.0 and f.max() == 1.0
+    assert f[20, 20] == 1.0 and f[40, 50] == 1.0 and f[8, 1] > 0.7   # inside, also across the wrap
+    assert f[36, 5] == 0.0                                           # far outside
+    assert abs(f[20, 28] - 0.5) <= 0.15                              # on an edge
+    plain = analyze(small_ex, AnalysisSettings())
+    fd = analyze(small_ex, AnalysisSettings(feature_weight=1.0))
+    assert plain.key != fd.key
+    assert not np.array_equal(plain.levels[-1].feat, fd.levels[-1].feat)
+    assert np.array_equal(plain.levels[-1].stack, fd.levels[-1].stack)  # colors unchanged

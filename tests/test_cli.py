@@ -59,6 +59,8 @@ def test_zero_jitter_color_model(tmp_path):
     ([GRAVEL, "-o", "X", "--origin", "2147483000", "0"], "within"),
     ([GRAVEL, "-o", "X", "--kappa", "-3"], "kappa"),
     ([GRAVEL, "-o", "X", "--jitter", "abc"], "not a number"),
+    ([GRAVEL, "-o", "X", "--feature-weight", "5"], "feature-distance weight"),
+    ([GRAVEL, "-o", "X", "--k", "0", "--lattice", "0,0,32,0,0,32,2,2"], "lattice needs similarity sets"),
 ])
 def test_bad_input_one_line_no_traceback(tmp_path, args, words):
     args = [a if a != "X" else str(tmp_path / "x.png") for a in args]

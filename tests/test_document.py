@@ -72,13 +72,22 @@ def test_jitter_is_matched_by_feature_size_across_exemplar_sizes(doc):
 
 
 def test_project_round_trip_embedded(doc, tmp_path):
-    d = replace(doc.with_all_jitter(7, 0.25), seed=42, passes=3, kappa=0.75, corrected=(4, 5, 6, 7), toroidal=True)
+    d = replace(doc.with_all_jitter(7, 0.25), seed=42, passes=3, kappa=0.75, corrected=(4, 5, 6, 7), toroidal=True,
+                fit="crop-2048", k=0, feature_weight=0.75)
     proj = Project(d, View(123.5, -4.25, 0.5), Display("patches", 3, "nearest"))
     path = tmp_path / "p.itex"
     save_project(str(path), proj)
     back = load_project(str(path))
     assert back == proj
-    assert json.loads(path.read_text())["exemplar"]["embedded"]
+    saved = json.loads(path.read_text())
+    assert saved["exemplar"]["embedded"] and saved["analysis"]["feature_weight"] == 0.75
+    del saved["analysis"]["feature_weight"]  # projects from before the channel existed: off
+    path.write_text(json.dumps(saved))
+    assert load_project(str(path)).document.feature_weight == 0.0
+    saved["analysis"]["feature_weight"] = 9
+    path.write_text(json.dumps(saved))
+    with pytest.raises(ProjectError, match="feature_weight"):
+        load_project(str(path))
 
 
 def test_project_referencing_a_large_exemplar_checks_its_hash(doc, tmp_path):

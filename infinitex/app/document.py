@@ -102,6 +102,7 @@ class Document:
     toroidal: bool | None = None       # None: use the guess from the seam test
     model: str = "appearance"
     k: int = 2
+    feature_weight: float = 0.0        # LH06 feature-distance channel (appearance model); 0: off
     jitter: tuple[float, ...] = ()     # finest level LAST; empty = default everywhere
     seed: int = 0
     passes: int = 2
@@ -122,7 +123,8 @@ class Document:
         a material's maps and analysis weights)."""
         lat = None if self.lattice is None else replace(self.lattice, levels=None)
         mat = tuple((r, s.sha256) for r, s in self.maps)
-        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat, mat, self.weights)
+        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat, mat, self.weights,
+                self.feature_weight)
 
     @property
     def is_material(self) -> bool:
@@ -192,6 +194,10 @@ class Document:
             raise ProjectError(f"Unknown neighborhood model {self.model!r} (use {' or '.join(MODELS)}).")
         if not 0 <= self.k <= 4:
             raise ProjectError("k (similarity-set size) must be between 0 (random-walk search) and 4.")
+        if not 0.0 <= self.feature_weight <= 4.0:
+            raise ProjectError("The feature-distance weight must be between 0 and 4.")
+        if self.k == 0 and self.lattice is not None:
+            raise ProjectError("A lattice needs similarity sets: set Similar spots to 1 or more.")
         if any(not (0.0 <= r <= 1.0) for r in self.jitter):
             raise ProjectError("Randomness values must lie between 0 and 1.")
         try:
@@ -416,7 +422,8 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
             "fit": doc.fit,
             "toroidal": doc.toroidal,
         },
-        "analysis": {"model": doc.model, "k": doc.k},
+        "analysis": {"model": doc.model, "k": doc.k,
+                     **({"feature_weight": doc.feature_weight} if doc.feature_weight else {})},
         "synthesis": {
             "jitter": list(doc.jitter), "seed": doc.seed, "passes": doc.passes,
             "subgrid": doc.subgrid, "kappa": doc.kappa,
@@ -706,6 +713,9 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     if corrected is not None and (len(corrected) > MAX_LEVELS or not all(
             isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 12 for c in corrected)):
         raise ProjectError("synthesis.corrected must be a list of level numbers from 0 to 12.")
+    fw = a.get("feature_weight", 0.0) if isinstance(a, dict) else 0.0
+    if not _number(fw) or not 0.0 <= fw <= 4.0:
+        raise ProjectError("analysis.feature_weight must be a number from 0 to 4.")
     kappa = _get(s, "kappa", (int, float), "synthesis")
     if not _number(kappa) or not 0.0 <= kappa <= 100.0:
         raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
@@ -721,6 +731,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         toroidal=toroidal,
         model=_get(a, "model", str, "analysis"),
         k=_int_in(a, "k", "analysis", 0, 4),
+        feature_weight=float(fw),
         jitter=tuple(float(r) for r in jitter),
         seed=_int_in(s, "seed", "synthesis", 0, 2 ** 32 - 1),
         passes=_int_in(s, "passes", "synthesis", 0, 8),

@@ -162,7 +162,7 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
         if doc.model == "color" and ex.channels > 4:
             raise MaterialError(f"The color model compares at most 4 channels, and this material's analysis maps "
                                 f"have {ex.channels}; use the appearance model or fewer analysis maps.")
-        return ex, AnalysisSettings(model=doc.model, k=doc.k)
+        return ex, AnalysisSettings(model=doc.model, k=doc.k, feature_weight=doc.feature_weight)
     if doc.lattice is not None:
         if image is None:
             image = decode_full(doc.exemplar.data, doc.exemplar.name)
@@ -171,7 +171,7 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
     else:
         ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
         grid = (0, 0)
-    return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid)
+    return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid, feature_weight=doc.feature_weight)
 
 
 # -- progressive refinement --------------------------------------------------

@@ -70,12 +70,15 @@ class AnalysisSettings:
     spacing: float = 0.05          # min distance between set entries, fraction of m
     appearance_sigma: float = 1.5  # Gaussian weight of the 5x5 appearance taps, in taps
     lattice: tuple[int, int] = (0, 0)  # (nx, ny) cells of a rectified near-regular exemplar; (0, 0): none
+    feature_weight: float = 0.0    # LH06 feature-distance channel's weight (appearance model); 0: none
 
     def validate(self) -> None:
         if self.model not in MODELS:
             raise ValueError(f"Unknown neighborhood model {self.model!r}; use 'appearance' or 'color'.")
         if not 0 <= int(self.k) <= 4:
             raise ValueError(f"k must be between 0 (random-walk search) and 4, not {self.k}.")
+        if not 0.0 <= self.feature_weight <= 4.0:
+            raise ValueError(f"The feature-distance weight must be in [0, 4], not {self.feature_weight}.")
         if not 0.0 <= self.spacing < 0.5:
             raise ValueError("spacing must be a fraction of the exemplar size in [0, 0.5).")
         nx, ny = self.lattice
@@ -310,6 +313,46 @@ def appearance_features(stack: np.ndarray, h: int, sigma: float, toroidal: bool)
     return _projected(stack, offsets, wgt[:, None] * axes, mirror, out, quantized).reshape(m, m, NDIM)
 
 
+def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
+    """The threshold that maximizes the between-class variance (Otsu 1979)."""
+    lo, hi = float(values.min()), float(values.max())
+    if hi - lo < 1e-9:
+        return lo
+    hist, edges = np.histogram(values, bins=bins, range=(lo, hi))
+    p = hist / hist.sum()
+    centers = (edges[:-1] + edges[1:]) / 2
+    w0 = np.cumsum(p)
+    mu = np.cumsum(p * centers)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        between = (mu[-1] * w0 - mu) ** 2 / (w0 * (1.0 - w0))
+    between[~np.isfinite(between)] = -1.0
+    return float(edges[int(np.argmax(between)) + 1])
+
+
+def feature_distance(pixels: np.ndarray, toroidal: bool) -> np.ndarray:
+    """LH06's feature-distance channel from the exemplar's own features, (m, m, 1) in [0, 1].
+
+    The feature mask is the exemplar's brightness (mean of its channels, lightly
+    blurred) above its Otsu threshold: the elements against their background
+    (stones against mortar, spots, glyphs, cells against their walls). Its
+    signed distance (positive inside), clamped to D = m/32 px (at least 4) so
+    the medial axes carry no singularity, is mapped to [0, 1]. Distances see the
+    periodic augmentation (wrapped or mirrored), which the clamp makes a pad of D.
+    """
+    from scipy.ndimage import distance_transform_edt, gaussian_filter
+
+    m = pixels.shape[0]
+    mode = "wrap" if toroidal else "mirror"
+    lum = gaussian_filter(pixels.astype(np.float64).mean(axis=2), 1.0, mode=mode)
+    mask = lum > otsu_threshold(lum)
+    D = max(4, m // 32)
+    padded = np.pad(mask, D + 1, mode="wrap" if toroidal else "symmetric")
+    inside = distance_transform_edt(padded)
+    outside = distance_transform_edt(~padded)
+    signed = (inside - outside)[D + 1:D + 1 + m, D + 1:D + 1 + m]
+    return ((np.clip(signed, -D, D) / D + 1.0) / 2.0).astype(np.float32)[:, :, None]
+
+
 def color_features(stack: np.ndarray) -> np.ndarray:
     """LH05 color model: colors quantized to int8 in [0, 127]."""
     return np.rint(np.clip(stack, 0.0, 1.0) * fixed.FEAT_MAX).astype(np.int8)
@@ -503,6 +546,9 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
     report = progress or (lambda f, msg: None)
     report(0.0, "Gaussian stack")
     stack = gaussian_stack(ex.pixels, ex.toroidal)
+    fstack = None
+    if settings.model == "appearance" and settings.feature_weight > 0:
+        fstack = gaussian_stack(settings.feature_weight * feature_distance(ex.pixels, ex.toroidal), ex.toroidal)
     levels: list[LevelData] = []
     # Work per level is roughly equal; the stack took ~5%.
     for level in range(L + 1):
@@ -511,7 +557,8 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
         step = 0.95 / (L + 1)
         report(base, f"level {level}/{L}: neighborhoods")
         if settings.model == "appearance":
-            feat = appearance_features(stack[level], h, settings.appearance_sigma, ex.toroidal)
+            guide = stack[level] if fstack is None else np.concatenate([stack[level], fstack[level]], axis=2)
+            feat = appearance_features(guide, h, settings.appearance_sigma, ex.toroidal)
         else:
             feat = color_features(stack[level])
         sampled = gather_exemplar_neighborhood(feat, h, settings.model, sample_step(m))

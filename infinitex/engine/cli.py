@@ -115,6 +115,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="neighborhood model: appearance space (LH06) or 5x5 colors (LH05)")
     p.add_argument("--k", type=int, default=2, choices=(0, 1, 2, 3, 4),
                    help="similarity-set size; 0: none, TBN10 random-walk search (always so over 512 px)")
+    p.add_argument("--feature-weight", type=_number, default=0.0, metavar="W",
+                   help="LH06 feature-distance channel from the exemplar's own elements (0 to 4; default 0: off)")
     p.add_argument("--passes", type=_integer, default=2, help="correction passes c (0 to 8)")
     p.add_argument("--kappa", type=_number, default=0.5, help="coherence penalty (0 to 4)")
     p.add_argument("--walk", type=_integer, default=None, metavar="N",
@@ -274,6 +276,7 @@ def run_synth(argv: list[str]) -> int:
         raise CliError(f"--toroidal needs a square power-of-two --size from 32 to 4096, not {w}x{h}.", EXIT_USAGE)
     try:
         SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes, kappa=args.kappa, walk=args.walk).validate(0)
+        AnalysisSettings(model=args.model, k=args.k, feature_weight=args.feature_weight).validate()
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     check_out(args.output, (".png",), "output image")
@@ -316,8 +319,12 @@ def run_synth(argv: list[str]) -> int:
         if args.toroidal and (w % cx or w % cy):
             raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar "
                            f"px) divides; use --size {max(cx, cy, 32)} or more.", EXIT_USAGE)
-    an = analyze(ex, AnalysisSettings(model=args.model, k=args.k, lattice=grid), use_cache=not args.no_cache,
-                 progress=_progress(args.quiet))
+    settings = AnalysisSettings(model=args.model, k=args.k, lattice=grid, feature_weight=args.feature_weight)
+    try:
+        settings.validate()
+    except ValueError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
+    an = analyze(ex, settings, use_cache=not args.no_cache, progress=_progress(args.quiet))
     try:
         params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa, walk=args.walk)
         params.validate(an.L)

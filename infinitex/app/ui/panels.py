@@ -59,6 +59,9 @@ ADVANCED_SLIDERS = [
     ("k", "Similar spots", 0, 4, "How many similar exemplar spots each pixel may jump to: more gives more variety "
      "and a longer analysis (k-coherence candidates k, LH05); 0: none, a random walk over the whole exemplar "
      "searches instead, with no analysis time (random-walk search, TBN10). Exemplars over 512 px always use it"),
+    ("feature_weight", "Feature distance", 0.0, 2.0, "How much each pixel's distance to the exemplar's elements "
+     "(the bright shapes against their background) counts when matching: keeps spots, cells and glyphs more "
+     "whole, at some cost in fine detail; 0 off (feature-distance channel, LH06; Appearance matching only)"),
 ]
 
 
