@@ -22,7 +22,7 @@ controls=NO_CONTROLS, lattice=None, geometry="original")``
 
 Step by step (an analysis and a GL context made once, many windows)::
 
-    ex = itx.load_exemplar("gravel.png")            # fit rule "resize" (or fit="crop")
+    ex = itx.load_exemplar("gravel.png")            # fit "resize" (or "crop", "resize-2048", "crop-2048")
     an = itx.analyze(ex)                            # CPU, cached on disk (INFINITEX_CACHE)
     params = itx.SynthParams.default(an.L, seed=7)  # jitter per level, passes, kappa, period...
     with itx.Synthesizer(an, params) as s:
