@@ -58,6 +58,8 @@ VARIANTS = {
     "k4": ("k = 4 similar spots", {}, {"k": 4}, None),
     "color": ("LH05 5x5 color neighborhoods", {}, {"model": "color"}, None),
     "color-passes3": ("color neighborhoods, 3 passes", {"passes": 3}, {"model": "color"}, None),
+    "passes3-kappa0": ("3 correction passes, kappa 0", {"passes": 3, "kappa": 0.0}, {}, None),
+    "passes3-kappa0.25": ("3 correction passes, kappa 0.25", {"passes": 3, "kappa": 0.25}, {}, None),
     "subgrid3": ("3 x 3 subpasses", {"subgrid": 3}, {}, None),
     "fine0.2": ("jitter 0.2 on the 2 finest levels", {}, {}, (0.2, 2)),
     "fine0-5": ("no jitter on the 5 finest levels", {}, {}, (0.0, 5)),
