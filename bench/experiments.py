@@ -27,14 +27,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from bench.measures import (  # noqa: E402
-    neighborhood_energy,
-    ps_distance,
-    repetition,
-    sheared_seams,
-    usage_peak,
-    verbatim_regions,
-)
+from bench.measures import all_measures  # noqa: E402
 from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
 from infinitex.engine.params import SynthParams  # noqa: E402
@@ -109,13 +102,10 @@ def main(argv: list[str]) -> int:
                 coords = s.window(Rect.of(ORIGIN[0], ORIGIN[1], a.size, a.size))
                 dt = time.perf_counter() - t0
                 out = s.colors(coords)
-            e, _ = neighborhood_energy(ex.pixels, out)
-            row = {"energy": e, "ps": ps_distance(ex.pixels, out), "repetition": repetition(out),
-                   "verbatim_mean_px": verbatim_regions(coords, an.size, an.toroidal)[0],
-                   "sheared": sheared_seams(coords, an.size), "usage_peak": usage_peak(coords, an.size), "seconds": dt}
+            row = dict(all_measures(ex.pixels, out, coords, an.size, an.toroidal, ps=True), seconds=dt)
             for m in MEASURES:
                 values[v][m].append(float(row[m]))
-            line += f"  {v} E {e:.5f} PS {row['ps']:.3f}"
+            line += f"  {v} E {row['energy']:.5f} PS {row['ps']:.3f}"
         print(line, flush=True)
     medians = {v: {m: float(np.median(values[v][m])) for m in MEASURES} for v in names}
     print(f"\nmedians over {len(paths)} exemplars, {a.size}^2 windows (lower is better)")

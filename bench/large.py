@@ -26,6 +26,7 @@ sys.path.insert(0, ROOT)
 
 CHILD = r"""
 import json, os, sys, time
+ROOT, PATH, TMP, K = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 sys.path.insert(0, ROOT)
 def rss():  # VmHWM: this process's peak; ru_maxrss would include the parent's at fork time
     for line in open("/proc/self/status"):
@@ -81,9 +82,8 @@ def main(argv: list[str]) -> int:
               f"{'512^2 window s':>15}")
         for m, k in runs:
             path = exemplar_png(m, tmp)
-            code = CHILD.replace("ROOT", repr(ROOT)).replace("PATH", repr(path)).replace("TMP", repr(tmp)) \
-                .replace("K)", f"{k})")
-            out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+            out = subprocess.run([sys.executable, "-c", CHILD, ROOT, path, tmp, str(k)],
+                                 capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])
             rows.append(r)
             print(f"{r['size']:>6}{r['k']:>3}{r['analysis_s']:12.1f}{r['peak_mb']:9.0f}{r['import_mb']:10.0f}"

@@ -197,15 +197,10 @@ def _tap_index(n: int, offset: int, m: int, mirror: bool, sample: int = 1) -> np
     return np.where(i < m, i, 2 * m - 1 - i) if mirror else i
 
 
-def _tap(img: np.ndarray, dx: int, dy: int, mirror: bool, sample: int = 1,
-         rows: tuple[int, int] | None = None) -> np.ndarray:
-    """img'[y, x] = img_aug[y + dy, x + dx] on the (sampled) grid, for the rows
-    [y0, y1) of the result when ``rows`` is given."""
+def _tap(img: np.ndarray, dx: int, dy: int, mirror: bool, sample: int = 1) -> np.ndarray:
+    """img'[y, x] = img_aug[y + dy, x + dx] on the (sampled) grid (a gather)."""
     m = img.shape[0]
-    ri = _tap_index(m, dy, m, mirror, sample)
-    if rows is not None:
-        ri = ri[rows[0]:rows[1]]
-    return img[np.ix_(ri, _tap_index(m, dx, m, mirror, sample))]
+    return img[np.ix_(_tap_index(m, dy, m, mirror, sample), _tap_index(m, dx, m, mirror, sample))]
 
 
 def _runs(idx: np.ndarray) -> list[tuple[int, int, slice]]:
@@ -363,20 +358,13 @@ def color_features(stack: np.ndarray) -> np.ndarray:
     return np.rint(np.clip(stack, 0.0, 1.0) * fixed.FEAT_MAX).astype(np.int8)
 
 
-def _neighborhood_taps(feat: np.ndarray, h: int, model: str, sample: int = 1):
-    """The taps of the unprojected runtime neighborhood, each (n, F) float64
-    (integers, exact): 3 * A[u + h*d] for the 4 diagonals (the synthesized side
-    sums 3 predictions), or E[u + h*d] for d in [-2, 2]^2. Reads wrap mod m, as
-    the shader's do."""
-    m = feat.shape[0]
-    mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
-    for dx, dy in fixed.taps(model):
-        yield mult * _tap(feat, dx * h, dy * h, False, sample).reshape(-1, feat.shape[2]).astype(np.float64)
-
-
 def gather_exemplar_neighborhood(feat: np.ndarray, h: int, model: str, sample: int = 1) -> np.ndarray:
-    """The unprojected runtime neighborhood of every (sampled) exemplar texel, int64 (n, T*F)."""
-    return np.concatenate(list(_neighborhood_taps(feat, h, model, sample)), axis=1).astype(np.int64)
+    """The unprojected runtime neighborhood of every (sampled) exemplar texel, int64 (n, T*F):
+    3 * A[u + h*d] for the 4 diagonals (the synthesized side sums 3 predictions),
+    or E[u + h*d] for d in [-2, 2]^2. Reads wrap mod m, as the shader's do."""
+    mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
+    return np.concatenate([mult * _tap(feat, dx * h, dy * h, False, sample).reshape(-1, feat.shape[2]).astype(np.int64)
+                           for dx, dy in fixed.taps(model)], axis=1)
 
 
 def exemplar_neighborhoods(feat: np.ndarray, h: int, model: str, proj: np.ndarray, shift: int) -> np.ndarray:
@@ -384,7 +372,7 @@ def exemplar_neighborhoods(feat: np.ndarray, h: int, model: str, proj: np.ndarra
     gathered neighborhood. Every product and partial sum is an integer below
     2^24 in magnitude (features <= 3 * 127, projection entries <= PROJ_ONE, at
     most 100 terms), so float32 BLAS computes it exactly, in any order."""
-    m, F = feat.shape[0], feat.shape[2]
+    m = feat.shape[0]
     mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
     offsets = [(dx * h, dy * h) for dx, dy in fixed.taps(model)]
     p = proj.astype(np.int64)
