@@ -54,6 +54,16 @@ VARIANTS = {
     "passes3-kappa0": ("3 correction passes, kappa 0", {"passes": 3, "kappa": 0.0}, {}, None),
     "passes3-kappa0.25": ("3 correction passes, kappa 0.25", {"passes": 3, "kappa": 0.25}, {}, None),
     "subgrid3": ("3 x 3 subpasses", {"subgrid": 3}, {}, None),
+    "coarse3": ("3 passes on all but the 2 finest levels, 2 on those",
+                {"level_passes": lambda L: tuple(3 if l < L - 1 else 2 for l in range(L + 1))}, {}, None),
+    "coarse4": ("4 passes on all but the 2 finest levels, 2 on those",
+                {"level_passes": lambda L: tuple(4 if l < L - 1 else 2 for l in range(L + 1))}, {}, None),
+    "coarse6": ("6 passes on all but the 2 finest levels, 2 on those",
+                {"level_passes": lambda L: tuple(6 if l < L - 1 else 2 for l in range(L + 1))}, {}, None),
+    "coarse4-fine3": ("4 passes on all but the 2 finest levels, 3 on those",
+                      {"level_passes": lambda L: tuple(4 if l < L - 1 else 3 for l in range(L + 1))}, {}, None),
+    "fine3": ("2 passes, 3 on the 2 finest levels",
+              {"level_passes": lambda L: tuple(2 if l < L - 1 else 3 for l in range(L + 1))}, {}, None),
     "fine0.2": ("jitter 0.2 on the 2 finest levels", {}, {}, (0.2, 2)),
     "fine0-5": ("no jitter on the 5 finest levels", {}, {}, (0.0, 5)),
 }
@@ -66,7 +76,8 @@ def exemplar_paths() -> list[str]:
 
 
 def params_for(L: int, changes: dict, fine) -> SynthParams:
-    p = replace(SynthParams.default(L), **changes)
+    """The variant's parameters for an exemplar with finest level L (a change may be a function of L)."""
+    p = replace(SynthParams.default(L), **{k: v(L) if callable(v) else v for k, v in changes.items()})
     if fine is not None:
         value, levels = fine
         p = replace(p, jitter=tuple(value if l > L - levels else r for l, r in enumerate(p.jitter)))

@@ -48,6 +48,24 @@ def main(out: str) -> int:
         ctx.yield_(40)
         check("advanced controls say what they do", "(coherence kappa, LH05)" in panels.LAST_TIP[0],
               panels.LAST_TIP[0])
+        # Passes per scale: one slider per level; a drag is one undo step, the synthesis follows.
+        ctx.item_open("**/Passes per scale")
+        ctx.yield_(2)
+        L = ed.session.L
+        fine = f"**/1 px##pass{L}"
+        check("passes per scale shown", ctx.item_exists(fine) and ed.doc.passes_for(L)[L] == 2,
+              f"{ed.doc.passes_for(L)}")
+        ctx.item_input_value(fine, 3)
+        settle(ctx)
+        testing.capture(ctx, os.path.join(out, "passes.png"))
+        check("a scale's passes reach the synthesis", ed.doc.passes_for(L)[L] == 3
+              and ed.session.params.passes_at(L) == 3 and ed.session.params.passes_at(L - 1) == 2,
+              f"{ed.doc.level_passes} {ed.session.params}")
+        ed.undo()
+        settle(ctx)
+        check("undo restores the passes", ed.doc.level_passes == () and ed.session.params.level_passes is None,
+              f"{ed.doc.level_passes}")
+        ctx.item_close("**/Passes per scale")
         ctx.item_close("**/Advanced")
         for header in ("Randomness", "Exemplar", "Display"):
             ctx.item_open(f"**/{header}")

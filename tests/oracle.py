@@ -214,12 +214,11 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
     correction does there)."""
     level = an.L if level is None else level
     s = params.subgrid
-    pad = params.passes * s * s * fixed.read_radius(an.model)
     # Window needed at each level, fine to coarse; origins aligned to 2s.
     wins = {}
     x0, y0, x1, y1 = x, y, x + w, y + h
     for l in range(level, -1, -1):
-        p = pad if l in params.corrected_levels() else 0
+        p = params.passes_at(l) * s * s * fixed.read_radius(an.model)
         a = 2 * s
         wx0, wy0 = ((x0 - p) // a) * a, ((y0 - p) // a) * a
         wx1, wy1 = -((-(x1 + p)) // a) * a, -((-(y1 + p)) // a) * a
@@ -229,13 +228,13 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
     for l in range(0, level + 1):
         wx0, wy0, wx1, wy1 = wins[l]
         S = upsample(parent, porigin, (wx0, wy0), (wy1 - wy0, wx1 - wx0), an, params, l, controls)
-        if l != uncorrected_level and l in params.corrected_levels():
+        if l != uncorrected_level and l in params.correcting_levels():
             n_sub = 0
-            for order in subpass_order(s, params.passes):
+            for order in subpass_order(s, params.passes_at(l)):
                 for phase in order:
                     S = correct_subpass(S, phase, (wx0, wy0), an, params, l, controls, n_sub)
                     n_sub += 1
-            S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction
+        S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction (writeback)
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]
     return parent[y - wy0:y - wy0 + h, x - wx0:x - wx0 + w].astype(np.int32)

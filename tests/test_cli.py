@@ -60,6 +60,9 @@ def test_zero_jitter_color_model(tmp_path):
     ([GRAVEL, "-o", "X", "--kappa", "-3"], "kappa"),
     ([GRAVEL, "-o", "X", "--jitter", "abc"], "not a number"),
     ([GRAVEL, "-o", "X", "--feature-weight", "5"], "feature-distance weight"),
+    ([GRAVEL, "-o", "X", "--passes", "2,3"], "one per level"),
+    ([GRAVEL, "-o", "X", "--passes", "9"], "from 0 to 8"),
+    ([GRAVEL, "-o", "X", "--passes", "2,x"], "comma-separated list of integers"),
     ([GRAVEL, "-o", "X", "--k", "0", "--lattice", "0,0,32,0,0,32,2,2"], "lattice needs similarity sets"),
 ])
 def test_bad_input_one_line_no_traceback(tmp_path, args, words):
@@ -98,3 +101,14 @@ def test_synth_random_walk_option(tmp_path):
     assert np.array_equal(ib, ic) and not np.array_equal(ia, ib)
     r = run(GRAVEL, "-o", a, "--walk", "13")
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "walk" in r.stderr.lower()
+
+
+def test_synth_passes_per_level(tmp_path):
+    """--passes with one count per level (coarse to fine) is the same texture as
+    one count when the lists agree (0 on the 3 coarsest), another otherwise."""
+    a, b, c = (str(tmp_path / f"{n}.png") for n in "abc")
+    for out, passes in ((a, "2"), (b, "0,0,0,2,2,2,2,2"), (c, "0,0,0,4,4,4,2,3")):  # gravel: 128 px, 8 levels
+        r = run(GRAVEL, "-o", out, "--size", "64", "48", "--passes", passes, "-q")
+        assert r.returncode == 0, r.stderr
+    ia, ib, ic = (np.asarray(Image.open(p)) for p in (a, b, c))
+    assert np.array_equal(ia, ib) and not np.array_equal(ia, ic)

@@ -71,6 +71,38 @@ def test_jitter_is_matched_by_feature_size_across_exemplar_sizes(doc):
     assert j[8] == 0.1 and j[1] == 0.9 and j[0] == 0.6
 
 
+def test_passes_per_level_follow_the_exemplar_and_reach_the_synthesis(doc):
+    assert doc.passes_for(7) == (0, 0, 0, 2, 2, 2, 2, 2) and doc.params(7).level_passes is None
+    assert replace(doc, passes=3, corrected=(1, 7)).passes_for(7) == (0, 3, 0, 0, 0, 0, 0, 3)
+    d = doc.with_level_passes(7, 7, 4).with_level_passes(7, 1, 1)
+    assert d.level_passes == (0, 1, 0, 2, 2, 2, 2, 4)
+    p = d.params(7)
+    assert [p.passes_at(l) for l in range(8)] == [0, 1, 0, 2, 2, 2, 2, 4]
+    # Matched from the finest level down: a 256^2 exemplar's extra coarse level gets none.
+    assert d.passes_for(8) == (0, 0, 1, 0, 2, 2, 2, 2, 4)
+    assert doc.with_level_passes(7, 7, 99).passes_for(7)[7] == 8
+    with pytest.raises(ProjectError, match="per level"):
+        replace(doc, level_passes=(2, 9)).validate()
+
+
+def test_project_round_trip_per_level_passes(doc, tmp_path):
+    proj = Project(doc.with_level_passes(7, 6, 4))
+    path = tmp_path / "p.itex"
+    save_project(str(path), proj)
+    back = load_project(str(path))
+    assert back == proj and back.document.params(7).passes_at(6) == 4
+    saved = json.loads(path.read_text())
+    assert saved["synthesis"]["level_passes"] == [0, 0, 0, 2, 2, 2, 4, 2]
+    del saved["synthesis"]["level_passes"]  # projects from before per-level passes: one count
+    path.write_text(json.dumps(saved))
+    assert load_project(str(path)).document.level_passes == ()
+    for bad in ([2, "x"], [2, 9], [True], "2"):
+        saved["synthesis"]["level_passes"] = bad
+        path.write_text(json.dumps(saved))
+        with pytest.raises(ProjectError, match="level_passes"):
+            load_project(str(path))
+
+
 def test_project_round_trip_embedded(doc, tmp_path):
     d = replace(doc.with_all_jitter(7, 0.25), seed=42, passes=3, kappa=0.75, corrected=(4, 5, 6, 7), toroidal=True,
                 fit="crop-2048", k=0, feature_weight=0.75)

@@ -170,6 +170,51 @@ def test_correction_lowers_neighborhood_error_at_every_corrected_level(analyses,
             assert e_corr < 0.8 * e_unc, f"{name} level {level}: {e_corr} vs {e_unc}"
 
 
+def test_passes_per_level(analyses, gpu):
+    """Per-level pass counts: GL equals the oracle (a coarse level corrected that
+    is not by default, 3 passes at the finest, none at level 4); overlapping
+    windows agree near 0 and near +-2^30; the same counts as ``passes`` give the
+    same texture; a change invalidates only from the level it touches."""
+    an = analyses["gravel-appearance"]
+    L = an.L
+    counts = (0, 0, 1, 2, 0, 4, 2, 3)[-(L + 1):]
+    params = replace(SynthParams.default(an.L, seed=5), level_passes=counts)
+    assert params.correcting_levels() == frozenset(l for l in range(L + 1) if counts[l])
+    synth = Synthesizer(an, params, gpu=gpu)
+    for x, y in [(3, -5), (-FAR + 17, FAR - 64)]:
+        gl = synth.window(Rect.of(x, y, 24, 20))
+        assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 24, 20)), (x, y)
+    for ox, oy in [(0, 0), (FAR - 200, -FAR + 50)]:
+        big = synth.window(Rect.of(ox, oy, 120, 100))
+        fresh = Synthesizer(an, params, gpu=gpu)
+        small = fresh.window(Rect.of(ox + 37, oy + 21, 50, 61))
+        assert np.array_equal(small, big[21:82, 37:87])
+        fresh.release()
+    plain = SynthParams.default(an.L, seed=5)
+    same = replace(plain, level_passes=tuple(2 if l >= 3 else 0 for l in range(L + 1)))
+    rect = Rect.of(-40, 17, 64, 48)
+    a = Synthesizer(an, plain, gpu=gpu)
+    b = Synthesizer(an, same, gpu=gpu)
+    assert np.array_equal(a.window(rect), b.window(rect))
+    assert not np.array_equal(a.window(rect), synth.window(rect))
+    # Only the finest level's count changes: the coarser levels are kept.
+    changed = replace(same, level_passes=same.level_passes[:-1] + (3,))
+    kept = [plain.level_signature(l) == changed.level_signature(l) for l in range(L + 1)]
+    assert kept == [True] * L + [False]
+    for s in (a, b, synth):
+        s.release()
+
+
+def test_level_passes_are_validated():
+    p = SynthParams.default(7)
+    with pytest.raises(ValueError, match="one per level"):
+        replace(p, level_passes=(2,) * 7).validate(7)
+    with pytest.raises(ValueError, match="between 0 and 8"):
+        replace(p, level_passes=(0, 0, 0, 2, 2, 2, 2, 9)).validate(7)
+    assert replace(p, level_passes=(0,) * 8).correcting_levels() == frozenset()
+    assert replace(p, passes=0).correcting_levels() == frozenset()
+
+
 def test_exact_margins_are_what_lh05_reports():
     # LH05 3.4: their subpass order needs 10 and 11 pixels instead of 2cs^2 = 16.
     assert sorted(correction_margins(2, 2, 2)) == [10, 10, 11, 11]

@@ -106,6 +106,8 @@ class Document:
     jitter: tuple[float, ...] = ()     # finest level LAST; empty = default everywhere
     seed: int = 0
     passes: int = 2
+    level_passes: tuple[int, ...] = ()  # passes per level, finest LAST (0: not corrected); empty: `passes`
+                                        # on the `corrected` levels
     subgrid: int = 2
     kappa: float = 0.5
     corrected: tuple[int, ...] | None = None
@@ -158,6 +160,26 @@ class Document:
             out[L - i] = float(r)
         return tuple(out)
 
+    def passes_for(self, L: int) -> tuple[int, ...]:
+        """Correction passes of levels 0..L, what the synthesis does: the stored
+        per-level counts matched from the finest level down (levels coarser than
+        those stored get 0), or ``passes`` on the corrected levels."""
+        if self.level_passes:
+            out = [0] * (L + 1)
+            for i, c in enumerate(reversed(self.level_passes)):
+                if i > L:
+                    break
+                out[L - i] = int(c)
+            return tuple(out)
+        corrected = self.params(L).corrected_levels()
+        return tuple(self.passes if l in corrected else 0 for l in range(L + 1))
+
+    def with_level_passes(self, L: int, level: int, count: int) -> Document:
+        """This document with ``count`` correction passes on ``level`` (the others as they are)."""
+        c = list(self.passes_for(L))
+        c[level] = max(0, min(8, int(count)))
+        return replace(self, level_passes=tuple(c))
+
     def controls(self, m: int) -> Controls:
         """The engine input of everything painted, for an m x m exemplar (an
         exemplar field painted at another size is scaled to m, nearest). Made
@@ -175,8 +197,9 @@ class Document:
 
     def params(self, L: int) -> SynthParams:
         corrected = None if self.corrected is None else tuple(l for l in self.corrected if l <= L)
+        level_passes = self.passes_for(L) if self.level_passes else None
         return SynthParams(jitter=self.jitter_for(L), seed=self.seed, passes=self.passes,
-                           subgrid=self.subgrid, kappa=self.kappa, corrected=corrected)
+                           subgrid=self.subgrid, kappa=self.kappa, corrected=corrected, level_passes=level_passes)
 
     def with_jitter(self, L: int, level: int, value: float) -> Document:
         j = list(self.jitter_for(L))
@@ -200,6 +223,8 @@ class Document:
             raise ProjectError("A lattice needs similarity sets: set Similar spots to 1 or more.")
         if any(not (0.0 <= r <= 1.0) for r in self.jitter):
             raise ProjectError("Randomness values must lie between 0 and 1.")
+        if len(self.level_passes) > MAX_LEVELS or any(not 0 <= c <= 8 for c in self.level_passes):
+            raise ProjectError("Correction passes per level must be at most 13 counts from 0 to 8.")
         try:
             SynthParams(jitter=(0.0,) * 10, seed=self.seed, passes=self.passes, subgrid=self.subgrid,
                         kappa=self.kappa, corrected=None).validate(9)
@@ -426,6 +451,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
                      **({"feature_weight": doc.feature_weight} if doc.feature_weight else {})},
         "synthesis": {
             "jitter": list(doc.jitter), "seed": doc.seed, "passes": doc.passes,
+            **({"level_passes": list(doc.level_passes)} if doc.level_passes else {}),
             "subgrid": doc.subgrid, "kappa": doc.kappa,
             "corrected": None if doc.corrected is None else list(doc.corrected),
         },
@@ -713,6 +739,10 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     if corrected is not None and (len(corrected) > MAX_LEVELS or not all(
             isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 12 for c in corrected)):
         raise ProjectError("synthesis.corrected must be a list of level numbers from 0 to 12.")
+    level_passes = _get(s, "level_passes", list, "synthesis", optional=True) or []
+    if len(level_passes) > MAX_LEVELS or not all(
+            isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 8 for c in level_passes):
+        raise ProjectError(f"synthesis.level_passes must be a list of at most {MAX_LEVELS} integers from 0 to 8.")
     fw = a.get("feature_weight", 0.0) if isinstance(a, dict) else 0.0
     if not _number(fw) or not 0.0 <= fw <= 4.0:
         raise ProjectError("analysis.feature_weight must be a number from 0 to 4.")
@@ -735,6 +765,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         jitter=tuple(float(r) for r in jitter),
         seed=_int_in(s, "seed", "synthesis", 0, 2 ** 32 - 1),
         passes=_int_in(s, "passes", "synthesis", 0, 8),
+        level_passes=tuple(level_passes),
         subgrid=_int_in(s, "subgrid", "synthesis", 1, 4),
         kappa=float(kappa),
         corrected=None if corrected is None else tuple(corrected),

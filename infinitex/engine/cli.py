@@ -51,6 +51,19 @@ def _jitter_arg(text: str) -> list[float]:
     return vals
 
 
+def _passes_arg(text: str) -> list[int]:
+    try:
+        if len(text) > 64:
+            raise ValueError
+        vals = [int(v) for v in text.split(",") if v.strip() != ""]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{printable(text, 40)!r} is not an integer or a comma-separated list "
+                                         "of integers") from None
+    if not vals or len(vals) > 16 or any(not 0 <= v <= 8 for v in vals):
+        raise argparse.ArgumentTypeError("correction passes must be integers from 0 to 8")
+    return vals
+
+
 def _integer(text: str) -> int:
     try:
         if len(text) > 24:
@@ -117,7 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="similarity-set size; 0: none, TBN10 random-walk search (always so over 512 px)")
     p.add_argument("--feature-weight", type=_number, default=0.0, metavar="W",
                    help="LH06 feature-distance channel from the exemplar's own elements (0 to 4; default 0: off)")
-    p.add_argument("--passes", type=_integer, default=2, help="correction passes c (0 to 8)")
+    p.add_argument("--passes", type=_passes_arg, default=[2], metavar="C|c0,c1,...",
+                   help="correction passes (0 to 8): one value for every corrected level (all but the 3 "
+                        "coarsest), or one per level, coarse to fine (0: that level is not corrected)")
     p.add_argument("--kappa", type=_number, default=0.5, help="coherence penalty (0 to 4)")
     p.add_argument("--walk", type=_integer, default=None, metavar="N",
                    help="TBN10 random-walk steps added to each correction (0 to 12; default: 6 when the "
@@ -275,7 +290,8 @@ def run_synth(argv: list[str]) -> int:
     if args.toroidal and (w != h or w & (w - 1) or not 32 <= w <= 4096):
         raise CliError(f"--toroidal needs a square power-of-two --size from 32 to 4096, not {w}x{h}.", EXIT_USAGE)
     try:
-        SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes, kappa=args.kappa, walk=args.walk).validate(0)
+        SynthParams(jitter=(0.0,), seed=args.seed, passes=args.passes[0], kappa=args.kappa,
+                    walk=args.walk).validate(0)
         AnalysisSettings(model=args.model, k=args.k, feature_weight=args.feature_weight).validate()
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
@@ -310,6 +326,10 @@ def run_synth(argv: list[str]) -> int:
     else:
         raise CliError(f"--jitter needs 1 value or {L + 1} (one per level of this "
                        f"{ex.size}x{ex.size} exemplar), not {len(jit)}.", EXIT_USAGE)
+    if len(args.passes) not in (1, L + 1):
+        raise CliError(f"--passes needs 1 value or {L + 1} (one per level of this "
+                       f"{ex.size}x{ex.size} exemplar), not {len(args.passes)}.", EXIT_USAGE)
+    level_passes = tuple(args.passes) if len(args.passes) > 1 else None
     controls = randomness_controls(args, args.fit, ex.size)  # maps are read before the analysis
     grid = (0, 0)
     if lattice is not None:
@@ -326,7 +346,8 @@ def run_synth(argv: list[str]) -> int:
         raise CliError(str(exc), EXIT_USAGE) from None
     an = analyze(ex, settings, use_cache=not args.no_cache, progress=_progress(args.quiet))
     try:
-        params = replace(params, seed=args.seed, passes=args.passes, kappa=args.kappa, walk=args.walk)
+        params = replace(params, seed=args.seed, passes=args.passes[0], level_passes=level_passes,
+                         kappa=args.kappa, walk=args.walk)
         params.validate(an.L)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None

@@ -17,7 +17,8 @@ class SynthParams:
 
     ``jitter`` holds r_l per level (coarse to fine, L+1 values in [0, 1]);
     ``corrected`` lists the levels that get correction, None meaning LH05's
-    default (levels >= 3); ``period`` is 0 for the infinite canvas or n (a
+    default (levels >= 3), each getting ``passes`` passes, unless
+    ``level_passes`` gives the count per level; ``period`` is 0 for the infinite canvas or n (a
     power of two) for an n x n toroidal texture.
     """
 
@@ -30,6 +31,8 @@ class SynthParams:
     period: int = 0
     walk: int | None = None    # TBN10 random-walk steps added to each correction (0: off; radius m/2 halved);
                                # None: DEFAULT_WALK without similarity sets (k = 0), else off
+    level_passes: tuple[int, ...] | None = None  # correction passes per level, coarse to fine (0: not corrected);
+                                                 # overrides `passes` and `corrected`; None: `passes` on `corrected`
 
     @classmethod
     def default(cls, levels: int, **kw) -> "SynthParams":
@@ -43,10 +46,23 @@ class SynthParams:
     def L(self) -> int:
         return len(self.jitter) - 1
 
+    def passes_at(self, level: int) -> int:
+        """Correction passes of level ``level``: ``level_passes[level]`` when given
+        (which then decides alone which levels are corrected), else ``passes`` on
+        the corrected levels and 0 elsewhere."""
+        if self.level_passes is not None:
+            return int(self.level_passes[level]) if 0 <= level < len(self.level_passes) else 0
+        return int(self.passes) if level in self.corrected_levels() else 0
+
     def corrected_levels(self) -> frozenset[int]:
+        """The levels chosen for correction (whatever their pass counts)."""
         if self.corrected is None:
             return frozenset(range(FIRST_CORRECTED_LEVEL, self.L + 1))
         return frozenset(self.corrected)
+
+    def correcting_levels(self) -> frozenset[int]:
+        """The levels that actually get correction subpasses."""
+        return frozenset(l for l in range(self.L + 1) if self.passes_at(l) > 0)
 
     def validate(self, levels: int) -> None:
         """Raise ValueError with a user-readable sentence if unusable."""
@@ -57,6 +73,12 @@ class SynthParams:
         fixed.psi_q(self.kappa)
         if not 0 <= self.passes <= 8:
             raise ValueError("Correction passes must be between 0 and 8.")
+        if self.level_passes is not None:
+            if len(self.level_passes) != levels + 1:
+                raise ValueError(f"Expected {levels + 1} correction pass counts (one per level), "
+                                 f"got {len(self.level_passes)}.")
+            if not all(0 <= int(c) <= 8 for c in self.level_passes):
+                raise ValueError("Correction passes must be between 0 and 8 on every level.")
         if self.walk is not None and not 0 <= self.walk <= 12:
             raise ValueError("Random-walk steps must be between 0 and 12.")
         if not 1 <= self.subgrid <= 4:
@@ -83,9 +105,9 @@ class SynthParams:
 
     def level_signature(self, level: int) -> tuple:
         """What level ``level`` itself depends on (beyond coarser levels)."""
-        corr = level in self.corrected_levels()
+        corr = level in self.correcting_levels()
         return (self.jitter[level], self.seed, self.level_period(level), corr,
-                (self.passes, self.subgrid, self.kappa, self.walk) if corr else None)
+                (self.passes_at(level), self.subgrid, self.kappa, self.walk) if corr else None)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:

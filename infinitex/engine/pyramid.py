@@ -179,10 +179,10 @@ class Pyramid:
         old = getattr(self, "_signatures", None)
         self.params = params
         self._signatures = self._level_signatures()
-        self.corrected = params.corrected_levels() if params.passes > 0 else frozenset()
+        self.corrected = params.correcting_levels()
         radius = fixed.read_radius(self.an.model)
-        m = correction_margins(params.subgrid, params.passes, radius)
-        self.margins = [m if l in self.corrected else (0, 0, 0, 0) for l in range(self.an.L + 1)]
+        self.margins = [correction_margins(params.subgrid, params.passes_at(l), radius) if l in self.corrected
+                        else (0, 0, 0, 0) for l in range(self.an.L + 1)]
         if old is None:
             return
         first = next((l for l in range(self.an.L + 1) if old[l] != self._signatures[l]), None)
@@ -443,7 +443,7 @@ class Pyramid:
             set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
                          border=-1 if an.toroidal else border_margin(an.size, h))
             n_sub = 0
-            for order in subpass_order(s, p.passes):
+            for order in subpass_order(s, p.passes_at(l)):
                 for phase in order:
                     a.use(0)
                     set_uniforms(prog, active_phase=phase, walk_seed=fixed.walk_seed(p.seed, n_sub))

@@ -51,7 +51,8 @@ EXPORT_FORMATS = [
 # The Advanced section's sliders: document field, label, range, what it does in plain words.
 ADVANCED_SLIDERS = [
     ("passes", "Correction passes", 0, 4, "How many times each scale is cleaned up to look like the exemplar: "
-     "more looks closer to it, costs more (correction passes, LH05 3.3)"),
+     "more looks closer to it, costs more; sets every cleaned-up scale (each has its own under Passes per scale) "
+     "(correction passes, LH05 3.3)"),
     ("subgrid", "Subpasses (s x s)", 1, 4, "In how many interleaved groups a clean-up pass visits the pixels; "
      "2 x 2 is the paper's choice (subpasses s^2, LH05 3.3)"),
     ("kappa", "Coherence", 0.0, 2.0, "Preference for continuing the current patch of exemplar over jumping to a "
@@ -462,7 +463,10 @@ class Panels:
                 changed, v = imgui.slider_int(label, value, lo, hi)
             tip(text)
             if changed:  # a drag is one undo step
-                ed.edit(replace(ed.doc, **{field: v}), label, group=field)
+                change = {field: v}
+                if field == "passes" and ed.doc.level_passes:  # every cleaned-up scale gets the new count
+                    change["level_passes"] = tuple(v if c else 0 for c in ed.doc.passes_for(L))
+                ed.edit(replace(ed.doc, **change), label, group=field)
             if imgui.is_item_deactivated():
                 ed.history.end_group()
             an = ed.session.analysis
@@ -477,24 +481,28 @@ class Panels:
         if changed:
             ed.edit(replace(ed.doc, model=models[i]), "Neighborhood model")
         imgui.pop_item_width()
-        imgui.text("Cleaned-up levels:")
-        tip("The scales that get cleaned up; the coarsest three are left as jittered by default "
-            "(corrected levels, LH05)")
-        cur = ed.doc.params(L).corrected_levels()
-        for l in range(L + 1):
-            if l % 6:
-                imgui.same_line()
-            on = l in cur
-            changed, on = imgui.checkbox(f"{l}##corr{l}", on)
-            tip(f"Clean up level {l} (features about {1 << (L - l)} px across)")
-            if changed:
-                new = set(cur) | {l} if on else set(cur) - {l}
-                ed.edit(replace(ed.doc, corrected=tuple(sorted(new))), f"Correct level {l}")
-        if imgui.small_button("Default levels"):
-            ed.edit(replace(ed.doc, corrected=None), "Default corrected levels")
-        tip("Back to the default: every level but the coarsest three")
-        imgui.same_line()
-        imgui.text_disabled(f"(levels {FIRST_CORRECTED_LEVEL}..{L})")
+        if imgui.tree_node("Passes per scale"):
+            imgui.push_text_wrap_pos(0)
+            imgui.text_disabled("Clean-up passes at each scale, finest last; 0 leaves a scale as jittered. "
+                                "Coarse scales cost little.")
+            imgui.pop_text_wrap_pos()
+            counts = ed.doc.passes_for(L)
+            imgui.push_item_width(-150)
+            for l in range(L + 1):
+                size = 1 << (L - l)
+                changed, v = imgui.slider_int(f"{size} px##pass{l}", counts[l], 0, 8)
+                tip(f"How many times features about {size} px across are cleaned up (level {l}); "
+                    "0: not at all (correction passes per level, LH05 3.3)")
+                if changed:
+                    ed.edit(ed.doc.with_level_passes(L, l, v), f"Passes of level {l}", group=("passes", l))
+                if imgui.is_item_deactivated():
+                    ed.history.end_group()
+            imgui.pop_item_width()
+            if imgui.small_button("Default passes"):
+                ed.edit(replace(ed.doc, level_passes=(), corrected=None), "Default passes")
+            tip(f"Back to {ed.doc.passes} passes (Correction passes) on every scale but the coarsest "
+                f"{FIRST_CORRECTED_LEVEL}")
+            imgui.tree_pop()
 
     def display_panel(self) -> None:
         ed = self.ed
