@@ -67,7 +67,7 @@ VARIANTS = {
     "fine0.2": ("jitter 0.2 on the 2 finest levels", {}, {}, (0.2, 2)),
     "fine0-5": ("no jitter on the 5 finest levels", {}, {}, (0.0, 5)),
 }
-MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "sheared", "usage_peak", "seconds")
+MEASURES = ("energy", "ps", "repetition", "copied", "verbatim_mean_px", "sheared", "usage_peak", "seconds")
 
 
 def exemplar_paths() -> list[str]:
@@ -120,10 +120,11 @@ def main(argv: list[str]) -> int:
         print(line, flush=True)
     medians = {v: {m: float(np.median(values[v][m])) for m in MEASURES} for v in names}
     print(f"\nmedians over {len(paths)} exemplars, {a.size}^2 windows (lower is better)")
-    print(f"{'variant':<15}{'energy':>9}{'PS':>8}{'repeat':>8}{'verbatim':>10}{'sheared':>9}{'usage':>7}{'ms':>7}")
+    print(f"{'variant':<15}{'energy':>9}{'PS':>8}{'repeat':>8}{'copied':>8}{'verbatim':>10}{'sheared':>9}{'usage':>7}"
+          f"{'ms':>7}")
     for v in names:
         d = medians[v]
-        print(f"{v:<15}{d['energy']:9.5f}{d['ps']:8.3f}{d['repetition']:8.3f}{d['verbatim_mean_px']:10.1f}"
+        print(f"{v:<15}{d['energy']:9.5f}{d['ps']:8.3f}{d['repetition']:8.3f}{d['copied']:8.2f}{d['verbatim_mean_px']:10.1f}"
               f"{d['sheared']:9.3f}{d['usage_peak']:7.2f}{d['seconds'] * 1000:7.0f}")
     os.makedirs(os.path.dirname(a.json), exist_ok=True)
     with open(a.json, "w") as f:

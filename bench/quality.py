@@ -12,6 +12,8 @@ measures (bench/measures.py):
   (fraction of exemplar pixels used), from the coordinate map (ours, tiled);
 - ``verbatim_mean_px`` (area-weighted mean size of regions copied verbatim)
   and ``verbatim_max_px``, from the coordinate map;
+- ``copied``: the fraction of the output's 5x5 windows found verbatim in the
+  exemplar, from the pixels alone, so for the peer too (how much is copied);
 - ``repetition``: highest autocorrelation peak away from the origin (1 = tiled);
 - ``histogram``: mean 1-D Wasserstein distance of the value histograms;
 - ``sheared`` (fraction of neighbor pairs one exemplar pixel off: zipper lines
@@ -201,7 +203,7 @@ def main(argv=None) -> int:
             row = {
                 "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal, ps=True),
                 "tiled": all_measures(ex.pixels, tiled, tiled_coords, m, an.toroidal, ps=True),
-                "peer": all_measures(ex.pixels, peer, ps=True),
+                "peer": all_measures(ex.pixels, peer, toroidal=an.toroidal, ps=True),
                 "time": {"ours_warm_s": ours_warm, "peer_warm_s": peer_warm, "ours_cold_s": ours_cold,
                          "peer_cold_s": peer_cold, "warm_ratio_peer_over_ours": peer_warm / ours_warm,
                          "cold_ratio_peer_over_ours": peer_cold / ours_cold},
@@ -237,7 +239,7 @@ def main(argv=None) -> int:
     return 0
 
 
-SUMMARY_MEASURES = ("energy", "ps", "repetition", "verbatim_mean_px", "histogram", "sheared", "usage_peak")
+SUMMARY_MEASURES = ("energy", "ps", "repetition", "copied", "verbatim_mean_px", "histogram", "sheared", "usage_peak")
 
 
 def summarize(results: dict) -> dict:
@@ -277,7 +279,7 @@ def _print_summary(summary: dict) -> None:
 def _print_table(results: dict) -> None:
     print(f"\nrenderer: {results['renderer']}")
     hdr = (f"{'exemplar':<13}{'size':>5} {'method':<6}{'energy':>9}{'complete':>9}{'cover':>7}{'used':>6}"
-           f"{'verb.mean':>10}{'verb.max':>9}{'repeat':>7}{'hist':>7}{'PS':>7}")
+           f"{'verb.mean':>10}{'verb.max':>9}{'repeat':>7}{'copied':>7}{'hist':>7}{'PS':>7}")
     print(hdr)
     for name, entry in results["exemplars"].items():
         for n in results["sizes"]:
@@ -293,7 +295,7 @@ def _print_table(results: dict) -> None:
                 reg = f"  lattice regularity {reg[0]:.2f} / {reg[1]:.2f}" if reg else ""
                 ps = f"{d['ps']:7.3f}" if "ps" in d else f"{'-':>7}"
                 print(f"{name:<13}{n:>5} {method:<6}{d['energy']:9.5f}{d['completeness']:9.5f}{cov}{verb}"
-                      f"{d['repetition']:7.2f}{d['histogram']:7.3f}{ps}{reg}")
+                      f"{d['repetition']:7.2f}{d['copied']:7.2f}{d['histogram']:7.3f}{ps}{reg}")
             t = row["time"]
             print(f"{'':<19}time: ours {t['ours_warm_s'] * 1000:.0f} ms warm, {t['ours_cold_s']:.1f} s cold; "
                   f"peer {t['peer_warm_s'] * 1000:.0f} ms warm, {t['peer_cold_s']:.1f} s cold; "

@@ -5,6 +5,7 @@ import numpy as np
 from PIL import Image
 
 from bench.measures import (
+    copied_windows,
     coverage,
     sheared_seams,
     usage_peak,
@@ -120,3 +121,25 @@ def test_sheared_seams_and_usage_peak_have_known_answers():
     stuck = rng.integers(0, m, (128, 128, 2))
     stuck[:64] = rng.integers(0, 16, (64, 128, 2))  # half the pixels from the first 16 px block
     assert usage_peak(stuck, m) > 8.0 and usage_peak(tiled, m) == 1.0
+
+
+def test_copied_windows_have_known_answers():
+    """A tiling copies every window (but across a non-tiling exemplar's seams, and
+    across the wrap only when periodic); noise and a shuffle copy none; a pasted
+    block copies its interior windows exactly."""
+    from conftest import periodic_noise
+    ex = periodic_noise(64, channels=3, seed=5)
+    ex = np.rint(ex * 255) / 255
+    tiled = np.tile(ex, (3, 3, 1))
+    assert copied_windows(ex, tiled, periodic=True) == 1.0
+    seams = copied_windows(ex, tiled, periodic=False)   # windows across the tile seams are not in ex
+    n = 3 * 64 - 4
+    assert abs(seams - (n - 2 * 4) ** 2 / n ** 2) < 0.02
+    rng = np.random.default_rng(7)
+    assert copied_windows(ex, rng.random((100, 100, 3))) == 0.0
+    assert copied_windows(ex, rng.permutation(tiled.reshape(-1, 3)).reshape(tiled.shape), periodic=True) < 0.01
+    canvas = rng.random((100, 100, 3))
+    canvas[10:50, 20:60] = ex[5:45, 7:47]
+    assert copied_windows(ex, canvas) == (36 * 36) / (96 * 96)
+    gray = _gravel()
+    assert copied_windows(gray, gray) == 1.0 and copied_windows(gray, gray[::-1]) < 0.01  # flips are not copies
