@@ -12,8 +12,9 @@ measures (bench/measures.py):
   (fraction of exemplar pixels used), from the coordinate map (ours, tiled);
 - ``verbatim_mean_px`` (area-weighted mean size of regions copied verbatim)
   and ``verbatim_max_px``, from the coordinate map;
-- ``copied``: the fraction of the output's 5x5 windows found verbatim in the
-  exemplar, from the pixels alone, so for the peer too (how much is copied);
+- ``copied``: the fraction of the output's 5x5 windows found in the exemplar
+  (every value within 2/255), from the pixels alone, so for the peer too (how
+  much is copied);
 - ``repetition``: highest autocorrelation peak away from the origin (1 = tiled);
 - ``histogram``: mean 1-D Wasserstein distance of the value histograms;
 - ``sheared`` (fraction of neighbor pairs one exemplar pixel off: zipper lines

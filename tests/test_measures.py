@@ -143,3 +143,7 @@ def test_copied_windows_have_known_answers():
     assert copied_windows(ex, canvas) == (36 * 36) / (96 * 96)
     gray = _gravel()
     assert copied_windows(gray, gray) == 1.0 and copied_windows(gray, gray[::-1]) < 0.01  # flips are not copies
+    # Copies off by a level or two (a peer's rounding) still count; changed by 5 levels they do not.
+    off = rng.integers(-2, 3, gray.shape) / 255
+    assert copied_windows(gray, np.clip(gray + off, 0, 1)) > 0.95
+    assert copied_windows(gray, np.clip(gray + 5 / 255 * np.sign(gray - 0.5), 0, 1)) < 0.01
