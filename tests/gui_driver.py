@@ -103,7 +103,7 @@ def main(out: str) -> int:
         ctx.yield_(3)
         ed.tool.brush.value, ed.tool.brush.radius = 0.0, 10.0
         steps_before = len(ed.history.undo_stack)
-        ctx.set_ref("//Exemplar randomness")
+        ctx.set_ref("//Paint exemplar")
         er = ctx.item_info("//**/exemplar-paint").rect_full
         ctx.mouse_move_to_pos((er.min.x + 20, er.min.y + 20))
         ctx.mouse_down(0)
@@ -118,6 +118,35 @@ def main(out: str) -> int:
         ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
         ctx.yield_(2)
         check("undo removes the exemplar stroke", ed.doc.randomness_exemplar is None, "still painted")
+        # Avoid mode: a stroke marks exemplar regions the synthesis no longer copies; one undo step.
+        ctx.set_ref("//Infinitex")
+        ctx.item_click("//**/Avoid##paint-mode")
+        ctx.yield_(2)
+        ed.tool.brush.radius, ed.tool.brush.eraser = 12.0, False
+        steps_before = len(ed.history.undo_stack)
+        before_avoid = canvas(ctx)
+        ctx.set_ref("//Paint exemplar")
+        er = ctx.item_info("//**/exemplar-paint").rect_full
+        zoom = ed.tool.zoom
+        ctx.mouse_move_to_pos((er.min.x + 30 * zoom, er.min.y + 30 * zoom))
+        ctx.mouse_down(0)
+        ctx.mouse_move_to_pos((er.min.x + 60 * zoom, er.min.y + 40 * zoom))
+        ctx.mouse_up(0)
+        settle(ctx)
+        mask = ed.doc.avoid_exemplar
+        check("an avoid stroke marks the exemplar", mask is not None and 0.02 < mask.fraction < 0.5,
+              "no mask" if mask is None else f"{mask.fraction}")
+        check("the avoid stroke is one undo step", len(ed.history.undo_stack) == steps_before + 1,
+              f"{len(ed.history.undo_stack) - steps_before} steps")
+        testing.capture(ctx, os.path.join(out, "avoid.png"))
+        check("the canvas follows the avoided regions", ed.session.controls.avoid == mask
+              and not np.array_equal(canvas(ctx), before_avoid), "canvas unchanged")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        settle(ctx)
+        check("undo removes the avoided regions exactly", ed.doc.avoid_exemplar is None
+              and ed.session.controls.avoid is None and np.array_equal(canvas(ctx), before_avoid), "differs")
+        ctx.set_ref("//Infinitex")
+        ctx.item_click("//**/Randomness##paint-mode")
         ctx.set_ref("//Infinitex")
         ctx.item_click("//**/Navigate (N)##tool-navigate")
 

@@ -162,6 +162,7 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     best = np.full(len(ys), np.iinfo(np.int64).max)
     best_u = S[ys, xs].astype(np.int64)
     psi = fixed.psi_q(params.kappa)
+    avoid = None if controls.avoid is None else controls.avoid.values
     for dx, dy in fixed.CANDIDATE_OFFSETS:
         nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
         bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
@@ -176,10 +177,12 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
             e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
             dist = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP)
             cost = dist * (fixed.PSI_ONE if i == 0 else psi)
+            if avoid is not None:
+                cost = np.where(avoid[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, cost)
             better = cost < best
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
-    steps = params.walk_steps(an.k)
+    steps = params.walk_steps(an.k, avoid is not None)
     if steps and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
         gx, gy = xs + origin[0], ys + origin[1]
         period = params.level_period(level)
@@ -196,6 +199,8 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
             u = (u & (m - 1)) if border is None else np.clip(u, border, m - 1 - border)
             e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
             cost = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP) * psi
+            if avoid is not None:
+                cost = np.where(avoid[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, cost)
             better = cost < best
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)

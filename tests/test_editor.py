@@ -41,8 +41,9 @@ def _drive(script: str, tmp_path, min_checks: int) -> None:
 
 def test_editor_driven_by_the_test_engine(tmp_path):
     """Sliders, undo/redo, pan, zoom, Save As, reopen, exports, painting,
-    features, broken and outside projects, quitting (tests/gui_driver.py)."""
-    _drive("gui_driver.py", tmp_path, 15)
+    avoided exemplar regions, features, broken and outside projects, quitting
+    (tests/gui_driver.py)."""
+    _drive("gui_driver.py", tmp_path, 40)
 
 
 def test_lattice_tool_driven_by_the_test_engine(tmp_path):

@@ -202,11 +202,11 @@ def run_export(argv: list[str]) -> int:
         if tor % cx or tor % cy:
             raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar px) "
                            f"divides; use --toroidal {max(cx, cy, 32)} or more.", EXIT_USAGE)
-    if args.randomness_exemplar or args.randomness_canvas or args.features:  # these replace the project's
-        from infinitex.engine.cli import randomness_controls
+    if args.randomness_exemplar or args.randomness_canvas or args.features or args.avoid_exemplar:
+        from infinitex.engine.cli import randomness_controls  # these replace the project's
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
-                      features=c.features)
+                      features=c.features, avoid_exemplar=c.avoid)
     an = analyze(ex, settings, progress=_progress(args.quiet))
     gpu = Gpu()
     session = Session(gpu)

@@ -34,6 +34,7 @@ from infinitex.engine.controls import (
     CanvasField,
     Controls,
     ExemplarField,
+    ExemplarMask,
     Feature,
     features_from_json,
     features_to_json,
@@ -55,7 +56,7 @@ from infinitex.engine.safeio import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 4              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); files without them are written as 1
+VERSION = 5              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
@@ -112,6 +113,7 @@ class Document:
     kappa: float = 0.5
     corrected: tuple[int, ...] | None = None
     randomness_exemplar: ExemplarField | None = None   # painted over the exemplar (m x m)
+    avoid_exemplar: ExemplarMask | None = None         # exemplar regions the synthesis does not copy (m x m)
     randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
     features: tuple[Feature, ...] = ()                 # placed exemplar features, later ones win
     lattice: Lattice | None = None                     # near-regular mode: synthesize this lattice's block
@@ -191,7 +193,8 @@ class Document:
         if e is not None and e.size != m:
             idx = (np.arange(m) * e.size) // m
             e = ExemplarField(np.ascontiguousarray(e.values[idx[:, None], idx[None, :]]))
-        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice).normalized()
+        a = None if self.avoid_exemplar is None else self.avoid_exemplar.scaled(m)
+        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a).normalized()
         object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
         return controls
 
@@ -223,6 +226,8 @@ class Document:
             raise ProjectError("A lattice needs similarity sets: set Similar spots to 1 or more.")
         if any(not (0.0 <= r <= 1.0) for r in self.jitter):
             raise ProjectError("Randomness values must lie between 0 and 1.")
+        if self.avoid_exemplar is not None and self.avoid_exemplar.values.all():
+            raise ProjectError("The avoided regions cover the whole exemplar: leave some of it usable.")
         if len(self.level_passes) > MAX_LEVELS or any(not 0 <= c <= 8 for c in self.level_passes):
             raise ProjectError("Correction passes per level must be at most 13 counts from 0 to 8.")
         try:
@@ -436,9 +441,12 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
         material = {"role": doc.maps[0][0], "maps": entries,
                     "weights": None if doc.weights is None else [[r, w] for r, w in doc.weights]}
     fields = _fields_to_json(doc)
+    avoid = None if doc.avoid_exemplar is None or doc.avoid_exemplar.empty else {
+        "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 4 if material else 3 if doc.lattice else (2 if fields or doc.features else 1),
+        "version": 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+            2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
             "sha256": ex.sha256,
@@ -456,6 +464,7 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
             "corrected": None if doc.corrected is None else list(doc.corrected),
         },
         **({"randomness": fields} if fields else {}),
+        **({"avoid": avoid} if avoid else {}),
         **({"features": features_to_json(doc.features)} if doc.features else {}),
         **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
         **({"material": material} if material else {}),
@@ -573,6 +582,19 @@ def _fields_from_json(r: object) -> tuple[ExemplarField | None, CanvasField | No
             tiles[(tx, ty)] = _unpng16(t.get("png16"), (TILE, TILE), "canvas randomness field")
         cfield = CanvasField(tiles)
     return efield, cfield
+
+
+def _avoid_from_json(r: object) -> ExemplarMask | None:
+    """The project's avoided exemplar regions (a 0/1 16-bit PNG), or None."""
+    if r is None:
+        return None
+    if not isinstance(r, dict):
+        raise ProjectError("The project's avoided exemplar regions are damaged.")
+    v = _unpng16(r.get("png16"), None, "avoided exemplar regions")
+    n = v.shape[0]
+    if v.ndim != 2 or v.shape[1] != n or n & (n - 1) or not 1 <= n <= MAX_SIZE or v.max(initial=0) > 1:
+        raise ProjectError("The project's avoided exemplar regions are damaged.")
+    return ExemplarMask(v.astype(np.uint8))
 
 
 def save_project(path: str, project: Project, embed: bool | None = None) -> None:
@@ -751,6 +773,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
     toroidal = _get(e, "toroidal", bool, "exemplar", optional=True)
     fields = _fields_from_json(d.get("randomness"))
+    avoid = _avoid_from_json(d.get("avoid"))
     try:
         features = features_from_json(d.get("features", []))
     except ValueError as exc:
@@ -770,6 +793,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         kappa=float(kappa),
         corrected=None if corrected is None else tuple(corrected),
         randomness_exemplar=fields[0],
+        avoid_exemplar=avoid,
         randomness_canvas=fields[1],
         features=features,
         lattice=_lattice_from_json(d.get("lattice")),

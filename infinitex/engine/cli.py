@@ -208,6 +208,9 @@ def add_randomness_args(p: argparse.ArgumentParser) -> None:
                    "placed by --randomness-origin; unpainted elsewhere")
     g.add_argument("--randomness-origin", nargs=2, type=_integer, default=[0, 0], metavar=("X", "Y"),
                    help="canvas position of the canvas map's top-left pixel (default 0 0)")
+    p.add_argument("--avoid-exemplar", metavar="MASK",
+                   help="exemplar regions not to copy: a grayscale mask over the exemplar (its size, or brought to "
+                        "it by the fit rule), white (at least half intensity) = avoid")
     p.add_argument("--features", metavar="FEATURES.json",
                    help='placed features: a JSON list of {"exemplar": [ux, uy], "canvas": [px, py], '
                         '"radius": [inner, outer], "levels": [first, last] (optional)}')
@@ -228,11 +231,11 @@ def load_features(path: str):
 
 def randomness_controls(args, fit: str, m: int, base=None):
     """Controls from the map arguments (each map replaces the same field of ``base``)."""
-    from .controls import NO_CONTROLS, CanvasField, Controls, ExemplarField
+    from .controls import NO_CONTROLS, NEUTRAL, CanvasField, Controls, ExemplarField, ExemplarMask
     from .exemplar import fit_field_map, load_field_map
     from .controls import fit_features
     base = base or NO_CONTROLS
-    e, c, feats = base.randomness_exemplar, base.randomness_canvas, base.features
+    e, c, feats, avoid = base.randomness_exemplar, base.randomness_canvas, base.features, base.avoid
     if args.randomness_exemplar:
         e = ExemplarField(fit_field_map(load_field_map(args.randomness_exemplar, "exemplar randomness map"), fit, m))
     if args.randomness_canvas:
@@ -243,7 +246,12 @@ def randomness_controls(args, fit: str, m: int, base=None):
         c = CanvasField.from_image(values, x, y)
     if getattr(args, "features", None):
         feats = fit_features(load_features(args.features), m)
-    return Controls(e, c, feats).normalized()
+    if getattr(args, "avoid_exemplar", None):
+        mask = fit_field_map(load_field_map(args.avoid_exemplar, "avoid mask"), fit, m) >= NEUTRAL
+        if mask.all():
+            raise CliError("The avoid mask covers the whole exemplar: leave some of it usable (black).", EXIT_USAGE)
+        avoid = ExemplarMask(mask.astype(np.uint8))
+    return Controls(e, c, feats, base.lattice, avoid).normalized()
 
 
 class ProgressBar:

@@ -25,6 +25,14 @@ with the effective ``r_l M_l(p)`` clamped to [0, 1]. Field values are uint16 in
 
 Both multiply: ``t = (E * C + 2^14) >> 15``, ``r'_q = min(1024, (r_q t + 2^14) >> 15)``,
 so a neutral field gives exactly the unmodulated jitter.
+
+**Avoided exemplar regions** (:class:`ExemplarMask`, m x m, 1 = avoid): a
+blemish, a logo, or one distinctive element that would recur once per
+exemplar area. Correction never picks a candidate inside the mask while any
+candidate outside it is left (its cost is above every real cost), and the
+search adds TBN10's random walk so that a pixel deep inside the region still
+finds a way out; coordinates the jitter puts there are corrected away on the
+corrected levels.
 """
 from __future__ import annotations
 
@@ -149,6 +157,72 @@ class ExemplarField:
         wts = dab_weights(cx, cy, radius, hardness, x0, y0, x1 - x0, y1 - y0)
         v[y0:y1, x0:x1] = apply_dab(v[y0:y1, x0:x1], wts, value, strength)
         return ExemplarField(v)
+
+
+@dataclass(frozen=True, eq=False)
+class ExemplarMask:
+    """Exemplar regions to avoid: uint8 (m, m), 1 = avoid, 0 = usable."""
+
+    values: np.ndarray
+
+    def __post_init__(self):
+        v = np.asarray(self.values)
+        if v.dtype != np.uint8 or v.ndim != 2 or v.shape[0] != v.shape[1] or v.shape[0] & (v.shape[0] - 1):
+            raise ValueError(f"an avoid mask is a uint8 power-of-two square, not {v.dtype} {v.shape}")
+        if v.max(initial=0) > 1:
+            raise ValueError("an avoid mask holds 0 (usable) and 1 (avoid) only")
+        object.__setattr__(self, "values", np.ascontiguousarray(v))
+
+    @property
+    def size(self) -> int:
+        return int(self.values.shape[0])
+
+    @cached_property
+    def key(self) -> str:
+        import hashlib
+        return hashlib.sha256(b"avoid" + self.values.tobytes() + repr(self.values.shape).encode()).hexdigest()
+
+    def __eq__(self, other):
+        return isinstance(other, ExemplarMask) and self.key == other.key
+
+    def __hash__(self):
+        return hash(self.key)
+
+    @cached_property
+    def empty(self) -> bool:
+        return not bool(self.values.any())
+
+    @cached_property
+    def fraction(self) -> float:
+        """The fraction of the exemplar avoided."""
+        return float(self.values.mean())
+
+    @classmethod
+    def blank(cls, m: int) -> ExemplarMask:
+        return cls(np.zeros((m, m), np.uint8))
+
+    def scaled(self, m: int) -> ExemplarMask:
+        """The mask for an m x m exemplar (nearest)."""
+        if m == self.size:
+            return self
+        idx = (np.arange(m) * self.size) // m
+        return ExemplarMask(np.ascontiguousarray(self.values[idx[:, None], idx[None, :]]))
+
+    def painted(self, cx: float, cy: float, radius: float, avoid: bool = True) -> ExemplarMask:
+        """A disc (exemplar pixels whose centers lie within ``radius`` of (cx, cy))
+        marked avoided, or usable again; clipped at the exemplar's border."""
+        m = self.size
+        x0, y0, x1, y1 = dab_rect(cx, cy, radius)
+        x0, y0, x1, y1 = max(0, x0), max(0, y0), min(m, x1), min(m, y1)
+        if x0 >= x1 or y0 >= y1:
+            return self
+        ys, xs = np.mgrid[y0:y1, x0:x1]
+        inside = np.hypot(xs + 0.5 - cx, ys + 0.5 - cy) <= max(radius, 0.5)
+        if not inside.any():
+            return self
+        v = self.values.copy()
+        v[y0:y1, x0:x1][inside] = 1 if avoid else 0
+        return self if np.array_equal(v, self.values) else ExemplarMask(v)
 
 
 @dataclass(frozen=True, eq=False)
@@ -398,13 +472,15 @@ class Controls:
     randomness_canvas: CanvasField | None = None
     features: tuple[Feature, ...] = ()
     lattice: Lattice | None = None  # near-regular mode: the exemplar is this lattice's rectified block
+    avoid: ExemplarMask | None = None  # exemplar regions the correction does not copy
 
     def normalized(self) -> Controls:
-        """Neutral fields dropped (they change nothing), so equal effects compare equal."""
+        """Neutral fields and empty masks dropped (they change nothing), so equal effects compare equal."""
         e = self.randomness_exemplar
         c = self.randomness_canvas
+        a = self.avoid
         return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c,
-                        tuple(self.features), self.lattice)
+                        tuple(self.features), self.lattice, None if a is None or a.empty else a)
 
     def lattice_shift(self, m: int, level: int) -> tuple[int, int] | None:
         """(log2 cx, log2 cy) when ``level`` is a lattice level: jitter is
@@ -421,6 +497,11 @@ class Controls:
         e = self.randomness_exemplar
         if e is not None and e.size != m:
             raise ValueError(f"The exemplar randomness field is {e.size}x{e.size}; the exemplar is {m}x{m}.")
+        a = self.avoid
+        if a is not None and a.size != m:
+            raise ValueError(f"The avoid mask is {a.size}x{a.size}; the exemplar is {m}x{m}.")
+        if a is not None and a.values.all():
+            raise ValueError("The avoid mask covers the whole exemplar: leave some of it usable.")
         L = m.bit_length() - 1
         for f in self.features:
             f.validate(m, L)
@@ -435,7 +516,8 @@ class Controls:
         e, c = self.randomness_exemplar, self.randomness_canvas
         return (None if e is None else e.key, None if c is None else c.key,
                 self.features_key if self.features else None,
-                None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)))
+                None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)),
+                None if self.avoid is None else self.avoid.key)
 
     @cached_property
     def _feature_index(self) -> dict:
@@ -491,8 +573,9 @@ class Controls:
 
     def changed_rects(self, other: Controls) -> list | None:
         """Finest-level rectangles outside which ``other`` reads the same as this
-        one; None when the change reaches everywhere (the exemplar field)."""
-        if self.randomness_exemplar != other.randomness_exemplar or self.lattice != other.lattice:
+        one; None when the change reaches everywhere (the exemplar field, the avoid mask)."""
+        if self.randomness_exemplar != other.randomness_exemplar or self.lattice != other.lattice \
+                or self.avoid != other.avoid:
             return None
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()

@@ -25,6 +25,7 @@ NBHD_MAX = 4095
 APPEARANCE_PREDICTIONS = 3
 DIST_CLAMP = 1 << 25
 PSI_ONE = 16
+AVOIDED = 0xFFFFFFFE  # the cost of a candidate inside the avoid mask: above every real cost
 KAPPA_MAX = 4.0
 JITTER_ONE = 1024
 JITTER_SHIFT = 20

@@ -97,11 +97,13 @@ class SynthParams:
             return 0
         return max(1, self.period >> (self.L - level))
 
-    def walk_steps(self, k: int) -> int:
-        """Random-walk steps of a correction with similarity sets of size k."""
+    def walk_steps(self, k: int, avoiding: bool = False) -> int:
+        """Random-walk steps of a correction with similarity sets of size k (by
+        default on without sets, or with exemplar regions to avoid: the walk
+        finds a way out of them)."""
         if self.walk is not None:
             return int(self.walk)
-        return DEFAULT_WALK if k == 0 else 0
+        return DEFAULT_WALK if k == 0 or avoiding else 0
 
     def level_signature(self, level: int) -> tuple:
         """What level ``level`` itself depends on (beyond coarser levels)."""

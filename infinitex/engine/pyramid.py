@@ -159,7 +159,7 @@ class Pyramid:
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
         gpu.activate()
-        self._efield: dict[int, object] = {}  # level -> R_E,l texture
+        self._efield: dict = {}  # level -> R_E,l texture; "avoid" -> the avoid mask
         self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
         self._dummy_i = gpu.ctx.texture((2, 1), 4, np.zeros(8, np.int32).tobytes(), dtype="i4")
         self.controls = NO_CONTROLS
@@ -173,7 +173,8 @@ class Pyramid:
         if controls is not None:
             controls = controls.normalized()
             controls.validate(self.an.size, self.an.settings.lattice)
-            if controls.randomness_exemplar != self.controls.randomness_exemplar:
+            if controls.randomness_exemplar != self.controls.randomness_exemplar or \
+                    controls.avoid != self.controls.avoid:
                 self._release_efield()
             self.controls = controls
         old = getattr(self, "_signatures", None)
@@ -211,7 +212,8 @@ class Pyramid:
         if changed is None:
             rects = self.controls.changed_rects(controls)
             changed = None if rects is None else [Rect(*r) for r in rects]
-        if changed is None or controls.randomness_exemplar != self.controls.randomness_exemplar:
+        if changed is None or controls.randomness_exemplar != self.controls.randomness_exemplar \
+                or controls.avoid != self.controls.avoid:
             self.set_params(self.params, controls)  # the whole canvas changes
             return 0
         self.controls = controls
@@ -439,9 +441,13 @@ class Pyramid:
                          dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,
                          shift=lt.shift, psi=fixed.psi_q(p.kappa))
             prog["P"].write(lt.proj)
-            walk = p.walk_steps(an.k) if lshift is None else 0  # lattice levels keep their lattice candidates only
+            # Lattice levels keep their lattice candidates only.
+            walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
+            avoid = self._avoid_texture()
+            (avoid or self._dummy).use(5)
             set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
-                         border=-1 if an.toroidal else border_margin(an.size, h))
+                         border=-1 if an.toroidal else border_margin(an.size, h),
+                         avoid=5, has_avoid=int(avoid is not None))
             n_sub = 0
             for order in subpass_order(s, p.passes_at(l)):
                 for phase in order:
@@ -476,6 +482,14 @@ class Pyramid:
         if l not in self._efield:
             self._efield[l] = self.gpu.u16_texture(e.level(self.an.L, l))
         return self._efield[l]
+
+    def _avoid_texture(self):
+        a = self.controls.avoid
+        if a is None:
+            return None
+        if "avoid" not in self._efield:
+            self._efield["avoid"] = self.gpu.u16_texture(a.values)
+        return self._efield["avoid"]
 
     def _release_efield(self) -> None:
         for t in self._efield.values():

@@ -1,5 +1,6 @@
 """Overlays drawn over the canvas and the exemplar view: the randomness fields
-as translucent heat maps (blue = calm, clear = neutral, red = rough)."""
+as translucent heat maps (blue = calm, clear = neutral, red = rough), and the
+exemplar's avoided regions hatched in magenta."""
 from __future__ import annotations
 
 import math
@@ -7,7 +8,7 @@ import math
 import moderngl
 import numpy as np
 
-from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField
+from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
 
 MAX_OVERLAY = 2048  # texels a side
 
@@ -20,6 +21,19 @@ def heat_rgba(values: np.ndarray) -> np.ndarray:
     out[calm] = (60, 150, 255, 0)
     out[rough] = (255, 80, 40, 0)
     out[..., 3] = np.clip(np.abs(d) * 170.0, 0, 170).astype(np.uint8)
+    return out
+
+
+def avoid_rgba(values: np.ndarray) -> np.ndarray:
+    """An avoid mask to RGBA8: avoided pixels hatched magenta (diagonal stripes,
+    so the exemplar stays readable underneath), usable ones transparent."""
+    m = values.shape[0]
+    ys, xs = np.mgrid[0:m, 0:m]
+    stripe = ((xs + ys) // max(1, m // 64)) % 2 == 0
+    out = np.zeros(values.shape + (4,), np.uint8)
+    on = values != 0
+    out[on] = (255, 40, 200, 0)
+    out[..., 3] = np.where(on, np.where(stripe, 200, 90), 0).astype(np.uint8)
     return out
 
 
@@ -48,6 +62,16 @@ class FieldOverlay:
         key = ("e", field.key)
         if key != self._key:
             self._upload(heat_rgba(field.values))
+            self._key = key
+        return self.tex
+
+    def mask(self, mask: ExemplarMask | None):
+        """The texture of an avoid mask (m x m), or None when nothing is avoided."""
+        if mask is None or mask.empty:
+            return None
+        key = ("a", mask.key)
+        if key != self._key:
+            self._upload(avoid_rgba(mask.values))
             self._key = key
         return self.tex
 

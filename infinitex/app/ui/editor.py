@@ -143,6 +143,7 @@ class Editor:
         self.show_fields = True          # randomness fields drawn as heat maps
         self.overlay_canvas: FieldOverlay | None = None
         self.overlay_exemplar: FieldOverlay | None = None
+        self.overlay_avoid: FieldOverlay | None = None
         self._canvas_button = -1         # mouse button that went down on the canvas
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
@@ -154,7 +155,7 @@ class Editor:
         p.app_window_params.window_title = "Infinitex"
         p.app_window_params.window_geometry.size = self.window_size
         p.imgui_window_params.default_imgui_window_type = hello_imgui.DefaultImGuiWindowType.no_default_window
-        # Floating windows (Lattice, Exemplar randomness, Shortcuts) keep their place
+        # Floating windows (Lattice, Paint exemplar, Shortcuts) keep their place
         # between runs: imgui's ini in the user's config folder (none for screenshots).
         p.ini_disable = bool(self.screenshot)
         try:
@@ -205,6 +206,7 @@ class Editor:
             self.canvas = Canvas(self.gpu)
             self.overlay_canvas = FieldOverlay(ctx)
             self.overlay_exemplar = FieldOverlay(ctx)
+            self.overlay_avoid = FieldOverlay(ctx)
         except (GLUnavailable, Exception) as exc:
             self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
                           "on Linux install libgl1 and a Mesa driver.")
@@ -275,7 +277,7 @@ class Editor:
             self.session.release()
         if self.canvas is not None:
             self.canvas.release()
-        for o in (self.overlay_canvas, self.overlay_exemplar):
+        for o in (self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid):
             if o is not None:
                 o.release()
 

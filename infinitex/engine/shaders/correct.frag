@@ -6,7 +6,8 @@
 //                       of A_l[S[p+d'] + h (d - d')]   (3x the LH06 average)
 //     MODEL_COLOR:      E_l[S[p+d]], d in [-2,2]^2     (LH05)
 //   candidates u = C^i(S[p+d] - h d), d in [-1,1]^2, i = 1..k (k = 0: u = S[p+d] - h d)
-//   keep the u minimizing psi(i) ||N_S(p) - N_E(u)||^2, first one on ties.
+//   keep the u minimizing psi(i) ||N_S(p) - N_E(u)||^2, first one on ties;
+//   a u inside the avoid mask costs more than any other (engine/controls.py).
 // All arithmetic is integer (engine/fixed.py), so results are exact.
 
 uniform isampler2D src;       // current state, packed
@@ -38,6 +39,9 @@ uniform int level;
 uniform uint walk_seed;       // the synthesis seed mixed with the subpass number
 uniform int period;           // n_l, or 0
 uniform int border;
+uniform int has_avoid;        // exemplar regions to avoid (controls.ExemplarMask)
+uniform usampler2D avoid;     // m x m, 1 = avoid
+const uint AVOIDED = 0xfffffffeu;
 
 out ivec4 result;
 
@@ -124,6 +128,7 @@ void main() {
             ivec4 sq = e0 * e0 + e1 * e1;
             int dist = min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP);
             uint cost = uint(dist) * uint(i == 0 ? PSI_ONE : psi);
+            if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
             if (cost < best) {
                 best = cost;
                 best_u = u;
@@ -145,6 +150,7 @@ void main() {
             e1 -= hi;
             ivec4 sq = e0 * e0 + e1 * e1;
             uint cost = uint(min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP)) * uint(psi);
+            if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
             if (cost < best) {
                 best = cost;
                 best_u = u;

@@ -41,7 +41,7 @@ class Tool:
 
 def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tuple[int, int],
                       zoom_range: tuple[float, float], fmt: str) -> bool:
-    """A tool's own zoomable image window (Exemplar randomness, Lattice):
+    """A tool's own zoomable image window (Paint exemplar, Lattice):
     placed at the top right on first use, closing it goes back to Navigate,
     a zoom slider (``tool.zoom``) and the image size on its first row. Returns
     whether its content is visible; call ``imgui.end()`` after it, always."""

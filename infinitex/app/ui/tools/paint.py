@@ -1,5 +1,5 @@
 """Painting randomness (LH05 4.2): on the canvas, or on the exemplar in its own
-window. Brush conventions as in Krita / Photoshop: radius (screen or canvas
+window, where regions to avoid (never copied) are painted too. Brush conventions as in Krita / Photoshop: radius (screen or canvas
 pixels), strength, hardness, a value from calm (0) through neutral (1) to
 rough (2), an eraser back to neutral; [ and ] resize the brush, Alt-click
 picks the value under the cursor, a circle shows the brush. One stroke (press
@@ -8,11 +8,12 @@ the stroke reaches (engine.pyramid.Pyramid.update_controls)."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 
 from imgui_bundle import imgui
 
-from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField
+from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
 
 from . import Tool, begin_tool_window
 
@@ -142,25 +143,54 @@ class PaintCanvasTool(Tool):
 
 
 class PaintExemplarTool(Tool):
-    """Paints the field over the exemplar, in the Exemplar window (zoomable):
-    what is protected there stays whole wherever it appears on the canvas."""
+    """Paints over the exemplar, in the Paint exemplar window (zoomable): the
+    randomness field (what is protected there stays whole wherever it appears on
+    the canvas), or regions to avoid (the synthesis never copies them: a
+    blemish, a logo, an element that would recur once per exemplar area)."""
 
     name = "paint-exemplar"
     label = "Paint exemplar"
     key = "E"
-    tooltip = ("Paint on the exemplar (in its window): calm (0) keeps those features whole wherever "
-               "they appear, rough (2) breaks them up more (E)")
+    tooltip = ("Paint on the exemplar (in its window): randomness (calm keeps those features whole wherever "
+               "they appear, rough breaks them up more), or regions to avoid, never copied (E)")
 
     def __init__(self, ed):
         super().__init__(ed)
         self.brush = Brush(radius=6.0, screen_units=False)
+        self.mode = "randomness"   # or "avoid"
         self.zoom = 3.0
         self._last: tuple[float, float] | None = None
         self._group: object = None
 
     def options(self) -> None:
-        brush_options(self.brush, canvas=False)
-        imgui.text_disabled("Paint in the Exemplar window.")
+        if imgui.radio_button("Randomness##paint-mode", self.mode == "randomness"):
+            self.mode = "randomness"
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Paint how much the exemplar's features may vary: calm keeps them whole, "
+                              "rough breaks them up")
+        imgui.same_line()
+        if imgui.radio_button("Avoid##paint-mode", self.mode == "avoid"):
+            self.mode = "avoid"
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Mark exemplar regions the synthesis must not copy: a blemish, a logo, or an "
+                              "element that stands out and would recur once per exemplar area")
+        if self.mode == "avoid":
+            b = self.brush
+            imgui.push_item_width(-110)
+            _, b.radius = imgui.slider_float("Radius", b.radius, 1.0, 400.0, "%.0f px", imgui.SliderFlags_.logarithmic)
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Brush size ([ and ] change it)")
+            imgui.pop_item_width()
+            _, b.eraser = imgui.checkbox("Eraser (usable again)", b.eraser)
+            ed = self.ed
+            mask = ed.doc.avoid_exemplar
+            if mask is not None and not mask.empty:
+                imgui.text(f"{100 * mask.fraction:.1f}% of the exemplar avoided")
+                if imgui.small_button("Clear avoided regions"):
+                    ed.edit(replace(ed.doc, avoid_exemplar=None), "Clear avoided regions")
+        else:
+            brush_options(self.brush, canvas=False)
+        imgui.text_disabled("Paint in the Paint exemplar window.")
 
     def keys(self) -> None:
         brush_keys(self.brush)
@@ -172,37 +202,52 @@ class PaintExemplarTool(Tool):
         if not dabs:
             return
         doc = ed.doc
-        field = doc.controls(m).randomness_exemplar or ExemplarField.blank(m)
         b = self.brush
+        self._last = dabs[-1]
+        if self.mode == "avoid":
+            mask = doc.controls(m).avoid or ExemplarMask.blank(m)
+            for cx, cy in dabs:
+                mask = mask.painted(cx, cy, b.radius, avoid=not b.eraser)
+            if mask.values.all():
+                ed.notice = ("The whole exemplar cannot be avoided: leave some of it usable.", time.monotonic())
+                return
+            ed.edit(replace(doc, avoid_exemplar=None if mask.empty else mask), "Avoid exemplar regions",
+                    group=self._group)
+            return
+        field = doc.controls(m).randomness_exemplar or ExemplarField.blank(m)
         for cx, cy in dabs:
             field = field.painted(cx, cy, b.radius, b.value_u16, b.strength, b.hardness)
-        self._last = dabs[-1]
         ed.edit(replace(doc, randomness_exemplar=field), "Paint randomness (exemplar)", group=self._group)
 
     def window(self) -> None:
-        """The Exemplar window: the exemplar, zoomable, with its field as a heat map."""
+        """The Paint exemplar window: the exemplar, zoomable, with its field as a
+        heat map and its avoided regions hatched."""
         ed = self.ed
         s = ed.session
         if not s.ready or ed.canvas.exemplar_tex is None:
             return
         m = s.analysis.size
         w, h = min(760, m * self.zoom + 40), min(760, m * self.zoom + 90)
-        if begin_tool_window(ed, self, "Exemplar randomness", (w, h), (m, m), (0.5, 8.0), "%.1fx"):
+        if begin_tool_window(ed, self, "Paint exemplar", (w, h), (m, m), (0.5, 8.0), "%.1fx"):
             imgui.begin_child("exemplar-view", (0, 0), 0, imgui.WindowFlags_.horizontal_scrollbar)
             size = m * self.zoom
             p0 = imgui.get_cursor_screen_pos()
             imgui.image(imgui.ImTextureRef(ed.canvas.exemplar_tex.glo), (size, size))
             dl = imgui.get_window_draw_list()
-            heat = ed.overlay_exemplar.exemplar(ed.doc.controls(m).randomness_exemplar, m)
+            controls = ed.doc.controls(m)
+            heat = ed.overlay_exemplar.exemplar(controls.randomness_exemplar, m)
             if heat is not None and ed.show_fields:
                 dl.add_image(imgui.ImTextureRef(heat.glo), p0, (p0.x + size, p0.y + size))
+            hatch = ed.overlay_avoid.mask(controls.avoid)
+            if hatch is not None:
+                dl.add_image(imgui.ImTextureRef(hatch.glo), p0, (p0.x + size, p0.y + size))
             imgui.set_cursor_screen_pos(p0)
             imgui.invisible_button("exemplar-paint", (size, size))
             io = imgui.get_io()
             ex = ((io.mouse_pos.x - p0.x) / self.zoom, (io.mouse_pos.y - p0.y) / self.zoom)
             if imgui.is_item_activated():
-                if io.key_alt:
-                    f = ed.doc.controls(m).randomness_exemplar
+                if io.key_alt and self.mode == "randomness":
+                    f = controls.randomness_exemplar
                     xi, yi = int(min(m - 1, max(0, ex[0]))), int(min(m - 1, max(0, ex[1])))
                     self.brush.value = (NEUTRAL if f is None else int(f.values[yi, xi])) / NEUTRAL
                     self.brush.eraser = False
@@ -216,6 +261,7 @@ class PaintExemplarTool(Tool):
             if imgui.is_item_hovered():
                 r = self.brush.radius * self.zoom
                 dl.add_circle(io.mouse_pos, r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
-                dl.add_circle(io.mouse_pos, r, imgui.get_color_u32((1, 1, 1, 0.9)), 0, 1.5)
+                color = (1, 0.3, 0.85, 0.95) if self.mode == "avoid" else (1, 1, 1, 0.9)
+                dl.add_circle(io.mouse_pos, r, imgui.get_color_u32(color), 0, 1.5)
             imgui.end_child()
         imgui.end()
