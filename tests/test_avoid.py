@@ -24,9 +24,9 @@ GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 
 def crevice(m: int) -> ExemplarMask:
-    """Gravel's dark diagonal crevice (README: it recurs once per exemplar area), 32 x 32 at (66, 22)."""
+    """Gravel's dark diagonal crevice (README: it recurs once per exemplar area), 32 x 32 centered on (66, 22)."""
     v = np.zeros((m, m), np.uint8)
-    v[22:54, 66:98] = 1
+    v[6:38, 50:82] = 1
     return ExemplarMask(v)
 
 
@@ -163,3 +163,21 @@ def test_synth_avoid_exemplar_option(tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and "whole exemplar" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_export_avoid_exemplar_option(tmp_path):
+    """export --avoid-exemplar replaces the project's mask: the exact coordinate
+    map it writes beside the image copies nothing from the avoided region."""
+    mask_png, out = str(tmp_path / "mask.png"), str(tmp_path / "e.png")
+    v = np.zeros((128, 128), np.uint8)
+    v[22:54, 66:98] = 255
+    Image.fromarray(v).save(mask_png)
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "-o", out,
+                        "--size", "160", "96", "--coords", "--avoid-exemplar", mask_png, "-q"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    c = np.asarray(Image.open(str(tmp_path / "e_coords.png"))).astype(np.int64)
+    x = c[..., 0] + 256 * (c[..., 2] & 15)
+    y = c[..., 1] + 256 * (c[..., 2] >> 4)
+    assert c.shape[:2] == (96, 160) and x.max() < 128 and y.max() < 128
+    assert not (v[y, x] != 0).any()
