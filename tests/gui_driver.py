@@ -128,9 +128,9 @@ def main(out: str) -> int:
         ctx.set_ref("//Paint exemplar")
         er = ctx.item_info("//**/exemplar-paint").rect_full
         zoom = ed.tool.zoom
-        ctx.mouse_move_to_pos((er.min.x + 30 * zoom, er.min.y + 30 * zoom))
+        ctx.mouse_move_to_pos((er.min.x + 58 * zoom, er.min.y + 12 * zoom))  # over gravel's crevice
         ctx.mouse_down(0)
-        ctx.mouse_move_to_pos((er.min.x + 60 * zoom, er.min.y + 40 * zoom))
+        ctx.mouse_move_to_pos((er.min.x + 74 * zoom, er.min.y + 30 * zoom))
         ctx.mouse_up(0)
         settle(ctx)
         mask = ed.doc.avoid_exemplar
