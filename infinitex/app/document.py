@@ -94,6 +94,15 @@ class ExemplarSource:
         return cls.from_bytes(data, os.path.basename(path), os.path.abspath(path))
 
 
+def _from_finest(stored: tuple, L: int, fill) -> list:
+    """Per-level values for levels 0..L from ``stored`` (finest LAST), matched
+    from the finest level down (by feature size); levels not stored get ``fill``."""
+    out = [fill] * (L + 1)
+    for i, v in enumerate(reversed(stored[-(L + 1):])):
+        out[L - i] = v
+    return out
+
+
 @dataclass(frozen=True)
 class Document:
     """Everything that decides the texture. Immutable: edits make new ones."""
@@ -155,24 +164,14 @@ class Document:
     def jitter_for(self, L: int) -> tuple[float, ...]:
         """r_l for levels 0..L. Stored values are matched from the finest level
         down (by feature size), so a document survives an exemplar of another size."""
-        out = [DEFAULT_JITTER] * (L + 1)
-        for i, r in enumerate(reversed(self.jitter)):
-            if i > L:
-                break
-            out[L - i] = float(r)
-        return tuple(out)
+        return tuple(float(r) for r in _from_finest(self.jitter, L, DEFAULT_JITTER))
 
     def passes_for(self, L: int) -> tuple[int, ...]:
         """Correction passes of levels 0..L, what the synthesis does: the stored
         per-level counts matched from the finest level down (levels coarser than
         those stored get 0), or ``passes`` on the corrected levels."""
         if self.level_passes:
-            out = [0] * (L + 1)
-            for i, c in enumerate(reversed(self.level_passes)):
-                if i > L:
-                    break
-                out[L - i] = int(c)
-            return tuple(out)
+            return tuple(int(c) for c in _from_finest(self.level_passes, L, 0))
         corrected = self.params(L).corrected_levels()
         return tuple(self.passes if l in corrected else 0 for l in range(L + 1))
 
@@ -189,10 +188,7 @@ class Document:
         cached = self.__dict__.get("_controls")
         if cached is not None and cached[0] == m:
             return cached[1]
-        e = self.randomness_exemplar
-        if e is not None and e.size != m:
-            idx = (np.arange(m) * e.size) // m
-            e = ExemplarField(np.ascontiguousarray(e.values[idx[:, None], idx[None, :]]))
+        e = None if self.randomness_exemplar is None else self.randomness_exemplar.scaled(m)
         a = None if self.avoid_exemplar is None else self.avoid_exemplar.scaled(m)
         controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a).normalized()
         object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
@@ -226,10 +222,10 @@ class Document:
             raise ProjectError("A lattice needs similarity sets: set Similar spots to 1 or more.")
         if any(not (0.0 <= r <= 1.0) for r in self.jitter):
             raise ProjectError("Randomness values must lie between 0 and 1.")
-        if self.avoid_exemplar is not None and self.avoid_exemplar.values.all():
+        if self.avoid_exemplar is not None and self.avoid_exemplar.full:
             raise ProjectError("The avoided regions cover the whole exemplar: leave some of it usable.")
         if len(self.level_passes) > MAX_LEVELS or any(not 0 <= c <= 8 for c in self.level_passes):
-            raise ProjectError("Correction passes per level must be at most 13 counts from 0 to 8.")
+            raise ProjectError(f"Correction passes per level must be at most {MAX_LEVELS} counts from 0 to 8.")
         try:
             SynthParams(jitter=(0.0,) * 10, seed=self.seed, passes=self.passes, subgrid=self.subgrid,
                         kappa=self.kappa, corrected=None).validate(9)

@@ -96,8 +96,38 @@ def dab_rect(cx: float, cy: float, radius: float) -> tuple[int, int, int, int]:
             int(np.ceil(cx + radius)) + 1, int(np.ceil(cy + radius)) + 1)
 
 
+class _ExemplarArray:
+    """An m x m array over the exemplar (``values``), compared by content:
+    what ExemplarField and ExemplarMask share."""
+
+    values: np.ndarray
+    _salt = b""
+
+    @property
+    def size(self) -> int:
+        return int(self.values.shape[0])
+
+    @cached_property
+    def key(self) -> str:
+        import hashlib
+        return hashlib.sha256(self._salt + self.values.tobytes() + repr(self.values.shape).encode()).hexdigest()
+
+    def __eq__(self, other):
+        return type(other) is type(self) and self.key == other.key
+
+    def __hash__(self):
+        return hash(self.key)
+
+    def scaled(self, m: int):
+        """The same for an m x m exemplar (nearest)."""
+        if m == self.size:
+            return self
+        idx = (np.arange(m) * self.size) // m
+        return type(self)(np.ascontiguousarray(self.values[idx[:, None], idx[None, :]]))
+
+
 @dataclass(frozen=True, eq=False)
-class ExemplarField:
+class ExemplarField(_ExemplarArray):
     """Randomness over the exemplar: uint16 (m, m), 32768 = neutral."""
 
     values: np.ndarray
@@ -107,21 +137,6 @@ class ExemplarField:
         if v.ndim != 2 or v.shape[0] != v.shape[1] or v.shape[0] & (v.shape[0] - 1):
             raise ValueError(f"an exemplar randomness field is a power-of-two square, not {v.shape}")
         object.__setattr__(self, "values", v)
-
-    @property
-    def size(self) -> int:
-        return int(self.values.shape[0])
-
-    @cached_property
-    def key(self) -> str:
-        import hashlib
-        return hashlib.sha256(self.values.tobytes() + repr(self.values.shape).encode()).hexdigest()
-
-    def __eq__(self, other):
-        return isinstance(other, ExemplarField) and self.key == other.key
-
-    def __hash__(self):
-        return hash(self.key)
 
     @cached_property
     def mips(self) -> list[np.ndarray]:
@@ -160,10 +175,11 @@ class ExemplarField:
 
 
 @dataclass(frozen=True, eq=False)
-class ExemplarMask:
+class ExemplarMask(_ExemplarArray):
     """Exemplar regions to avoid: uint8 (m, m), 1 = avoid, 0 = usable."""
 
     values: np.ndarray
+    _salt = b"avoid"
 
     def __post_init__(self):
         v = np.asarray(self.values)
@@ -173,24 +189,14 @@ class ExemplarMask:
             raise ValueError("an avoid mask holds 0 (usable) and 1 (avoid) only")
         object.__setattr__(self, "values", np.ascontiguousarray(v))
 
-    @property
-    def size(self) -> int:
-        return int(self.values.shape[0])
-
-    @cached_property
-    def key(self) -> str:
-        import hashlib
-        return hashlib.sha256(b"avoid" + self.values.tobytes() + repr(self.values.shape).encode()).hexdigest()
-
-    def __eq__(self, other):
-        return isinstance(other, ExemplarMask) and self.key == other.key
-
-    def __hash__(self):
-        return hash(self.key)
-
     @cached_property
     def empty(self) -> bool:
         return not bool(self.values.any())
+
+    @cached_property
+    def full(self) -> bool:
+        """The whole exemplar avoided (refused: nothing would be left to copy)."""
+        return bool(self.values.all())
 
     @cached_property
     def fraction(self) -> float:
@@ -200,13 +206,6 @@ class ExemplarMask:
     @classmethod
     def blank(cls, m: int) -> ExemplarMask:
         return cls(np.zeros((m, m), np.uint8))
-
-    def scaled(self, m: int) -> ExemplarMask:
-        """The mask for an m x m exemplar (nearest)."""
-        if m == self.size:
-            return self
-        idx = (np.arange(m) * self.size) // m
-        return ExemplarMask(np.ascontiguousarray(self.values[idx[:, None], idx[None, :]]))
 
     def painted(self, cx: float, cy: float, radius: float, avoid: bool = True) -> ExemplarMask:
         """A disc (exemplar pixels whose centers lie within ``radius`` of (cx, cy))
@@ -482,6 +481,11 @@ class Controls:
         return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c,
                         tuple(self.features), self.lattice, None if a is None or a.empty else a)
 
+    def exemplar_inputs(self) -> tuple:
+        """What is painted over the exemplar (randomness field, avoid mask): a
+        change of either reaches the whole canvas."""
+        return (self.randomness_exemplar, self.avoid)
+
     def lattice_shift(self, m: int, level: int) -> tuple[int, int] | None:
         """(log2 cx, log2 cy) when ``level`` is a lattice level: jitter is
         quantized to whole cells and the lattice similarity sets are used."""
@@ -500,7 +504,7 @@ class Controls:
         a = self.avoid
         if a is not None and a.size != m:
             raise ValueError(f"The avoid mask is {a.size}x{a.size}; the exemplar is {m}x{m}.")
-        if a is not None and a.values.all():
+        if a is not None and a.full:
             raise ValueError("The avoid mask covers the whole exemplar: leave some of it usable.")
         L = m.bit_length() - 1
         for f in self.features:
@@ -574,8 +578,7 @@ class Controls:
     def changed_rects(self, other: Controls) -> list | None:
         """Finest-level rectangles outside which ``other`` reads the same as this
         one; None when the change reaches everywhere (the exemplar field, the avoid mask)."""
-        if self.randomness_exemplar != other.randomness_exemplar or self.lattice != other.lattice \
-                or self.avoid != other.avoid:
+        if self.exemplar_inputs() != other.exemplar_inputs() or self.lattice != other.lattice:
             return None
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()

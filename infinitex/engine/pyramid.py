@@ -159,7 +159,7 @@ class Pyramid:
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
         gpu.activate()
-        self._efield: dict = {}  # level -> R_E,l texture; "avoid" -> the avoid mask
+        self._efield: dict = {}  # textures of the exemplar inputs: level -> R_E,l; "avoid" -> the mask
         self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
         self._dummy_i = gpu.ctx.texture((2, 1), 4, np.zeros(8, np.int32).tobytes(), dtype="i4")
         self.controls = NO_CONTROLS
@@ -173,8 +173,7 @@ class Pyramid:
         if controls is not None:
             controls = controls.normalized()
             controls.validate(self.an.size, self.an.settings.lattice)
-            if controls.randomness_exemplar != self.controls.randomness_exemplar or \
-                    controls.avoid != self.controls.avoid:
+            if controls.exemplar_inputs() != self.controls.exemplar_inputs():
                 self._release_efield()
             self.controls = controls
         old = getattr(self, "_signatures", None)
@@ -212,8 +211,7 @@ class Pyramid:
         if changed is None:
             rects = self.controls.changed_rects(controls)
             changed = None if rects is None else [Rect(*r) for r in rects]
-        if changed is None or controls.randomness_exemplar != self.controls.randomness_exemplar \
-                or controls.avoid != self.controls.avoid:
+        if changed is None or controls.exemplar_inputs() != self.controls.exemplar_inputs():
             self.set_params(self.params, controls)  # the whole canvas changes
             return 0
         self.controls = controls

@@ -55,25 +55,24 @@ class FieldOverlay:
             self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.tex.write(np.ascontiguousarray(rgba).tobytes())
 
+    def _whole(self, key: tuple, rgba) -> moderngl.Texture:
+        """The texture of a whole-exemplar overlay, made by ``rgba()`` when ``key`` changes."""
+        if key != self._key:
+            self._upload(rgba())
+            self._key = key
+        return self.tex
+
     def exemplar(self, field: ExemplarField | None, m: int):
         """The texture of an exemplar field (m x m), or None when there is none."""
         if field is None or field.neutral:
             return None
-        key = ("e", field.key)
-        if key != self._key:
-            self._upload(heat_rgba(field.values))
-            self._key = key
-        return self.tex
+        return self._whole(("e", field.key), lambda: heat_rgba(field.values))
 
     def mask(self, mask: ExemplarMask | None):
         """The texture of an avoid mask (m x m), or None when nothing is avoided."""
         if mask is None or mask.empty:
             return None
-        key = ("a", mask.key)
-        if key != self._key:
-            self._upload(avoid_rgba(mask.values))
-            self._key = key
-        return self.tex
+        return self._whole(("a", mask.key), lambda: avoid_rgba(mask.values))
 
     def canvas(self, field: CanvasField | None, x0: float, y0: float, w_canvas: float, h_canvas: float):
         """The texture of the canvas field over a finest-level rectangle, at a

@@ -32,7 +32,9 @@ class Brush:
         return NEUTRAL if self.eraser else int(min(65535, max(0, round(self.value * NEUTRAL))))
 
 
-def brush_options(brush: Brush, canvas: bool) -> None:
+def brush_options(brush: Brush, canvas: bool, values: bool = True,
+                  eraser_label: str = "Eraser (back to neutral)") -> None:
+    """The brush's controls; ``values`` False: only its size and the eraser (a mask brush)."""
     imgui.push_item_width(-110)
     _, brush.radius = imgui.slider_float("Radius", brush.radius, 1.0, 400.0, "%.0f px",
                                          imgui.SliderFlags_.logarithmic)
@@ -43,14 +45,15 @@ def brush_options(brush: Brush, canvas: bool) -> None:
         if imgui.is_item_hovered():
             imgui.set_tooltip("On: the brush keeps its size on screen at any zoom. Off: it covers a "
                               "fixed area of the canvas")
-    _, brush.value = imgui.slider_float("Paint value", brush.value, 0.0, 2.0, "%.2f")
-    if imgui.is_item_hovered():
-        imgui.set_tooltip("0 = calm (no randomness: the exemplar is copied as it is), 1 = neutral, "
-                          "2 = rough (twice the randomness). Alt-click picks the value under the cursor")
-    _, brush.strength = imgui.slider_float("Strength", brush.strength, 0.0, 1.0, "%.2f")
-    _, brush.hardness = imgui.slider_float("Hardness", brush.hardness, 0.0, 1.0, "%.2f")
+    if values:
+        _, brush.value = imgui.slider_float("Paint value", brush.value, 0.0, 2.0, "%.2f")
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("0 = calm (no randomness: the exemplar is copied as it is), 1 = neutral, "
+                              "2 = rough (twice the randomness). Alt-click picks the value under the cursor")
+        _, brush.strength = imgui.slider_float("Strength", brush.strength, 0.0, 1.0, "%.2f")
+        _, brush.hardness = imgui.slider_float("Hardness", brush.hardness, 0.0, 1.0, "%.2f")
     imgui.pop_item_width()
-    _, brush.eraser = imgui.checkbox("Eraser (back to neutral)", brush.eraser)
+    _, brush.eraser = imgui.checkbox(eraser_label, brush.eraser)
 
 
 def brush_keys(brush: Brush) -> None:
@@ -175,13 +178,7 @@ class PaintExemplarTool(Tool):
             imgui.set_tooltip("Mark exemplar regions the synthesis must not copy: a blemish, a logo, or an "
                               "element that stands out and would recur once per exemplar area")
         if self.mode == "avoid":
-            b = self.brush
-            imgui.push_item_width(-110)
-            _, b.radius = imgui.slider_float("Radius", b.radius, 1.0, 400.0, "%.0f px", imgui.SliderFlags_.logarithmic)
-            if imgui.is_item_hovered():
-                imgui.set_tooltip("Brush size ([ and ] change it)")
-            imgui.pop_item_width()
-            _, b.eraser = imgui.checkbox("Eraser (usable again)", b.eraser)
+            brush_options(self.brush, canvas=False, values=False, eraser_label="Eraser (usable again)")
             ed = self.ed
             mask = ed.doc.avoid_exemplar
             if mask is not None and not mask.empty:
@@ -208,7 +205,7 @@ class PaintExemplarTool(Tool):
             mask = doc.controls(m).avoid or ExemplarMask.blank(m)
             for cx, cy in dabs:
                 mask = mask.painted(cx, cy, b.radius, avoid=not b.eraser)
-            if mask.values.all():
+            if mask.full:
                 ed.notice = ("The whole exemplar cannot be avoided: leave some of it usable.", time.monotonic())
                 return
             ed.edit(replace(doc, avoid_exemplar=None if mask.empty else mask), "Avoid exemplar regions",
