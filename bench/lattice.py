@@ -41,7 +41,7 @@ from lattice_gen import bricks, lattice_error, near_regular, random_basis, stoch
 from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.controls import Controls  # noqa: E402
 from infinitex.engine.exemplar import from_array, load_full, to_u8  # noqa: E402
-from infinitex.engine.lattice import (  # noqa: E402
+from infinitex.engine.controls.lattice import (  # noqa: E402
     autocorrelation_at,
     choose_block,
     detect,

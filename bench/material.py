@@ -27,9 +27,10 @@ import time
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, HERE)
 
-from infinitex.app.document import Display, Document, ExemplarSource, View  # noqa: E402
+from infinitex.project import Display, Document, ExemplarSource, View  # noqa: E402
 from infinitex.app.render.canvas import Canvas  # noqa: E402
-from infinitex.app.session import ExportJob, Session, frame_for  # noqa: E402
+from infinitex.app.session import Session, frame_for  # noqa: E402
+from infinitex.export.window import ExportJob  # noqa: E402
 from infinitex.engine.gpu import Gpu  # noqa: E402
 from infinitex.engine.material import assign_roles  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402

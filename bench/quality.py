@@ -37,7 +37,7 @@ whole command in a fresh process with a cold analysis cache), with
 ours in lattice mode).
 
 Near-regular exemplars (a lattice detected, or the best guess for the shared
-brick and reptile skin) are also synthesized in lattice mode (engine/lattice.py,
+brick and reptile skin) are also synthesized in lattice mode (engine/controls/lattice.py,
 in the input's geometry, brought to the exemplar's scale) and every method gets
 a ``lattice_regularity``: the autocorrelation at the two lattice vectors, output
 over exemplar (1 = as regular as the exemplar).
@@ -64,7 +64,7 @@ from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.analysis import AnalysisSettings  # noqa: E402
 from infinitex.engine.controls import Controls  # noqa: E402
 from infinitex.engine.exemplar import PIL_MODES, load_exemplar, load_full, to_u8, write_png  # noqa: E402
-from infinitex.engine.lattice import (  # noqa: E402
+from infinitex.engine.controls.lattice import (  # noqa: E402
     autocorrelation_at,
     choose_block,
     detect,

@@ -40,7 +40,7 @@ Huge exports, tile by tile in bounded memory and resumable (``TiledExport``)::
     ``run(workers=N, worker_init=...)`` renders in N processes and
     ``run(scheduler="local" | "tcp://HOST:8786", worker_init=...)`` on a Dask
     cluster; ``worker_init`` makes a worker's Synthesizer from the project
-    (``infinitex.app.session.project_synthesizer(document)``).
+    (``infinitex.export.jobs.project_synthesizer(document)``).
 
 Materials: aligned maps (base color, normal, height, roughness...) that one
 synthesis drives, each looked up through the same coordinates::
@@ -82,14 +82,14 @@ _EXPORTS = {
     "Rect": "engine.pyramid",
     "Controls": "engine.controls", "NO_CONTROLS": "engine.controls", "CanvasField": "engine.controls",
     "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
-    "Lattice": "engine.lattice", "rectified_exemplar": "engine.lattice", "render_original": "engine.lattice",
-    "original_geometry_box": "engine.lattice",
-    "TiledExport": "engine.tiled_export",
+    "Lattice": "engine.controls.lattice", "rectified_exemplar": "engine.controls.lattice", "render_original": "engine.controls.lattice",
+    "original_geometry_box": "engine.controls.lattice",
+    "TiledExport": "export.streamed",
     "Material": "engine.material", "open_material": "engine.material", "write_image": "engine.exemplar",
-    "load_project": "app.document", "save_project": "app.document", "Document": "app.document",
-    "Project": "app.document",
+    "load_project": "project", "save_project": "project", "Document": "project",
+    "Project": "project",
 }
-_RENAMED = {"detect_lattice": ("engine.lattice", "detect")}
+_RENAMED = {"detect_lattice": ("engine.controls.lattice", "detect")}
 
 __all__ = sorted([*_EXPORTS, *_RENAMED, "__version__", "ASSETS"])
 

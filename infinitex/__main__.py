@@ -48,10 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[1:]
     if argv and argv[0] == "synth":
-        from infinitex.engine.cli import main as synth_main
+        from infinitex.cli.synth import main as synth_main
         return synth_main(argv[1:])
     if argv and argv[0] == "export":
-        from infinitex.app.cli import main as export_main
+        from infinitex.cli.export import main as export_main
         return export_main(argv[1:])
     return editor_main(argv)
 

@@ -31,7 +31,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from infinitex.app.document import (  # noqa: E402
+from infinitex.project import (  # noqa: E402
     DISPLAY_MODES,
     MAGNIFY_FILTERS,
     MAX_ZOOM,
@@ -275,7 +275,7 @@ def tiny_exemplar() -> bytes:
 def base_project() -> dict:
     """A valid project with both painted randomness fields and a lattice (so mutations reach them)."""
     from infinitex.engine.controls import CanvasField, ExemplarField
-    from infinitex.engine.lattice import Lattice
+    from infinitex.engine.controls.lattice import Lattice
     c, _ = CanvasField().painted(10.0, 20.0, 12.0, 0)
     e = ExemplarField.blank(32).painted(8, 8, 5, 65535)
     doc = Document(ExemplarSource.from_bytes(tiny_exemplar(), "tiny.png"), randomness_canvas=c, randomness_exemplar=e,

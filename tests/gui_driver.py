@@ -221,7 +221,7 @@ def main(out: str) -> int:
         if ok:
             from PIL import Image
 
-            from infinitex.app.session import decode_coords
+            from infinitex.export import decode_coords
             coords = decode_coords(np.asarray(Image.open(os.path.join(out, "tile_coords.png"))))
             check("tile coordinates are exemplar positions", coords.shape == (64, 64, 2)
                   and coords.min() >= 0 and coords.max() < ed.session.analysis.size, str(coords.shape))
@@ -242,7 +242,7 @@ def main(out: str) -> int:
         # A project whose exemplar file is outside its folder: asked first.
         import json
 
-        from infinitex.app.document import Document, ExemplarSource, Project, project_to_json
+        from infinitex.project import Document, ExemplarSource, Project, project_to_json
         gravel = os.path.join(HERE, "infinitex", "assets", "gravel.png")
         os.makedirs(os.path.join(out, "sub"), exist_ok=True)
         outside = os.path.join(out, "sub", "outside.itex")

@@ -12,7 +12,7 @@ import oracle
 import pytest
 from PIL import Image
 
-from infinitex.app.document import Document, ExemplarSource, Project, ProjectError, load_project, save_project
+from infinitex.project import Document, ExemplarSource, Project, ProjectError, load_project, save_project
 from infinitex.engine.controls import CanvasField, Controls, ExemplarMask
 from infinitex.engine.params import DEFAULT_WALK, SynthParams
 from infinitex.engine.pyramid import Rect

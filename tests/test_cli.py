@@ -78,12 +78,12 @@ def test_bad_input_one_line_no_traceback(tmp_path, args, words):
 def test_no_gl_gives_a_clear_message(tmp_path, monkeypatch, capsys):
     import moderngl
 
-    from infinitex.engine import cli
+    from infinitex.cli import common as cli, synth
 
     def broken(*args, **kwargs):
         raise Exception("libEGL.so not loaded")
     monkeypatch.setattr(moderngl, "create_standalone_context", broken)
-    code = cli.main([GRAVEL, "-o", str(tmp_path / "o.png"), "-q"])
+    code = synth.main([GRAVEL, "-o", str(tmp_path / "o.png"), "-q"])
     err = capsys.readouterr().err
     assert code == cli.EXIT_GL
     assert "No usable OpenGL 3.3" in err and "libegl1" in err and "Traceback" not in err

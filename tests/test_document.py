@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import pytest
 
-from infinitex.app.document import (
+from infinitex.project import (
     EMBED_LIMIT,
     Autosave,
     Display,
@@ -31,10 +31,10 @@ def doc():
 
 def test_document_model_imports_neither_gl_nor_imgui():
     import subprocess
-    code = ("import sys, app.document; "
+    code = ("import sys, infinitex.project, infinitex.project.realize; "
             "bad = [m for m in sys.modules if m.split('.')[0] in ('moderngl', 'imgui_bundle', 'glfw')]; "
             "print(bad); sys.exit(1 if bad else 0)")
-    root = os.path.dirname(ASSETS)
+    root = os.path.dirname(os.path.dirname(ASSETS))
     assert subprocess.run([sys.executable, "-c", code], cwd=root).returncode == 0
 
 
@@ -232,7 +232,7 @@ def test_settings_keep_recent_files_and_survive_damage(tmp_path):
 
 
 def test_autosave_remembers_which_project_it_belongs_to(tmp_path):
-    from infinitex.app.document import Autosave, View
+    from infinitex.project import Autosave, View
     doc = Document(ExemplarSource.from_file(os.path.join(ASSETS, "gravel.png")), seed=5)
     a = Autosave(str(tmp_path / "autosave.itex"))
     proj = Project(doc, View(120.0, -40.0, 2.0), origin=str(tmp_path / "mine.itex"))

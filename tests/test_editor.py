@@ -77,7 +77,7 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     from infinitex.engine.exemplar import load_exemplar, to_u8
     from infinitex.engine.pyramid import Rect
     from infinitex.engine.synth import Synthesizer
-    from infinitex.engine.tiled_export import read_tiles
+    from infinitex.export import read_tiles
     from gui_export import TILES_RECT, TIFF_RECT
     _drive("gui_export.py", tmp_path, 10)
     synth = Synthesizer(analyze(load_exemplar(os.path.join(os.path.dirname(HERE), "infinitex", "assets",

@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 
 import fuzzing as F
-from infinitex.app.document import (
+from infinitex.project import (
     Autosave,
     Document,
     ExemplarOutside,

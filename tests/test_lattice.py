@@ -8,7 +8,7 @@ from lattice_gen import bricks, lattice_error, near_regular, random_basis, stoch
 
 from infinitex.engine.analysis import AnalysisSettings, analyze
 from infinitex.engine.controls import Controls
-from infinitex.engine.lattice import Lattice, LatticeError, autocorrelation_at, detect, rectified_exemplar
+from infinitex.engine.controls.lattice import Lattice, LatticeError, autocorrelation_at, detect, rectified_exemplar
 from infinitex.engine.params import SynthParams
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
@@ -250,7 +250,7 @@ def test_cli_reports_no_lattice_on_a_stochastic_image(tmp_path):
 
 
 def test_lattice_in_projects():
-    from infinitex.app.document import Document, ExemplarSource, Project, ProjectError, project_from_json, project_to_json
+    from infinitex.project import Document, ExemplarSource, Project, ProjectError, project_from_json, project_to_json
     from infinitex.engine.exemplar import to_u8
     import io
 
@@ -283,8 +283,9 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
 
     from PIL import Image
 
-    from infinitex.app.document import Document, ExemplarSource
-    from infinitex.app.session import ExportJob, Frame, Session
+    from infinitex.project import Document, ExemplarSource
+    from infinitex.app.session import Frame, Session
+    from infinitex.export.window import ExportJob
     from infinitex.engine.controls import CanvasField
     from infinitex.engine.exemplar import to_u8
     from infinitex.engine.pyramid import SynthesisError
@@ -326,7 +327,7 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
     with pytest.raises(SynthesisError, match="whole cells"):
         ExportJob(s, Rect(0, 0, 32, 32), str(tmp_path / "t.png"), toroidal=32)
     s.release()
-    from infinitex.app.document import Project, save_project
+    from infinitex.project import Project, save_project
     proj = tmp_path / "bricks.itex"
     save_project(str(proj), Project(d))
     r = _cli("export", str(proj), "-o", str(tmp_path / "cli.png"), "--rect", "0", "0", "160", "96", "-q")

@@ -13,7 +13,7 @@ import pytest
 import tifffile
 from PIL import Image
 
-from infinitex.app.document import (
+from infinitex.project import (
     Display,
     Document,
     ExemplarSource,
@@ -26,7 +26,10 @@ from infinitex.app.document import (
     save_project,
 )
 from infinitex.app.render.canvas import Canvas
-from infinitex.app.session import ExportJob, Session, decode_coords, frame_for, material_for
+from infinitex.app.session import Session, frame_for
+from infinitex.export import decode_coords
+from infinitex.export.window import ExportJob
+from infinitex.project.realize import material_for
 import infinitex.engine.material as material_module
 from infinitex.engine.exemplar import ExemplarError, encode_image, from_array, load_exemplar_bytes
 from infinitex.engine.material import (
@@ -338,7 +341,7 @@ def test_analysis_weights_decide_the_guide(session, folder):
     assert g.channels == 3 and np.array_equal(g.pixels, mat.maps["normal"].pixels)
     doc = replace(session.doc, weights=(("basecolor", 1.0), ("normal", 0.5), ("height", 0.0)))
     assert doc.analysis_key() != session.doc.analysis_key()
-    from infinitex.app.session import exemplar_for
+    from infinitex.project.realize import exemplar_for
     ex, _ = exemplar_for(doc, material=material_for(doc))
     assert ex.channels == 6 and np.allclose(ex.pixels[..., 3:], 0.5 * mat.maps["normal"].pixels)
     with pytest.raises(MaterialError, match="4 channels"):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from infinitex.app.document import (
+from infinitex.project import (
     Document,
     ExemplarSource,
     History,
@@ -21,7 +21,8 @@ from infinitex.app.document import (
     project_to_json,
     save_project,
 )
-from infinitex.app.session import ExportJob, Frame, Session
+from infinitex.app.session import Frame, Session
+from infinitex.export.window import ExportJob
 from infinitex.engine.controls import CanvasField, ExemplarField
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer

@@ -9,16 +9,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from infinitex.app.document import Display, Document, ExemplarSource, Project, View, save_project
+from infinitex.project import Display, Document, ExemplarSource, Project, View, save_project
 from infinitex.app.render.canvas import Canvas
-from infinitex.app.session import (
-    ExportJob,
-    Session,
-    colors_u8,
-    decode_coords,
-    encode_coords,
-    frame_for,
-)
+from infinitex.app.session import Session, frame_for
+from infinitex.export import decode_coords, encode_coords
+from infinitex.export.window import ExportJob, colors_u8
 from infinitex.engine.pyramid import Rect, SynthesisError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -1,4 +1,4 @@
-"""Streamed exports (engine.tiled_export, infinitex export --format tiles|tiff):
+"""Streamed exports (infinitex.export, infinitex export --format tiles|tiff):
 equal to the same rectangle rendered in one piece, resumable after a killed
 process, rewriting only the missing tiles."""
 import os
@@ -16,7 +16,7 @@ from infinitex.engine.analysis import analyze
 from infinitex.engine.exemplar import load_exemplar, to_u8
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
-from infinitex.engine.tiled_export import ExportInterrupted, TiledExport, read_tiles, udim_name
+from infinitex.export import ExportInterrupted, TiledExport, read_tiles, udim_name
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
@@ -180,7 +180,7 @@ def test_worker_processes_give_the_same_bytes_and_survive_a_killed_worker(tmp_pa
 
 
 def test_streamed_coordinate_map_is_the_synthesis_coordinates(synth, tmp_path):
-    from infinitex.engine.tiled_export import decode_coords
+    from infinitex.export import decode_coords
     rect = Rect.of(-300, 2**30 - 200, 700, 500)
     TiledExport(synth, rect, str(tmp_path / "c.tif"), "tiff", 256, key="k", coords=True).run()
     TiledExport(synth, rect, str(tmp_path / "c.png"), "tiles", 256, key="k", coords=True).run()
@@ -194,8 +194,8 @@ def test_cancel_event_stops_a_pool_export_promptly_and_keeps_its_tiles(tmp_path)
     import json
     import threading
 
-    from infinitex.app.document import Document, ExemplarSource, Project, project_to_json
-    from infinitex.app.session import ProjectSynthesizer
+    from infinitex.project import Document, ExemplarSource, Project, project_to_json
+    from infinitex.export.workers import ProjectSynthesizer
     init = ProjectSynthesizer(json.dumps(project_to_json(Project(Document(ExemplarSource.from_file(GRAVEL))),
                                                          embed=True)))
     job = TiledExport(None, Rect.of(0, 0, 4096, 4096), str(tmp_path / "c.png"), "tiles", 256, key="k")

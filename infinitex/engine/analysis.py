@@ -44,7 +44,7 @@ from scipy.spatial import cKDTree
 
 from . import fixed
 from .exemplar import Exemplar
-from .lattice import lattice_level_limit
+from .controls.lattice import lattice_level_limit
 from .safeio import atomic_write
 
 ANALYSIS_VERSION = 6

@@ -18,7 +18,8 @@ from infinitex.engine.exemplar import to_u8
 from infinitex.engine.gpu import Gpu, read_shader
 from infinitex.engine.pyramid import Pyramid, set_uniforms
 
-from ..document import Display, View
+from infinitex.project import Display, View
+
 from ..session import Frame, level_rect
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")

@@ -26,9 +26,11 @@ from infinitex.engine.gpu import GLUnavailable, Gpu
 from infinitex.engine.material import IMAGE, MaterialError, assign_roles, map_path
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import ReadError, WriteError, check_output, printable
-from infinitex.engine.tiled_export import check_zarr_output
+from infinitex.export import check_zarr_output
+from infinitex.export.jobs import ExportEstimate, StreamedExport
+from infinitex.export.window import ExportJob
 
-from ..document import (
+from infinitex.project import (
     PROJECT_SUFFIX,
     Autosave,
     Display,
@@ -45,7 +47,7 @@ from ..document import (
 )
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay
-from ..session import ExportEstimate, ExportJob, Frame, Session, StreamedExport, frame_for
+from ..session import Frame, Session, frame_for
 from ..settings import config_dir, load_settings, save_settings
 from . import panels
 from .dialogs import PROJECT_FILTER, Dialogs

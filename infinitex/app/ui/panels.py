@@ -14,8 +14,9 @@ from infinitex.engine.pyramid import Rect
 
 from infinitex.engine.safeio import printable
 
-from ..document import DISPLAY_MODES, ExemplarSource, View
-from ..session import duration_text
+from infinitex.export.jobs import duration_text
+from infinitex.project import DISPLAY_MODES, ExemplarSource, View
+
 from ..settings import save_settings
 from .dialogs import IMAGE_FILTER, MAPS_FILTER, PNG_FILTER, TIFF_FILTER, ZARR_FILTER
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
@@ -616,10 +617,10 @@ class Panels:
         """A rectangle of the infinite canvas as one PNG, a UDIM tile set or a
         BigTIFF, with its size and time estimated before it starts."""
         from infinitex.engine.synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
-        from infinitex.engine.tiled_export import MAX_SIDE
-        from infinitex.engine.tiled_export import TILE_SIZES as STREAM_TILES
+        from infinitex.export import MAX_SIDE
+        from infinitex.export import TILE_SIZES as STREAM_TILES
 
-        from ..session import ExportEstimate
+        from infinitex.export.jobs import ExportEstimate
         ed = self.ed
         imgui.set_next_item_width(-90)
         _, ed.export_rect = imgui.input_int4("x y w h", ed.export_rect)

@@ -36,13 +36,13 @@ ivec2 packed_texel(ivec2 p, ivec2 qdims) {
 }
 
 // The effective r_l in 1024ths for randomness field values E (exemplar) and
-// C (canvas) in 1/32768ths (engine/controls.py: modulated_rq).
+// C (canvas) in 1/32768ths (engine/controls/fields.py: modulated_rq).
 int modulated_rq(int rq, uint E, uint C) {
     uint t = (E * C + 16384u) >> 15;
     return int(min(1024u, (uint(rq) * t + 16384u) >> 15));
 }
 
-// Placed features (engine/controls.py Feature, LH05 4.3). Table texture, one
+// Placed features (engine/controls/features.py Feature, LH05 4.3). Table texture, one
 // row per feature: (p_F,l.x, p_F,l.y, frac.x + 16 frac.y, radius in 1/16 level
 // pixels), (u_F.x, u_F.y, -, -). A pixel whose center lies within the radius
 // takes S = (u_F + h (g - p_F,l)) mod m; later features win. With a period n

@@ -7,7 +7,7 @@
 //     MODEL_COLOR:      E_l[S[p+d]], d in [-2,2]^2     (LH05)
 //   candidates u = C^i(S[p+d] - h d), d in [-1,1]^2, i = 1..k (k = 0: u = S[p+d] - h d)
 //   keep the u minimizing psi(i) ||N_S(p) - N_E(u)||^2, first one on ties;
-//   a u inside the avoid mask costs more than any other (engine/controls.py).
+//   a u inside the avoid mask costs more than any other (engine/controls/avoid.py).
 // All arithmetic is integer (engine/fixed.py), so results are exact.
 
 uniform isampler2D src;       // current state, packed

@@ -24,7 +24,8 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import MAX_FEATURE_RADIUS, Feature
 from infinitex.engine.pyramid import Rect, SynthesisError
 
-from ...document import View
+from infinitex.project import View
+
 from . import Tool
 
 PAYLOAD = "INFINITEX_FEATURE"   # drag-and-drop payload: exemplar point as uy * 4096 + ux

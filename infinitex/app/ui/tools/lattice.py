@@ -4,7 +4,7 @@ In its own window the exemplar *image* (the whole input, not the fitted
 square) is shown zoomable with the lattice drawn over it: the block of
 ``nx x ny`` cells that becomes the exemplar, and three handles (the origin,
 the ends of t1 and t2) to drag. Auto-detect finds the lattice
-(engine.lattice.detect) and shows its confidence; below the image, the
+(engine.controls.lattice.detect) and shows its confidence; below the image, the
 rectified exemplar is previewed live while a handle moves. The options panel
 holds the on/off switch, the cell counts, the number of lattice levels and
 whether the canvas shows the texture in the input's geometry or rectified.
@@ -20,7 +20,7 @@ import numpy as np
 from imgui_bundle import imgui
 
 from infinitex.engine.exemplar import ExemplarError, decode_full, to_u8
-from infinitex.engine.lattice import Detection, Lattice, LatticeError, choose_block, detect
+from infinitex.engine.controls.lattice import Detection, Lattice, LatticeError, choose_block, detect
 
 from ...render.canvas import _to_rgba
 from . import Tool, begin_tool_window

@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import ndimage
 
-from .exemplar import Exemplar
+from ..exemplar import Exemplar
 
 MAX_CELLS = 16           # cells per block side
 MIN_VECTOR = 3.0         # px: shorter translation vectors are refused

@@ -1,10 +1,4 @@
-"""The document model: what a project is, its file format, undo/redo and autosave.
-
-A :class:`Document` is an immutable value holding everything that decides the
-texture: the exemplar file (its bytes and content hash), the import and
-analysis settings, and the synthesis parameters. Edits make new documents;
-:class:`History` keeps them for undo/redo. The view and display settings are
-saved with a project but are not edits (panning is not undone).
+"""The project file format (``.itex``, JSON): write, read and validate.
 
 Project files are untrusted input: they are read only if they are regular
 files of at most :data:`MAX_PROJECT_BYTES`, their JSON nesting and numbers are
@@ -12,38 +6,29 @@ bounded before and while parsing, every field is type- and range-checked, and
 an exemplar they refer to by path is read only from the project's own folder
 (anything else must be allowed explicitly: the editor asks, ``export`` needs
 ``--allow-outside-exemplar``). Every failure is a :class:`ProjectError`.
-
-This module imports neither GL nor imgui: it is tested without any window.
 """
 from __future__ import annotations
 
 import base64
 import hashlib
 import json
-import math
 import os
 import re
-import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict
 
 import numpy as np
 
-from infinitex.engine.analysis import MODELS
 from infinitex.engine.controls import (
     TILE,
     CanvasField,
-    Controls,
     ExemplarField,
     ExemplarMask,
-    Feature,
     features_from_json,
     features_to_json,
-    fit_features,
 )
-from infinitex.engine.exemplar import FIT_MODES, MAX_FILE_BYTES, MAX_SIZE
-from infinitex.engine.lattice import Lattice, LatticeError
+from infinitex.engine.controls.lattice import Lattice, LatticeError
+from infinitex.engine.exemplar import MAX_FILE_BYTES, MAX_SIZE
 from infinitex.engine.material import IMAGE, ROLES
-from infinitex.engine.params import DEFAULT_JITTER, SynthParams
 from infinitex.engine.safeio import (
     JSONLimitError,
     ReadError,
@@ -55,6 +40,20 @@ from infinitex.engine.safeio import (
     read_limited,
 )
 
+from .document import (
+    DISPLAY_MODES,
+    GEOMETRIES,
+    MAGNIFY_FILTERS,
+    MAX_LEVELS,
+    Display,
+    Document,
+    ExemplarSource,
+    Project,
+    ProjectError,
+    View,
+    is_number,
+)
+
 FORMAT = "infinitex-project"
 VERSION = 5              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
@@ -63,337 +62,6 @@ MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while 
 MAX_PROJECT_BYTES = 96 * 1024 * 1024  # 64 MB of embedded maps are 85.4 MB of base64
 MAX_JSON_DEPTH = 8              # our files nest 3 deep
 MAX_INT_DIGITS = 18             # no field needs more; 10^309 or 5,000 digits are refused while parsing
-MAX_LEVELS = 13                 # jitter / corrected lists hold at most one entry per level
-MIN_ZOOM, MAX_ZOOM = 1.0 / 64.0, 16.0
-DISPLAY_MODES = ("color", "coords", "patches", "level", "relief", "lit")
-MAGNIFY_FILTERS = ("hires", "bilinear", "nearest")
-GEOMETRIES = ("original", "rectified")
-
-
-class ProjectError(ValueError):
-    """A project file could not be read or written; the message is for the user."""
-
-
-@dataclass(frozen=True)
-class ExemplarSource:
-    """The exemplar as the user gave it: the original file's bytes and name."""
-
-    name: str
-    data: bytes = field(repr=False, compare=False)  # equality is by content hash
-    sha256: str = ""
-    path: str | None = field(default=None, compare=False)  # where it was loaded from, if anywhere
-
-    @classmethod
-    def from_bytes(cls, data: bytes, name: str, path: str | None = None) -> ExemplarSource:
-        return cls(name=name, data=bytes(data), sha256=hashlib.sha256(data).hexdigest(), path=path)
-
-    @classmethod
-    def from_file(cls, path: str) -> ExemplarSource:
-        """Read an image file (a regular file of at most MAX_FILE_BYTES; else ReadError)."""
-        data = read_limited(path, MAX_FILE_BYTES, "image")
-        return cls.from_bytes(data, os.path.basename(path), os.path.abspath(path))
-
-
-def _from_finest(stored: tuple, L: int, fill) -> list:
-    """Per-level values for levels 0..L from ``stored`` (finest LAST), matched
-    from the finest level down (by feature size); levels not stored get ``fill``."""
-    out = [fill] * (L + 1)
-    for i, v in enumerate(reversed(stored[-(L + 1):])):
-        out[L - i] = v
-    return out
-
-
-@dataclass(frozen=True)
-class Document:
-    """Everything that decides the texture. Immutable: edits make new ones."""
-
-    exemplar: ExemplarSource
-    fit: str = "resize"
-    toroidal: bool | None = None       # None: use the guess from the seam test
-    model: str = "appearance"
-    k: int = 2
-    feature_weight: float = 0.0        # LH06 feature-distance channel (appearance model); 0: off
-    jitter: tuple[float, ...] = ()     # finest level LAST; empty = default everywhere
-    seed: int = 0
-    passes: int = 2
-    level_passes: tuple[int, ...] = ()  # passes per level, finest LAST (0: not corrected); empty: `passes`
-                                        # on the `corrected` levels
-    subgrid: int = 2
-    kappa: float = 0.5
-    corrected: tuple[int, ...] | None = None
-    randomness_exemplar: ExemplarField | None = None   # painted over the exemplar (m x m)
-    avoid_exemplar: ExemplarMask | None = None         # exemplar regions the synthesis does not copy (m x m)
-    randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
-    features: tuple[Feature, ...] = ()                 # placed exemplar features, later ones win
-    lattice: Lattice | None = None                     # near-regular mode: synthesize this lattice's block
-    # A material: every map as (role, file), the first being ``exemplar``; () for a single image.
-    maps: tuple[tuple[str, ExemplarSource], ...] = ()
-    weights: tuple[tuple[str, float], ...] | None = None  # maps feeding the analysis; None: the default
-
-    def analysis_key(self) -> tuple:
-        """What the exemplar analysis depends on (a lattice's geometry: its
-        rectified block is the exemplar; not its number of lattice levels;
-        a material's maps and analysis weights)."""
-        lat = None if self.lattice is None else replace(self.lattice, levels=None)
-        mat = tuple((r, s.sha256) for r, s in self.maps)
-        return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat, mat, self.weights,
-                self.feature_weight)
-
-    @property
-    def is_material(self) -> bool:
-        return bool(self.maps)
-
-    def sources(self) -> tuple[tuple[str, ExemplarSource], ...]:
-        """Every map as (role, file): a single image is the one map "image"."""
-        return self.maps or ((IMAGE, self.exemplar),)
-
-    def weight_dict(self) -> dict[str, float] | None:
-        return None if self.weights is None else dict(self.weights)
-
-    def with_maps(self, maps) -> Document:
-        """This document with another set of maps ([(role, source)]; one "image" map: a single image).
-        The analysis weights of maps that remain are kept."""
-        maps = tuple(sorted(maps, key=lambda rs: -1 if rs[0] == IMAGE else ROLES.index(rs[0])))
-        single = len(maps) == 1 and maps[0][0] == IMAGE
-        w = self.weights
-        if w is not None:
-            roles = {r for r, _ in maps}
-            w = tuple((r, v) for r, v in w if r in roles) or None
-        return replace(self, exemplar=maps[0][1], maps=() if single else maps, weights=None if single else w)
-
-    def jitter_for(self, L: int) -> tuple[float, ...]:
-        """r_l for levels 0..L. Stored values are matched from the finest level
-        down (by feature size), so a document survives an exemplar of another size."""
-        return tuple(float(r) for r in _from_finest(self.jitter, L, DEFAULT_JITTER))
-
-    def passes_for(self, L: int) -> tuple[int, ...]:
-        """Correction passes of levels 0..L, what the synthesis does: the stored
-        per-level counts matched from the finest level down (levels coarser than
-        those stored get 0), or ``passes`` on the corrected levels."""
-        if self.level_passes:
-            return tuple(int(c) for c in _from_finest(self.level_passes, L, 0))
-        corrected = self.params(L).corrected_levels()
-        return tuple(self.passes if l in corrected else 0 for l in range(L + 1))
-
-    def with_level_passes(self, L: int, level: int, count: int) -> Document:
-        """This document with ``count`` correction passes on ``level`` (the others as they are)."""
-        c = list(self.passes_for(L))
-        c[level] = max(0, min(8, int(count)))
-        return replace(self, level_passes=tuple(c))
-
-    def controls(self, m: int) -> Controls:
-        """The engine input of everything painted, for an m x m exemplar (an
-        exemplar field painted at another size is scaled to m, nearest). Made
-        once per document: the session compares it every frame."""
-        cached = self.__dict__.get("_controls")
-        if cached is not None and cached[0] == m:
-            return cached[1]
-        e = None if self.randomness_exemplar is None else self.randomness_exemplar.scaled(m)
-        a = None if self.avoid_exemplar is None else self.avoid_exemplar.scaled(m)
-        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a).normalized()
-        object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
-        return controls
-
-    def params(self, L: int) -> SynthParams:
-        corrected = None if self.corrected is None else tuple(l for l in self.corrected if l <= L)
-        level_passes = self.passes_for(L) if self.level_passes else None
-        return SynthParams(jitter=self.jitter_for(L), seed=self.seed, passes=self.passes,
-                           subgrid=self.subgrid, kappa=self.kappa, corrected=corrected, level_passes=level_passes)
-
-    def with_jitter(self, L: int, level: int, value: float) -> Document:
-        j = list(self.jitter_for(L))
-        j[level] = _clamp01(value)
-        return replace(self, jitter=tuple(j))
-
-    def with_all_jitter(self, L: int, value: float) -> Document:
-        return replace(self, jitter=(_clamp01(value),) * (L + 1))
-
-    def validate(self) -> None:
-        """Raise ProjectError with a sentence if any setting is out of range."""
-        if self.fit not in FIT_MODES:
-            raise ProjectError(f"Unknown import fit {self.fit!r} (use {', '.join(FIT_MODES)}).")
-        if self.model not in MODELS:
-            raise ProjectError(f"Unknown neighborhood model {self.model!r} (use {' or '.join(MODELS)}).")
-        if not 0 <= self.k <= 4:
-            raise ProjectError("k (similarity-set size) must be between 0 (random-walk search) and 4.")
-        if not 0.0 <= self.feature_weight <= 4.0:
-            raise ProjectError("The feature-distance weight must be between 0 and 4.")
-        if self.k == 0 and self.lattice is not None:
-            raise ProjectError("A lattice needs similarity sets: set Similar spots to 1 or more.")
-        if any(not (0.0 <= r <= 1.0) for r in self.jitter):
-            raise ProjectError("Randomness values must lie between 0 and 1.")
-        if self.avoid_exemplar is not None and self.avoid_exemplar.full:
-            raise ProjectError("The avoided regions cover the whole exemplar: leave some of it usable.")
-        if len(self.level_passes) > MAX_LEVELS or any(not 0 <= c <= 8 for c in self.level_passes):
-            raise ProjectError(f"Correction passes per level must be at most {MAX_LEVELS} counts from 0 to 8.")
-        try:
-            SynthParams(jitter=(0.0,) * 10, seed=self.seed, passes=self.passes, subgrid=self.subgrid,
-                        kappa=self.kappa, corrected=None).validate(9)
-        except ValueError as exc:
-            raise ProjectError(str(exc)) from None
-        if self.corrected is not None and any(not 0 <= l <= 12 for l in self.corrected):
-            raise ProjectError("Corrected levels must be level numbers from 0 to 12.")
-        if self.lattice is not None:
-            try:
-                self.lattice.check_shape()
-            except LatticeError as exc:
-                raise ProjectError(f"The project's lattice: {exc}") from None
-        if self.maps:
-            roles = [r for r, _ in self.maps]
-            if any(r not in ROLES for r in roles) or len(set(roles)) != len(roles):
-                raise ProjectError("Each map of a material has one of the roles "
-                                   f"{', '.join(ROLES)}, and each role is used once.")
-            if self.maps[0][1].sha256 != self.exemplar.sha256:
-                raise ProjectError("The material's first map must be its exemplar.")
-            if self.lattice is not None:
-                raise ProjectError("A lattice works on a single image, not on a material.")
-        if self.weights is not None:
-            roles = {r for r, _ in self.sources()}
-            if any(r not in roles or not (_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \
-                    or not any(v > 0 for _, v in self.weights):
-                raise ProjectError("Analysis weights are numbers from 0 to 4 for the material's own maps, "
-                                   "at least one above 0.")
-
-
-def _clamp01(v: float) -> float:
-    return float(min(1.0, max(0.0, v)))
-
-
-@dataclass(frozen=True)
-class View:
-    """Where the canvas looks: center in finest-level canvas pixels, and zoom
-    (screen pixels per canvas pixel, 1/64 .. 16)."""
-
-    x: float = 0.0
-    y: float = 0.0
-    zoom: float = 1.0
-
-    def clamped(self) -> View:
-        lim = 2.0 ** 30
-        return View(min(lim, max(-lim, self.x)), min(lim, max(-lim, self.y)),
-                    min(MAX_ZOOM, max(MIN_ZOOM, self.zoom)))
-
-    def top_left(self, w: int, h: int) -> tuple[float, float]:
-        """Canvas position of the top-left corner of a w x h screen canvas.
-        At zoom 2^-k it is snapped to whole level L-k texels, so screen pixels
-        and texels align exactly."""
-        x, y = self.x - w / (2 * self.zoom), self.y - h / (2 * self.zoom)
-        if self.zoom <= 1.0 and math.log2(self.zoom).is_integer():
-            s = round(1.0 / self.zoom)  # texels of level L - log2(s) are whole screen pixels
-            x, y = math.floor(x / s + 0.5) * s, math.floor(y / s + 0.5) * s
-        return x, y
-
-    def zoom_at(self, factor: float, sx: float, sy: float, w: int, h: int) -> View:
-        """Zoom by ``factor`` keeping the canvas point under screen (sx, sy) fixed."""
-        z1 = min(MAX_ZOOM, max(MIN_ZOOM, self.zoom * factor))
-        # Snap to powers of two when close, so 1:1 and exact mip levels are easy to hit.
-        lz = math.log2(z1)
-        if abs(lz - round(lz)) < 0.02:
-            z1 = 2.0 ** round(lz)
-        x0, y0 = self.x - w / (2 * self.zoom), self.y - h / (2 * self.zoom)
-        px, py = x0 + sx / self.zoom, y0 + sy / self.zoom
-        nx0, ny0 = px - sx / z1, py - sy / z1
-        return View(nx0 + w / (2 * z1), ny0 + h / (2 * z1), z1).clamped()
-
-    def panned(self, dx_screen: float, dy_screen: float) -> View:
-        return View(self.x - dx_screen / self.zoom, self.y - dy_screen / self.zoom, self.zoom).clamped()
-
-
-@dataclass(frozen=True)
-class Display:
-    """How the canvas is drawn (saved with a project, not part of undo)."""
-
-    mode: str = "color"
-    level: int = -1          # pyramid level shown in "level" mode; -1 = finest
-    magnify: str = "hires"   # zoomed-in filter: "hires" (synthesis magnification), "bilinear", "nearest"
-    geometry: str = "original"  # with a lattice: "original" (the input's geometry) or "rectified"
-    map: str = ""            # a material's map shown in "color" and "level" modes; "": its first map
-    light_azimuth: float = 135.0    # "lit" mode: the light's direction, degrees (0: from the right, 90: from above)
-    light_elevation: float = 40.0   # degrees above the surface, 5 to 90
-    relief: float = 1.0             # "lit" mode: height map strength (relief of the full height range, x 1/8 of m)
-
-
-@dataclass(frozen=True)
-class Project:
-    document: Document
-    view: View = View()
-    display: Display = Display()
-    origin: str | None = None  # autosaves: the project file the unsaved work belongs to
-
-
-# -- undo / redo -------------------------------------------------------------
-
-
-class History:
-    """Undo/redo over immutable documents.
-
-    ``apply(doc, label, group=g)`` with the same non-None ``g`` as the previous
-    call replaces the current document without a new undo step: a slider drag
-    is one step. ``end_group()`` closes the group (on mouse release).
-    """
-
-    def __init__(self, doc: Document, limit: int = 500):
-        self.current = doc
-        self.undo_stack: list[tuple[Document, str]] = []
-        self.redo_stack: list[tuple[Document, str]] = []
-        self.limit = limit
-        self._group: object = None
-        self.saved: Document | None = doc
-
-    @property
-    def dirty(self) -> bool:
-        return self.current != self.saved
-
-    def apply(self, doc: Document, label: str, group: object = None) -> bool:
-        if doc == self.current:
-            return False
-        doc.validate()
-        if group is None or group != self._group:
-            self.undo_stack.append((self.current, label))
-            del self.undo_stack[:-self.limit]
-        self._group = group
-        self.redo_stack.clear()
-        self.current = doc
-        return True
-
-    def end_group(self) -> None:
-        self._group = None
-
-    def can_undo(self) -> bool:
-        return bool(self.undo_stack)
-
-    def can_redo(self) -> bool:
-        return bool(self.redo_stack)
-
-    def undo_label(self) -> str:
-        return self.undo_stack[-1][1] if self.undo_stack else ""
-
-    def redo_label(self) -> str:
-        return self.redo_stack[-1][1] if self.redo_stack else ""
-
-    def undo(self) -> bool:
-        if not self.undo_stack:
-            return False
-        doc, label = self.undo_stack.pop()
-        self.redo_stack.append((self.current, label))
-        self.current = doc
-        self._group = None
-        return True
-
-    def redo(self) -> bool:
-        if not self.redo_stack:
-            return False
-        doc, label = self.redo_stack.pop()
-        self.undo_stack.append((self.current, label))
-        self.current = doc
-        self._group = None
-        return True
-
-    def mark_saved(self) -> None:
-        self.saved = self.current
-
-
-# -- project files -----------------------------------------------------------
 
 
 def _reference(src: ExemplarSource, embed: bool, path: str | None) -> tuple[str | None, str | None]:
@@ -484,7 +152,7 @@ def _lattice_from_json(d: object) -> Lattice | None:
     vecs = []
     for key in ("origin", "t1", "t2"):
         v = d.get(key)
-        if not (isinstance(v, list) and len(v) == 2 and all(_number(x) and abs(x) < 1e6 for x in v)):
+        if not (isinstance(v, list) and len(v) == 2 and all(is_number(x) and abs(x) < 1e6 for x in v)):
             raise bad
         vecs.append((float(v[0]), float(v[1])))
     cells, levels = d.get("cells"), d.get("levels")
@@ -637,10 +305,6 @@ def _get(d: dict, key: str, types, where: str, optional: bool = False):
     return v
 
 
-def _number(v: object) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def _int_in(d: dict, key: str, where: str, lo: int, hi: int) -> int:
     v = _get(d, key, int, where)
     if not lo <= v <= hi:
@@ -716,7 +380,7 @@ def _material_from_json(mat: object, primary: ExemplarSource, path: str | None, 
     weights = None
     if w is not None:
         if not isinstance(w, list) or len(w) > len(ROLES) or not all(
-                isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) and _number(p[1]) for p in w):
+                isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) and is_number(p[1]) for p in w):
             raise bad
         weights = tuple((str(r), float(v)) for r, v in w)
     return tuple(maps), weights
@@ -751,7 +415,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     a = _get(d, "analysis", dict, "project")
     s = _get(d, "synthesis", dict, "project")
     jitter = _get(s, "jitter", list, "synthesis")
-    if len(jitter) > MAX_LEVELS or not all(_number(r) and 0.0 <= r <= 1.0 for r in jitter):
+    if len(jitter) > MAX_LEVELS or not all(is_number(r) and 0.0 <= r <= 1.0 for r in jitter):
         raise ProjectError(f"synthesis.jitter must be a list of at most {MAX_LEVELS} numbers from 0 to 1.")
     corrected = _get(s, "corrected", list, "synthesis", optional=True)
     if corrected is not None and (len(corrected) > MAX_LEVELS or not all(
@@ -762,10 +426,10 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
             isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 8 for c in level_passes):
         raise ProjectError(f"synthesis.level_passes must be a list of at most {MAX_LEVELS} integers from 0 to 8.")
     fw = a.get("feature_weight", 0.0) if isinstance(a, dict) else 0.0
-    if not _number(fw) or not 0.0 <= fw <= 4.0:
+    if not is_number(fw) or not 0.0 <= fw <= 4.0:
         raise ProjectError("analysis.feature_weight must be a number from 0 to 4.")
     kappa = _get(s, "kappa", (int, float), "synthesis")
-    if not _number(kappa) or not 0.0 <= kappa <= 100.0:
+    if not is_number(kappa) or not 0.0 <= kappa <= 100.0:
         raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
     toroidal = _get(e, "toroidal", bool, "exemplar", optional=True)
     fields = _fields_from_json(d.get("randomness"))
@@ -800,7 +464,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     view, display = View(), Display()
     v = d.get("view")
     if v is not None:
-        if not isinstance(v, dict) or not all(_number(v.get(k)) for k in ("x", "y", "zoom")):
+        if not isinstance(v, dict) or not all(is_number(v.get(k)) for k in ("x", "y", "zoom")):
             raise ProjectError("The project's view is damaged.")
         view = View(float(v["x"]), float(v["y"]), float(v["zoom"])).clamped()
     g = d.get("display")
@@ -814,7 +478,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         if (not isinstance(mode, str) or mode not in DISPLAY_MODES or not isinstance(mag, str)
                 or mag not in MAGNIFY_FILTERS or not isinstance(level, int) or isinstance(level, bool)
                 or not -1 <= level <= 12 or geom not in GEOMETRIES
-                or shown not in ("", IMAGE, *ROLES) or not all(_number(v) for v in (az, el, relief))
+                or shown not in ("", IMAGE, *ROLES) or not all(is_number(v) for v in (az, el, relief))
                 or not (-360.0 <= az <= 360.0 and 5.0 <= el <= 90.0 and 0.0 <= relief <= 16.0)):
             raise ProjectError("The project's display settings are damaged.")
         display = Display(mode, level, mag, geom, shown, float(az), float(el), float(relief))
@@ -840,85 +504,3 @@ def is_project_file(path: str) -> bool:
         return True
     head = read_head(path, 64).lstrip()
     return head.startswith(b"{") and FORMAT.encode() in head
-
-
-# -- autosave ----------------------------------------------------------------
-
-
-def state_dir() -> str:
-    d = os.environ.get("INFINITEX_STATE") or os.path.join(
-        os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state"), "infinitex")
-    return d
-
-
-def autosave_path() -> str:
-    return os.path.join(state_dir(), "autosave" + PROJECT_SUFFIX)
-
-
-class Autosave:
-    """Writes the open project every ``interval`` seconds while it has unsaved
-    edits; the file is removed on a clean exit, so finding one at start-up
-    means the last session did not end cleanly."""
-
-    def __init__(self, path: str | None = None, interval: float = 10.0):
-        self.path = path or autosave_path()
-        self.interval = interval
-        self._last = time.monotonic()
-        self._written: Document | None = None
-        self.set_aside: tuple[str, str] | None = None  # (new path, reason) of a broken autosave
-
-    def pending(self) -> Project | None:
-        """The autosaved project left by a session that did not end cleanly.
-
-        Never raises: a broken autosave file (or anything else at its path) is
-        set aside, renamed ``autosave-broken-TIME.itex`` next to it, and
-        ``set_aside`` says where and why; start-up then goes on as usual."""
-        if not os.path.lexists(self.path):
-            return None
-        try:
-            return load_project(self.path)  # never allowed to read outside its folder
-        except ProjectError as exc:
-            self._set_aside(str(exc))
-            return None
-
-    def _set_aside(self, reason: str) -> None:
-        folder = os.path.dirname(self.path)
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        for i in range(100):
-            target = os.path.join(folder, f"autosave-broken-{stamp}{'-' + str(i) if i else ''}{PROJECT_SUFFIX}")
-            if not os.path.lexists(target):
-                break
-        try:
-            os.rename(self.path, target)
-            self.set_aside = (target, reason)
-        except OSError as exc:
-            self.set_aside = (self.path, f"{reason} (it could not be renamed: {exc.strerror or exc})")
-
-    def pending_time(self) -> float | None:
-        try:
-            return os.path.getmtime(self.path)
-        except OSError:
-            return None
-
-    def tick(self, project: Project, dirty: bool, force: bool = False) -> bool:
-        """Write when due; returns True when written."""
-        now = time.monotonic()
-        if not force and (now - self._last < self.interval):
-            return False
-        self._last = now
-        if not dirty or project.document == self._written:
-            return False
-        try:
-            os.makedirs(os.path.dirname(self.path), exist_ok=True)
-        except OSError as exc:
-            raise ProjectError(f"The autosave folder cannot be made: {exc.strerror or exc}.") from None
-        save_project(self.path, project, embed=True)
-        self._written = project.document
-        return True
-
-    def clear(self) -> None:
-        self._written = None
-        try:
-            os.unlink(self.path)
-        except OSError:
-            pass

@@ -1,6 +1,6 @@
 """``infinitex export PROJECT -o OUT.png``: render a project headless.
 
-Shares the editor's export code (``app.session.ExportJob``), so the file is
+Shares the editor's export code (:class:`infinitex.export.window.ExportJob`), so the file is
 identical to what File > Export writes. Every argument is checked before any
 work; progress on stderr; Ctrl+C cancels.
 """
@@ -11,23 +11,26 @@ import sys
 import time
 from dataclasses import replace
 
-from infinitex.engine.cli import (
+from infinitex.engine.safeio import ReadError, printable
+
+from .common import (
     EXIT_INPUT,
     EXIT_USAGE,
     CliError,
     Parser,
     ProgressBar,
-    _integer,
     add_lattice_args,
     add_randomness_args,
+    analysis_progress,
     check_lattice_args,
     check_out,
     check_toroidal,
     check_window,
     guarded,
+    integer,
+    randomness_controls,
     resolve_lattice,
 )
-from infinitex.engine.safeio import ReadError, printable
 
 
 def build_parser() -> Parser:
@@ -41,18 +44,18 @@ def build_parser() -> Parser:
                         "per map: OUT_basecolor.png, OUT_height.png... (32-bit maps as .tif)")
     p.add_argument("--maps", default=None, metavar="all|basecolor,height,...",
                    help="the maps of a material to write (default all)")
-    p.add_argument("--depth", type=_integer, default=None, choices=(8, 16, 32),
+    p.add_argument("--depth", type=integer, default=None, choices=(8, 16, 32),
                    help="bit depth of every map written: 8 or 16 (PNG) or 32 (float TIFF); default: each map's "
                         "own (8-bit sources 8, 16-bit 16, float 32)")
-    p.add_argument("--magnify", type=_integer, default=1, choices=(1, 2, 4, 8),
+    p.add_argument("--magnify", type=integer, default=1, choices=(1, 2, 4, 8),
                    help="--format png: N x N output pixels per texel, by synthesis magnification (LH05 5) from "
                         "the full-resolution maps when the import kept them; normals are renormalized")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--rect", nargs=4, type=_integer, metavar=("X", "Y", "W", "H"),
+    g.add_argument("--rect", nargs=4, type=integer, metavar=("X", "Y", "W", "H"),
                    help="canvas rectangle in finest-level pixels")
-    g.add_argument("--toroidal", type=_integer, metavar="N",
+    g.add_argument("--toroidal", type=integer, metavar="N",
                    help="an N x N tile that wraps seamlessly (N a power of two, 32 to 4096)")
-    p.add_argument("--size", nargs=2, type=_integer, default=None, metavar=("W", "H"),
+    p.add_argument("--size", nargs=2, type=integer, default=None, metavar=("W", "H"),
                    help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
     p.add_argument("--coords", action="store_true",
                    help="also write the exact exemplar-coordinate map: OUT_coords.png (or, streamed, "
@@ -63,9 +66,9 @@ def build_parser() -> Parser:
                         "(-o NAME.tif); zarr: a multiscale Zarr pyramid (-o NAME.zarr, OME-NGFF 0.4) whose "
                         "coarser levels are the synthesis's own. tiles, tiff and zarr are streamed in bounded "
                         "memory, up to 2^20 px a side, and resume where an interrupted run stopped")
-    p.add_argument("--tile", type=_integer, default=1024, metavar="N",
+    p.add_argument("--tile", type=integer, default=1024, metavar="N",
                    help="tile size of --format tiles|tiff|zarr: 256, 512, 1024 (default), 2048, 4096 or 8192")
-    p.add_argument("--workers", type=_integer, default=0, metavar="N",
+    p.add_argument("--workers", type=integer, default=0, metavar="N",
                    help="--format tiles|tiff|zarr: render with N worker processes, each with its own GL context "
                         "(0: in this process); with --scheduler, the LocalCluster's size (default: one per "
                         "core); the files are the same bytes")
@@ -86,10 +89,15 @@ def run_export(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     from infinitex.engine.pyramid import Rect
 
-    from .document import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
-
     # Arguments first: nothing is read or computed before they are all good.
-    from infinitex.engine.tiled_export import TILE_SIZES
+    from infinitex.export import TILE_SIZES
+    from infinitex.project import (
+        Document,
+        ExemplarOutside,
+        ExemplarSource,
+        is_project_file,
+        load_project,
+    )
     streamed = args.format != "png"
     if args.size is not None and (args.rect or args.toroidal is not None):
         raise CliError("--size goes with neither --rect nor --toroidal.", EXIT_USAGE)
@@ -103,7 +111,7 @@ def run_export(argv: list[str]) -> int:
         check_window(0, 0, w, h, "--size", streamed)
     if args.format == "zarr":
         from infinitex.engine.safeio import WriteError
-        from infinitex.engine.tiled_export import check_zarr_output
+        from infinitex.export import check_zarr_output
         try:
             check_zarr_output(args.output)
         except WriteError as exc:
@@ -169,12 +177,11 @@ def run_export(argv: list[str]) -> int:
 
     # Decode and analyze before any GL: a bad exemplar fails fast.
     from infinitex.engine.analysis import analyze
-    from infinitex.engine.cli import _progress
     from infinitex.engine.gpu import Gpu
-
     from infinitex.engine.material import IMAGE, parse_maps
-
-    from .session import ExportJob, Session, exemplar_for, material_for
+    from infinitex.export.loaded import LoadedDocument
+    from infinitex.export.window import ExportJob
+    from infinitex.project.realize import exemplar_for, material_for
     check_lattice_args(args)
     image = None
     if args.lattice and doc.maps:
@@ -203,13 +210,13 @@ def run_export(argv: list[str]) -> int:
             raise CliError(f"A toroidal tile of whole cells needs a size that the cell ({cx}x{cy} exemplar px) "
                            f"divides; use --toroidal {max(cx, cy, 32)} or more.", EXIT_USAGE)
     if args.randomness_exemplar or args.randomness_canvas or args.features or args.avoid_exemplar:
-        from infinitex.engine.cli import randomness_controls  # these replace the project's
+        # these replace the project's
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features, avoid_exemplar=c.avoid)
-    an = analyze(ex, settings, progress=_progress(args.quiet))
+    an = analyze(ex, settings, progress=analysis_progress(args.quiet))
     gpu = Gpu()
-    session = Session(gpu)
+    session = LoadedDocument(gpu)
     try:
         session.install(doc, ex, an, material)
         if streamed:
@@ -224,11 +231,10 @@ def run_export(argv: list[str]) -> int:
 
 
 def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str, role: str = "") -> int:
-    """--format tiles|tiff|zarr: tile by tile in bounded memory, resumable (engine.tiled_export)."""
+    """--format tiles|tiff|zarr: tile by tile in bounded memory, resumable (infinitex.export.streamed)."""
     from infinitex.engine.material import map_path
-    from infinitex.engine.tiled_export import TiledExport
-
-    from .session import export_key, project_synthesizer
+    from infinitex.export import TiledExport
+    from infinitex.export.jobs import export_key, project_synthesizer
     if session.controls.lattice is not None and geometry != "rectified" and not tor:
         raise CliError("Tiled exports of a lattice are written rectified: pass --geometry rectified.", EXIT_USAGE)
     synth = session.synth
@@ -273,9 +279,7 @@ def _run(job, args, rect, renderer: str) -> int:
 
 
 def main(argv: list[str]) -> int:
-    from infinitex.engine.lattice import LatticeError
-
-    from infinitex.engine.tiled_export import ExportFailed
-
-    from .document import ProjectError
+    from infinitex.engine.controls.lattice import LatticeError
+    from infinitex.export import ExportFailed
+    from infinitex.project import ProjectError
     return guarded(run_export, argv, (ProjectError, LatticeError, ValueError, ExportFailed))

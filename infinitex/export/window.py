@@ -1,0 +1,175 @@
+"""Window exports: a rectangle (or a toroidal tile) of a loaded document,
+synthesized tile by tile within a time budget per step (so the editor stays
+live), then every map written atomically as PNG or TIFF at 8, 16 or 32 bits,
+optionally magnified (LH05 synthesis magnification) or in a lattice's
+original geometry."""
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from infinitex.engine.controls.lattice import original_geometry_box, render_original
+from infinitex.engine.exemplar import write_image, write_png
+from infinitex.engine.material import MaterialError, export_depths, output_paths
+from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
+from infinitex.engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
+from infinitex.engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
+
+from .formats import encode_coords
+from .loaded import LoadedDocument
+
+MAGNIFY_FACTORS = (1, 2, 4, 8)  # exports: output pixels per synthesized texel (synthesis magnification)
+
+
+def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
+    """uint8 (H, W, C) colors of exemplar coordinates (H, W, 2) at ``level``."""
+    return stack[level][coords[..., 1], coords[..., 0]]
+
+
+class ExportJob:
+    """Synthesize a rectangle (or a toroidal tile) tile by tile, within a time
+    budget per ``step`` so the editor stays live; then write PNGs atomically.
+
+    The result does not depend on the tile size or order (the engine is
+    order-independent), so the UI and the CLI produce the same file.
+    """
+
+    def __init__(self, session: LoadedDocument, rect: Rect, out_path: str, *, toroidal: int = 0,
+                 coords_path: str | None = None, tile: int = 128, geometry: str = "rectified",
+                 maps: list[str] | None = None, depth: int | None = None, magnify: int = 1):
+        if session.synth is None:
+            raise SynthesisError("Nothing to export yet: the exemplar is still being analyzed.")
+        if rect.empty:
+            raise SynthesisError("The export rectangle is empty.")
+        if magnify not in MAGNIFY_FACTORS:
+            raise SynthesisError(f"Magnification is one of {', '.join(map(str, MAGNIFY_FACTORS))}, not {magnify}.")
+        self.magnify = magnify
+        mat = session.material
+        roles = mat.roles if maps is None else maps
+        try:
+            self.outputs = output_paths(out_path, roles, export_depths(mat, roles, depth, out_path))
+        except MaterialError as exc:
+            raise SynthesisError(str(exc)) from None
+        if magnify > 1:
+            if coords_path:
+                raise SynthesisError("The coordinate map is exported at 1:1 (without magnification).")
+            if rect.w * magnify > MAX_EXPORT_SIDE or rect.h * magnify > MAX_EXPORT_SIDE \
+                    or rect.w * rect.h * magnify * magnify > MAX_EXPORT_PIXELS:
+                raise SynthesisError(f"Magnified {magnify}x, {rect.w}x{rect.h} is {rect.w * magnify}x{rect.h * magnify}, "
+                                     f"more than the {MAX_EXPORT_SIDE} px a side and "
+                                     f"{MAX_EXPORT_PIXELS // 2**20} Mpixels an export may be.")
+        if rect.w > MAX_EXPORT_SIDE or rect.h > MAX_EXPORT_SIDE or rect.w * rect.h > MAX_EXPORT_PIXELS:
+            raise SynthesisError(f"Exports are limited to {MAX_EXPORT_SIDE} px a side and "
+                                 f"{MAX_EXPORT_PIXELS // 2**20} Mpixels; {rect.w}x{rect.h} is too large.")
+        self.session = session
+        self.out_rect = rect
+        self.out_path = out_path
+        self.coords_path = coords_path
+        an = session.analysis
+        # With a lattice shown in the input's geometry, ``rect`` is in input
+        # pixels: the rectified texels it reads are synthesized, then mapped back.
+        self.lattice = session.controls.lattice if geometry == "original" and not toroidal else None
+        if self.lattice is not None:
+            if coords_path:
+                raise SynthesisError("The coordinate map is exported in the rectified geometry only "
+                                     "(each pixel of the original geometry blends four texels).")
+            if magnify > 1:
+                raise SynthesisError("A lattice in its original geometry is exported at 1:1 (without magnification).")
+            rect = Rect(*original_geometry_box(self.lattice, an.size, rect.x0, rect.y0, rect.w, rect.h))
+            if rect.w > MAX_EXPORT_SIDE or rect.h > MAX_EXPORT_SIDE or rect.w * rect.h > MAX_EXPORT_PIXELS:
+                raise SynthesisError(f"This export reads {rect.w}x{rect.h} rectified texels, more than the "
+                                     f"{MAX_EXPORT_SIDE} px a side and {MAX_EXPORT_PIXELS // 2**20} Mpixels allowed.")
+        if magnify > 1:  # synthesis magnification blends each pixel's 4 nearest texels: one more on every side
+            rect = Rect(rect.x0 - 1, rect.y0 - 1, rect.x1 + 1, rect.y1 + 1)
+        self.rect = rect
+        params = session.params
+        if toroidal:
+            params = replace(params, period=int(toroidal))
+            params.validate(an.L)
+            lat = session.controls.lattice
+            if lat is not None:
+                cx, cy = lat.cell(an.size)
+                if toroidal % cx or toroidal % cy:
+                    raise SynthesisError(f"A toroidal tile of whole cells needs a size that the lattice cell "
+                                         f"({cx}x{cy} px) divides: {max(cx, cy, 32)} px or more.")
+        self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
+                               controls=session.controls)
+        # What the files are made from, fixed now (the editor may install another analysis meanwhile).
+        self.material, self.exemplar = session.material, session.exemplar
+        self.stacks = {role: session.display_stack(role) for role, _, depth in self.outputs
+                       if depth == 8 and self.lattice is None and magnify == 1}
+        self.L = an.L
+        self.coords = np.zeros((rect.h, rect.w, 2), dtype=np.int32)
+        self.tiles = [Rect(x, y, min(x + tile, rect.x1), min(y + tile, rect.y1))
+                      for y in range(rect.y0, rect.y1, tile) for x in range(rect.x0, rect.x1, tile)]
+        self.index = 0
+        self.done = False
+        self.cancelled = False
+        self.error: str | None = None
+        self.started = time.monotonic()
+
+    @property
+    def progress(self) -> float:
+        return self.index / max(1, len(self.tiles))
+
+    def cancel(self) -> None:
+        self.cancelled = True
+        self._close()
+
+    def step(self, budget_s: float = 0.03) -> bool:
+        """Do some tiles; True when finished (written, failed or cancelled)."""
+        if self.done or self.cancelled:
+            return True
+        t0 = time.perf_counter()
+        try:
+            while self.index < len(self.tiles):
+                t = self.tiles[self.index]
+                self.pyramid.request(self.L, t)
+                c = self.pyramid.read(self.L, t)
+                self.coords[t.y0 - self.rect.y0:t.y1 - self.rect.y0, t.x0 - self.rect.x0:t.x1 - self.rect.x0] = c
+                self.index += 1
+                if time.perf_counter() - t0 > budget_s:
+                    return False
+            self._write()
+        except (OSError, SynthesisError, ValueError) as exc:
+            self.error = str(exc)
+        self.done = True
+        self._close()
+        return True
+
+    def run(self, progress=None) -> None:
+        """Run to the end (CLI); ``progress(fraction)`` may raise to cancel."""
+        while not self.step(0.25):
+            if progress:
+                progress(self.progress)
+        if progress and not self.cancelled:
+            progress(1.0)
+        if self.error:
+            raise SynthesisError(self.error)
+
+    def pixels(self, role: str) -> np.ndarray:
+        """One map of the export, float32 (H, W, C) in [0, 1]."""
+        if self.lattice is not None:
+            ex, r = self.exemplar, self.out_rect
+            source = ex.hires if ex.hires is not None else ex.pixels
+            box = (self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1)
+            return render_original(self.coords, box, self.lattice, ex.size, source, r.x0, r.y0, r.w, r.h)
+        if self.magnify > 1:
+            return self.material.magnified(role, self.coords, self.magnify)
+        return self.material.lookup(role, self.coords)
+
+    def _write(self) -> None:
+        for role, path, depth in self.outputs:
+            if role in self.stacks:  # 8 bits at 1:1: looked up in the uint8 stack (a quarter of the memory)
+                write_png(path, colors_u8(self.stacks[role], self.coords, self.L))
+            else:
+                write_image(path, self.pixels(role), depth, self.material.maps[role].exemplar.value_range)
+        if self.coords_path:
+            write_png(self.coords_path, encode_coords(self.coords))
+
+    def _close(self) -> None:
+        if self.pyramid is not None:
+            self.pyramid.release()
+            self.pyramid = None

@@ -1,0 +1,211 @@
+"""Where a streamed export's tiles are rendered: worker processes (a pool of
+spawned interpreters, each with its own headless GL context) or a Dask
+cluster. Workers receive a picklable ``worker_init`` that builds their
+Synthesizer (:class:`ProjectSynthesizer`: the project as JSON, never engine
+objects) and return the encoded tile bytes; the exporting process writes them.
+"""
+from __future__ import annotations
+
+import os
+import secrets
+import threading
+import time
+from dataclasses import dataclass, replace
+
+from infinitex.engine.analysis import analyze
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
+from infinitex.project import parse_project_json, project_from_json
+from infinitex.project.realize import exemplar_for, material_for
+
+from .errors import ExportFailed
+from .formats import encode_tile
+
+
+@dataclass
+class ProjectSynthesizer:
+    """Makes, in another process, the Synthesizer of a project: what export
+    workers receive (the project as JSON with its exemplar embedded, not
+    pickled engine objects). Each worker has its own headless GL context."""
+
+    project_json: str
+    period: int = 0
+    role: str = ""  # a material's map the tiles show ("": the first map)
+
+    def __call__(self) -> Synthesizer:
+        doc = project_from_json(parse_project_json(self.project_json.encode("utf-8"))).document
+        material = material_for(doc) if doc.maps else None
+        ex, settings = exemplar_for(doc, material=material)
+        an = analyze(ex, settings)  # the disk cache holds it: the parent analyzed it already
+        params = doc.params(an.L)
+        if self.period:
+            params = replace(params, period=self.period)
+        synth = Synthesizer(an, params, controls=doc.controls(an.size))
+        if material is not None:
+            synth.palette = material.stack(self.role or material.primary)
+        return synth
+
+
+def calibrate(worker_init, fmt: str, tile: int) -> tuple[float, float]:
+    """Seconds and bytes per pixel of a streamed export, measured on one tile
+    (at most 1024 px; larger tiles cost about the same per pixel) rendered
+    and encoded as the export does, in a worker made by ``worker_init``."""
+    synth = worker_init()
+    n = min(tile, 1024)
+    # A first tile of the same size compiles the shaders and allocates the
+    # buffers: costs an export pays once, not per pixel.
+    encode_tile(synth, fmt, n, Rect(-n, 0, 0, n))
+    t0 = time.perf_counter()
+    blob = encode_tile(synth, fmt, n, Rect(n, 3 * n, 2 * n, 4 * n))[0]
+    return (time.perf_counter() - t0) / (n * n), len(blob) / (n * n)
+
+
+def in_flight(workers: int) -> int:
+    return 2 * max(1, workers) + 2  # enough to keep the workers busy; a cancel drops the rest at once
+
+
+def run_pool(job, todo, workers: int, worker_init, finished) -> None:
+    """Tiles rendered by ``workers`` spawned processes; a pool whose worker dies
+    is replaced and its tiles rendered again."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+    ctx = multiprocessing.get_context("spawn")  # a fresh interpreter: no inherited GL state
+    retry: list = []  # tiles of a pool that broke (a worker died)
+    restarts = 0
+    more = True
+    while more or retry:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_start,
+                                   initargs=(worker_init,))
+        futures: dict = {}
+        broken = False
+        try:
+            while True:
+                while len(futures) < in_flight(workers) and (retry or more):
+                    item = retry.pop() if retry else next(todo, None)
+                    if item is None:
+                        more = False
+                        break
+                    try:
+                        fut = pool.submit(_worker_tile, job.fmt, job.tile, _box(item[2]), job.coords, item[3])
+                    except BrokenProcessPool:  # a worker died since the last wait: this pool is done
+                        retry.append(item)
+                        broken = True
+                        break
+                    futures[fut] = item
+                if broken:
+                    retry.extend(futures.values())
+                    break
+                if not futures:
+                    break
+                ready, _ = wait(futures, return_when=FIRST_COMPLETED)
+                for fut in ready:
+                    item = futures.pop(fut)
+                    try:
+                        blobs = fut.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        retry.append(item)
+                        continue
+                    finished(item, blobs)
+                if broken:
+                    retry.extend(futures.values())
+                    break
+        finally:  # stopped (or done): drop the queued tiles, wait only for those being rendered
+            pool.shutdown(wait=True, cancel_futures=True)
+        if broken:
+            restarts += 1
+            if restarts > 3 * workers + 3:
+                raise ExportFailed("The export's worker processes keep dying (out of memory?); the finished "
+                                   "tiles are kept: run the same export again to continue.")
+
+def run_dask(job, todo, scheduler: str, workers: int, worker_init, finished) -> None:
+    """Tiles as Dask tasks: the cluster reschedules those of a worker that dies."""
+    import logging
+
+    from distributed import Client, KilledWorker, LocalCluster, as_completed
+    from distributed.client import FutureCancelledError
+    cluster = None
+    try:
+        if scheduler == "local":
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                   processes=True, dashboard_address=None, silence_logs=logging.ERROR)
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout=10)
+    except (OSError, TimeoutError, ValueError) as exc:
+        if cluster is not None:
+            cluster.close()
+        raise ExportFailed(f"Cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    try:
+        init = client.scatter(worker_init, broadcast=True, hash=False)
+        key = job.export_key()
+        threads = sum(client.nthreads().values()) or 1
+        futures: dict = {}
+        serial = [0]
+        run_id = secrets.token_hex(4)  # task names of this run only, on a cluster others may share
+
+        def submit() -> bool:
+            item = next(todo, None)
+            if item is None:
+                return False
+            serial[0] += 1
+            fut = client.submit(_dask_tile, init, key, job.fmt, job.tile, _box(item[2]), job.coords, item[3],
+                                pure=False, key=f"infinitex-tile-{key[:12]}-{run_id}-{serial[0]}")
+            futures[fut] = item
+            queue.add(fut)
+            return True
+        queue = as_completed([])
+        more = True
+        while more and len(futures) < in_flight(threads):
+            more = submit()
+        try:
+            for fut in queue:
+                item = futures.pop(fut)
+                try:
+                    blobs = fut.result()
+                except FutureCancelledError:
+                    continue
+                except KilledWorker:
+                    raise ExportFailed("A tile killed every Dask worker it was given to (out of memory?); "
+                                       "the finished tiles are kept: run the same export again to "
+                                       "continue.") from None
+                finished(item, blobs)
+                while more and len(futures) < in_flight(threads):
+                    more = submit()
+        except BaseException:
+            client.cancel(list(futures))
+            raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _box(r: Rect) -> tuple[int, int, int, int]:
+    return r.x0, r.y0, r.x1, r.y1
+
+
+_WORKER: dict = {}
+
+
+def _worker_start(worker_init) -> None:
+    _WORKER["synth"] = worker_init()
+
+
+def _worker_tile(fmt: str, tile: int, box: tuple[int, int, int, int], coords: bool,
+                 level: int | None = None) -> list[bytes]:
+    return encode_tile(_WORKER["synth"], fmt, tile, Rect(*box), coords, level)
+
+
+def _dask_tile(worker_init, key: str, fmt: str, tile: int, box: tuple[int, int, int, int],
+               coords: bool, level: int | None = None) -> list[bytes]:
+    """A Dask task: the worker's Synthesizer is made once per export and
+    thread (a GL context is current in the thread that made it)."""
+    slot = (threading.get_ident(), key)
+    synth = _WORKER.get(slot)
+    if synth is None:
+        for old in [k for k in _WORKER if isinstance(k, tuple) and k[0] == slot[0]]:
+            _WORKER.pop(old)  # one export's engine per thread at a time
+        synth = _WORKER[slot] = worker_init()
+    return encode_tile(synth, fmt, tile, Rect(*box), coords, level)

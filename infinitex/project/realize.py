@@ -1,0 +1,117 @@
+"""What a document is made of for the engine (CPU only, no GL): its exemplar
+(a lattice's rectified block, the image by its fit rule, or a material's
+analysis maps side by side), the analysis settings, its material, and the
+analysis run on a worker thread (:class:`AnalysisJob`)."""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from infinitex.engine.analysis import (
+    Analysis,
+    AnalysisCancelled,
+    AnalysisSettings,
+    analyze,
+)
+from infinitex.engine.controls.lattice import LatticeError, rectified_exemplar
+from infinitex.engine.exemplar import (
+    Exemplar,
+    ExemplarError,
+    decode_full,
+    load_exemplar_bytes,
+)
+from infinitex.engine.material import Material, MaterialError, load_material, single
+
+from .document import Document
+
+
+def material_for(doc: Document) -> Material:
+    """The maps of a material document, decoded and fitted (all or nothing)."""
+    return load_material([(role, src.name, src.data) for role, src in doc.maps], fit=doc.fit, toroidal=doc.toroidal)
+
+
+def exemplar_for(doc: Document, image: np.ndarray | None = None,
+                 material: Material | None = None) -> tuple[Exemplar, AnalysisSettings]:
+    """The exemplar a document synthesizes from (a lattice's rectified block,
+    the image by its fit rule, or a material's analysis maps side by side)
+    and the analysis settings for it. ``image``: the exemplar file already
+    decoded whole (decode_full), if at hand; ``material``: the document's
+    material, if already loaded."""
+    if doc.maps:
+        material = material or material_for(doc)
+        ex = material.guide(doc.weight_dict())
+        if doc.model == "color" and ex.channels > 4:
+            raise MaterialError(f"The color model compares at most 4 channels, and this material's analysis maps "
+                                f"have {ex.channels}; use the appearance model or fewer analysis maps.")
+        return ex, AnalysisSettings(model=doc.model, k=doc.k, feature_weight=doc.feature_weight)
+    if doc.lattice is not None:
+        if image is None:
+            image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        ex = rectified_exemplar(image, doc.lattice, source=doc.exemplar.name)
+        grid = (doc.lattice.nx, doc.lattice.ny)
+    else:
+        ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+        grid = (0, 0)
+    return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid, feature_weight=doc.feature_weight)
+
+
+class AnalysisJob:
+    """Decode the exemplar and analyze it on a worker thread (numpy and scipy
+    release the GIL for the heavy parts); poll ``done``; ``cancel()`` stops it."""
+
+    def __init__(self, doc: Document, cache_dir: str | None = None):
+        self.doc = doc
+        self.key = doc.analysis_key()
+        self.cache_dir = cache_dir
+        self.progress = 0.0
+        self.message = "Reading the exemplar"
+        self.exemplar: Exemplar | None = None
+        self.analysis: Analysis | None = None
+        self.material: Material | None = None
+        self.error: str | None = None
+        self.cancelled = False
+        self.started = time.monotonic()
+        self._cancel = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="analysis", daemon=True)
+        self._thread.start()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        self._thread.join(timeout)
+        return self.done
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def _progress(self, frac: float, msg: str) -> None:
+        if self._cancel.is_set():
+            raise AnalysisCancelled()
+        self.progress = 0.05 + 0.95 * float(frac)
+        self.message = msg
+
+    def _run(self) -> None:
+        d = self.doc
+        try:
+            material = material_for(d) if d.maps else None
+            ex, settings = exemplar_for(d, material=material)
+            self._progress(0.0, "Analyzing")
+            an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress)
+            if material is None:
+                material = single(ex, [lv.stack for lv in an.levels])  # the same Gaussian stack
+            for role in material.roles:  # every map's stack, off the GUI thread
+                self.message = f"Filtering the {role} map"
+                material.stack(role)
+            self.exemplar, self.analysis, self.material = ex, an, material
+        except AnalysisCancelled:
+            self.cancelled = True
+        except (ExemplarError, LatticeError) as exc:
+            self.error = str(exc)
+        except MemoryError:
+            self.error = f"Not enough memory to analyze {d.exemplar.name}."
+        except Exception as exc:
+            self.error = f"Analyzing {d.exemplar.name} failed: {exc}"
