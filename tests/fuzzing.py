@@ -1,4 +1,4 @@
-"""Fuzzing targets shared by the test suite (tests/test_fuzz.py, a few hundred
+"""Fuzzing targets shared by the test suite (tests/reliability/test_fuzz.py, a few hundred
 cases) and the long runs (bench/fuzz.py, 10,000+ cases per target).
 
 Each target is a Hypothesis strategy for one kind of untrusted input and a

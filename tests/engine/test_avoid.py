@@ -19,7 +19,7 @@ from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 
 FAR = 2 ** 30
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 

@@ -1,6 +1,6 @@
 """Drive the real editor through a large photo (run under Xvfb by test_editor.py):
 
-    xvfb-run -a python tests/gui_large.py OUT_DIR
+    xvfb-run -a python tests/app/gui_large.py OUT_DIR
 
 A 1300 x 1100 image opens at 512 px; the Exemplar panel's Import "Resize, up
 to 2048 px" keeps 1024 px of it, analyzed in the background (the editor keeps
@@ -14,7 +14,7 @@ import os
 import sys
 import time
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "scripts"))
 

@@ -1,7 +1,7 @@
 """Drive the lattice tool of the real editor with the imgui test engine
 (run under Xvfb by test_editor.py).
 
-    xvfb-run -a python tests/gui_lattice.py OUT_DIR
+    xvfb-run -a python tests/app/gui_lattice.py OUT_DIR
 
 Opens generated running-bond bricks, auto-detects the lattice, drags a
 handle with the mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
@@ -14,9 +14,9 @@ import sys
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # tests/: lattice_gen
 
 from imgui_bundle import imgui
 from imgui_bundle.immapp import testing

@@ -18,7 +18,7 @@ from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 from infinitex.export import ExportInterrupted, TiledExport, read_tiles, udim_name
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 

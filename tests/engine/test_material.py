@@ -44,7 +44,7 @@ from infinitex.engine.material import (
 )
 from infinitex.engine.pyramid import Rect, SynthesisError
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
 from make_material import cobbles  # noqa: E402
 

@@ -16,7 +16,7 @@ from infinitex.export import decode_coords, encode_coords
 from infinitex.export.window import ExportJob, colors_u8
 from infinitex.engine.pyramid import Rect, SynthesisError
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 @pytest.fixture(scope="module")

@@ -27,7 +27,7 @@ from infinitex.engine.controls import CanvasField, ExemplarField
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 

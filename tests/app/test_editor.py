@@ -1,4 +1,4 @@
-"""The real editor, driven by the imgui test engine under Xvfb (tests/gui_driver.py).
+"""The real editor, driven by the imgui test engine under Xvfb (tests/app/gui_driver.py).
 
 Needs xvfb-run (scripts/setup.sh installs xvfb and xauth). Set
 INFINITEX_SKIP_GUI=1 to skip on a machine without it; CI never sets it.
@@ -28,7 +28,7 @@ def _run(args, tmp_path, timeout=600):
 
 
 def _drive(script: str, tmp_path, min_checks: int) -> None:
-    """Run a GUI driver (tests/gui_*.py, see tests/gui_harness.py) and require
+    """Run a GUI driver (tests/app/gui_*.py, see tests/app/gui_harness.py) and require
     every one of its checks, at least ``min_checks`` of them, to pass."""
     proc = _run([os.path.join(HERE, script), str(tmp_path)], tmp_path)
     report_path = tmp_path / "report.txt"
@@ -42,13 +42,13 @@ def _drive(script: str, tmp_path, min_checks: int) -> None:
 def test_editor_driven_by_the_test_engine(tmp_path):
     """Sliders, undo/redo, pan, zoom, Save As, reopen, exports, painting,
     avoided exemplar regions, features, broken and outside projects, quitting
-    (tests/gui_driver.py)."""
+    (tests/app/gui_driver.py)."""
     _drive("gui_driver.py", tmp_path, 40)
 
 
 def test_lattice_tool_driven_by_the_test_engine(tmp_path):
     """Auto-detect places the handles on generated bricks; dragging a handle
-    changes the rectified preview; undo restores it (tests/gui_lattice.py)."""
+    changes the rectified preview; undo restores it (tests/app/gui_lattice.py)."""
     _drive("gui_lattice.py", tmp_path, 12)
 
 
@@ -56,7 +56,7 @@ def test_everyday_use_driven_by_the_test_engine(tmp_path):
     """Advanced collapsed with explained controls, passes per scale (one undo step),
     zoom keys, F1, tile mode,
     Open Recent, images as new documents, the title, Save before losing edits,
-    the in-window file browser, the export notice (tests/gui_everyday.py)."""
+    the in-window file browser, the export notice (tests/app/gui_everyday.py)."""
     _drive("gui_everyday.py", tmp_path, 24)
     # On exit the editor kept the window size, the open side-panel sections and
     # the recent files for the next run.
@@ -69,7 +69,7 @@ def test_everyday_use_driven_by_the_test_engine(tmp_path):
 def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     """The Export panel's formats and estimate; a BigTIFF by worker processes
     while the editor draws; a tile set cancelled, then resumed
-    (tests/gui_export.py). The files equal the one-piece render."""
+    (tests/app/gui_export.py). The files equal the one-piece render."""
     import numpy as np
     import tifffile
 
@@ -91,7 +91,7 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
 
 def test_material_session_driven_by_the_test_engine(tmp_path):
     """Open a material through the menu, reassign a role, switch the shown map,
-    light it, export every map through the menu (tests/gui_material.py)."""
+    light it, export every map through the menu (tests/app/gui_material.py)."""
     import imagecodecs
     import numpy as np
     _drive("gui_material.py", tmp_path, 9)
@@ -103,7 +103,7 @@ def test_material_session_driven_by_the_test_engine(tmp_path):
 
 def test_large_photo_driven_by_the_test_engine(tmp_path):
     """A large photo: Import up to 2048 px keeps 1024 px of it, analyzed in the
-    background with the random-walk search; undo goes back (tests/gui_large.py)."""
+    background with the random-walk search; undo goes back (tests/app/gui_large.py)."""
     _drive("gui_large.py", tmp_path, 7)
 
 

@@ -1,7 +1,7 @@
 """Drive the real editor through what a user meets in the first minutes
 (run under Xvfb by test_editor.py):
 
-    xvfb-run -a python tests/gui_everyday.py OUT_DIR
+    xvfb-run -a python tests/app/gui_everyday.py OUT_DIR
 
 Advanced collapsed on start and its controls explained on hover; the zoom
 keys; the shortcuts window; Open Recent; opening an image makes a new
@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import sys
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
 
 from imgui_bundle import imgui

@@ -4,7 +4,7 @@ input must be accepted with a valid result or refused with the program's own
 one-line error: no other exception, no hang, no subprocess, no read outside
 what the user chose, no damaged or replaced file.
 
-The "ci" profile runs 200 fixed cases per target; ``pytest tests/test_fuzz.py
+The "ci" profile runs 200 fixed cases per target; ``pytest tests/reliability/test_fuzz.py
 --hypothesis-profile=long`` runs 10,000 random ones (see bench/fuzz.py for the
 figures with counts, timings and memory)."""
 import shutil

@@ -1,6 +1,6 @@
 """Drive the real editor with the imgui test engine (run under Xvfb by test_editor.py).
 
-    xvfb-run -a python tests/gui_driver.py OUT_DIR
+    xvfb-run -a python tests/app/gui_driver.py OUT_DIR
 
 Each check writes a line "ok NAME" or "FAIL NAME: why" to OUT_DIR/report.txt;
 the canvas is read back exactly (RGB) by the editor itself on request.
@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
 
 from imgui_bundle import imgui

@@ -1,7 +1,7 @@
 """Drive the real editor through a material session (run under Xvfb by
 test_editor.py):
 
-    xvfb-run -a python tests/gui_material.py OUT_DIR
+    xvfb-run -a python tests/app/gui_material.py OUT_DIR
 
 File > Open material with several maps; the Material panel (a role
 reassigned, then undone); the Display panel's map choice and the M key; the
@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import sys
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "scripts"))
 

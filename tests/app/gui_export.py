@@ -1,7 +1,7 @@
 """Drive the real editor through a huge-export session (run under Xvfb by
 test_editor.py):
 
-    xvfb-run -a python tests/gui_export.py OUT_DIR
+    xvfb-run -a python tests/app/gui_export.py OUT_DIR
 
 The Export panel's formats; the size and time estimated before starting;
 a BigTIFF exported by worker processes while the editor keeps drawing
@@ -17,7 +17,7 @@ import re
 import sys
 import time
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
 
 from imgui_bundle.immapp import testing  # noqa: E402

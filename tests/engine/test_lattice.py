@@ -207,7 +207,7 @@ def _cli(*args):
     import os
     import subprocess
     import sys
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     return subprocess.run([sys.executable, os.path.join(root, "main.py"), *args], capture_output=True,
                           text=True, timeout=600, cwd=root)
 
@@ -244,7 +244,7 @@ def test_cli_prints_the_lattice_and_reuses_it(tmp_path):
 
 def test_cli_reports_no_lattice_on_a_stochastic_image(tmp_path):
     import os
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     r = _cli("synth", os.path.join(root, "infinitex", "assets", "gravel.png"), "--lattice", "auto", "-o", str(tmp_path / "g.png"), "-q")
     assert r.returncode == 0 and r.stdout.strip() == "lattice: none"
 

@@ -46,7 +46,7 @@ from infinitex.engine.safeio import (
     read_limited,
 )
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 

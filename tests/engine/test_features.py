@@ -168,7 +168,7 @@ def test_features_in_projects_and_on_the_command_line(tmp_path):
     from PIL import Image
 
     from infinitex.project import Document, ExemplarSource, Project, ProjectError, load_project, save_project
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     gravel = os.path.join(root, "infinitex", "assets", "gravel.png")
     feats = (Feature((60, 40), (100, 80), 20, 40), Feature((10, 100), (150, 60), 10, 30, (0, 7)))
     doc = Document(ExemplarSource.from_file(gravel), features=feats)

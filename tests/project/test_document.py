@@ -21,7 +21,7 @@ from infinitex.project import (
     save_project,
 )
 
-ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "infinitex", "assets")
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "infinitex", "assets")
 
 
 @pytest.fixture
