@@ -11,6 +11,8 @@ from .document import (
     DISPLAY_MODES,
     GEOMETRIES,
     MAGNIFY_FILTERS,
+    MAX_ZOOM,
+    MIN_ZOOM,
     Display,
     Document,
     ExemplarSource,
@@ -35,7 +37,7 @@ from .format import (
 from .history import History
 
 __all__ = [
-    "Autosave", "autosave_path", "state_dir", "DISPLAY_MODES", "GEOMETRIES", "MAGNIFY_FILTERS", "Display",
+    "Autosave", "autosave_path", "state_dir", "DISPLAY_MODES", "GEOMETRIES", "MAGNIFY_FILTERS", "MAX_ZOOM", "MIN_ZOOM", "Display",
     "Document", "ExemplarSource", "Project", "ProjectError", "View", "EMBED_LIMIT", "FORMAT",
     "MAX_PROJECT_BYTES", "PROJECT_SUFFIX", "VERSION", "ExemplarOutside", "is_project_file", "load_project",
     "parse_project_json", "project_from_json", "project_to_json", "save_project", "History",
