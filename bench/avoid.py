@@ -30,7 +30,8 @@ sys.path.insert(0, ROOT)
 from bench.measures import neighborhood_energy, ps_distance, usage_peak  # noqa: E402
 from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.controls import Controls, ExemplarMask  # noqa: E402
-from infinitex.engine.exemplar import load_exemplar, to_u8, write_png  # noqa: E402
+from infinitex.engine.exemplar import load_exemplar  # noqa: E402
+from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
 from infinitex.engine.params import SynthParams  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402

@@ -44,8 +44,8 @@ an = analyze(ex, AnalysisSettings(k=K), use_cache=False)
 seconds = time.perf_counter() - t0
 peak = rss()
 t0 = time.perf_counter()
-from infinitex.engine.analysis import _save
-_save(os.path.join(TMP, "a.npz"), an)
+from infinitex.engine.analysis import save_analysis
+save_analysis(os.path.join(TMP, "a.npz"), an)
 save_s = time.perf_counter() - t0
 cache_mb = os.path.getsize(os.path.join(TMP, "a.npz")) / 2**20
 with Synthesizer(an, SynthParams.default(an.L)) as s:
@@ -59,7 +59,7 @@ print(json.dumps(dict(size=ex.size, k=an.k, analysis_s=seconds, peak_mb=peak, im
 
 
 def exemplar_png(m: int, folder: str) -> str:
-    from infinitex.engine.exemplar import write_image
+    from infinitex.engine.imagefile import write_image
     from scripts.make_material import cobbles
     path = os.path.join(folder, f"cobbles{m}.png")
     write_image(path, cobbles(m, stones=100)["basecolor"], 8)  # the same stones at every side: a finer photo

@@ -36,11 +36,17 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "tests"))
 SHARED = os.path.join(os.path.dirname(HERE), "shared", "exemplars")
 
-from lattice_gen import bricks, lattice_error, near_regular, random_basis, stochastic, tiles  # noqa: E402
+from lattice_gen import (  # noqa: E402
+    bricks,
+    lattice_error,
+    near_regular,
+    random_basis,
+    stochastic,
+    tiles,
+)
 
 from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.controls import Controls  # noqa: E402
-from infinitex.engine.exemplar import from_array, load_full, to_u8  # noqa: E402
 from infinitex.engine.controls.lattice import (  # noqa: E402
     autocorrelation_at,
     choose_block,
@@ -49,6 +55,8 @@ from infinitex.engine.controls.lattice import (  # noqa: E402
     rectified_exemplar,
     render_original,
 )
+from infinitex.engine.exemplar import from_array, load_full  # noqa: E402
+from infinitex.engine.imagefile import to_u8  # noqa: E402
 from infinitex.engine.params import SynthParams  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.safeio import atomic_write  # noqa: E402

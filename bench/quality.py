@@ -60,10 +60,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from bench.measures import all_measures  # noqa: E402
-from infinitex.engine.analysis import analyze  # noqa: E402
-from infinitex.engine.analysis import AnalysisSettings  # noqa: E402
+from infinitex.engine.analysis import (
+    AnalysisSettings,  # noqa: E402
+    analyze,  # noqa: E402
+)
 from infinitex.engine.controls import Controls  # noqa: E402
-from infinitex.engine.exemplar import PIL_MODES, load_exemplar, load_full, to_u8, write_png  # noqa: E402
 from infinitex.engine.controls.lattice import (  # noqa: E402
     autocorrelation_at,
     choose_block,
@@ -72,6 +73,8 @@ from infinitex.engine.controls.lattice import (  # noqa: E402
     rectified_exemplar,
     render_original,
 )
+from infinitex.engine.exemplar import load_exemplar, load_full  # noqa: E402
+from infinitex.engine.imagefile import PIL_MODES, to_u8, write_png  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
 

@@ -74,8 +74,8 @@ ASSETS = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "assets")  
 _EXPORTS = {
     "synthesize": "api", "tile": "api",
     "Exemplar": "engine.exemplar", "ExemplarError": "engine.exemplar", "load_exemplar": "engine.exemplar",
-    "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.exemplar",
-    "to_u8": "engine.exemplar",
+    "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.imagefile",
+    "to_u8": "engine.imagefile",
     "Analysis": "engine.analysis", "AnalysisSettings": "engine.analysis", "analyze": "engine.analysis",
     "SynthParams": "engine.params",
     "Synthesizer": "engine.synth", "Viewport": "engine.synth",
@@ -85,7 +85,7 @@ _EXPORTS = {
     "Lattice": "engine.controls.lattice", "rectified_exemplar": "engine.controls.lattice", "render_original": "engine.controls.lattice",
     "original_geometry_box": "engine.controls.lattice",
     "TiledExport": "export.streamed",
-    "Material": "engine.material", "open_material": "engine.material", "write_image": "engine.exemplar",
+    "Material": "engine.material", "open_material": "engine.material", "write_image": "engine.imagefile",
     "load_project": "project", "save_project": "project", "Document": "project",
     "Project": "project",
 }

@@ -16,7 +16,8 @@ sys.path.insert(0, ROOT)
 
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.controls import NEUTRAL, CanvasField, Controls  # noqa: E402
-from infinitex.engine.exemplar import load_exemplar, to_u8, write_png  # noqa: E402
+from infinitex.engine.exemplar import load_exemplar  # noqa: E402
+from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
 from infinitex.engine.params import SynthParams  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402

@@ -63,7 +63,7 @@ DEPTHS = {"basecolor": 8, "height": 16, "normal": 16, "roughness": 8}
 
 def main(argv: list[str]) -> int:
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from infinitex.engine.exemplar import write_image
+    from infinitex.engine.imagefile import write_image
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("out", nargs="?", default=os.path.join("infinitex", "assets", "cobbles"))
     p.add_argument("--size", type=int, default=512)

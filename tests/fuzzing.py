@@ -31,6 +31,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
+from infinitex.engine.exemplar import (  # noqa: E402
+    FIT_MODES,
+    MAX_SIZE,
+    MIN_SIZE,
+    ExemplarError,
+    load_exemplar_bytes,
+)
 from infinitex.project import (  # noqa: E402
     DISPLAY_MODES,
     MAGNIFY_FILTERS,
@@ -43,13 +50,6 @@ from infinitex.project import (  # noqa: E402
     ProjectError,
     load_project,
     project_to_json,
-)
-from infinitex.engine.exemplar import (  # noqa: E402
-    FIT_MODES,
-    MAX_SIZE,
-    MIN_SIZE,
-    ExemplarError,
-    load_exemplar_bytes,
 )
 
 

@@ -201,7 +201,7 @@ def randomness_controls(args, fit: str, m: int, base=None):
         ExemplarMask,
         fit_features,
     )
-    from infinitex.engine.exemplar import fit_field_map, load_field_map
+    from infinitex.engine.controls.maps import fit_field_map, load_field_map
     base = base or NO_CONTROLS
     e, c, feats, avoid = base.randomness_exemplar, base.randomness_canvas, base.features, base.avoid
     if args.randomness_exemplar:

@@ -82,7 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
 def run_synth(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     from infinitex.engine.analysis import AnalysisSettings, analyze
-    from infinitex.engine.exemplar import load_exemplar, to_u8, write_png
+    from infinitex.engine.exemplar import load_exemplar
+    from infinitex.engine.imagefile import to_u8, write_png
     from infinitex.engine.params import SynthParams
     from infinitex.engine.pyramid import Rect
     from infinitex.engine.synth import Synthesizer

@@ -40,21 +40,18 @@ from typing import Callable
 
 import numpy as np
 from scipy import fft as sfft
-from scipy.spatial import cKDTree
 
 from . import fixed
-from .exemplar import Exemplar
 from .controls.lattice import lattice_level_limit
+from .exemplar import Exemplar
 from .safeio import atomic_write
+from .similarity import lattice_similarity_sets, similarity_sets
 
 ANALYSIS_VERSION = 6
 MODELS = ("appearance", "color")
 NDIM = fixed.NDIM
 
 ProgressFn = Callable[[float, str], None]
-# Approximate nearest neighbors, as LH05 (Arya et al. 1998): each match is
-# within (1 + eps) of the exact one; 4x faster than exact search at 512^2.
-ANN_EPS = 1.0
 # Exemplars up to this side get k-coherence similarity sets; larger ones are
 # searched by TBN10's random walk (k = 0), which needs no precomputation.
 SIMSET_MAX = 512
@@ -190,20 +187,20 @@ def gaussian_stack(pixels: np.ndarray, toroidal: bool) -> list[np.ndarray]:
     return [mean] + out + [np.asarray(pixels, dtype=np.float32)]
 
 
-def _tap_index(n: int, offset: int, m: int, mirror: bool, sample: int = 1) -> np.ndarray:
+def tap_index(n: int, offset: int, m: int, mirror: bool, sample: int = 1) -> np.ndarray:
     """Indices (into an m-wide axis) of positions ``0, sample, ... < n`` moved by
     ``offset`` in the periodic augmentation: wrapped mod m, or mirrored (period 2m)."""
     i = (np.arange(0, n, sample) + offset) % (2 * m if mirror else m)
     return np.where(i < m, i, 2 * m - 1 - i) if mirror else i
 
 
-def _tap(img: np.ndarray, dx: int, dy: int, mirror: bool, sample: int = 1) -> np.ndarray:
+def tap(img: np.ndarray, dx: int, dy: int, mirror: bool, sample: int = 1) -> np.ndarray:
     """img'[y, x] = img_aug[y + dy, x + dx] on the (sampled) grid (a gather)."""
     m = img.shape[0]
-    return img[np.ix_(_tap_index(m, dy, m, mirror, sample), _tap_index(m, dx, m, mirror, sample))]
+    return img[np.ix_(tap_index(m, dy, m, mirror, sample), tap_index(m, dx, m, mirror, sample))]
 
 
-def _runs(idx: np.ndarray) -> list[tuple[int, int, slice]]:
+def runs(idx: np.ndarray) -> list[tuple[int, int, slice]]:
     """``idx`` as runs (a, b, source slice) with idx[a:b] == range(...)[source]:
     tap indices are a few stretches of step +1 or -1 (wrapped or mirrored), so
     a tap is copied by slices instead of a gather, 4x faster."""
@@ -228,16 +225,16 @@ def _row_chunks(m: int, texels: int = 1 << 17):
         yield y0, min(m, y0 + step)
 
 
-def _projected(img: np.ndarray, taps, weights: np.ndarray, mirror: bool, out: np.ndarray,
+def projected(img: np.ndarray, taps, weights: np.ndarray, mirror: bool, out: np.ndarray,
                finish=lambda band: band) -> np.ndarray:
     """out[u] = finish(sum_t img_aug[u + taps[t]] @ weights[t*C:(t+1)*C]) for
     every texel u; ``out`` is (m*m, D). Built a band of rows at a time in
-    float32: the band's taps side by side (copied by slices, see :func:`_runs`),
+    float32: the band's taps side by side (copied by slices, see :func:`runs`),
     one matrix product (BLAS) each."""
     m, C = img.shape[0], img.shape[2]
     planes = np.ascontiguousarray(np.moveaxis(img, 2, 0))   # (C, m, m): every tap copy is whole rows
     wt = np.ascontiguousarray(weights.T, dtype=np.float32)  # (D, T*C)
-    plan = [(_runs(_tap_index(m, dy, m, mirror)), _runs(_tap_index(m, dx, m, mirror))) for dx, dy in taps]
+    plan = [(runs(tap_index(m, dy, m, mirror)), runs(tap_index(m, dx, m, mirror))) for dx, dy in taps]
     for y0, y1 in _row_chunks(m):
         x = np.empty((len(taps) * C, y1 - y0, m), dtype=np.float32)
         for t, (rows, cols) in enumerate(plan):
@@ -294,7 +291,7 @@ def appearance_features(stack: np.ndarray, h: int, sigma: float, toroidal: bool)
     offsets = [(dx * h, dy * h) for dy in range(-2, 3) for dx in range(-2, 3)]
     wgt = np.repeat([np.exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma * h * h)) for dx, dy in offsets], C)
     st = sample_step(m)
-    x = np.concatenate([_tap(stack, dx, dy, mirror, st).astype(np.float64) for dx, dy in offsets],
+    x = np.concatenate([tap(stack, dx, dy, mirror, st).astype(np.float64) for dx, dy in offsets],
                        axis=2).reshape(-1, len(offsets) * C) * wgt
     axes = _pca(x, NDIM)
     offset = (x.mean(axis=0) @ axes).astype(np.float32)
@@ -310,7 +307,7 @@ def appearance_features(stack: np.ndarray, h: int, sigma: float, toroidal: bool)
         return np.clip(np.rint(band, out=band), -fixed.FEAT_MAX, fixed.FEAT_MAX).astype(np.int8)
 
     out = np.empty((m * m, NDIM), np.int8)
-    return _projected(stack, offsets, wgt[:, None] * axes, mirror, out, quantized).reshape(m, m, NDIM)
+    return projected(stack, offsets, wgt[:, None] * axes, mirror, out, quantized).reshape(m, m, NDIM)
 
 
 def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
@@ -363,7 +360,7 @@ def gather_exemplar_neighborhood(feat: np.ndarray, h: int, model: str, sample: i
     3 * A[u + h*d] for the 4 diagonals (the synthesized side sums 3 predictions),
     or E[u + h*d] for d in [-2, 2]^2. Reads wrap mod m, as the shader's do."""
     mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
-    return np.concatenate([mult * _tap(feat, dx * h, dy * h, False, sample).reshape(-1, feat.shape[2]).astype(np.int64)
+    return np.concatenate([mult * tap(feat, dx * h, dy * h, False, sample).reshape(-1, feat.shape[2]).astype(np.int64)
                            for dx, dy in fixed.taps(model)], axis=1)
 
 
@@ -378,7 +375,7 @@ def exemplar_neighborhoods(feat: np.ndarray, h: int, model: str, proj: np.ndarra
     p = proj.astype(np.int64)
     assert mult * fixed.FEAT_MAX * int(np.abs(p).sum(axis=0).max()) < 1 << 24
     out = np.empty((m * m, NDIM), np.int16)
-    _projected(feat, offsets, mult * p, False, out,
+    projected(feat, offsets, mult * p, False, out,
                lambda band: np.right_shift(band.astype(np.int64), shift).astype(np.int16))
     return out.reshape(m, m, NDIM)
 
@@ -391,125 +388,6 @@ def runtime_projection(n_raw: np.ndarray, feat_max_abs: int, model: str) -> tupl
     mult = fixed.APPEARANCE_PREDICTIONS if model == "appearance" else 1
     bound_n = mult * max(1, feat_max_abs) * np.sqrt(count)
     return proj.astype(np.int32), fixed.choose_shift(proj, bound_n)
-
-
-# ----------------------------------------------------------------------------
-# Similarity sets
-
-
-def border_margin(m: int, h: int) -> int:
-    """Width of the band near a non-toroidal exemplar's border that no candidate
-    may use at a level with spacing h: the pixel's descendants (h/2) plus the
-    finest neighborhood (2), at most m/8 so coarse levels keep an interior."""
-    return int(min(h // 2 + 2, m // 8))
-
-
-def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
-                    spacing_frac: float) -> np.ndarray:
-    """C^1..C^k for every texel, int16 (m, m, k, 2) as (x, y).
-
-    C^1(u) = u, except near a non-toroidal border where it is the best interior
-    match. The others are the best matches at least ``spacing`` px from u, from
-    C^1 and from each other; missing entries repeat C^1.
-    """
-    ys, xs = np.mgrid[0:m, 0:m]
-    pos = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.int64)
-    desc = desc.reshape(m * m, -1).astype(np.float32)
-    if toroidal:
-        usable = np.ones(m * m, dtype=bool)
-    else:
-        b = border_margin(m, h)
-        usable = ((pos >= b) & (pos < m - b)).all(axis=1)
-    # Coarse levels are smooth: texels a few pixels apart look alike, so the
-    # tree holds a lattice of them (step <= h/4, so coordinates keep sub-h
-    # precision) and the nearest matches are not all next to u.
-    step = max(1, min(h // 4, int(spacing_frac * m) // 2))
-    lattice = ((pos % step) == 0).all(axis=1)
-    pool = np.nonzero(usable & lattice)[0]
-    if pool.size == 0:
-        pool = np.nonzero(usable)[0]
-    tree = cKDTree(desc[pool])
-    spacing = max(1.0, spacing_frac * m)
-
-    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        d = np.abs(a - b)
-        if toroidal:
-            d = np.minimum(d, m - d)
-        return np.sqrt((d * d).sum(axis=-1))
-
-    out = np.empty((m * m, k, 2), dtype=np.int64)
-    out[:, 0] = pos
-    if not toroidal:
-        bad = np.nonzero(~usable)[0]
-        if bad.size:
-            _, nn = tree.query(desc[bad], k=1, eps=ANN_EPS, workers=-1)
-            out[bad, 0] = pos[pool[nn]]
-    if k == 1:
-        return out.reshape(m, m, 1, 2).astype(np.int16)
-
-    todo = np.arange(m * m)
-    chosen = np.repeat(out[:, :1], k - 1, axis=1)  # default: repeat C^1
-    for kq in (16, 64, 256):
-        if todo.size == 0:
-            break
-        kq = min(kq, pool.size)
-        _, nn = tree.query(desc[todo], k=kq, eps=ANN_EPS, workers=-1)
-        nn = nn.reshape(todo.size, kq)
-        cand = pos[pool[nn]]                                   # (n, kq, 2)
-        ok = (dist(cand, pos[todo, None]) >= spacing) & (dist(cand, out[todo, None, 0]) >= spacing)
-        filled = np.zeros(todo.size, dtype=bool)
-        picks = []
-        for slot in range(k - 1):
-            first = np.argmax(ok, axis=1)
-            has = ok[np.arange(todo.size), first]
-            pick = cand[np.arange(todo.size), first]
-            picks.append((pick, has))
-            ok &= dist(cand, pick[:, None]) >= spacing
-            if slot == 0:
-                filled = has
-        for slot, (pick, has) in enumerate(picks):
-            rows = todo[has]
-            chosen[rows, slot] = pick[has]
-        todo = todo[~filled]
-    out[:, 1:] = chosen
-    return out.reshape(m, m, k, 2).astype(np.int16)
-
-
-def lattice_similarity_sets(desc: np.ndarray, k: int, nx: int, ny: int) -> np.ndarray:
-    """C^1..C^k restricted to the lattice (LH05 4.5), int16 (m, m, k, 2).
-
-    C^1(u) = u; the others are the best-matching of the nx*ny - 1 positions
-    ``u + (i m/nx, j m/ny) mod m`` (exact integer distances between the
-    projected neighborhoods; ties go to the first offset in (j, i) order);
-    missing entries (a 1x1 block) repeat u. The rectified exemplar is
-    toroidal by construction, so every such position is usable."""
-    m = desc.shape[0]
-    cx, cy = m // nx, m // ny
-    ys, xs = np.mgrid[0:m, 0:m]
-    ident = np.stack([xs, ys], axis=-1).astype(np.int64)
-    out = np.repeat(ident[:, :, None, :], k, axis=2)
-    offsets = np.array([(i * cx, j * cy) for j in range(ny) for i in range(nx) if i or j], dtype=np.int64)
-    if k == 1 or len(offsets) == 0:
-        return out.astype(np.int16)
-    d64 = desc.astype(np.int64)
-    K = min(k - 1, len(offsets))
-    big = np.iinfo(np.int64).max
-    bd = np.full((m, m, K), big, dtype=np.int64)   # best distances, ascending
-    bo = np.zeros((m, m, K), dtype=np.int64)       # their offset indices
-    for n, (ox, oy) in enumerate(offsets):
-        d = ((np.roll(d64, shift=(-oy, -ox), axis=(0, 1)) - d64) ** 2).sum(axis=-1)
-        pos = (bd <= d[..., None]).sum(axis=-1)  # after equal entries: earlier offsets win ties
-        for s_ in range(K - 1, -1, -1):
-            shift_in = (pos < s_)
-            put = pos == s_
-            if s_ > 0:
-                bd[..., s_] = np.where(shift_in, bd[..., s_ - 1], np.where(put, d, bd[..., s_]))
-                bo[..., s_] = np.where(shift_in, bo[..., s_ - 1], np.where(put, n, bo[..., s_]))
-            else:
-                bd[..., 0] = np.where(put, d, bd[..., 0])
-                bo[..., 0] = np.where(put, n, bo[..., 0])
-    out[:, :, 1:1 + K] = (ident[:, :, None, :] + offsets[bo]) % m
-    return out.astype(np.int16)
 
 
 # ----------------------------------------------------------------------------
@@ -576,7 +454,7 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
     return levels
 
 
-def _save(path: str, an: Analysis) -> None:
+def save_analysis(path: str, an: Analysis) -> None:
     arrays = {}
     for i, lv in enumerate(an.levels):
         for name in ("stack", "feat", "proj", "nbhd"):
@@ -593,7 +471,7 @@ def _save(path: str, an: Analysis) -> None:
     atomic_write(path, writer=lambda f: np.savez(f, **arrays))
 
 
-def _load(path: str, key: str, settings: AnalysisSettings, ex: Exemplar) -> Analysis | None:
+def load_analysis(path: str, key: str, settings: AnalysisSettings, ex: Exemplar) -> Analysis | None:
     """The cached analysis, or None if missing, foreign or damaged."""
     if not os.path.exists(path):
         return None
@@ -638,7 +516,7 @@ def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
     # cache entry that large (1.7 GB at 2048 px): only analyses with sets are cached.
     use_cache = use_cache and search_k(settings, ex.size) > 0
     if use_cache:
-        cached = _load(path, key, settings, ex)
+        cached = load_analysis(path, key, settings, ex)
         if cached is not None:
             if progress:
                 progress(1.0, "loaded from cache")
@@ -649,7 +527,7 @@ def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
                   levels=levels, key=key, seconds=time.perf_counter() - t0)
     if use_cache:
         try:
-            _save(path, an)
+            save_analysis(path, an)
         except OSError:
             pass  # a read-only or full disk only costs a recomputation next time
     return an

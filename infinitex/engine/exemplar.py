@@ -39,7 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from .safeio import ReadError, atomic_write, printable, read_limited
+from .imagefile import to_u8
+from .safeio import ReadError, printable, read_limited
 
 MIN_SIZE = 32
 SMALL_MIN = 4                        # seamless patterns from this size up are repeated to MIN_SIZE
@@ -55,7 +56,6 @@ FULL_MAX_PIXELS = 16 * 1024 * 1024   # a whole image kept unfitted (a lattice's 
 DECODERS = ("PNG", "JPEG", "BMP", "TIFF", "WEBP", "TGA", "GIF", "PPM", "QOI", "SGI", "PCX")
 FORMAT_NAMES = "PNG, JPEG, BMP, TIFF, WebP, TGA, GIF, PNM, QOI, SGI or PCX"
 FIT_MODES = ("resize", "crop", "resize-2048", "crop-2048")
-PIL_MODES = {1: "L", 2: "LA", 3: "RGB", 4: "RGBA"}  # channels -> Pillow mode
 
 
 def _quiet_libtiff() -> None:
@@ -83,67 +83,6 @@ def _quiet_libtiff() -> None:
 
 
 _quiet_libtiff()
-
-
-def to_u8(a: np.ndarray) -> np.ndarray:
-    """[0, 1] floats to uint8, rounded: the one quantization used for display and export."""
-    return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
-
-
-def to_u16(a: np.ndarray) -> np.ndarray:
-    """[0, 1] floats to uint16, rounded (16-bit exports)."""
-    return np.clip(np.rint(a * 65535.0), 0, 65535).astype(np.uint16)
-
-
-DEPTHS = (8, 16, 32)
-
-
-def depth_extension(depth: int) -> str:
-    """The file extension a map of this depth is written with: PNG, or TIFF for float."""
-    return ".tif" if depth == 32 else ".png"
-
-
-def encode_image(pixels: np.ndarray, depth: int, value_range: tuple[float, float] = (0.0, 1.0)) -> bytes:
-    """Float (H, W, C) pixels in [0, 1] as the bytes of a file of ``depth`` bits:
-    8 or 16: PNG (Pillow; 16-bit color through imagecodecs, which Pillow cannot
-    write); 32: a float32 TIFF (tifffile), in the source's units (``value_range``)."""
-    if depth not in DEPTHS:
-        raise ValueError(f"A bit depth is 8, 16 or 32, not {depth}.")
-    c = pixels.shape[2]
-    if depth == 8:
-        buf = io.BytesIO()
-        arr = to_u8(pixels)
-        Image.fromarray(np.ascontiguousarray(arr[..., 0] if c == 1 else arr), mode=PIL_MODES[c]).save(buf, "PNG")
-        return buf.getvalue()
-    if depth == 16:
-        arr = to_u16(pixels)
-        if c == 1:
-            buf = io.BytesIO()
-            Image.fromarray(np.ascontiguousarray(arr[..., 0])).save(buf, "PNG")
-            return buf.getvalue()
-        import imagecodecs
-        return bytes(imagecodecs.png_encode(np.ascontiguousarray(arr), level=6))
-    import tifffile
-    lo, hi = value_range
-    arr = np.ascontiguousarray((lo + pixels.astype(np.float64) * (hi - lo)).astype(np.float32))
-    buf = io.BytesIO()
-    extra = {"extrasamples": ["unassalpha"]} if c in (2, 4) else {}
-    tifffile.imwrite(buf, arr[..., 0] if c == 1 else arr, photometric="rgb" if c >= 3 else "minisblack",
-                     compression="zlib", predictor=True, **extra)
-    return buf.getvalue()
-
-
-def write_image(path: str, pixels: np.ndarray, depth: int = 8, value_range: tuple[float, float] = (0.0, 1.0)) -> None:
-    """Write float pixels as an 8/16-bit PNG or a float TIFF (``encode_image``), atomically."""
-    data = encode_image(pixels, depth, value_range)
-    atomic_write(path, data)
-
-
-def write_png(path: str, pixels: np.ndarray) -> None:
-    """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
-    arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
-    img = Image.fromarray(np.ascontiguousarray(arr), mode=PIL_MODES[pixels.shape[2]])
-    atomic_write(path, writer=lambda f: img.save(f, format="PNG"))
 
 
 class ExemplarError(ValueError):
@@ -227,7 +166,7 @@ def _nearest_pow2(n: int, limit: int = DEFAULT_MAX) -> int:
     return int(min(max(2 ** k, MIN_SIZE), limit))
 
 
-def _crop_box(w: int, h: int, fit: str) -> tuple[int, int, int]:
+def crop_box(w: int, h: int, fit: str) -> tuple[int, int, int]:
     """(x0, y0, side) of the square the fit rule starts from."""
     rule, limit = fit_rule(fit)
     if h == w and _is_pow2(w) and MIN_SIZE <= w <= limit:
@@ -276,7 +215,7 @@ def _fit_planes(planes, side: int, fit: str) -> tuple[np.ndarray, np.ndarray | N
 def fit_square(arr: np.ndarray, fit: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Apply the documented fit rule; returns (exemplar, hires or None)."""
     h, w = arr.shape[:2]
-    x0, y0, side = _crop_box(w, h, fit)
+    x0, y0, side = crop_box(w, h, fit)
     sq = arr[y0:y0 + side, x0:x0 + side]
     return _fit_planes((_f_image(sq[:, :, c]) for c in range(sq.shape[2])), side, fit)
 
@@ -387,7 +326,7 @@ def import_cost(w: int, h: int, mode: str, file_bytes: int, fit: str, fmt: str =
     """An upper bound of the bytes an import of a w x h image needs at its peak:
     the file, the decoder's peak, the cropped square and its mode conversion, one channel (8/16-bit and
     float), Lanczos' intermediate and the hires copy."""
-    _x0, _y0, side = _crop_box(w, h, fit)
+    _x0, _y0, side = crop_box(w, h, fit)
     pb = _pixel_bytes(mode)
     sq = side * side
     decode = w * h * pb * _DECODE_FACTOR.get(fmt, 1)
@@ -448,7 +387,7 @@ def _planes(img: Image.Image, norm: tuple[float, float] | None):
 
 
 @contextlib.contextmanager
-def _decoding(name: str):
+def decoding(name: str):
     """Every failure inside a decoder becomes one ExemplarError sentence naming ``name``."""
     try:
         yield
@@ -465,9 +404,9 @@ def _decoding(name: str):
         raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
 
 
-def _open(data: bytes, name: str) -> Image.Image:
+def open_image(data: bytes, name: str) -> Image.Image:
     """The image in ``data``, opened with the allow-listed decoders only and its
-    size checked from the header (nothing decoded yet). Use inside _decoding."""
+    size checked from the header (nothing decoded yet). Use inside decoding."""
     img = Image.open(io.BytesIO(data), formats=DECODERS)
     w, h = img.size
     if w * h > MAX_INPUT_PIXELS:
@@ -597,9 +536,9 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
     receives the source's "depth" (8, 16, 32) and "range" (pixel 0 and 1 in its units)."""
     full = fit == "full"
     info = {} if info is None else info
-    with _decoding(name):
+    with decoding(name):
         try:
-            im0 = _open(data, name)
+            im0 = open_image(data, name)
         except UnidentifiedImageError:
             if _is_tiff(data):  # a TIFF Pillow cannot read: 2 to 4 channels of 16-bit integers or floats
                 return _decode_tiff_multi(data, name, fit, toroidal, info)
@@ -632,7 +571,7 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
             if norm is not None:
                 info.update(depth=32 if im0.mode == "F" else 16,
                             range=(norm[0], norm[0] + norm[1]) if im0.mode == "F" else (0.0, 1.0))
-            x0, y0, side = (0, 0, 0) if full or small else _crop_box(w, h, fit)
+            x0, y0, side = (0, 0, 0) if full or small else crop_box(w, h, fit)
             img = im0 if full or small or (side, side) == (w, h) else im0.crop((x0, y0, x0 + side, y0 + side))
         del im0
         mode = img.mode
@@ -648,38 +587,3 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
         px, hires = _fit_planes(_planes(img, norm), side, fit)
         del img
     return px, hires, size
-
-
-# -- randomness maps ------------------------------------------------------------
-
-
-def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
-    """A grayscale randomness map as uint16 field values (1/32768ths): 8-bit
-    M = value / 128 (0 calm, 128 neutral, 255 almost 2), 16-bit M = value / 32768.
-    Color images are read as their luminance. Same safeguards as exemplars."""
-    name = f"The {what} {printable(os.path.basename(path) or path)}"
-    try:
-        data = read_limited(path, MAX_FILE_BYTES, "image")
-    except ReadError as exc:
-        raise ExemplarError(f"The {what}: {exc}") from None
-    with _decoding(name), _open(data, name) as img:
-        img.load()
-        if img.mode.startswith("I;16") or img.mode == "I":
-            return np.clip(np.asarray(img).astype(np.int64), 0, 65535).astype(np.uint16)
-        if img.mode in ("LAB", "HSV", "CMYK", "YCbCr"):
-            img = img.convert("RGB")
-        g = img if img.mode == "L" else img.convert("L")
-        return np.ascontiguousarray((np.asarray(g).astype(np.uint32) * 256).astype(np.uint16))
-
-
-def fit_field_map(values: np.ndarray, fit: str, m: int) -> np.ndarray:
-    """A map over the exemplar brought to the exemplar's m x m by its fit rule
-    (the same center crop; resampled bilinearly when the sizes differ)."""
-    h, w = values.shape
-    if (h, w) == (m, m):
-        return values
-    x0, y0, side = _crop_box(w, h, fit)
-    sq = values[y0:y0 + side, x0:x0 + side].astype(np.float32)
-    if side != m:
-        sq = np.asarray(Image.fromarray(sq, mode="F").resize((m, m), Image.BILINEAR))
-    return np.clip(np.rint(sq), 0, 65535).astype(np.uint16)

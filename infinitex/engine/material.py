@@ -436,7 +436,7 @@ def export_depths(material: Material, roles: list[str], depth: int | None, out: 
     """The bit depth each exported map is written at: ``depth`` when given,
     else the map's own (8, 16 or 32). A single image's depth follows the
     output's extension: ``.png`` (8 or 16 bits) or ``.tif`` (32-bit float)."""
-    from .exemplar import DEPTHS
+    from .imagefile import DEPTHS
     if depth is not None and depth not in DEPTHS:
         raise MaterialError(f"The bit depth is 8, 16 or 32, not {depth}.")
     if material.single:
@@ -458,7 +458,7 @@ def map_path(out: str, role: str, ext: str | None = None) -> str:
 def output_paths(out: str, roles: list[str], depths: dict[str, int]) -> list[tuple[str, str, int]]:
     """[(role, path, depth)]: ``OUT.png`` for a single image, else one file per
     map, ``OUT_basecolor.png``, ``OUT_height.tif`` (32-bit maps are TIFF)..."""
-    from .exemplar import depth_extension
+    from .imagefile import depth_extension
     if roles == [IMAGE]:
         return [(IMAGE, out, depths[IMAGE])]
     return [(r, map_path(out, r, depth_extension(depths[r])), depths[r]) for r in roles]

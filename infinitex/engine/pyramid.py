@@ -23,8 +23,8 @@ import numpy as np
 from . import fixed
 from .controls import NO_CONTROLS, Controls
 from .gpu import Gpu, GpuAnalysis
-from .analysis import border_margin
 from .params import SynthParams, correction_margins, subpass_order
+from .similarity import border_margin
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 

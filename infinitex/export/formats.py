@@ -9,7 +9,7 @@ import zlib
 
 import numpy as np
 
-from infinitex.engine.exemplar import PIL_MODES, to_u8
+from infinitex.engine.imagefile import PIL_MODES, to_u8
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.safeio import WriteError, check_output, printable
 

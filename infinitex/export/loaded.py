@@ -8,8 +8,9 @@ import numpy as np
 
 from infinitex.engine.analysis import Analysis, AnalysisCancelled
 from infinitex.engine.controls import NO_CONTROLS, Controls
-from infinitex.engine.exemplar import Exemplar, ExemplarError, to_u8
+from infinitex.engine.exemplar import Exemplar, ExemplarError
 from infinitex.engine.gpu import Gpu
+from infinitex.engine.imagefile import to_u8
 from infinitex.engine.material import IMAGE, Material, luma, single
 from infinitex.engine.params import SynthParams
 from infinitex.engine.synth import Synthesizer

@@ -317,7 +317,7 @@ class TiledExport:
             with open(tmp, "rb") as f:
                 os.fsync(f.fileno())
             os.replace(tmp, out)
-        self._guard(write)
+        self.guard(write)
 
     def _read_part(self, col: int, row: int, index: int) -> bytes:
         with open(self.tile_paths(col, row)[index], "rb") as f:

@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from infinitex.engine.controls.lattice import original_geometry_box, render_original
-from infinitex.engine.exemplar import write_image, write_png
+from infinitex.engine.imagefile import write_image, write_png
 from infinitex.engine.material import MaterialError, export_depths, output_paths
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS

@@ -18,14 +18,12 @@ HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "scripts"))
 
-import numpy as np  # noqa: E402
+from gui_harness import Harness  # noqa: E402
 from imgui_bundle import imgui  # noqa: E402
 from imgui_bundle.immapp import testing  # noqa: E402
-
-from gui_harness import Harness  # noqa: E402
 from make_material import cobbles  # noqa: E402
 
-from infinitex.engine.exemplar import write_image  # noqa: E402
+from infinitex.engine.imagefile import write_image  # noqa: E402
 
 
 def main(out: str) -> int:

@@ -18,12 +18,12 @@ HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # tests/: lattice_gen
 
+from gui_harness import Harness
 from imgui_bundle import imgui
 from imgui_bundle.immapp import testing
 from lattice_gen import bricks
 
-from gui_harness import Harness
-from infinitex.engine.exemplar import to_u8, write_png
+from infinitex.engine.imagefile import to_u8, write_png
 
 
 def main(out: str) -> int:

@@ -11,6 +11,7 @@ import sys
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
 
 
 def _xvfb():
@@ -24,7 +25,7 @@ def _xvfb():
 def _run(args, tmp_path, timeout=600):
     env = dict(os.environ, INFINITEX_STATE=str(tmp_path / "state"), INFINITEX_NO_NATIVE_DIALOGS="1")
     return subprocess.run([_xvfb(), "-a", "-s", "-screen 0 1280x800x24", sys.executable, *args],
-                          cwd=os.path.dirname(HERE), env=env, capture_output=True, text=True, timeout=timeout)
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
 
 
 def _drive(script: str, tmp_path, min_checks: int) -> None:
@@ -72,15 +73,16 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     (tests/app/gui_export.py). The files equal the one-piece render."""
     import numpy as np
     import tifffile
+    from gui_export import TIFF_RECT, TILES_RECT
 
     from infinitex.engine.analysis import analyze
-    from infinitex.engine.exemplar import load_exemplar, to_u8
+    from infinitex.engine.exemplar import load_exemplar
+    from infinitex.engine.imagefile import to_u8
     from infinitex.engine.pyramid import Rect
     from infinitex.engine.synth import Synthesizer
     from infinitex.export import read_tiles
-    from gui_export import TILES_RECT, TIFF_RECT
     _drive("gui_export.py", tmp_path, 10)
-    synth = Synthesizer(analyze(load_exemplar(os.path.join(os.path.dirname(HERE), "infinitex", "assets",
+    synth = Synthesizer(analyze(load_exemplar(os.path.join(ROOT, "infinitex", "assets",
                                                            "gravel.png"))), gpu=gpu)
     whole = to_u8(synth.colors(synth.window(Rect.of(*TIFF_RECT))))
     assert np.array_equal(tifffile.imread(tmp_path / "big.tif"), whole[..., 0])

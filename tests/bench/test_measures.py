@@ -7,11 +7,11 @@ from PIL import Image
 from bench.measures import (
     copied_windows,
     coverage,
-    sheared_seams,
-    usage_peak,
     histogram_distance,
     neighborhood_energy,
     repetition,
+    sheared_seams,
+    usage_peak,
     verbatim_regions,
 )
 

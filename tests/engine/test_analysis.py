@@ -10,10 +10,10 @@ from infinitex.engine.analysis import (
     AnalysisSettings,
     analysis_key,
     analyze,
-    border_margin,
     gaussian_stack,
 )
 from infinitex.engine.exemplar import from_array
+from infinitex.engine.similarity import border_margin
 
 
 @pytest.fixture(scope="module")

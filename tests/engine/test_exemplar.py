@@ -8,7 +8,12 @@ import pytest
 from conftest import periodic_noise
 from PIL import Image
 
-from infinitex.engine.exemplar import ExemplarError, from_array, guess_toroidal, load_exemplar
+from infinitex.engine.exemplar import (
+    ExemplarError,
+    from_array,
+    guess_toroidal,
+    load_exemplar,
+)
 
 
 def _save(tmp_path, name, img, **kw):

@@ -1,18 +1,29 @@
 """Large exemplars (up to 2048 px) and the random-walk search without
 similarity sets (k = 0, TBN10): the fast analysis is exact where it must be,
 and the synthesis keeps every determinism property."""
-from dataclasses import replace
 
 import numpy as np
+import oracle
 import pytest
 from conftest import periodic_noise
 
-import oracle
 from infinitex.engine import fixed
-from infinitex.engine.analysis import (SIMSET_MAX, AnalysisSettings, _projected, _runs, _tap, _tap_index,
-                                       analyze, appearance_features, augmented_period, color_features,
-                                       exemplar_neighborhoods, gather_exemplar_neighborhood, gaussian_stack,
-                                       runtime_projection)
+from infinitex.engine.analysis import (
+    SIMSET_MAX,
+    AnalysisSettings,
+    projected,
+    runs,
+    tap,
+    tap_index,
+    analyze,
+    appearance_features,
+    augmented_period,
+    color_features,
+    exemplar_neighborhoods,
+    gather_exemplar_neighborhood,
+    gaussian_stack,
+    runtime_projection,
+)
 from infinitex.engine.exemplar import ExemplarError, fit_rule, from_array
 from infinitex.engine.params import DEFAULT_WALK, SynthParams
 from infinitex.engine.pyramid import Rect
@@ -24,23 +35,23 @@ FAR = 2 ** 30
 @pytest.mark.parametrize("m", [32, 64, 256])
 @pytest.mark.parametrize("mirror", [False, True])
 def test_tap_runs_copy_exactly_what_a_gather_reads(m, mirror):
-    """Taps copied by slices (_runs) equal the gathered periodic augmentation,
+    """Taps copied by slices (runs) equal the gathered periodic augmentation,
     for every offset from 0 to beyond one period."""
     rng = np.random.default_rng(m)
     img = rng.random((m, m, 2)).astype(np.float32)
     period = 2 * m if mirror else m
     aug = augmented_period(img, not mirror)
     for off in (0, 1, -1, 3, m // 2, -m // 2, m - 1, m, -m, 2 * m + 5, -2 * m - 3):
-        idx = _tap_index(m, off, m, mirror)
+        idx = tap_index(m, off, m, mirror)
         assert np.array_equal(idx, (np.arange(m) + off) % period if not mirror else
                               [i if i < m else 2 * m - 1 - i for i in (np.arange(m) + off) % period])
         rebuilt = np.empty(m, np.int64)
-        for a, b, sl in _runs(idx):
+        for a, b, sl in runs(idx):
             rebuilt[a:b] = np.arange(2 * m)[sl]
         assert np.array_equal(rebuilt, idx)
     taps = [(3, -m), (-2 * m, 5), (m // 2, m // 2)]
     w = rng.random((len(taps) * 2, 3))
-    got = _projected(img, taps, w, mirror, np.empty((m * m, 3), np.float32))
+    got = projected(img, taps, w, mirror, np.empty((m * m, 3), np.float32))
     want = np.concatenate([aug[(np.arange(m)[:, None] + dy) % period, (np.arange(m)[None, :] + dx) % period]
                            for dx, dy in taps], axis=2).reshape(m * m, -1) @ w
     assert np.abs(got - want).max() < 1e-5
@@ -90,7 +101,7 @@ def test_appearance_features_are_the_pca_of_the_weighted_taps():
     assert np.abs(feat).max() == fixed.FEAT_MAX
     var = feat.var(axis=0)
     assert var[0] == var.max() and var[0] > 2 * var[-1]
-    taps = np.concatenate([_tap(img, dx * h, dy * h, False) * np.exp(-(dx * dx + dy * dy) / 4.5)
+    taps = np.concatenate([tap(img, dx * h, dy * h, False) * np.exp(-(dx * dx + dy * dy) / 4.5)
                            for dy in range(-2, 3) for dx in range(-2, 3)], axis=2).reshape(m * m, -1)
     # Each feature is (nearly) a linear function of the taps: least squares leaves ~ only rounding.
     coef, *_ = np.linalg.lstsq(np.c_[taps, np.ones(m * m)], feat, rcond=None)
@@ -120,7 +131,7 @@ def test_search_without_similarity_sets_matches_the_oracle(walk_analyses, gpu, n
             big = synth.window(Rect.of(x - 36, y - 28, 96, 80))
             assert np.array_equal(big[28:48, 36:60], gl)
         if not an.toroidal:  # candidates stay off the border band
-            from infinitex.engine.analysis import border_margin
+            from infinitex.engine.similarity import border_margin
             S = synth.window(Rect.of(0, 0, 128, 128))
             b = border_margin(an.size, 1)
             assert S.min() >= 0 and S.max() < an.size

@@ -4,11 +4,24 @@ from dataclasses import replace
 import numpy as np
 import oracle
 import pytest
-from lattice_gen import bricks, lattice_error, near_regular, random_basis, stochastic, tiles
+from lattice_gen import (
+    bricks,
+    lattice_error,
+    near_regular,
+    random_basis,
+    stochastic,
+    tiles,
+)
 
 from infinitex.engine.analysis import AnalysisSettings, analyze
 from infinitex.engine.controls import Controls
-from infinitex.engine.controls.lattice import Lattice, LatticeError, autocorrelation_at, detect, rectified_exemplar
+from infinitex.engine.controls.lattice import (
+    Lattice,
+    LatticeError,
+    autocorrelation_at,
+    detect,
+    rectified_exemplar,
+)
 from infinitex.engine.params import SynthParams
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
@@ -215,7 +228,7 @@ def _cli(*args):
 def test_cli_prints_the_lattice_and_reuses_it(tmp_path):
     from PIL import Image
 
-    from infinitex.engine.exemplar import to_u8, write_png
+    from infinitex.engine.imagefile import to_u8, write_png
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18, angle=20)
     src = str(tmp_path / "bricks.png")
     write_png(src, to_u8(img))
@@ -250,11 +263,19 @@ def test_cli_reports_no_lattice_on_a_stochastic_image(tmp_path):
 
 
 def test_lattice_in_projects():
-    from infinitex.project import Document, ExemplarSource, Project, ProjectError, project_from_json, project_to_json
-    from infinitex.engine.exemplar import to_u8
     import io
 
     from PIL import Image
+
+    from infinitex.engine.imagefile import to_u8
+    from infinitex.project import (
+        Document,
+        ExemplarSource,
+        Project,
+        ProjectError,
+        project_from_json,
+        project_to_json,
+    )
     img, _, _ = tiles(np.random.default_rng(2), side=128, cell=32)
     buf = io.BytesIO()
     Image.fromarray(to_u8(img)).save(buf, format="PNG")
@@ -283,12 +304,12 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
 
     from PIL import Image
 
-    from infinitex.project import Document, ExemplarSource
     from infinitex.app.session import Frame, Session
-    from infinitex.export.window import ExportJob
     from infinitex.engine.controls import CanvasField
-    from infinitex.engine.exemplar import to_u8
+    from infinitex.engine.imagefile import to_u8
     from infinitex.engine.pyramid import SynthesisError
+    from infinitex.export.window import ExportJob
+    from infinitex.project import Document, ExemplarSource
 
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
     buf = io.BytesIO()

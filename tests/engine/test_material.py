@@ -13,6 +13,24 @@ import pytest
 import tifffile
 from PIL import Image
 
+import infinitex.engine.material as material_module
+from infinitex.app.render.canvas import Canvas
+from infinitex.app.session import Session, frame_for
+from infinitex.engine.exemplar import ExemplarError, from_array, load_exemplar_bytes
+from infinitex.engine.imagefile import encode_image
+from infinitex.engine.material import (
+    IMAGE,
+    MaterialError,
+    assign_roles,
+    folder_maps,
+    load_material,
+    role_of,
+    siblings,
+    single,
+)
+from infinitex.engine.pyramid import Rect, SynthesisError
+from infinitex.export import decode_coords
+from infinitex.export.window import ExportJob
 from infinitex.project import (
     Display,
     Document,
@@ -25,24 +43,7 @@ from infinitex.project import (
     project_to_json,
     save_project,
 )
-from infinitex.app.render.canvas import Canvas
-from infinitex.app.session import Session, frame_for
-from infinitex.export import decode_coords
-from infinitex.export.window import ExportJob
 from infinitex.project.realize import material_for
-import infinitex.engine.material as material_module
-from infinitex.engine.exemplar import ExemplarError, encode_image, from_array, load_exemplar_bytes
-from infinitex.engine.material import (
-    IMAGE,
-    MaterialError,
-    assign_roles,
-    folder_maps,
-    load_material,
-    role_of,
-    siblings,
-    single,
-)
-from infinitex.engine.pyramid import Rect, SynthesisError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "scripts"))

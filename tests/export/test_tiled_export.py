@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import tifffile
 
-
 from infinitex.engine.analysis import analyze
-from infinitex.engine.exemplar import load_exemplar, to_u8
+from infinitex.engine.exemplar import load_exemplar
+from infinitex.engine.imagefile import to_u8
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 from infinitex.export import ExportInterrupted, TiledExport, read_tiles, udim_name
@@ -194,8 +194,8 @@ def test_cancel_event_stops_a_pool_export_promptly_and_keeps_its_tiles(tmp_path)
     import json
     import threading
 
-    from infinitex.project import Document, ExemplarSource, Project, project_to_json
     from infinitex.export.workers import ProjectSynthesizer
+    from infinitex.project import Document, ExemplarSource, Project, project_to_json
     init = ProjectSynthesizer(json.dumps(project_to_json(Project(Document(ExemplarSource.from_file(GRAVEL))),
                                                          embed=True)))
     job = TiledExport(None, Rect.of(0, 0, 4096, 4096), str(tmp_path / "c.png"), "tiles", 256, key="k")

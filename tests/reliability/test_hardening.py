@@ -10,22 +10,11 @@ import sys
 import textwrap
 import time
 
+import fuzzing as F
 import numpy as np
 import pytest
 from PIL import Image
 
-import fuzzing as F
-from infinitex.project import (
-    Autosave,
-    Document,
-    ExemplarOutside,
-    ExemplarSource,
-    Project,
-    ProjectError,
-    load_project,
-    project_to_json,
-    save_project,
-)
 from bench.import_memory import measure_import
 from infinitex.engine.exemplar import (
     DECODERS,
@@ -44,6 +33,17 @@ from infinitex.engine.safeio import (
     check_output,
     printable,
     read_limited,
+)
+from infinitex.project import (
+    Autosave,
+    Document,
+    ExemplarOutside,
+    ExemplarSource,
+    Project,
+    ProjectError,
+    load_project,
+    project_to_json,
+    save_project,
 )
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -14,10 +14,9 @@ import moderngl
 import numpy as np
 from PIL import Image
 
-from infinitex.engine.exemplar import to_u8
 from infinitex.engine.gpu import Gpu, read_shader
+from infinitex.engine.imagefile import to_u8
 from infinitex.engine.pyramid import Pyramid, set_uniforms
-
 from infinitex.project import Display, View
 
 from ..session import Frame, level_rect
@@ -59,7 +58,7 @@ class Canvas:
         self.gpu.activate()
         self._release_exemplar()
         n, m = stack_u8.shape[0], stack_u8.shape[1]
-        rgba = _to_rgba(stack_u8)
+        rgba = to_rgba(stack_u8)
         ctx = self.gpu.ctx
         self.stack_tex = ctx.texture_array((m, m, n), 4, np.ascontiguousarray(rgba).tobytes())
         self.stack_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
@@ -70,7 +69,7 @@ class Canvas:
             if hi.shape[0] > MAX_HIRES:
                 img = Image.fromarray(hi[..., 0] if hi.shape[2] == 1 else hi)
                 hi = np.asarray(img.resize((MAX_HIRES, MAX_HIRES), Image.LANCZOS)).reshape(MAX_HIRES, MAX_HIRES, -1)
-            hi = _to_rgba(hi[None])[0]
+            hi = to_rgba(hi[None])[0]
             self.hires_tex = ctx.texture((hi.shape[1], hi.shape[0]), 4, np.ascontiguousarray(hi).tobytes())
             self.hires_tex.build_mipmaps()
             self.hires_tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
@@ -226,7 +225,7 @@ class Canvas:
             self.tex = self.fbo = None
 
 
-def _to_rgba(a: np.ndarray) -> np.ndarray:
+def to_rgba(a: np.ndarray) -> np.ndarray:
     """uint8 (..., C) with C in 1..4 to (..., 4): gray to RGB, alpha 255 if none."""
     c = a.shape[-1]
     if c == 4:

@@ -19,10 +19,17 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
-from infinitex.engine.exemplar import ExemplarError, decode_full, to_u8
-from infinitex.engine.controls.lattice import Detection, Lattice, LatticeError, choose_block, detect
+from infinitex.engine.controls.lattice import (
+    Detection,
+    Lattice,
+    LatticeError,
+    choose_block,
+    detect,
+)
+from infinitex.engine.exemplar import ExemplarError, decode_full
+from infinitex.engine.imagefile import to_u8
 
-from ...render.canvas import _to_rgba
+from ...render.canvas import to_rgba
 from . import Tool, begin_tool_window
 
 CELLS = (1, 2, 4, 8, 16)
@@ -69,7 +76,7 @@ class LatticeTool(Tool):
         return self._image[1]
 
     def _texture(self, px: np.ndarray):
-        rgba = _to_rgba(to_u8(px))
+        rgba = to_rgba(to_u8(px))
         tex = self.ed.gpu.ctx.texture((rgba.shape[1], rgba.shape[0]), 4, np.ascontiguousarray(rgba).tobytes())
         tex.filter = (moderngl.LINEAR, moderngl.NEAREST)
         return tex

@@ -1,0 +1,107 @@
+"""The Exemplar panel: its thumbnail (drag a spot of it onto the canvas to
+place a feature), what was imported and how, Replace exemplar, the import
+fit and toroidal options, and the analysis's progress."""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+from imgui_bundle import imgui
+
+from ..dialogs import IMAGE_FILTER
+from ..tools.feature import PAYLOAD as FEATURE_PAYLOAD
+from .widgets import tip
+
+if TYPE_CHECKING:
+    from . import Panels
+
+FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-two square"),
+              ("resize-2048", "Resize, up to 2048 px"), ("crop-2048", "Crop, up to 2048 px")]
+TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
+
+PANEL_IMAGE = 160
+
+
+def draw(p: Panels) -> None:
+    """The Exemplar panel."""
+    ed = p.ed
+    doc, s = ed.doc, ed.session
+    ex, an = s.exemplar, s.analysis
+    if ed.canvas.exemplar_tex is not None:
+        size = min(PANEL_IMAGE, imgui.get_content_region_avail().x)
+        thumbnail(p, size)
+    imgui.text(doc.exemplar.name)
+    if doc.is_material and s.material is not None and not s.material.single:
+        n = len(s.material.roles)
+        imgui.same_line()
+        imgui.text_disabled(f"+ {n - 1} map{'s' if n > 2 else ''}")
+        ex = s.material.maps[s.material.primary].exemplar  # the first map describes the import
+    ow, oh = ex.original_size
+    chans = {1: "gray", 2: "gray + alpha", 3: "RGB", 4: "RGBA"}[ex.channels]
+    lattice = ex.fit == "lattice"
+    how = f"lattice block {ex.size}x{ex.size}" if lattice else f"{ex.size}x{ex.size}"
+    imgui.text_disabled(f"{ow}x{oh} -> {how}, {chans}, {an.L + 1} levels")
+    if ex.hires is not None:
+        imgui.text_disabled(f"hi-res {ex.hires.shape[1]}x{ex.hires.shape[0]} kept for magnification")
+    if imgui.button("Replace exemplar...", (-1, 0)):
+        ed.dialogs.ask_path("Replace the exemplar", False, IMAGE_FILTER,
+                            lambda path: ed.open_path(path, replace_exemplar=True))
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("Use another image as the exemplar of this document, keeping its settings (undoable). "
+                          "File > Open makes a new document.")
+    if lattice:
+        imgui.push_text_wrap_pos(0)
+        imgui.text_disabled("The exemplar is the lattice's block of cells, rectified (it tiles); "
+                            "the Lattice tool (L) sets it.")
+        imgui.pop_text_wrap_pos()
+    else:
+        _fit_options(ed, doc, ex)
+    job = s.job
+    if job is not None:
+        imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
+        if imgui.button("Cancel analysis"):
+            job.cancel()
+
+
+def _fit_options(ed, doc, ex) -> None:
+    fits = [f for f, _ in FIT_LABELS]
+    changed, i = imgui.combo("Import", fits.index(doc.fit), [lbl for _, lbl in FIT_LABELS])
+    tip("How an image that is not a power-of-two square becomes the exemplar: resized (keeps the whole "
+        "image) or cropped (keeps its pixels exactly), to at most 512 px, or to at most 2048 px for large "
+        "photos (more detail; analyzed in seconds with the random-walk search, slower to synthesize)")
+    if changed:
+        ed.edit(replace(doc, fit=fits[i]), "Import fit")
+    cur = 0 if doc.toroidal is None else (1 if doc.toroidal else 2)
+    labels = list(TOROIDAL_LABELS)
+    labels[0] = f"Auto (guess: {'tiles' if ex.toroidal_guess else 'does not tile'})"
+    changed, i = imgui.combo("Toroidal", cur, labels)
+    tip("Does the exemplar tile seamlessly? Then patches may cross its edges; Auto guesses from its border")
+    if changed:
+        ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
+
+
+def thumbnail(p: Panels, size: float) -> None:
+    """The exemplar; drag from it onto the canvas to place that feature there."""
+    ed = p.ed
+    tex = imgui.ImTextureRef(ed.canvas.exemplar_tex.glo)
+    p0 = imgui.get_cursor_screen_pos()
+    imgui.image(tex, (size, size))
+    imgui.set_cursor_screen_pos(p0)
+    imgui.invisible_button("exemplar-thumb", (size, size))
+    if imgui.is_item_hovered() and not imgui.is_mouse_down(imgui.MouseButton_.left):
+        imgui.set_tooltip("Drag a spot of the exemplar onto the canvas to place it there as a feature")
+    if imgui.begin_drag_drop_source():
+        try:
+            m = ed.session.analysis.size
+            pos, delta = imgui.get_io().mouse_pos, imgui.get_mouse_drag_delta(0)
+            ux = int(min(m - 1, max(0, (pos.x - delta.x - p0.x) / size * m)))  # where the drag began
+            uy = int(min(m - 1, max(0, (pos.y - delta.y - p0.y) / size * m)))
+            imgui.set_drag_drop_payload_py_id(FEATURE_PAYLOAD, uy * 4096 + ux)
+            # Preview: the exemplar around the point, at the size it will have on the canvas.
+            tool = next(t for t in ed.tools if t.name == "feature")
+            r = max(8, tool.outer)
+            prev = min(256.0, 2 * r * ed.view.zoom)
+            imgui.image(tex, (prev, prev), ((ux - r) / m, (uy - r) / m), ((ux + r) / m, (uy + r) / m))
+            imgui.text(f"feature at exemplar ({ux}, {uy})")
+        finally:
+            imgui.end_drag_drop_source()

@@ -1,0 +1,103 @@
+"""The status bar under the canvas (timings, cursor, zoom, level, the last
+notice), the canvas overlay (analysis progress, Refining...) and the export
+progress window."""
+from __future__ import annotations
+
+import os
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+from imgui_bundle import imgui
+
+from infinitex.export.jobs import duration_text
+
+from .widgets import tip, zoom_text
+
+if TYPE_CHECKING:
+    from . import Panels
+
+
+def status_bar(p: Panels) -> None:
+    ed = p.ed
+    imgui.separator()
+    s = ed.session
+    parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.fps:5.1f} fps"]
+    if ed.cursor is not None:
+        cx, cy = ed.cursor
+        parts.append(f"x {int(np.floor(cx))}  y {int(np.floor(cy))}")
+    parts.append(f"zoom {zoom_text(ed.view.zoom)}")
+    if ed.frame is not None:
+        parts.append(f"level {ed.frame.level}/{s.L}")
+    parts.append(ed.title.rsplit(" - ", 1)[0])
+    imgui.text("   |   ".join(parts))
+    if ed.notice is not None:
+        text, t = ed.notice
+        if time.monotonic() - t < 15.0:
+            imgui.same_line()
+            imgui.text_colored((0.55, 0.9, 0.55, 1.0), f"   {text}")
+
+
+def canvas_overlay(p: Panels, p0, w, h) -> None:
+    ed = p.ed
+    job = ed.session.job
+    text = None
+    if job is not None:
+        text = f"Analyzing {job.doc.exemplar.name}: {job.progress * 100:.0f}%  {job.message}"
+    elif not ed.refined:
+        text = "Refining..."
+    if text:
+        dl = imgui.get_window_draw_list()
+        tw = imgui.calc_text_size(text).x
+        dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 24 + tw, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
+        dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), text)
+
+
+def progress_modals(p: Panels) -> None:
+    ed = p.ed
+    job = ed.export_job
+    name = "Exporting###export"
+    if job is None:
+        if p._export_popup:  # the export ended: close its window
+            opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+            if opened:
+                imgui.close_current_popup()
+                imgui.end_popup()
+            p._export_popup = False
+        return
+    if not p._export_popup:
+        imgui.open_popup(name)
+        p._export_popup = True
+    vp = imgui.get_main_viewport()
+    imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 3), imgui.Cond_.always, (0.5, 0.5))
+    imgui.set_next_window_size((420, 0))
+    opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+    if opened:
+        imgui.text(f"{os.path.basename(job.out_path)}: {job.out_rect.w} x {job.out_rect.h}")
+        elapsed = time.monotonic() - job.started
+        streamed = hasattr(job, "done_tiles")
+        if streamed:
+            total = job.job.total
+            label = f"{job.done_tiles} / {total} tiles  ({elapsed:.0f} s)"
+            imgui.progress_bar(job.progress, (-1, 0), label)
+            rate, left = job.rate(), job.seconds_left()
+            if job.kept:
+                imgui.text_disabled(f"{job.kept} tiles kept from an earlier run")
+            if rate is not None:
+                imgui.text(f"{rate / 1e6:.2f} Mpixel/s with {job.workers} worker{'s' * (job.workers > 1)}, "
+                           f"{'?' if left is None else duration_text(left)} left")
+            else:
+                imgui.text_disabled(f"Starting {job.workers} worker{'s' * (job.workers > 1)}...")
+        else:
+            imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
+        if streamed and job.cancelling:
+            imgui.text_disabled("Stopping after the tiles being rendered...")
+        elif imgui.button("Cancel", (120, 0)):
+            job.cancel()
+            if not streamed:
+                ed.export_job = None
+                imgui.close_current_popup()
+        if streamed and not job.cancelling:
+            tip("Stops after the tiles being rendered; they and every finished tile are kept, and the "
+                "same export continues from them")
+        imgui.end_popup()

@@ -1,0 +1,127 @@
+"""k-coherence similarity sets (LH05 3.3; ALGORITHM.md section 3): for every
+exemplar texel, the k texels whose neighborhoods are most alike, found by
+approximate nearest-neighbor search; and the band near a non-toroidal
+exemplar's border that no candidate may use."""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+# Approximate nearest neighbors, as LH05 (Arya et al. 1998): each match is
+# within (1 + eps) of the exact one; 4x faster than exact search at 512^2.
+ANN_EPS = 1.0
+
+
+def border_margin(m: int, h: int) -> int:
+    """Width of the band near a non-toroidal exemplar's border that no candidate
+    may use at a level with spacing h: the pixel's descendants (h/2) plus the
+    finest neighborhood (2), at most m/8 so coarse levels keep an interior."""
+    return int(min(h // 2 + 2, m // 8))
+
+
+def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
+                    spacing_frac: float) -> np.ndarray:
+    """C^1..C^k for every texel, int16 (m, m, k, 2) as (x, y).
+
+    C^1(u) = u, except near a non-toroidal border where it is the best interior
+    match. The others are the best matches at least ``spacing`` px from u, from
+    C^1 and from each other; missing entries repeat C^1.
+    """
+    ys, xs = np.mgrid[0:m, 0:m]
+    pos = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.int64)
+    desc = desc.reshape(m * m, -1).astype(np.float32)
+    if toroidal:
+        usable = np.ones(m * m, dtype=bool)
+    else:
+        b = border_margin(m, h)
+        usable = ((pos >= b) & (pos < m - b)).all(axis=1)
+    # Coarse levels are smooth: texels a few pixels apart look alike, so the
+    # tree holds a lattice of them (step <= h/4, so coordinates keep sub-h
+    # precision) and the nearest matches are not all next to u.
+    step = max(1, min(h // 4, int(spacing_frac * m) // 2))
+    lattice = ((pos % step) == 0).all(axis=1)
+    pool = np.nonzero(usable & lattice)[0]
+    if pool.size == 0:
+        pool = np.nonzero(usable)[0]
+    tree = cKDTree(desc[pool])
+    spacing = max(1.0, spacing_frac * m)
+
+    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        d = np.abs(a - b)
+        if toroidal:
+            d = np.minimum(d, m - d)
+        return np.sqrt((d * d).sum(axis=-1))
+
+    out = np.empty((m * m, k, 2), dtype=np.int64)
+    out[:, 0] = pos
+    if not toroidal:
+        bad = np.nonzero(~usable)[0]
+        if bad.size:
+            _, nn = tree.query(desc[bad], k=1, eps=ANN_EPS, workers=-1)
+            out[bad, 0] = pos[pool[nn]]
+    if k == 1:
+        return out.reshape(m, m, 1, 2).astype(np.int16)
+
+    todo = np.arange(m * m)
+    chosen = np.repeat(out[:, :1], k - 1, axis=1)  # default: repeat C^1
+    for kq in (16, 64, 256):
+        if todo.size == 0:
+            break
+        kq = min(kq, pool.size)
+        _, nn = tree.query(desc[todo], k=kq, eps=ANN_EPS, workers=-1)
+        nn = nn.reshape(todo.size, kq)
+        cand = pos[pool[nn]]                                   # (n, kq, 2)
+        ok = (dist(cand, pos[todo, None]) >= spacing) & (dist(cand, out[todo, None, 0]) >= spacing)
+        filled = np.zeros(todo.size, dtype=bool)
+        picks = []
+        for slot in range(k - 1):
+            first = np.argmax(ok, axis=1)
+            has = ok[np.arange(todo.size), first]
+            pick = cand[np.arange(todo.size), first]
+            picks.append((pick, has))
+            ok &= dist(cand, pick[:, None]) >= spacing
+            if slot == 0:
+                filled = has
+        for slot, (pick, has) in enumerate(picks):
+            rows = todo[has]
+            chosen[rows, slot] = pick[has]
+        todo = todo[~filled]
+    out[:, 1:] = chosen
+    return out.reshape(m, m, k, 2).astype(np.int16)
+
+
+def lattice_similarity_sets(desc: np.ndarray, k: int, nx: int, ny: int) -> np.ndarray:
+    """C^1..C^k restricted to the lattice (LH05 4.5), int16 (m, m, k, 2).
+
+    C^1(u) = u; the others are the best-matching of the nx*ny - 1 positions
+    ``u + (i m/nx, j m/ny) mod m`` (exact integer distances between the
+    projected neighborhoods; ties go to the first offset in (j, i) order);
+    missing entries (a 1x1 block) repeat u. The rectified exemplar is
+    toroidal by construction, so every such position is usable."""
+    m = desc.shape[0]
+    cx, cy = m // nx, m // ny
+    ys, xs = np.mgrid[0:m, 0:m]
+    ident = np.stack([xs, ys], axis=-1).astype(np.int64)
+    out = np.repeat(ident[:, :, None, :], k, axis=2)
+    offsets = np.array([(i * cx, j * cy) for j in range(ny) for i in range(nx) if i or j], dtype=np.int64)
+    if k == 1 or len(offsets) == 0:
+        return out.astype(np.int16)
+    d64 = desc.astype(np.int64)
+    K = min(k - 1, len(offsets))
+    big = np.iinfo(np.int64).max
+    bd = np.full((m, m, K), big, dtype=np.int64)   # best distances, ascending
+    bo = np.zeros((m, m, K), dtype=np.int64)       # their offset indices
+    for n, (ox, oy) in enumerate(offsets):
+        d = ((np.roll(d64, shift=(-oy, -ox), axis=(0, 1)) - d64) ** 2).sum(axis=-1)
+        pos = (bd <= d[..., None]).sum(axis=-1)  # after equal entries: earlier offsets win ties
+        for s_ in range(K - 1, -1, -1):
+            shift_in = (pos < s_)
+            put = pos == s_
+            if s_ > 0:
+                bd[..., s_] = np.where(shift_in, bd[..., s_ - 1], np.where(put, d, bd[..., s_]))
+                bo[..., s_] = np.where(shift_in, bo[..., s_ - 1], np.where(put, n, bo[..., s_]))
+            else:
+                bd[..., 0] = np.where(put, d, bd[..., 0])
+                bo[..., 0] = np.where(put, n, bo[..., 0])
+    out[:, :, 1:1 + K] = (ident[:, :, None, :] + offsets[bo]) % m
+    return out.astype(np.int16)
