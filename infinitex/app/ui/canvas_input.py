@@ -1,0 +1,154 @@
+"""The canvas's input and what is drawn over it: the mouse (the left button
+to the active tool, right and middle to pan, the wheel to zoom, features
+dropped from the Exemplar panel), choosing the tool, the view's geometry,
+tile mode, and the overlays (the randomness heat map, the tool's handles and
+cursor, the tile borders).
+
+A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
+attributes it uses are made in ``Editor.__init__``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from imgui_bundle import imgui
+
+from .tools import CANVAS_SPACE_TOOLS
+from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
+
+
+class CanvasInputMixin:
+    """Mouse input on the canvas, the tools, and the overlays drawn over it."""
+
+    # -- canvas input and overlays ------------------------------------------
+
+    def _canvas_input(self, p0, w: int, h: int) -> bool:
+        """The canvas's mouse input: the left button goes to the active tool, the
+        right and middle buttons always pan (from the press position), the
+        wheel zooms around the cursor. Returns whether the canvas is hovered."""
+        s = self.session
+        imgui.invisible_button("canvas", (w, h), imgui.ButtonFlags_.mouse_button_left
+                               | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
+        io = imgui.get_io()
+        hovered = imgui.is_item_hovered()
+        x0, y0 = self.view.top_left(w, h)
+        mouse = (io.mouse_pos.x, io.mouse_pos.y)
+        at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
+        view_before = self.view
+        tool = self.tool if s.ready and self.doc is not None else self.tools[0]
+        if imgui.is_item_activated():
+            self._canvas_button = 0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1
+            (tool if self._canvas_button == 0 else self.tools[0]).press(at, mouse)
+        elif imgui.is_item_active() and self._canvas_button >= 0:
+            (tool if self._canvas_button == 0 else self.tools[0]).drag(at, mouse)
+        if imgui.is_item_deactivated() and self._canvas_button >= 0:
+            (tool if self._canvas_button == 0 else self.tools[0]).release()
+            self._canvas_button = -1
+        if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
+            payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
+            if payload is not None and s.ready and self.doc is not None and self.geometry() is None:
+                self.set_tool("feature")
+                self.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
+            imgui.end_drag_drop_target()
+        if hovered and io.mouse_wheel and not (s.ready and self.doc is not None and self.tool.wheel(at, io.mouse_wheel)):
+            self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
+        if self.view != view_before:  # the wheel or a pan moved the canvas under the mouse
+            x0, y0 = self.view.top_left(w, h)
+            at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
+        self.cursor = at if hovered else None
+        return hovered
+
+    def _canvas_overlays(self, p0, w: int, h: int, hovered: bool) -> None:
+        """Over the canvas image: the randomness heat map, the panels' overlay,
+        the feature handles, the tile borders and the tool's cursor."""
+        s = self.session
+        if s.ready and self.doc is not None:
+            dl = imgui.get_window_draw_list()
+            if self.show_fields and self.geometry() is None:
+                self._field_overlay(dl, p0, w, h)
+            self.panels.canvas_overlay(p0, w, h)
+            if self.tool.name == "feature":
+                self.tool.draw_handles(dl, p0, w, h)
+            if s.period:
+                self._tile_borders(dl, p0, w, h, s.period)
+            if hovered:
+                self.tool.overlay(dl, p0, w, h)
+
+    def tile_period(self) -> int:
+        """The tile size while tile mode is on (whole lattice cells required), else 0."""
+        if not self.tile_mode or not self.session.ready:
+            return 0
+        n = self.tile_size
+        lat = self.session.controls.lattice
+        if lat is not None:
+            cx, cy = lat.cell(self.session.analysis.size)
+            if n % cx or n % cy:
+                self.tile_mode = False
+                self.dialogs.message("Tile mode", f"A tile of {n} px is not made of whole lattice cells "
+                                     f"({cx}x{cy} px); choose a larger tile size.")
+                return 0
+        return n
+
+    def _tile_borders(self, dl, p0, w: int, h: int, n: int) -> None:
+        """The tile's borders over the canvas (mapped into the input's geometry with a lattice)."""
+        z = self.view.zoom
+        x0, y0 = self.view.top_left(w, h)
+        G = self.geometry()
+        Ginv = None if G is None else np.linalg.inv(G)
+
+        def scr(px: float, py: float):
+            if Ginv is not None:
+                px, py = Ginv @ np.array([px, py])
+            return (p0.x + (px - x0) * z, p0.y + (py - y0) * z)
+        # The synthesized canvas rectangle the view covers (a bounding box with a lattice).
+        corners = np.array([[x0, y0], [x0 + w / z, y0], [x0, y0 + h / z], [x0 + w / z, y0 + h / z]])
+        if G is not None:
+            corners = corners @ G.T
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        i0, i1 = math.floor(lo[0] / n), math.ceil(hi[0] / n)
+        j0, j1 = math.floor(lo[1] / n), math.ceil(hi[1] / n)
+        if (i1 - i0) + (j1 - j0) > 400:
+            return  # tiles smaller than a few screen pixels: no lines
+        col = imgui.get_color_u32((1.0, 0.85, 0.2, 0.8))
+        dl.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
+        for i in range(i0, i1 + 1):
+            dl.add_line(scr(i * n, j0 * n), scr(i * n, j1 * n), col, 1.5)
+        for j in range(j0, j1 + 1):
+            dl.add_line(scr(i0 * n, j * n), scr(i1 * n, j * n), col, 1.5)
+        dl.pop_clip_rect()
+
+    def _field_overlay(self, dl, p0, w: int, h: int) -> None:
+        """The canvas randomness field as a translucent heat map over the canvas."""
+        z = self.view.zoom
+        x0, y0 = self.view.top_left(w, h)
+        tex = self.overlay_canvas.canvas(self.doc.randomness_canvas, x0, y0, w / z, h / z)
+        if tex is None:
+            return
+        fx, fy, fw, fh = self.overlay_canvas.placement
+        a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
+        dl.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
+        dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
+        dl.pop_clip_rect()
+
+    # -- small helpers for panels -----------------------------------------
+
+    def geometry(self):
+        """The 2x2 map from view positions to the synthesized canvas when a
+        lattice is shown in the input's geometry; None when the canvas shows
+        the synthesized (rectified) texture itself."""
+        s = self.session
+        lat = s.controls.lattice if s is not None and s.ready and s.controls is not None else None
+        if lat is None or self.display.geometry != "original":
+            return None
+        return lat.canvas_matrix(s.analysis.size)
+
+    def set_tool(self, name: str) -> None:
+        if name in CANVAS_SPACE_TOOLS and self.geometry() is not None:
+            # Paint and features live on the synthesized canvas: show it rectified.
+            self.display = replace(self.display, geometry="rectified")
+        for t in self.tools:
+            if t.name == name and t is not self.tool:
+                self.tool.release()
+                self.tool = t

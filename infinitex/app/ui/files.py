@@ -1,0 +1,324 @@
+"""The editor's documents: new, open (images, materials, projects, files
+dropped on the window), save and save as, the questions asked before unsaved
+edits are lost (replacing the document, quitting), autosave and recovery, and
+the undo history every edit goes through.
+
+A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
+attributes it uses are made in ``Editor.__init__``.
+"""
+from __future__ import annotations
+
+import os
+import random
+import time
+from dataclasses import replace
+
+from infinitex.engine.material import MaterialError, assign_roles
+from infinitex.engine.safeio import ReadError, printable
+from infinitex.project import (
+    PROJECT_SUFFIX,
+    Display,
+    Document,
+    ExemplarOutside,
+    ExemplarSource,
+    History,
+    Project,
+    ProjectError,
+    View,
+    is_project_file,
+    load_project,
+    save_project,
+)
+
+from ..settings import save_settings
+from .dialogs import PROJECT_FILTER
+
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
+DEFAULT_EXEMPLAR = os.path.join(ASSETS, "gravel.png")
+
+
+class FilesMixin:
+    """Opening, saving and replacing the document; its undo history."""
+
+    # -- documents ----------------------------------------------------------
+
+    @property
+    def doc(self) -> Document | None:
+        return self.history.current if self.history else None
+
+    def project(self) -> Project:
+        return Project(self.doc, self.view, self.display)
+
+    def autosave_project(self) -> Project:
+        """The project with the file it belongs to, so recovery restores its name."""
+        return replace(self.project(), origin=os.path.abspath(self.project_path) if self.project_path else None)
+
+    @property
+    def title(self) -> str:
+        """The window title: the document's name, * when it has unsaved edits."""
+        if self.project_path:
+            name = os.path.basename(self.project_path)
+        elif self.doc is not None:
+            name = f"untitled ({self.doc.exemplar.name})"
+        else:
+            name = "untitled"
+        dirty = self.history is not None and self.history.dirty
+        return f"{'*' if dirty else ''}{name} - Infinitex"
+
+    def new_document(self) -> None:
+        try:
+            src = ExemplarSource.from_file(DEFAULT_EXEMPLAR)
+        except OSError as exc:
+            self.dialogs.message("Error", f"The default exemplar could not be read: {exc}")
+            return
+        self._begin_load("new", Document(src), None, None)
+
+    def _open_first_document(self) -> None:
+        """The document the editor starts with (the command line's file, else a
+        new one), then the questions about an earlier session's unsaved work."""
+        recovered = self.autosave.pending() if self.offer_recovery else None
+        if self.start_path:
+            self.open_path(self.start_path, first=True)
+        else:
+            self.new_document()
+        if self.autosave.set_aside is not None:
+            where, why = self.autosave.set_aside
+            self.dialogs.message("Autosave set aside",
+                                 f"The autosaved work of an earlier session could not be read ({why})\n"
+                                 f"It was kept as {printable(where)}.")
+        if recovered is not None:
+            t = self.autosave.pending_time()
+            when = time.strftime("%Y-%m-%d %H:%M", time.localtime(t)) if t else "an earlier session"
+            self.dialogs.ask(
+                "Recover unsaved work",
+                f"Infinitex did not close normally. Unsaved work from {when} was kept.\n"
+                "Recover it?",
+                [("Recover", lambda: self._recover(recovered)), ("Discard", self.autosave.clear)])
+
+    def open_path(self, path: str, first: bool = False, allow_outside=False, replace_exemplar: bool = False) -> None:
+        """Open a project, or an image as a new document (untitled, default
+        settings); with ``replace_exemplar`` the image replaces the exemplar of
+        the open document instead (undoable; the Exemplar panel's button).
+        One map of a material brings its siblings (named by the rule), and a
+        folder is one material's maps.
+
+        A project whose exemplar file lies outside the project's folder is
+        opened only after the user confirms that file."""
+        path = os.path.expanduser(path)
+        try:
+            if os.path.isfile(path) and is_project_file(path):
+                proj = load_project(path, allow_outside=allow_outside)
+                self._begin_load("project", proj.document, proj, path)
+                return
+        except ExemplarOutside as exc:
+            allow = {exc.path}  # (exc itself is gone once the except block ends)
+            self.dialogs.ask("Exemplar outside the project's folder",
+                             f"{exc}\nRead this file as the exemplar?",
+                             [("Read it", lambda: self.open_path(path, first, allow_outside=allow,
+                                                                 replace_exemplar=replace_exemplar)),
+                              ("Cancel", lambda: self._open_failed(None, first))])
+            return
+        except ProjectError as exc:
+            self._open_failed(str(exc), first)
+            return
+        except OSError as exc:
+            self._open_failed(f"{printable(os.path.basename(path))} could not be read: {exc.strerror or exc}.", first)
+            return
+        self.open_paths([path], first, replace_exemplar)
+
+    def open_paths(self, paths: list[str], first: bool = False, replace_exemplar: bool = False) -> None:
+        """Open images as a document: one image, one map of a material (its
+        siblings come along), a material's folder, or several maps at once
+        (their roles from their names). All or nothing."""
+        try:
+            found = assign_roles([os.path.expanduser(p) for p in paths])
+            maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
+        except (MaterialError, ReadError) as exc:
+            self._open_failed(str(exc), first)
+            return
+        except OSError as exc:
+            self._open_failed(f"The maps could not be read: {exc.strerror or exc}.", first)
+            return
+        path = paths[0] if len(paths) == 1 else None
+        base = self.doc if replace_exemplar and self.doc is not None else None
+        if base is not None:
+            # A lattice is marked in the old image's pixels: the new image starts without one.
+            doc = replace(base, toroidal=None, lattice=None, weights=None).with_maps(maps)
+            self._begin_load("exemplar", doc, None, path)
+        else:
+            self._begin_load("image", Document(maps[0][1]).with_maps(maps), None, path)
+
+    def _open_failed(self, msg: str | None, first: bool) -> None:
+        if msg:
+            self.dialogs.message("Could not open", msg)
+        if first and self.history is None:
+            self.new_document()
+
+    def _begin_load(self, kind: str, doc: Document, proj: Project | None, path: str | None,
+                    label: str = "Load exemplar") -> None:
+        """Analyze ``doc`` and make it current only when that succeeds (a new
+        document, or with kind "exemplar" an edit named ``label``)."""
+        self.pending = (kind, doc, proj, path)
+        self.pending_label = label
+        self.session.load(doc)
+
+    def _finish_load(self, job) -> None:
+        kind, doc, proj, path = self.pending
+        self.pending = None
+        if job.error or job.cancelled:
+            if job.error:
+                self.dialogs.message("Could not open", job.error)
+            if self.history is None:
+                if kind != "new":
+                    self.new_document()
+                else:
+                    self.fatal = job.error or "The default exemplar could not be loaded."
+            return
+        if path and kind in ("project", "image", "exemplar") and path != self.autosave.path:
+            self.remember(path)
+        if kind == "exemplar" and self.history is not None:
+            self.edit(doc, getattr(self, "pending_label", "Load exemplar"))
+            return
+        self.history = History(doc)
+        if kind == "project":
+            self.view, self.display = proj.view, proj.display
+            self.project_path = path if path != self.autosave.path else None
+        elif kind == "recovered":  # the unsaved work of a project (or of an untitled document)
+            self.view, self.display = proj.view, proj.display
+            self.project_path = proj.origin if proj.origin and os.path.isfile(proj.origin) else None
+            self.history.saved = None
+        else:
+            self.view, self.display = View(), Display()
+            self.project_path = None
+
+    def _recover(self, proj: Project) -> None:
+        self._begin_load("recovered", proj.document, proj, None)
+
+    def _install_drop_callback(self) -> None:
+        try:
+            import glfw
+            from imgui_bundle import glfw_utils
+            win = glfw_utils.glfw_window_hello_imgui()
+            glfw.set_drop_callback(win, lambda _w, paths: self._dropped.extend(paths))
+        except Exception:
+            pass
+
+    def _open_dropped(self) -> None:
+        """Open what was dropped on the window since the last frame."""
+        if len(self._dropped) > 1 and not any(is_project_file(p) for p in self._dropped if os.path.isfile(p)):
+            paths, self._dropped = list(self._dropped), []  # several images dropped at once: one material's maps
+            self.confirm_discard(lambda: self.open_paths(paths))
+        while self._dropped:
+            path = self._dropped.pop(0)
+            self.confirm_discard(lambda: self.open_path(path))
+
+    def remember(self, path: str) -> None:
+        """Put a file at the top of File > Open Recent (kept in the user's config folder)."""
+        self.settings = self.settings.with_recent(path)
+        save_settings(self.settings)
+
+    # -- history ------------------------------------------------------------
+
+    def edit(self, doc: Document, label: str, group: object = None) -> None:
+        """Apply an edit (one undo step; same ``group`` = same step)."""
+        if self.history is None:
+            return
+        try:
+            self.history.apply(doc, label, group)
+        except ProjectError as exc:
+            self.dialogs.message("Invalid setting", str(exc))
+
+    def undo(self) -> None:
+        if self.history:
+            self.history.undo()
+
+    def redo(self) -> None:
+        if self.history:
+            self.history.redo()
+
+    def new_seed(self) -> None:
+        self.edit(replace(self.doc, seed=random.randrange(1, 2 ** 31)), "New seed")
+
+    # -- saving, and the questions before unsaved edits are lost -------------
+
+    def save(self, path: str | None = None) -> bool:
+        path = path or self.project_path
+        if path is None:
+            self.save_as()
+            return False
+        if not os.path.splitext(path)[1]:
+            path += PROJECT_SUFFIX
+        try:
+            save_project(path, self.project())
+        except ProjectError as exc:
+            self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
+            return False
+        self.project_path = path
+        self.remember(path)
+        self.history.mark_saved()
+        self.autosave.clear()
+        return True
+
+    def save_as(self, then=None) -> None:
+        """Ask where to save; ``then()`` runs once the project is saved."""
+        def done(path: str) -> None:
+            if self.save(path) and then is not None:
+                then()
+        folder = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else os.getcwd()
+        name = self.project_path or os.path.join(folder, "untitled" + PROJECT_SUFFIX)
+        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=os.path.abspath(name))
+
+    def save_then(self, action) -> None:
+        """Save (asking where for an untitled document), then run ``action``."""
+        if self.project_path is None:
+            self.save_as(then=action)
+        elif self.save():
+            action()
+
+    def confirm_discard(self, action) -> None:
+        """Run ``action`` (which replaces the document), offering to save unsaved edits first."""
+        if self.history is not None and self.history.dirty:
+            self.dialogs.ask("Unsaved changes", f"{self.title.split(' - ')[0].lstrip('*')} has unsaved changes. "
+                             "Save them first?",
+                             [("Save", lambda: self.save_then(action)), ("Discard", action), ("Cancel", None)])
+        else:
+            action()
+
+    def request_quit(self) -> None:
+        """Quit, asking first when there are unsaved edits (menu, Ctrl+Q, window close)."""
+        def quit_now():
+            if self.history is not None:
+                self.history.saved = self.history.current
+            self.quit_requested = True
+
+        def save_and_quit():
+            self.save_then(quit_now)
+        if self.history is not None and self.history.dirty:
+            self.dialogs.ask("Unsaved changes", "The project has unsaved changes. Save them before quitting?",
+                             [("Save", save_and_quit), ("Discard", quit_now), ("Cancel", None)])
+        else:
+            quit_now()
+
+    def _confirm_exit(self) -> bool:
+        # Called by the runner outside the frame (no imgui calls here): defer to a modal.
+        if self.history is not None and self.history.dirty and not self.screenshot:
+            self._close_requested = True
+            return False
+        return True
+
+    def _autosave_tick(self) -> None:
+        if self.doc is not None and self.history is not None:
+            try:
+                self.autosave.tick(self.autosave_project(), self.history.dirty)
+            except ProjectError:
+                pass
+
+    def _keep_unsaved_work(self) -> None:
+        """On exit: unsaved edits stay in the autosave (offered at the next start), else it goes."""
+        if self.history is not None and self.history.dirty:
+            try:
+                self.autosave.tick(self.autosave_project(), True, force=True)  # keep unsaved work for recovery
+            except ProjectError:
+                pass
+        else:
+            self.autosave.clear()

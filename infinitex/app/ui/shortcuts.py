@@ -1,0 +1,105 @@
+"""Keyboard shortcuts: undo and redo, open, save, quit, the zoom keys, the
+tool keys and H / T / M over the canvas, and the F1 window listing them all
+(``SHORTCUTS`` plus each tool's key).
+
+A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
+attributes it uses are made in ``Editor.__init__``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from imgui_bundle import imgui
+
+SHORTCUTS = [
+    ("1", "Actual size (100%)"), ("+  /  -", "Zoom in / out (also the mouse wheel)"),
+    ("0", "Fit one exemplar across the canvas"), ("Right or middle drag", "Pan (any tool)"),
+    ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"), ("Ctrl+O", "Open an image or a project"),
+    ("Ctrl+S / Ctrl+Shift+S", "Save / save as"), ("Ctrl+Q", "Quit"),
+    ("H", "Show or hide the painted randomness (cursor over the canvas)"),
+    ("T", "Tile mode: the periodic texture of the export tile size (cursor over the canvas)"),
+    ("M", "Show the next map of a material (cursor over the canvas)"),
+    ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
+    ("F1  or  ?", "This list"),
+]
+
+
+class ShortcutsMixin:
+    """The editor's keys, read once a frame, and their list (F1)."""
+
+    def _shortcuts(self) -> None:
+        if self.dialogs.busy or imgui.get_io().want_text_input:
+            return
+        ctrl = imgui.Key.mod_ctrl
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.z) or imgui.is_key_chord_pressed(ctrl | imgui.Key.y):
+            self.redo()
+        elif imgui.is_key_chord_pressed(ctrl | imgui.Key.z):
+            self.undo()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.s):
+            self.save()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.s):
+            self.save_as()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.o):
+            self.panels.open_dialog()
+        if imgui.is_key_chord_pressed(ctrl | imgui.Key.q):
+            self.request_quit()
+        io = imgui.get_io()
+        if imgui.is_key_pressed(imgui.Key.f1, False) or (
+                imgui.is_key_pressed(imgui.Key.slash, False) and io.key_shift):
+            self.show_shortcuts = not self.show_shortcuts
+        if not (io.key_ctrl or io.key_alt or io.key_super) and not imgui.is_any_item_active():
+            self._zoom_keys()
+        # Tool keys act on the canvas (under the mouse), never while typing or dragging a control.
+        if (self.cursor is not None and not (io.key_ctrl or io.key_alt or io.key_super)
+                and not imgui.is_any_item_active()):
+            for t in self.tools:
+                if t.key and imgui.is_key_pressed(getattr(imgui.Key, t.key.lower()), False):
+                    self.set_tool(t.name)
+            if imgui.is_key_pressed(imgui.Key.h, False):
+                self.show_fields = not self.show_fields
+            if imgui.is_key_pressed(imgui.Key.t, False):
+                self.tile_mode = not self.tile_mode
+            if imgui.is_key_pressed(imgui.Key.m, False) and self.session.ready:
+                roles = self.session.material.roles  # the next map of a material
+                cur = self.session.shown_map(self.display.map)
+                self.display = replace(self.display, map=roles[(roles.index(cur) + 1) % len(roles)])
+            self.tool.keys()
+
+    def _zoom_keys(self) -> None:
+        """1: actual size; + and -: zoom in and out around the canvas centre;
+        0: fit one exemplar across the canvas (as in Krita and Blender)."""
+        w, h = self.canvas_size
+        K = imgui.Key
+        if imgui.is_key_pressed(K._1, False) or imgui.is_key_pressed(K.keypad1, False):
+            self.view = replace(self.view, zoom=1.0).clamped()
+        elif imgui.is_key_pressed(K.equal) or imgui.is_key_pressed(K.keypad_add):
+            self.view = self.view.zoom_at(2.0, w / 2, h / 2, w, h)
+        elif imgui.is_key_pressed(K.minus) or imgui.is_key_pressed(K.keypad_subtract):
+            self.view = self.view.zoom_at(0.5, w / 2, h / 2, w, h)
+        elif (imgui.is_key_pressed(K._0, False) or imgui.is_key_pressed(K.keypad0, False)) and self.session.ready:
+            m = self.session.analysis.size
+            z = 2.0 ** math.floor(math.log2(max(1e-3, min(w, h) / m)))
+            self.view = replace(self.view, zoom=z).clamped()
+
+    def shortcuts_window(self) -> None:
+        """F1 or ?: every keyboard and mouse shortcut."""
+        if not self.show_shortcuts:
+            return
+        vp = imgui.get_main_viewport()
+        imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x / 2, vp.work_pos.y + vp.work_size.y / 2),
+                                  imgui.Cond_.appearing, (0.5, 0.5))
+        opened, keep = imgui.begin("Shortcuts (F1)", True, imgui.WindowFlags_.always_auto_resize
+                                   | imgui.WindowFlags_.no_collapse)
+        if opened and imgui.begin_table("shortcuts", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
+            for key, what in SHORTCUTS + [(f"{t.key}", f"{t.label} tool (cursor over the canvas)")
+                                          for t in self.tools if t.key]:
+                imgui.table_next_row()
+                imgui.table_next_column()
+                imgui.text(key)
+                imgui.table_next_column()
+                imgui.text(what)
+            imgui.end_table()
+        imgui.end()
+        if not keep:
+            self.show_shortcuts = False
