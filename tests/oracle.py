@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from infinitex.engine import fixed
-from infinitex.engine.analysis import Analysis, border_margin
+from infinitex.engine.analysis import Analysis
 from infinitex.engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
+from infinitex.engine.similarity import border_margin
 from infinitex.engine.params import SynthParams, subpass_order
 
 
