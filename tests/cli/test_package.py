@@ -13,6 +13,7 @@ from PIL import Image
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+@pytest.mark.slow
 def test_pip_install_into_a_fresh_venv_gives_the_command(tmp_path):
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
@@ -49,6 +50,7 @@ def test_pip_install_into_a_fresh_venv_gives_the_command(tmp_path):
 EXAMPLES = sorted(f for f in os.listdir(os.path.join(ROOT, "examples")) if f.endswith(".py"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("script", EXAMPLES)
 def test_examples_run_and_write_what_they_say(script, tmp_path):
     """Each example takes an output folder, writes PNGs there and prints one

@@ -164,6 +164,7 @@ def large():
     return analyze(ex, AnalysisSettings())
 
 
+@pytest.mark.slow
 def test_a_2048_px_exemplar_synthesizes_deterministically(large, gpu):
     """A 2048^2 exemplar: 12 levels, no similarity sets (k = 0 above 512 px),
     coordinates wider than 10 bits; overlapping windows agree near 0 and

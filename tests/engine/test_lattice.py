@@ -32,6 +32,7 @@ FAR = 2 ** 30
 # -- detection ----------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_detection_finds_generated_lattices():
     """80 near-regular images: rotations to 45 degrees, 60-120 degree angles
     (shear), aspect up to 3:1, cells 8 to 96 px, pixel noise, per-cell colour
@@ -225,6 +226,7 @@ def _cli(*args):
                           text=True, timeout=600, cwd=root)
 
 
+@pytest.mark.slow
 def test_cli_prints_the_lattice_and_reuses_it(tmp_path):
     from PIL import Image
 

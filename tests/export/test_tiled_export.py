@@ -28,6 +28,7 @@ def synth(gpu):
     yield s
 
 
+@pytest.mark.slow
 def test_4096_tiles_and_bigtiff_equal_the_one_piece_render(synth, tmp_path):
     rect = Rect.of(-1000, 30_000, 4096, 4096)
     whole = to_u8(synth.colors(synth.window(rect)))
@@ -75,6 +76,7 @@ def test_interrupted_export_resumes_with_the_missing_tiles_only(synth, tmp_path)
     assert other.rendered == other.rows * other.cols
 
 
+@pytest.mark.slow
 def test_killed_cli_export_finishes_identically_when_run_again(tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "-o", str(tmp_path / "k.tif"),
@@ -102,6 +104,7 @@ def test_killed_cli_export_finishes_identically_when_run_again(tmp_path):
     assert np.array_equal(tifffile.imread(tmp_path / "k.tif"), tifffile.imread(tmp_path / "fresh.tif"))
 
 
+@pytest.mark.slow
 def test_cli_refuses_bad_tiled_arguments(tmp_path):
     def run(*a):
         return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, *a],
@@ -144,6 +147,7 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+@pytest.mark.slow
 def test_worker_processes_give_the_same_bytes_and_survive_a_killed_worker(tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     base = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiles",
@@ -214,6 +218,7 @@ def test_cancel_event_stops_a_pool_export_promptly_and_keeps_its_tiles(tmp_path)
     assert (tmp_path / "d.1001.png").read_bytes() == (tmp_path / "c_u1_v1.png").read_bytes()
 
 
+@pytest.mark.slow
 def test_a_failed_write_is_one_sentence_and_the_export_resumes(tmp_path):
     import resource
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
@@ -244,6 +249,7 @@ def _dask_workers(pid: int) -> list[int]:
     return out
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_bytes_and_survives_a_killed_worker(synth, tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     rect = Rect.of(-2048, 1000, 4096, 4096)
@@ -278,6 +284,7 @@ def _peak_rss_kb(args, env) -> int:
     return usage.ru_maxrss
 
 
+@pytest.mark.slow
 def test_peak_memory_does_not_grow_with_the_export_size(tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
 
@@ -289,6 +296,7 @@ def test_peak_memory_does_not_grow_with_the_export_size(tmp_path):
     assert large < small * 1.15 + 20_000, (small, large)
 
 
+@pytest.mark.slow
 def test_zarr_multiscale_levels_are_the_synthesis_levels(synth, tmp_path):
     import json
 
@@ -314,6 +322,7 @@ def test_zarr_multiscale_levels_are_the_synthesis_levels(synth, tmp_path):
     json.dumps(dict(g.attrs))  # plain JSON metadata
 
 
+@pytest.mark.slow
 def test_zarr_export_resumes_and_replaces_atomically(synth, tmp_path):
     import zarr
     rect = Rect.of(0, 0, 1024, 768)

@@ -113,6 +113,7 @@ def test_large_jpeg_is_decoded_at_reduced_scale_with_a_capped_hires():
     assert ex.hires.shape == (HIRES_MAX, HIRES_MAX, 3)
 
 
+@pytest.mark.slow
 def test_import_memory_is_bounded(tmp_path):
     # A tiny JPEG whose header says 8000 x 8000 (libjpeg fills the missing
     # blocks): accepted at 2.3 GB before; now decoded at 1/2 scale.
