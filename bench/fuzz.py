@@ -1,6 +1,6 @@
 """Long fuzz runs of every untrusted input, with figures.
 
-    .venv/bin/python -m bench.fuzz [--cases 10000] [--targets import,project,cli] [--seed S] [--json OUT]
+    .venv/bin/python -m bench.fuzz [--cases 10000] [--targets import,project,cli,parts] [--seed S] [--json OUT]
 
 Runs the targets of tests/fuzzing.py (the same generators and checks as the
 test suite's fuzz tests), each in its own process, and counts per target:
@@ -25,7 +25,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-TARGETS = ("import", "project", "cli")
+TARGETS = ("import", "project", "cli", "parts")
 
 
 def run_target(target: str, cases: int, seed: int, timeout: float) -> dict:
@@ -38,8 +38,9 @@ def run_target(target: str, cases: int, seed: int, timeout: float) -> dict:
 
     import fuzzing as F
 
-    root = F.project_sandbox() if target == "project" else F.cli_sandbox() if target == "cli" else None
-    strategy = {"import": F.image_files(), "project": F.project_files(), "cli": F.command_lines()}[target]
+    root = {"project": F.project_sandbox, "cli": F.cli_sandbox, "parts": F.parts_sandbox}.get(target, lambda: None)()
+    strategy = {"import": F.image_files(), "project": F.project_files(), "cli": F.command_lines(),
+                "parts": F.parts_folders()}[target]
     counts = {"accepted": 0, "refused": 0, "crash": 0, "hang": 0}
     times: list[float] = []
     failures: list[dict] = []
@@ -51,6 +52,8 @@ def run_target(target: str, cases: int, seed: int, timeout: float) -> dict:
                 out = F.run_import(x, timeout)
             elif target == "project":
                 out = F.run_project(x, root, timeout)
+            elif target == "parts":
+                out = F.run_parts(x, root, timeout)
             else:
                 out = F.run_cli(x, root, timeout)
             counts[out] += 1

@@ -566,3 +566,373 @@ def run_cli(argv: list[str], root: str, timeout: float = 60.0) -> str:
                 raise Crash(f"wrote a broken PNG {n}: {exc}") from exc
         os.unlink(p)
     return "accepted" if code == 0 else "refused"
+
+
+# -- export working folders (OUT.parts) ----------------------------------------------
+#
+# A resumable streamed export trusts nothing in its parts folder (issue 29): a
+# case builds the parts folder of a small export (a complete one, a partial one
+# or none) and tampers with it: links to files and folders outside the
+# sandbox's export area, FIFOs, folders and garbage where files go, foreign
+# files, manifest lines claiming the true size and hash of whatever their name
+# now reaches, names that are not the export's. The export must then finish
+# with exactly the reference output, or be refused in one line; nothing outside
+# may change; and it must end within the time limit (a FIFO must not block it).
+
+PARTS_FORMATS = ("tiff", "tiles", "zarr")
+PARTS_RECT = (0, 0, 300, 280)  # 2 x 2 tiles of 256: two of them small, so a case renders fast
+PARTS_TILE = 256
+_PARTS = {}  # the synthesizer, the reference outputs and the complete parts folders, made once
+
+
+def _parts_synth():
+    if "synth" not in _PARTS:
+        from infinitex.engine.analysis import analyze
+        from infinitex.engine.synth import Synthesizer
+        _PARTS["synth"] = Synthesizer(analyze(load_exemplar_bytes(tiny_exemplar(), name="tiny.png")))
+    return _PARTS["synth"]
+
+
+def _parts_job(fmt: str, folder: str):
+    from infinitex.engine.pyramid import Rect
+    from infinitex.export import TiledExport
+    ext = {"tiff": "tif", "tiles": "png", "zarr": "zarr"}[fmt]
+    return TiledExport(_parts_synth(), Rect.of(*PARTS_RECT), os.path.join(folder, f"OUT.{ext}"), fmt, PARTS_TILE,
+                       key="fuzz", coords=fmt == "tiff")
+
+
+def _parts_result(fmt: str, folder: str):
+    """The pixels an export wrote in ``folder`` (every map, every level), as a list of arrays."""
+    import tifffile
+    if fmt == "tiff":
+        return [tifffile.imread(os.path.join(folder, n)) for n in ("OUT.tif", "OUT_coords.tif")]
+    if fmt == "tiles":
+        from infinitex.export import udim_name
+        out = []
+        for row in range(2):
+            for col in range(2):
+                path = os.path.join(folder, udim_name(os.path.join(folder, "OUT"), col, row, 2))
+                if os.path.islink(path):
+                    raise Crash("a tile of the output is a link")
+                with Image.open(path) as im:
+                    out.append(np.asarray(im))
+        return out
+    import zarr
+    g = zarr.open_group(os.path.join(folder, "OUT.zarr"), mode="r")
+    return [g[k][:] for k in sorted(g.array_keys())]
+
+
+def parts_sandbox() -> str:
+    """``ROOT/outside`` (what must never change), ``ROOT/ref/FMT`` (reference
+    exports), ``ROOT/template/FMT`` (a finished but unassembled export: every
+    tile and the manifest) and ``ROOT/work`` (where cases run)."""
+    from infinitex.export import ExportInterrupted
+    root = tempfile.mkdtemp(prefix="infinitex-parts-fuzz-")
+    far = os.path.join(root, "outside")
+    os.makedirs(os.path.join(far, "data.zarr", "0"))
+    os.makedirs(os.path.join(far, "folder"))
+    with open(os.path.join(far, "precious.bin"), "wb") as f:
+        f.write(b"the user's own bytes\n" * 500)
+    with open(os.path.join(far, "manifest.jsonl"), "w") as f:
+        f.write("someone else's manifest\n")
+    with open(os.path.join(far, "data.zarr", ".zgroup"), "w") as f:
+        f.write('{"zarr_format": 2}')
+    with open(os.path.join(far, "data.zarr", "0", "0.0"), "wb") as f:
+        f.write(b"\x02\x01" * 64)
+    with open(os.path.join(far, "folder", "inside.txt"), "w") as f:
+        f.write("inside a folder outside\n")
+    for fmt in PARTS_FORMATS:
+        ref = os.path.join(root, "ref", fmt)
+        os.makedirs(ref)
+        _parts_job(fmt, ref).run()
+        _PARTS[fmt] = _parts_result(fmt, ref)
+        tmpl = os.path.join(root, "template", fmt)
+        os.makedirs(tmpl)
+        job = _parts_job(fmt, tmpl)
+
+        def stop(done, total, job=job):
+            if done == job.total:
+                raise ExportInterrupted()
+        try:
+            job.run(stop)
+        except ExportInterrupted:
+            pass
+    os.makedirs(os.path.join(root, "work"))
+    return root
+
+
+def _snapshot(folder: str) -> dict:
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(folder):
+        for n in dirnames + filenames:
+            p = os.path.join(dirpath, n)
+            st = os.lstat(p)
+            if stat.S_ISREG(st.st_mode):
+                with open(p, "rb") as f:
+                    out[p] = (hashlib.sha256(f.read()).hexdigest(), st.st_size, st.st_mtime_ns)
+            else:
+                out[p] = (stat.S_IFMT(st.st_mode), os.readlink(p) if stat.S_ISLNK(st.st_mode) else None)
+    return out
+
+
+# What goes where a file of the export should be.
+PART_TAMPERS = ["keep", "keep", "keep", "keep", "keep", "delete", "link-file", "link-folder", "link-missing", "fifo",
+                "folder", "garbage", "empty", "truncate", "flip", "swap", "rgb-tile"]
+MANIFEST_TAMPERS = ["keep", "keep", "claim", "claim", "claim-keyed", "claim-keyed", "delete", "link-file", "fifo",
+                    "folder", "garbage", "bad-names", "torn", "huge", "other-key", "nan"]
+ASSEMBLY_TAMPERS = ["none", "none", "link-file", "fifo", "folder", "garbage", "link-folder"]
+FOREIGN = ["none", "none", "file", "folder", "link-outside", "fifo"]
+ZARR_TAMPERS = ["none", "none", "none", "store-link", "chunk-link", "chunk-fifo", "chunk-garbage",
+                "bad-zarray", "no-store", "foreign-in-store"]
+
+
+@st.composite
+def parts_folders(draw) -> dict:
+    """One tampered parts folder: the format, where it starts from, and what is done to it."""
+    return {
+        "fmt": draw(st.sampled_from(PARTS_FORMATS)),
+        "start": draw(st.sampled_from(["complete", "complete", "partial", "none"])),
+        "parts": draw(st.sampled_from(["folder"] * 20 + ["link-folder", "link-zarr", "file", "fifo"])),
+        "tiles": draw(st.lists(st.sampled_from(PART_TAMPERS), min_size=8, max_size=8)),
+        "folders": draw(st.booleans()),  # whether "folder" tampers stay (else: kept), so most cases run
+        "manifest": draw(st.sampled_from(MANIFEST_TAMPERS)),
+        "assembly": draw(st.sampled_from(ASSEMBLY_TAMPERS)),
+        "foreign": draw(st.sampled_from(FOREIGN)),
+        "zarr": draw(st.sampled_from(ZARR_TAMPERS)),
+        "seed": draw(st.integers(0, 2 ** 16)),
+    }
+
+
+def _tamper_file(path: str, how: str, far: str, rng, other: str | None) -> bool:
+    """Put what ``how`` says at ``path`` (an export's file); True if it makes the export refuse (a folder)."""
+    exists = os.path.lexists(path)
+    if how == "keep":
+        return False
+    if how in ("truncate", "flip") and exists and os.path.isfile(path) and not os.path.islink(path):
+        with open(path, "r+b") as f:
+            data = bytearray(f.read())
+            if how == "truncate":
+                f.truncate(rng.integers(0, max(1, len(data))))
+            elif data:
+                i = int(rng.integers(0, len(data)))
+                data[i] ^= 1 << int(rng.integers(0, 8))
+                f.seek(0)
+                f.write(data)
+        return False
+    if how == "swap" and other and os.path.isfile(other) and not os.path.islink(other) and exists:
+        with open(other, "rb") as f:  # another tile's bytes (the manifest may list them as this one's)
+            data = f.read()
+        os.unlink(path) if not os.path.isdir(path) or os.path.islink(path) else shutil.rmtree(path)
+        with open(path, "wb") as f:
+            f.write(data)
+        return False
+    if exists:
+        if os.path.isdir(path) and not os.path.islink(path):
+            shutil.rmtree(path)
+        else:
+            os.unlink(path)
+    if how == "link-file":
+        os.symlink(os.path.join(far, "precious.bin"), path)
+    elif how == "link-folder":
+        os.symlink(os.path.join(far, "folder"), path)
+    elif how == "link-missing":
+        os.symlink(os.path.join(far, "created-through-a-link"), path)
+    elif how == "fifo":
+        os.mkfifo(path)
+    elif how == "folder":
+        os.mkdir(path)
+        return True
+    elif how == "garbage":
+        with open(path, "wb") as f:
+            f.write(rng.bytes(int(rng.integers(1, 3000))))
+    elif how == "empty":
+        open(path, "wb").close()
+    elif how == "rgb-tile":
+        from infinitex.export.formats import png_bytes, tiff_tile_bytes
+        px = rng.integers(0, 256, (PARTS_TILE, PARTS_TILE, 3), dtype=np.uint8)
+        with open(path, "wb") as f:
+            f.write(png_bytes(px) if path.endswith(".png") else tiff_tile_bytes(px, PARTS_TILE))
+    return False
+
+
+def _claimed(path: str, sign=None) -> tuple[int, str]:
+    """The size and hash an attacker would list for ``path``: of whatever it
+    reaches now (links followed); the plain SHA-256, or ``sign(data)`` (an
+    attacker who has the user's manifest key)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise OSError
+            data = b""
+            while chunk := os.read(fd, 1 << 20):
+                data += chunk
+        finally:
+            os.close(fd)
+    except OSError:
+        data = b"x"
+    return len(data), sign(data) if sign else hashlib.sha256(data).hexdigest()
+
+
+def _build_parts(case: dict, root: str) -> tuple[object, bool]:
+    """The tampered working folder of one case in ROOT/work; (the export, whether it must be refused).
+    Without the key, claims are plain hashes; "claim-keyed" signs whatever
+    lies at each name with the user's key (see run_parts for what is promised then)."""
+    fmt, rng = case["fmt"], np.random.default_rng(case["seed"])
+    work, far = os.path.join(root, "work"), os.path.join(root, "outside")
+    shutil.rmtree(work)
+    tmpl = os.path.join(root, "template", fmt)
+    if case["start"] == "none":
+        os.makedirs(work)
+    else:
+        shutil.copytree(tmpl, work, symlinks=True)
+    job = _parts_job(fmt, work)
+    parts = job.parts
+    refuse = False
+    if case["start"] == "partial":  # a run killed half-way: some files and manifest lines are missing
+        names = sorted(os.listdir(parts))
+        for n in names[: len(names) // 2]:
+            p = os.path.join(parts, n)
+            shutil.rmtree(p) if os.path.isdir(p) else os.unlink(p)
+    if case["parts"] != "folder":
+        if os.path.lexists(parts):
+            shutil.rmtree(parts)
+        if case["parts"] == "link-folder":
+            os.symlink(far, parts)
+        elif case["parts"] == "link-zarr":
+            os.symlink(os.path.join(far, "data.zarr"), parts)
+        elif case["parts"] == "file":
+            with open(parts, "wb") as f:
+                f.write(b"not a folder")
+        else:
+            os.mkfifo(parts)
+        return job, True
+    os.makedirs(parts, mode=0o700, exist_ok=True)
+    files = []
+    if fmt != "zarr":
+        folder = work if fmt == "tiles" else parts
+        files = [os.path.join(folder, n) for col, row, _ in job.tiles() for n in job.tile_names(col, row)]
+    for i, path in enumerate(files):
+        how = case["tiles"][i % len(case["tiles"])]
+        how = "keep" if how == "folder" and not case.get("folders", True) else how
+        refuse |= _tamper_file(path, how, far, rng, files[(i + 1) % len(files)])
+    if fmt == "zarr":
+        refuse |= _tamper_zarr(os.path.join(parts, "data.zarr"), case["zarr"], far, rng)
+    manifest = os.path.join(parts, "manifest.jsonl")
+    how = case["manifest"]
+    if how in ("claim", "claim-keyed", "bad-names", "torn", "huge", "other-key", "nan"):
+        lines = [json.dumps({"key": job.export_key() if how != "other-key" else "0" * 64})]
+        for names, paths, _, _ in job.work():
+            for n, p in zip(names, paths):
+                where = os.path.join(work if fmt == "tiles" else parts, p) if p else os.path.join(far, "precious.bin")
+                size, sha = _claimed(where, (lambda data, n=n: job.sign(n, data)) if how != "claim" else None)
+                lines.append(json.dumps([n, size, sha]))
+        if how == "bad-names":
+            lines += [json.dumps(n) for n in (["../precious.bin", 10, "a" * 64], ["/etc/passwd", 1, "b" * 64],
+                                              ["0,0/../../x", 2, "c" * 64])]
+        elif how == "torn":
+            lines[-1] = lines[-1][: len(lines[-1]) // 2]
+        elif how == "huge":
+            lines += [lines[-1]] * 5000
+        elif how == "nan":
+            lines.insert(1, '["0,0", NaN, "' + "d" * 64 + '"]')
+        if os.path.lexists(manifest):
+            os.unlink(manifest)
+        with open(manifest, "w") as f:
+            f.write("\n".join(lines) + ("" if how == "torn" else "\n"))
+    elif how != "keep":
+        refuse |= _tamper_file(manifest, how, far, rng, None)
+    for m in ("", "_coords"):
+        refuse |= _tamper_file(os.path.join(parts, f"assembling{m}.tif"), case["assembly"], far, rng, None) \
+            if case["assembly"] != "none" else False
+    foreign = case["foreign"]
+    if foreign == "file":
+        with open(os.path.join(parts, "notes.txt"), "w") as f:
+            f.write("the user's notes\n")
+    elif foreign == "folder":
+        os.makedirs(os.path.join(parts, "sub", "deeper"))
+    elif foreign == "link-outside":
+        os.symlink(os.path.join(far, "folder"), os.path.join(parts, "elsewhere"))
+    elif foreign == "fifo":
+        os.mkfifo(os.path.join(parts, "pipe"))
+    return job, refuse
+
+
+def _tamper_zarr(store: str, how: str, far: str, rng) -> bool:
+    """Tamper with an earlier run's Zarr store; True if the export must refuse it (not a plain store)."""
+    chunk = os.path.join(store, "0", "0.0")
+    if how == "none" or (how != "store-link" and not os.path.isdir(store)):
+        return False
+    if how == "store-link":
+        if os.path.lexists(store):
+            shutil.rmtree(store)
+        os.symlink(os.path.join(far, "data.zarr"), store)
+        return True
+    if how == "no-store":
+        shutil.rmtree(store)
+        return False
+    if how == "bad-zarray":
+        meta = os.path.join(store, "0", ".zarray")
+        if os.path.isfile(meta):
+            with open(meta) as f:
+                d = json.load(f)
+            d["chunks"] = [512] * len(d["chunks"])
+            with open(meta, "w") as f:
+                json.dump(d, f)
+        return False
+    if how == "foreign-in-store":
+        with open(os.path.join(store, "README"), "w") as f:
+            f.write("not a store's file\n")
+        return True
+    if os.path.lexists(chunk):
+        os.unlink(chunk)
+    if how == "chunk-link":
+        os.symlink(os.path.join(far, "data.zarr", "0", "0.0"), chunk)
+        return True
+    if how == "chunk-fifo":
+        os.mkfifo(chunk)
+        return True
+    with open(chunk, "wb") as f:
+        f.write(rng.bytes(200))
+    return False
+
+
+def run_parts(case: dict, root: str, timeout: float = 60.0) -> str:
+    """Run the export of one tampered parts folder (see parts_folders)."""
+    from infinitex.engine.safeio import WriteError
+    from infinitex.export import ExportFailed
+    job, must_refuse = _build_parts(case, root)
+    far = os.path.join(root, "outside")
+    before = _snapshot(far)
+    with watch() as violations, time_limit(timeout):
+        try:
+            job.run()
+            outcome = "accepted"
+        except (WriteError, ExportFailed) as exc:
+            if "\n" in str(exc) or not str(exc).strip():
+                raise Crash(f"the refusal is not one line: {str(exc)[:300]!r}") from None
+            outcome = "refused"
+        except Exception as exc:
+            raise Crash(f"{type(exc).__name__}: {str(exc)[:200]}") from exc
+    if violations:
+        raise Crash("; ".join(violations))
+    if _snapshot(far) != before:
+        raise Crash("a file outside the export's folder changed")
+    work = os.path.join(root, "work")
+    if must_refuse != (outcome == "refused"):
+        raise Crash(f"{'accepted' if must_refuse else 'refused'} a parts folder it should have "
+                    f"{'refused' if must_refuse else 'accepted'}")
+    if outcome == "refused":
+        if case["fmt"] != "tiles" and any(n.startswith("OUT.") and not n.endswith(".parts") for n in os.listdir(work)):
+            raise Crash("a refused export left an output")
+        return outcome
+    got, ref = _parts_result(case["fmt"], work), _PARTS[case["fmt"]]
+    if len(got) != len(ref) or any(a.shape != b.shape or a.dtype != b.dtype for a, b in zip(got, ref)):
+        raise Crash("the output is not an export of this size and type")
+    # Files signed with the user's own key that decode to valid tiles (another
+    # tile's, one of random pixels) may be kept: only then may pixels differ.
+    if case["manifest"] != "claim-keyed" and any(not np.array_equal(a, b) for a, b in zip(got, ref)):
+        raise Crash("the output differs from the reference export")
+    if os.path.lexists(job.parts) != bool(job.notes):
+        raise Crash("the parts folder was left without a note (or a note without it)")
+    return outcome

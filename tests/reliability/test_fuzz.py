@@ -1,5 +1,6 @@
 """Property-based fuzzing of every untrusted input (tests/fuzzing.py holds the
-targets): exemplar images, project and autosave files, command lines. Each
+targets): exemplar images, project and autosave files, command lines, the
+working folders of resumable exports (OUT.parts, tampered with). Each
 input must be accepted with a valid result or refused with the program's own
 one-line error: no other exception, no hang, no subprocess, no read outside
 what the user chose, no damaged or replaced file.
@@ -29,6 +30,13 @@ def cli_root():
     shutil.rmtree(root, ignore_errors=True)
 
 
+@pytest.fixture(scope="module")
+def parts_root():
+    root = F.parts_sandbox()
+    yield root
+    shutil.rmtree(root, ignore_errors=True)
+
+
 @given(data=F.image_files())
 def test_fuzz_exemplar_import(data):
     F.run_import(data)
@@ -44,7 +52,13 @@ def test_fuzz_command_lines(cli_root, argv):
     F.run_cli(argv, cli_root)
 
 
-def test_the_targets_reach_both_outcomes(project_root, cli_root):
+@pytest.mark.slow
+@given(case=F.parts_folders())
+def test_fuzz_export_working_folders(parts_root, case):
+    F.run_parts(case, parts_root)
+
+
+def test_the_targets_reach_both_outcomes(project_root, cli_root, parts_root):
     """The generators are not degenerate: each target sees inputs it accepts and
     inputs it refuses (a fuzzer that only makes garbage tests nothing)."""
     import io
@@ -59,4 +73,8 @@ def test_the_targets_reach_both_outcomes(project_root, cli_root):
     assert F.run_project(base[:-5], project_root) == "refused"
     assert F.run_cli(["synth", "TINY", "-o", "OUT.png", "--size", "40", "32"], cli_root) == "accepted"
     assert F.run_cli(["synth", "TINY", "-o", "out.xyz"], cli_root) == "refused"
+    clean = dict(fmt="tiff", start="complete", parts="folder", tiles=["keep"] * 8, manifest="keep",
+                 assembly="none", foreign="none", zarr="none", seed=0)
+    assert F.run_parts(clean, parts_root) == "accepted"
+    assert F.run_parts(dict(clean, parts="link-folder"), parts_root) == "refused"
     assert Image  # imported for the PNG above
