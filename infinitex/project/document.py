@@ -117,6 +117,12 @@ class Document:
         """Every map as (role, file): a single image is the one map "image"."""
         return self.maps or ((IMAGE, self.exemplar),)
 
+    def input_paths(self) -> list[str]:
+        """The files this document was read from (its exemplar, every map),
+        where it knows them: what no export of it may replace. An embedded
+        file has none (its bytes are in the project)."""
+        return [src.path for _, src in self.sources() if src.path]
+
     def weight_dict(self) -> dict[str, float] | None:
         return None if self.weights is None else dict(self.weights)
 

@@ -64,8 +64,11 @@ MAX_JSON_DEPTH = 8              # our files nest 3 deep
 MAX_INT_DIGITS = 18             # no field needs more; 10^309 or 5,000 digits are refused while parsing
 
 
-def _reference(src: ExemplarSource, embed: bool, path: str | None) -> tuple[str | None, str | None]:
-    """(base64 data, None) when embedded, else (None, path relative to the project's folder)."""
+def _reference(src: ExemplarSource, embed: bool | None, path: str | None) -> tuple[str | None, str | None]:
+    """(base64 data, None) when embedded, else (None, path relative to the project's folder);
+    ``embed`` None: (None, None), to be filled in."""
+    if embed is None:
+        return None, None
     if embed:
         return base64.b64encode(src.data).decode("ascii"), None
     if not src.path:
@@ -84,8 +87,6 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
     enough (or when ``embed``), else referenced by path and content hash; a
     material's maps are embedded while each is at most EMBED_LIMIT and their
     total at most MATERIAL_EMBED_TOTAL."""
-    doc = project.document
-    ex = doc.exemplar
     total = 0
 
     def embeds(src: ExemplarSource) -> bool:
@@ -95,6 +96,49 @@ def project_to_json(project: Project, path: str | None = None, embed: bool | Non
         ok = len(src.data) <= EMBED_LIMIT and total + len(src.data) <= MATERIAL_EMBED_TOTAL
         total += len(src.data) if ok else 0
         return ok
+    return _to_json(project, path, embeds)
+
+
+def fitted_project_json(project: Project, store) -> dict:
+    """The project as a JSON-ready dict that save_project writes in at most
+    MAX_PROJECT_BYTES (an autosave: recoverable whatever its files' sizes).
+    Every file is embedded while that fits, the smallest first; each other
+    one is referenced with its content hash at ``store(source)``: the name of
+    a file in the folder the project is written to that now holds the
+    source's bytes (so it is read back from that folder only). Each file's
+    own path is kept as "source" (never read: where the file came from).
+    ProjectError when even that does not fit."""
+    limit = MAX_PROJECT_BYTES
+    doc = project.document
+    sources = [doc.exemplar] + [src for _, src in doc.maps[1:]]
+    d = _to_json(project, None, lambda src: None)  # neither embedded nor referenced yet
+    entries = [d["exemplar"]] + (d["material"]["maps"] if doc.maps else [])
+    for e, src in zip(entries, sources):
+        if src.path:
+            e["source"] = os.path.abspath(src.path)
+        e["path"] = "x" * 200  # (a stored file's name is shorter)
+    size = len(json.dumps(d, indent=1))  # ASCII: characters are bytes
+    for i in sorted(range(len(sources)), key=lambda i: len(sources[i].data)):
+        e = entries[i]
+        grows = 4 * ((len(sources[i].data) + 2) // 3) - 2 - len(json.dumps(e["path"])) + 4  # swap null and "..."
+        if size + grows > limit:
+            continue
+        e["embedded"], e["path"] = base64.b64encode(sources[i].data).decode("ascii"), None
+        size += grows
+    for e, src in zip(entries, sources):
+        if e["embedded"] is None:
+            e["path"] = store(src)
+    size = len(json.dumps(d, indent=1))
+    if size > limit:
+        raise ProjectError(f"The project would be {size / 2 ** 20:.0f} MB even with its images referenced, "
+                           f"more than the {limit / 2 ** 20:.0f} MB a project file may be.")
+    return d
+
+
+def _to_json(project: Project, path: str | None, embeds) -> dict:
+    """project_to_json, with ``embeds(source)`` deciding what is embedded."""
+    doc = project.document
+    ex = doc.exemplar
     embedded, ref_path = _reference(ex, embeds(ex), path)
     material = None
     if doc.maps:
@@ -261,13 +305,42 @@ def _avoid_from_json(r: object) -> ExemplarMask | None:
     return ExemplarMask(v.astype(np.uint8))
 
 
-def save_project(path: str, project: Project, embed: bool | None = None) -> None:
-    """Write atomically (engine.safeio.atomic_write); failures are ProjectError."""
-    text = json.dumps(project_to_json(project, path, embed), indent=1)
+def save_project(path: str, project: Project, embed: bool | None = None, store=None) -> None:
+    """Write atomically (engine.safeio.atomic_write); failures are ProjectError.
+    With ``store``: as :func:`fitted_project_json` (autosaves), else as
+    :func:`project_to_json`."""
+    d = fitted_project_json(project, store) if store is not None else project_to_json(project, path, embed)
+    text = json.dumps(d, indent=1)
     try:
         atomic_write(path, text.encode("utf-8"))
     except WriteError as exc:
         raise ProjectError(str(exc)) from None
+
+
+def project_save_path(path: str, document: Document | None = None, current: str | None = None) -> str:
+    """The file a project save writes when the user chose ``path``: with the
+    project extension appended when it lacks it, so project JSON never lands
+    on an image ("texture.png" is saved as "texture.png.itex"); ``current``,
+    the project file the document came from, keeps its name. ProjectError
+    when that file is one of ``document``'s input files (its exemplar or a
+    material map): those are never replaced."""
+    path = os.path.abspath(os.path.expanduser(path))
+    if not (current and path == os.path.abspath(current)) and not path.lower().endswith(PROJECT_SUFFIX):
+        path += PROJECT_SUFFIX
+    if document is not None:
+        for role, src in document.sources():
+            if src.path and _same_file(path, src.path):
+                what = "exemplar" if src is document.exemplar else f"{role} map"
+                raise ProjectError(f"{printable(os.path.basename(path))} is the document's {what}, one of its "
+                                   "inputs; a project is not saved over it. Choose another name.")
+    return path
+
+
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samestat(os.stat(a), os.stat(b))  # hard links too
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
 
 
 class ExemplarOutside(ProjectError):
@@ -344,6 +417,9 @@ def _source_from_json(e: dict, where: str, path: str | None, name: str, allow_ou
         raise ProjectError(f"{where}.sha256 is not a SHA-256 digest.")
     embedded = _get(e, "embedded", str, where, optional=True)
     ref = _get(e, "path", str, where, optional=True)
+    source = _get(e, "source", str, where, optional=True)  # autosaves: where the file came from (not read)
+    if source is not None and not (os.path.isabs(source) and len(source) <= 4096 and "\x00" not in source):
+        raise ProjectError(f"{where}.source is not a usable file path.")
     if embedded is not None:
         try:
             data = base64.b64decode(embedded, validate=True)
@@ -358,7 +434,7 @@ def _source_from_json(e: dict, where: str, path: str | None, name: str, allow_ou
         what = "exemplar" if where == "exemplar" else "map"
         raise ProjectError(f"The {what} {printable(ex_name)} does not match the project (its content changed), "
                            "so the texture could not be reproduced.")
-    return ExemplarSource(name=ex_name, data=data, sha256=sha, path=src_path)
+    return ExemplarSource(name=ex_name, data=data, sha256=sha, path=source or src_path)
 
 
 def _material_from_json(mat: object, primary: ExemplarSource, path: str | None, name: str, allow_outside):

@@ -194,7 +194,8 @@ def test_autosave_recovers_after_a_crash(doc, tmp_path):
     edited = Project(replace(doc, seed=3), View(10, 20, 2.0))
     assert a.tick(edited, dirty=True)
     assert not a.tick(edited, dirty=True)  # unchanged: not rewritten
-    # A new session (after a crash) finds it:
+    # A new session (after a crash: the writer's lock went with it) finds it:
+    a.release()
     assert Autosave(a.path).pending() == edited
     a.clear()
     assert Autosave(a.path).pending() is None
@@ -237,6 +238,7 @@ def test_autosave_remembers_which_project_it_belongs_to(tmp_path):
     a = Autosave(str(tmp_path / "autosave.itex"))
     proj = Project(doc, View(120.0, -40.0, 2.0), origin=str(tmp_path / "mine.itex"))
     assert a.tick(proj, True, force=True)
+    a.release()  # as when its process ends
     back = Autosave(str(tmp_path / "autosave.itex")).pending()
     assert back.origin == str(tmp_path / "mine.itex") and back.view == proj.view and back.document.seed == 5
     assert "autosave_of" not in project_to_json(Project(doc))  # ordinary saves do not carry it

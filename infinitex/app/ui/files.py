@@ -24,9 +24,11 @@ from infinitex.project import (
     History,
     Project,
     ProjectError,
+    Recoverable,
     View,
     is_project_file,
     load_project,
+    project_save_path,
     save_project,
 )
 
@@ -75,25 +77,23 @@ class FilesMixin:
 
     def _open_first_document(self) -> None:
         """The document the editor starts with (the command line's file, else a
-        new one), then the questions about an earlier session's unsaved work."""
-        recovered = self.autosave.pending() if self.offer_recovery else None
+        new one), then the questions about earlier sessions' unsaved work: one
+        for each autosave whose editor is gone, oldest first (a running
+        editor's autosave is not offered)."""
+        recovered = self.autosave.pending_all() if self.offer_recovery else []
         if self.start_path:
             self.open_path(self.start_path, first=True)
         else:
             self.new_document()
-        if self.autosave.set_aside is not None:
-            where, why = self.autosave.set_aside
+        for where, why in self.autosave.set_aside_all:
             self.dialogs.message("Autosave set aside",
                                  f"The autosaved work of an earlier session could not be read ({why})\n"
                                  f"It was kept as {printable(where)}.")
-        if recovered is not None:
-            t = self.autosave.pending_time()
-            when = time.strftime("%Y-%m-%d %H:%M", time.localtime(t)) if t else "an earlier session"
-            self.dialogs.ask(
-                "Recover unsaved work",
-                f"Infinitex did not close normally. Unsaved work from {when} was kept.\n"
-                "Recover it?",
-                [("Recover", lambda: self._recover(recovered)), ("Discard", self.autosave.clear)])
+        for i, rec in enumerate(recovered):
+            self.dialogs.ask("Recover unsaved work", recovery_question(rec, i, len(recovered)),
+                             [("Recover", lambda rec=rec: self.confirm_discard(lambda: self._recover(rec))),
+                              ("Discard", lambda rec=rec: self.autosave.discard(rec)),
+                              ("Keep for later", None)])
 
     def open_path(self, path: str, first: bool = False, allow_outside=False, replace_exemplar: bool = False) -> None:
         """Open a project, or an image as a new document (untitled, default
@@ -180,6 +180,7 @@ class FilesMixin:
             self.edit(doc, getattr(self, "pending_label", "Load exemplar"))
             return
         self.history = History(doc)
+        self.autosave.clear()  # a new document: the autosave of the one it replaces goes
         if kind == "project":
             self.view, self.display = proj.view, proj.display
             self.project_path = path if path != self.autosave.path else None
@@ -187,12 +188,26 @@ class FilesMixin:
             self.view, self.display = proj.view, proj.display
             self.project_path = proj.origin if proj.origin and os.path.isfile(proj.origin) else None
             self.history.saved = None
+            self._adopt_autosave(path)
         else:
             self.view, self.display = View(), Display()
             self.project_path = None
 
-    def _recover(self, proj: Project) -> None:
-        self._begin_load("recovered", proj.document, proj, None)
+    def _recover(self, rec: Recoverable) -> None:
+        self._begin_load("recovered", rec.project.document, rec.project, rec.path)
+
+    def _adopt_autosave(self, path: str | None) -> None:
+        """The recovered work goes into this editor's own autosave at once;
+        then the earlier session's file (only that one) is removed."""
+        try:
+            self.autosave.tick(self.autosave_project(), True, force=True)
+        except ProjectError as exc:
+            self.dialogs.message("Autosave", f"The recovered work could not be autosaved again ({exc})\n"
+                                 "Its earlier autosave is kept.")
+            return
+        for rec in self.autosave.pending_all():
+            if rec.path == path:
+                self.autosave.discard(rec)
 
     def _install_drop_callback(self) -> None:
         try:
@@ -242,13 +257,14 @@ class FilesMixin:
     # -- saving, and the questions before unsaved edits are lost -------------
 
     def save(self, path: str | None = None) -> bool:
+        """Save to ``path`` (else the document's project file), with the project
+        extension; never over one of the document's inputs."""
         path = path or self.project_path
         if path is None:
             self.save_as()
             return False
-        if not os.path.splitext(path)[1]:
-            path += PROJECT_SUFFIX
         try:
+            path = project_save_path(path, self.doc, self.project_path)
             save_project(path, self.project())
         except ProjectError as exc:
             self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
@@ -260,13 +276,41 @@ class FilesMixin:
         return True
 
     def save_as(self, then=None) -> None:
-        """Ask where to save; ``then()`` runs once the project is saved."""
+        """Ask where to save; ``then()`` runs once the project is saved. The
+        editor asks before replacing a file the system's dialog did not
+        already ask about (the in-window chooser and path box, or a name that
+        got the project extension)."""
+        native = []
+
         def done(path: str) -> None:
-            if self.save(path) and then is not None:
-                then()
+            self.save_chosen(path, bool(native), then)
         folder = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else os.getcwd()
         name = self.project_path or os.path.join(folder, "untitled" + PROJECT_SUFFIX)
         self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=os.path.abspath(name))
+        req = self.dialogs.path_request
+        if req is not None and req.native is not None:
+            native.append(True)
+
+    def save_chosen(self, chosen: str, asked: bool = False, then=None) -> None:
+        """Save to the file the user chose (``asked``: the system's dialog
+        already asked about replacing ``chosen``); asks before replacing any
+        other existing file; refuses the document's inputs in one line."""
+        try:
+            path = project_save_path(chosen, self.doc, self.project_path)
+        except ProjectError as exc:
+            self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
+            return
+
+        def write() -> None:
+            if self.save(path) and then is not None:
+                then()
+        own = self.project_path is not None and os.path.abspath(self.project_path) == path
+        if os.path.lexists(path) and not own and not (asked and path == os.path.abspath(chosen)):
+            self.dialogs.ask("Replace file", f"{printable(os.path.basename(path))} already exists in "
+                             f"{printable(os.path.dirname(path))}. Replace it?",
+                             [("Replace", write), ("Cancel", None)])
+        else:
+            write()
 
     def save_then(self, action) -> None:
         """Save (asking where for an untitled document), then run ``action``."""
@@ -314,11 +358,22 @@ class FilesMixin:
                 pass
 
     def _keep_unsaved_work(self) -> None:
-        """On exit: unsaved edits stay in the autosave (offered at the next start), else it goes."""
+        """On exit: unsaved edits stay in this editor's autosave (offered at the
+        next start), else it goes; other editors' autosaves are not touched."""
         if self.history is not None and self.history.dirty:
             try:
                 self.autosave.tick(self.autosave_project(), True, force=True)  # keep unsaved work for recovery
             except ProjectError:
                 pass
         else:
-            self.autosave.clear()
+            self.autosave.close()
+
+
+def recovery_question(rec: Recoverable, i: int = 0, n: int = 1) -> str:
+    """The start-up question about one earlier session's unsaved work."""
+    t = time.strftime("%Y-%m-%d %H:%M", time.localtime(rec.time))
+    origin, name = rec.project.origin, rec.project.document.exemplar.name
+    what = printable(os.path.basename(origin)) if origin else f"untitled ({printable(name)})"
+    count = f" ({i + 1} of {n})" if n > 1 else ""
+    return (f"An Infinitex session did not close normally. Unsaved work on {what} from {t} was kept{count}.\n"
+            "Recover it? (Keep for later: asked again at the next start.)")
