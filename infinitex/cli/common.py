@@ -252,6 +252,21 @@ def analysis_progress(quiet: bool) -> ProgressBar:
     return ProgressBar("analysis", quiet)
 
 
+DECODER_LOGGERS = ("tifffile", "imagecodecs")
+
+
+def quiet_decoder_logs() -> None:
+    """Silence what decoders log about a damaged file (tifffile logs a line
+    per bad tag through ``logging``, up to dozens before the error it raises):
+    the command's one-line error says what matters, with or without -q."""
+    import logging
+    for name in DECODER_LOGGERS:
+        log = logging.getLogger(name)
+        log.handlers[:] = [logging.NullHandler()]
+        log.propagate = False
+        log.setLevel(logging.CRITICAL + 1)
+
+
 def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
     """Run a command, turning every expected failure into one line on stderr
     and an exit code (never a traceback)."""
@@ -262,6 +277,7 @@ def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
     # Decoders' warnings about damaged files (Pillow) would add lines of their
     # own; the one-line error says what matters.
     warnings.filterwarnings("ignore", module=r"PIL(\.|$)")
+    quiet_decoder_logs()
 
     def fail(message: object, code: int) -> int:
         sys.stderr.write(f"error: {printable(message, 1000)}\n")

@@ -137,6 +137,12 @@ def run_export(argv: list[str]) -> int:
         raise CliError("--workers is 0 to 64, with --format tiles, tiff or zarr.", EXIT_USAGE)
     if args.scheduler is not None and not streamed:
         raise CliError("--scheduler goes with --format tiles, tiff or zarr.", EXIT_USAGE)
+    if args.scheduler is not None:
+        from infinitex.export.workers import check_scheduler_address
+        try:
+            args.scheduler = check_scheduler_address(args.scheduler)
+        except ValueError as exc:
+            raise CliError(str(exc), EXIT_USAGE) from None
     coords_path = None
     if args.coords and streamed:
         base = os.path.splitext(args.output)[0] + "_coords"
@@ -145,6 +151,9 @@ def run_export(argv: list[str]) -> int:
         coords_path = os.path.splitext(args.output)[0] + "_coords.png"
         check_out(coords_path, (".png",), "coordinate map")
 
+    # No output may replace a file this export reads (checked again once the maps' depths are known).
+    inputs = [args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar, args.features]
+    size = (args.toroidal, args.toroidal) if args.toroidal is not None else (w, h)
     if is_project_file(args.project):
         try:
             proj = load_project(args.project, allow_outside=args.allow_outside_exemplar)
@@ -152,10 +161,14 @@ def run_export(argv: list[str]) -> int:
             raise CliError(f"{exc} Pass --allow-outside-exemplar to read it.", EXIT_INPUT) from None
         doc, view = proj.document, proj.view
         geometry = proj.display.geometry
+        inputs += [args.project, *doc.input_paths()]
+        check_own_inputs(args, size, {role: src.name for role, src in doc.sources()}, inputs)
     else:
         from infinitex.engine.material import IMAGE, assign_roles
         try:
             found = assign_roles([args.project])
+            inputs += list(found.values())
+            check_own_inputs(args, size, {role: os.path.basename(p) for role, p in found.items()}, inputs)
             maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
             doc, view = Document(maps[0][1]), None
             if list(found) != [IMAGE]:
@@ -197,6 +210,8 @@ def run_export(argv: list[str]) -> int:
     del image
     if material is not None:
         roles = parse_maps(args.maps, material)
+        if not streamed:  # now exactly: each map's file is .png or .tif by its depth
+            check_own_inputs(args, size, {role: src.name for role, src in doc.sources()}, inputs, material)
         if streamed and len(roles) > 1:
             raise CliError("--format tiles, tiff and zarr write one map per run: add --maps ROLE "
                            f"(this material has {', '.join(material.roles)}), or use --format png.", EXIT_USAGE)
@@ -214,6 +229,9 @@ def run_export(argv: list[str]) -> int:
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features, avoid_exemplar=c.avoid)
+    if args.scheduler not in (None, "local"):
+        from infinitex.export.workers import probe_scheduler
+        probe_scheduler(args.scheduler)  # a cluster out of reach fails now, not after the analysis
     an = analyze(ex, settings, progress=analysis_progress(args.quiet))
     gpu = Gpu()
     session = LoadedDocument(gpu)
@@ -228,6 +246,66 @@ def run_export(argv: list[str]) -> int:
     finally:
         session.release()
         gpu.release()
+
+
+def check_own_inputs(args, size: tuple[int, int], sources: dict[str, str], inputs: list, material=None) -> None:
+    """Refuse, as a usage error naming the file, an export whose outputs
+    (every map's file, the coordinate map, tile sets, the Zarr store, the
+    parts folder) would replace or remove one of its ``inputs``. ``sources``:
+    {role: file name} of the maps ({"image": name} for a single image).
+    Before the maps are decoded, a map whose depth (so its file's extension)
+    is not yet known is left to the call with its ``material``."""
+    from infinitex.engine.imagefile import depth_extension
+    from infinitex.engine.material import (
+        IMAGE,
+        MaterialError,
+        export_depths,
+        map_path,
+        output_paths,
+        parse_maps,
+    )
+    from infinitex.export.window import OwnInputError, Writes, streamed_writes
+    from infinitex.export.window import check_own_inputs as check
+    single = list(sources) == [IMAGE]
+    if single:
+        roles = [IMAGE]
+    else:
+        try:
+            roles = parse_maps(args.maps, material or _Roles(sources))
+        except MaterialError:
+            return  # said where the maps are chosen
+    writes = Writes()
+    if args.format != "png":
+        for role in roles:
+            out = args.output if single else map_path(args.output, role)
+            writes.add(streamed_writes(out, args.format, size[0], size[1], args.tile, args.coords))
+    else:
+        if single:
+            writes.files.append(args.output)
+        elif material is not None:
+            try:
+                depths = export_depths(material, roles, args.depth, args.output)
+            except MaterialError:
+                return  # said by the export itself
+            writes.files += [p for _, p, _ in output_paths(args.output, roles, depths)]
+        else:  # a map from a TIFF may be 32-bit (written .tif): known once decoded
+            writes.files += [map_path(args.output, r, depth_extension(args.depth or 8)) for r in roles
+                             if args.depth or not sources[r].lower().endswith((".tif", ".tiff"))]
+        if args.coords:
+            writes.files.append(os.path.splitext(args.output)[0] + "_coords.png")
+    try:
+        check(writes, inputs)
+    except OwnInputError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
+
+
+class _Roles:
+    """The roles of a material's files before they are decoded (for parse_maps)."""
+
+    def __init__(self, sources: dict[str, str]):
+        from infinitex.engine.material import ordered
+        self.maps = dict(sources)
+        self.roles = ordered(sources)
 
 
 def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: str, role: str = "") -> int:
@@ -259,6 +337,8 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
               f"with {args.workers} worker processes" if args.workers else f"({renderer})")
         sys.stderr.write(f"{where}: {rect.w}x{rect.h} in {job.total} tiles of {args.tile} px "
                          f"({job.kept} kept from an earlier run) in {time.perf_counter() - t0:.1f} s {on}\n")
+        for note in job.notes:  # a parts folder left in place (it holds files the export did not write)
+            sys.stderr.write(f"note: {printable(note, 1000)}\n")
     return 0
 
 

@@ -104,6 +104,13 @@ def run_synth(argv: list[str]) -> int:
         check_out(args.coords, (".npy",), "coordinate map")
         if os.path.realpath(args.coords) == os.path.realpath(args.output):
             raise CliError("--coords and -o name the same file.", EXIT_USAGE)
+    from infinitex.export.window import OwnInputError, Writes, check_own_inputs
+    try:  # no output may replace a file this run reads
+        check_own_inputs(Writes(files=[p for p in (args.output, args.coords) if p]),
+                         [args.exemplar, args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar,
+                          args.features])
+    except OwnInputError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
     check_lattice_args(args)
     if args.coords and args.lattice and args.geometry != "rectified" and not args.toroidal:
         raise CliError("--coords needs --geometry rectified: in the original geometry each pixel blends "

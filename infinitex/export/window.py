@@ -2,11 +2,15 @@
 synthesized tile by tile within a time budget per step (so the editor stays
 live), then every map written atomically as PNG or TIFF at 8, 16 or 32 bits,
 optionally magnified (LH05 synthesis magnification) or in a lattice's
-original geometry."""
+original geometry; and what an export writes, checked against what it reads
+(no output may replace one of its own inputs)."""
 from __future__ import annotations
 
+import os
+import re
 import time
-from dataclasses import replace
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -14,6 +18,7 @@ from infinitex.engine.controls.lattice import original_geometry_box, render_orig
 from infinitex.engine.imagefile import write_image, write_png
 from infinitex.engine.material import MaterialError, export_depths, output_paths
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
+from infinitex.engine.safeio import printable
 from infinitex.engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
 from infinitex.engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
 
@@ -173,3 +178,180 @@ class ExportJob:
         if self.pyramid is not None:
             self.pyramid.release()
             self.pyramid = None
+
+
+# -- an export's writes and its own inputs -----------------------------------------
+
+
+class OwnInputError(ValueError):
+    """An export would write over (or remove) one of the files it reads; the
+    message is one sentence naming it."""
+
+
+MAX_SCANNED = 100_000  # folder entries looked at for hard links to an input under a tile's name
+
+
+@dataclass
+class Writes:
+    """Everything an export writes: files (written or replaced), folders
+    (a Zarr store, a parts folder: replaced or removed, so nothing inside may
+    be an input) and tile sets ``(base, cols, rows)``: the files
+    ``BASE.<UDIM>.png`` (or ``BASE_u<U>_v<V>.png``) of every tile."""
+
+    files: list[str] = field(default_factory=list)
+    folders: list[str] = field(default_factory=list)
+    tile_sets: list[tuple[str, int, int]] = field(default_factory=list)
+
+    def add(self, other: Writes) -> Writes:
+        self.files += other.files
+        self.folders += other.folders
+        self.tile_sets += other.tile_sets
+        return self
+
+
+def streamed_writes(out: str, fmt: str, w: int, h: int, tile: int, coords: bool = False) -> Writes:
+    """What a streamed export (:class:`~infinitex.export.TiledExport`) of a
+    ``w`` x ``h`` rectangle into ``out`` writes: its files or tile sets, and
+    its parts folder ``OUT.parts`` (removed once the export is complete)."""
+    base = os.path.splitext(out)[0]
+    maps = ("", "_coords") if coords and fmt != "zarr" else ("",)
+    wr = Writes(folders=[out + ".parts"])
+    if fmt == "zarr":
+        wr.folders.append(out)
+    elif fmt == "tiff":
+        wr.files += [out if not m else f"{base}{m}.tif" for m in maps]
+    else:
+        cols, rows = -(-w // tile), -(-h // tile)
+        wr.tile_sets += [(base + m, cols, rows) for m in maps]
+    return wr
+
+
+def _stat(path: str) -> os.stat_result | None:
+    try:
+        return os.stat(path)
+    except (OSError, ValueError):
+        return None
+
+
+def same_file(a: str, b: str) -> bool:
+    """Do two paths name one file: the same real path (a symbolic link to
+    it counts), or, both existing, the same device and inode (a hard link)?"""
+    try:
+        if os.path.realpath(a) == os.path.realpath(b):
+            return True
+    except (OSError, ValueError):
+        return False
+    sa = _stat(a)
+    sb = _stat(b) if sa is not None else None
+    return sb is not None and os.path.samestat(sa, sb)
+
+
+def _inside(path: str, folder: str) -> bool:
+    try:
+        real, top = os.path.realpath(path), os.path.realpath(folder)
+    except (OSError, ValueError):  # a name no file can have
+        return False
+    return real == top or real.startswith(top.rstrip(os.sep) + os.sep)
+
+
+def _same_folder(a: str, b: str) -> bool:
+    a, b = a or os.curdir, b or os.curdir
+    try:
+        if os.path.realpath(a) == os.path.realpath(b):
+            return True
+    except (OSError, ValueError):
+        return False
+    sa = _stat(a)
+    sb = _stat(b) if sa is not None else None
+    return sb is not None and os.path.samestat(sa, sb)
+
+
+def is_tile_name(name: str, stem: str, cols: int, rows: int) -> bool:
+    """Is ``name`` the file of one tile of a ``cols`` x ``rows`` set named
+    ``stem`` (formats.udim_name: ``STEM.1001.png``..., past 10 columns
+    ``STEM_u1_v1.png``...)?"""
+    if cols <= 10:
+        m = re.fullmatch(re.escape(stem) + r"\.([0-9]{4,9})\.png", name)
+        if not m:
+            return False
+        n = int(m.group(1)) - 1001
+        return n >= 0 and n % 10 < cols and n // 10 < rows and m.group(1) == str(n + 1001)
+    m = re.fullmatch(re.escape(stem) + r"_u([0-9]{1,9})_v([0-9]{1,9})\.png", name)
+    if not m:
+        return False
+    u, v = int(m.group(1)), int(m.group(2))
+    return 1 <= u <= cols and 1 <= v <= rows and m.group(0) == f"{stem}_u{u}_v{v}.png"
+
+
+def _in_tile_set(path: str, base: str, cols: int, rows: int) -> bool:
+    """Is ``path`` (or the file it links to) one of the set's tiles?"""
+    folder, stem = os.path.split(base)
+    try:
+        names = {path, os.path.realpath(path)}
+    except (OSError, ValueError):
+        return False
+    for p in names:
+        d, name = os.path.split(p)
+        if is_tile_name(name, stem, cols, rows) and _same_folder(d, folder):
+            return True
+    return False
+
+
+def _linked_tiles(base: str, cols: int, rows: int, inputs: dict[tuple[int, int], str]) -> str | None:
+    """An input that an existing file under one of the set's tile names is
+    (a symbolic or hard link to it), looked for among the first MAX_SCANNED
+    entries of the set's folder; the input's path, or None."""
+    folder, stem = os.path.split(base)
+    try:
+        with os.scandir(folder or os.curdir) as it:
+            for i, e in enumerate(it):
+                if i >= MAX_SCANNED:
+                    break
+                if is_tile_name(e.name, stem, cols, rows):
+                    st = _stat(e.path)
+                    if st is not None and (st.st_dev, st.st_ino) in inputs:
+                        return inputs[(st.st_dev, st.st_ino)]
+    except (OSError, ValueError):
+        pass
+    return None
+
+
+def check_own_inputs(writes: Writes, inputs: Iterable[str | None]) -> None:
+    """Refuse (:class:`OwnInputError`, one sentence naming the file) an export
+    that would replace or remove one of its own inputs: an output that is an
+    input (the same real path, or a link to it), an input a tile set's names
+    would produce (or a file under such a name that is a link to an input),
+    or an input inside a folder the export replaces or removes. Reads nothing
+    but names and file metadata: call it before any work."""
+    inputs = [os.fspath(p) for p in inputs if p]
+    if not inputs:
+        return
+
+    def refuse(out: str, inp: str, how: str = "") -> None:
+        name, other = os.path.basename(out), os.path.basename(inp)
+        if how:
+            msg = f"{printable(other)} is an input of this export, {how}; choose another output name."
+        elif name == other:
+            msg = f"{printable(name)} is an input of this export; choose another output name."
+        else:
+            msg = (f"{printable(name)} is the file {printable(inp)}, an input of this export; "
+                   "choose another output name.")
+        raise OwnInputError(msg)
+    for out in writes.files:
+        for inp in inputs:
+            if same_file(out, inp):
+                refuse(out, inp)
+    for folder in writes.folders:
+        for inp in inputs:
+            if _inside(inp, folder):
+                refuse(folder, inp, f"inside {printable(folder)}, which the export replaces or removes")
+    identities = {(st.st_dev, st.st_ino): p for p in inputs if (st := _stat(p)) is not None}
+    for base, cols, rows in writes.tile_sets:
+        shown = f"{printable(os.path.basename(base))}.<UDIM>.png" if cols <= 10 else \
+            f"{printable(os.path.basename(base))}_u<U>_v<V>.png"
+        for inp in inputs:
+            if _in_tile_set(inp, base, cols, rows):
+                refuse(base, inp, f"and one of the tiles {shown} would replace it")
+        hit = _linked_tiles(base, cols, rows, identities)
+        if hit is not None:
+            refuse(base, hit, f"and one of the tiles {shown} is a link to it")

@@ -7,6 +7,7 @@ objects) and return the encoded tile bytes; the exporting process writes them.
 from __future__ import annotations
 
 import os
+import re
 import secrets
 import threading
 import time
@@ -14,6 +15,7 @@ from dataclasses import dataclass, replace
 
 from infinitex.engine.analysis import analyze
 from infinitex.engine.pyramid import Rect
+from infinitex.engine.safeio import printable
 from infinitex.engine.synth import Synthesizer
 from infinitex.project import parse_project_json, project_from_json
 from infinitex.project.realize import exemplar_for, material_for
@@ -119,24 +121,130 @@ def run_pool(job, todo, workers: int, worker_init, finished) -> None:
                 raise ExportFailed("The export's worker processes keep dying (out of memory?); the finished "
                                    "tiles are kept: run the same export again to continue.")
 
-def run_dask(job, todo, scheduler: str, workers: int, worker_init, finished) -> None:
-    """Tiles as Dask tasks: the cluster reschedules those of a worker that dies."""
+SCHEDULER_TIMEOUT_S = 10.0  # the whole connection to a Dask scheduler: TCP, handshake and first reply
+_ADDRESS = re.compile(r"^(?:[Tt][Cc][Pp]://)?(?P<host>\[[0-9A-Fa-f:.]{2,45}\]|[A-Za-z0-9._-]{1,253}):(?P<port>[0-9]{1,5})$")
+_SCHEME = re.compile(r"^(?P<scheme>[A-Za-z][A-Za-z0-9+.-]{0,15})://")
+
+
+def check_scheduler_address(address: str) -> str:
+    """A Dask scheduler's address as ``tcp://HOST:PORT`` (given so, or as
+    ``HOST:PORT``), or ``"local"`` (a LocalCluster); ValueError with a sentence
+    for anything else: an empty address, another transport (tls://, ucx://,
+    inproc://, ws://... are not set up here), no port."""
+    if address == "local":
+        return address
+    text = address.strip()
+    if not text:
+        raise ValueError("--scheduler needs an address (tcp://HOST:PORT), or nothing at all for a LocalCluster; "
+                         "it is empty.")
+    m = _SCHEME.match(text)
+    if m and m.group("scheme").lower() != "tcp":
+        raise ValueError(f"The Dask scheduler address {printable(text, 80)} uses {printable(m.group('scheme'), 20)}://; "
+                         "only tcp://HOST:PORT addresses are supported.")
+    m = _ADDRESS.match(text)
+    if not m or not 1 <= int(m.group("port")) <= 65535:
+        raise ValueError(f"{printable(text, 80)} is not a Dask scheduler address: give tcp://HOST:PORT "
+                         "(e.g. tcp://10.0.0.5:8786).")
+    return f"tcp://{m.group('host')}:{int(m.group('port'))}"
+
+
+async def _identity(address: str, timeout: float) -> dict:
+    """The scheduler's identity, asked over distributed's own comm (not
+    deserializing anything but plain messages)."""
+    import asyncio
+
+    from distributed.comm import connect
+    comm = await connect(address, timeout=timeout / 2, deserialize=False)  # refused: OSError, retried half the time
+    try:
+        await comm.write({"op": "identity", "reply": True, "n_workers": 0})
+        return await asyncio.wait_for(comm.read(), timeout)
+    finally:
+        comm.abort()
+
+
+def probe_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> str:
+    """Check, within ``timeout`` seconds in all, that a Dask scheduler answers
+    at ``address`` (a port that accepts and says nothing, or answers
+    anything but Dask, is not one); returns the address as tcp://HOST:PORT.
+    ExportFailed with one sentence naming the address otherwise.
+    (``Client(address, timeout=...)`` alone waits forever for a handshake
+    that never comes, and reads an HTTP answer as a frame exabytes long.)"""
+    import asyncio
+    try:
+        address = check_scheduler_address(address)
+    except ValueError as exc:
+        raise ExportFailed(str(exc)) from None
+    shown = printable(address, 120)
+    result: dict = {}
+
+    def attempt() -> None:
+        try:
+            result["reply"] = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
+        except BaseException as exc:  # noqa: BLE001 - reported below as one sentence, in the caller's thread
+            result["error"] = exc
+    # A thread of its own: the deadline holds even for what asyncio cannot
+    # cancel (a name lookup); the thread, stuck, would end with the process.
+    thread = threading.Thread(target=attempt, name="dask-probe", daemon=True)
+    thread.start()
+    thread.join(timeout + 2.0)
+    error = result.get("error")
+    if thread.is_alive() or isinstance(error, (TimeoutError, asyncio.TimeoutError)):
+        raise ExportFailed(f"The Dask scheduler at {shown} did not answer within {timeout:g} s "
+                           "(is a Dask scheduler listening there?).")
+    if isinstance(error, OSError):  # refused, unreachable, closed
+        raise ExportFailed(f"Cannot reach the Dask scheduler at {shown}: "
+                           f"{printable(getattr(error, 'strerror', None) or error, 200)}") from None
+    reply = result.get("reply")
+    if error is not None or not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise ExportFailed(f"What answers at {shown} is not a Dask scheduler (it does not speak the Dask "
+                           "protocol); check the address and port.")
+    return address
+
+
+def _connect(scheduler: str, workers: int):
+    """(client, cluster or None): a LocalCluster's client, or a remote
+    scheduler's, connected within a bounded time; ExportFailed otherwise."""
     import logging
 
-    from distributed import Client, KilledWorker, LocalCluster, as_completed
-    from distributed.client import FutureCancelledError
-    cluster = None
-    try:
-        if scheduler == "local":
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                   processes=True, dashboard_address=None, silence_logs=logging.ERROR)
-            client = Client(cluster)
-        else:
-            client = Client(scheduler, timeout=10)
-    except (OSError, TimeoutError, ValueError) as exc:
-        if cluster is not None:
+    from distributed import Client, LocalCluster
+    if scheduler == "local":
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                               processes=True, dashboard_address=None, silence_logs=logging.ERROR)
+        try:
+            return Client(cluster), cluster
+        except BaseException:
             cluster.close()
-        raise ExportFailed(f"Cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+            raise
+    address = probe_scheduler(scheduler)
+    result: dict = {}
+
+    def attempt() -> None:
+        try:
+            result["client"] = Client(address, timeout=SCHEDULER_TIMEOUT_S)
+        except BaseException as exc:  # noqa: BLE001 - reported below as one sentence, in the caller's thread
+            result["error"] = exc
+    thread = threading.Thread(target=attempt, name="dask-connect", daemon=True)
+    thread.start()
+    thread.join(2 * SCHEDULER_TIMEOUT_S + 5.0)
+    if thread.is_alive():
+        raise ExportFailed(f"The Dask scheduler at {printable(address, 120)} answered, then did not take this "
+                           f"client within {2 * SCHEDULER_TIMEOUT_S:g} s.")
+    if "error" in result:
+        exc = result["error"]
+        raise ExportFailed(f"Cannot connect to the Dask scheduler at {printable(address, 120)}: "
+                           f"{printable(exc, 200) or type(exc).__name__}") from None
+    return result["client"], None
+
+
+def run_dask(job, todo, scheduler: str, workers: int, worker_init, finished) -> None:
+    """Tiles as Dask tasks: the cluster reschedules those of a worker that dies."""
+    from distributed import KilledWorker, as_completed
+    from distributed.client import FutureCancelledError
+    try:
+        client, cluster = _connect(scheduler, workers)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ExportFailed(f"Cannot start or reach the Dask scheduler at {printable(scheduler, 120)}: "
+                           f"{printable(exc, 200)}") from None
     try:
         init = client.scatter(worker_init, broadcast=True, hash=False)
         key = job.export_key()

@@ -13,12 +13,18 @@ import math
 import os
 import time
 
-from infinitex.engine.material import map_path
+from infinitex.engine.material import export_depths, map_path, output_paths
 from infinitex.engine.pyramid import Rect, SynthesisError
-from infinitex.engine.safeio import WriteError, check_output
-from infinitex.export import check_zarr_output
+from infinitex.engine.safeio import WriteError, check_output, printable
+from infinitex.export import check_zarr_output, udim_name
 from infinitex.export.jobs import StreamedExport
-from infinitex.export.window import ExportJob
+from infinitex.export.window import (
+    ExportJob,
+    Writes,
+    check_own_inputs,
+    same_file,
+    streamed_writes,
+)
 
 FRAME_BUDGET_S = 0.030       # synthesis time per frame: keeps the UI above 15 fps on llvmpipe
 
@@ -33,7 +39,40 @@ class ExportsMixin:
         x0, y0 = self.view.top_left(w, h)
         return Rect(math.floor(x0), math.floor(y0), math.ceil(x0 + w / self.view.zoom), math.ceil(y0 + h / self.view.zoom))
 
-    def start_export(self, path: str, rect: Rect, toroidal: int = 0) -> None:
+    def export_inputs(self) -> list[str]:
+        """The files the document was read from (exemplar, every map) and its
+        project file: no export may replace them."""
+        return [*self.doc.input_paths(), *([self.project_path] if self.project_path else [])]
+
+    def _confirm_replace(self, writes: Writes, asked: str | None, again) -> bool:
+        """True to go on; else ask first (Replace calls ``again()``) about the
+        existing files among ``writes`` the file dialog did not ask about
+        (the system's dialogs ask about the file chosen; the in-window
+        browser and the path box ask nothing; nor does any dialog ask about
+        a material's other maps or the coordinate map). A streamed export's
+        tile set is asked about only when it is not being continued."""
+        existing = [f for f in writes.files if os.path.lexists(f) and not (asked and same_file(f, asked))]
+        existing += [f for f in writes.folders if not f.endswith(".parts") and os.path.lexists(f)
+                     and not (asked and same_file(f, asked))]
+        for base, cols, rows in writes.tile_sets:
+            first = udim_name(base, 0, 0, cols)
+            if os.path.lexists(first) and not any(os.path.lexists(f) for f in writes.folders):
+                existing.append(f"{base}.<UDIM>.png" if cols <= 10 else f"{base}_u<U>_v<V>.png")
+        if not existing:
+            return True
+        names = [printable(os.path.basename(f)) for f in existing]
+        what = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+        self.dialogs.ask("Replace?", f"{what} already exist{'s' if len(names) == 1 else ''} in "
+                         f"{printable(os.path.dirname(existing[0]))}. Replace {'it' if len(names) == 1 else 'them'}?",
+                         [("Replace", again), ("Cancel", None)])
+        return False
+
+    def _asked(self, chosen: str, path: str) -> str | None:
+        """The file a system dialog asked about replacing (the name chosen, unchanged), if any."""
+        return path if self.dialogs.native and os.path.abspath(chosen) == os.path.abspath(path) else None
+
+    def start_export(self, path: str, rect: Rect, toroidal: int = 0, confirmed: bool = False) -> None:
+        chosen = path
         if not os.path.splitext(path)[1]:
             single = self.session.material is None or self.session.material.single
             path += ".tif" if self.export_depth == 32 and single else ".png"
@@ -42,6 +81,15 @@ class ExportsMixin:
             check_output(path, (".png", ".tif", ".tiff"), "export")  # before any work
             if coords:
                 check_output(coords, (".png",), "coordinate map")
+            mat = self.session.material
+            if mat is not None:  # every file the export writes: none may be one of its inputs
+                outs = [p for _, p, _ in output_paths(path, mat.roles,
+                                                      export_depths(mat, mat.roles, self.export_depth, path))]
+                writes = Writes(files=outs + ([coords] if coords else []))
+                check_own_inputs(writes, self.export_inputs())
+                if not confirmed and not self._confirm_replace(
+                        writes, self._asked(chosen, path), lambda: self.start_export(path, rect, toroidal, True)):
+                    return
             geometry = "original" if self.geometry() is not None else "rectified"  # what the canvas shows
             job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords,
                             geometry=geometry, depth=self.export_depth, magnify=1 if coords else self.export_magnify)
@@ -52,13 +100,14 @@ class ExportsMixin:
                 job.cancel()
                 raise
             self.export_job = job
-        except (SynthesisError, ValueError, WriteError) as exc:
+        except (SynthesisError, ValueError, WriteError) as exc:  # OwnInputError, MaterialError are ValueErrors
             self.dialogs.message("Export", str(exc))
 
-    def start_streamed_export(self, path: str, rect: Rect) -> None:
+    def start_streamed_export(self, path: str, rect: Rect, confirmed: bool = False) -> None:
         """A tile set or BigTIFF of ``rect``, rendered by worker processes while the editor stays live."""
         fmt = self.export_format
         ext = {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png")
+        chosen = path
         if not os.path.splitext(path)[1]:
             path += ext
         try:
@@ -68,9 +117,16 @@ class ExportsMixin:
                 check_output(path, (".tif", ".tiff") if ext == ".tif" else (".png",), "export")
             if self.write_coords and fmt != "zarr":
                 check_output(os.path.splitext(path)[0] + "_coords" + ext, (ext,), "coordinate map")
+            asked = self._asked(chosen, path)
             role = "" if self.session.material.single else self.shown_role()
             if role:  # one map per streamed export: the one shown
                 path = map_path(path, role)
+                asked = None
+            writes = streamed_writes(path, fmt, rect.w, rect.h, self.stream_tile, self.write_coords)
+            check_own_inputs(writes, self.export_inputs())
+            if not confirmed and not self._confirm_replace(
+                    writes, asked, lambda: self.start_streamed_export(path, rect, True)):
+                return
             self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.stream_tile,
                                              self.export_workers, coords=self.write_coords and fmt != "zarr",
                                              role=role)
@@ -93,6 +149,8 @@ class ExportsMixin:
                     where = " and ".join(os.path.abspath(o) for o in job.job.outputs())
                     kept = f" ({job.kept} tiles kept from an earlier run)" if job.kept else ""
                     self.notice = (f"Exported {r.w}x{r.h} to {where}{kept}", time.monotonic())
+                    if job.job.notes:  # e.g. a parts folder left in place because it held foreign files
+                        self.dialogs.message("Export finished", "\n".join(job.job.notes))
         elif self.export_job is not None:
             self.export_job.step(FRAME_BUDGET_S)
             self.screen_fbo.use()
