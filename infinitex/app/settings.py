@@ -11,12 +11,15 @@ neither GL nor imgui.
 from __future__ import annotations
 
 import os
+import stat
+import time
 from dataclasses import dataclass, replace
 
 from infinitex.engine.safeio import JSONLimitError, ReadError, WriteError, atomic_write, parse_json, read_limited
 
 RECENT_MAX = 10
 MAX_BYTES = 256 * 1024
+INI_MAX_BYTES = 1024 * 1024  # imgui.ini: a few KB in practice
 
 
 def config_dir() -> str:
@@ -30,6 +33,40 @@ def config_dir() -> str:
 
 def settings_path() -> str:
     return os.path.join(config_dir(), "settings.json")
+
+
+def check_config_file(path: str, limit: int = INI_MAX_BYTES) -> tuple[bool, str | None]:
+    """Make a config file that a library opens with a plain blocking open()
+    safe to start with (imgui's ini: hello_imgui reads it at start-up and
+    writes it on exit; a FIFO there would block the editor forever). Checked
+    without opening it: anything but a regular file of at most ``limit`` bytes
+    (or a link to one) -- a FIFO, device, socket, folder, broken link, or a
+    larger file -- is renamed aside (``NAME.set-aside-TIME``), never deleted.
+    Returns (usable, a note for the user or None); not usable (it could not be
+    set aside): leave the file off for this run."""
+    name = os.path.basename(path)
+    try:
+        st = os.stat(path)  # follows links; never opens (a FIFO cannot block here)
+    except FileNotFoundError:
+        if not os.path.islink(path):
+            return True, None
+        what = "a broken link"
+    except OSError as exc:
+        return False, f"{name} cannot be checked ({exc.strerror or exc}); the window layout is not kept this time."
+    else:
+        if stat.S_ISREG(st.st_mode) and st.st_size <= limit:
+            return True, None
+        what = ("a folder" if stat.S_ISDIR(st.st_mode) else f"larger than {limit // 1024} KB"
+                if stat.S_ISREG(st.st_mode) else "not a regular file (a FIFO, device or socket)")
+    aside = f"{path}.set-aside-{time.strftime('%Y%m%d-%H%M%S')}"
+    try:
+        if os.path.lexists(aside):
+            raise FileExistsError(aside)
+        os.rename(path, aside)
+    except OSError:
+        return False, (f"{name} in {config_dir()} is {what}; it is left alone and the window layout is not "
+                       "kept this time.")
+    return True, f"{name} in {config_dir()} was {what}; it was moved to {os.path.basename(aside)}."
 
 
 @dataclass(frozen=True)

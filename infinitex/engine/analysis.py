@@ -447,6 +447,7 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
             sims = similarity_sets(nbhd, m, h, k, ex.toroidal, settings.spacing)
         lsims = None
         if settings.lattice != (0, 0) and 0 < level <= lattice_level_limit(m, *settings.lattice):
+            report(base + 0.7 * step, f"level {level}/{L}: lattice similarity sets")
             lsims = lattice_similarity_sets(nbhd, k, *settings.lattice)
         levels.append(LevelData(stack=stack[level], feat=feat, proj=proj, shift=int(shift),
                                 nbhd=nbhd, simset=sims, lattice_simset=lsims))

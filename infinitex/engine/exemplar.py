@@ -41,6 +41,7 @@ from PIL import Image, UnidentifiedImageError
 
 from .imagefile import to_u8
 from .safeio import ReadError, printable, read_limited
+from .tiffinfo import block_bytes, is_tiff, loses_precision, quiet_libtiff
 
 MIN_SIZE = 32
 SMALL_MIN = 4                        # seamless patterns from this size up are repeated to MIN_SIZE
@@ -58,31 +59,7 @@ FORMAT_NAMES = "PNG, JPEG, BMP, TIFF, WebP, TGA, GIF, PNM, QOI, SGI or PCX"
 FIT_MODES = ("resize", "crop", "resize-2048", "crop-2048")
 
 
-def _quiet_libtiff() -> None:
-    """Stop libtiff printing warnings and errors about damaged TIFFs on stderr.
-
-    Pillow turns libtiff's failures into exceptions (which become our one-line
-    ExemplarError), but libtiff's default handlers also print lines of their own
-    to the process's stderr. Its handlers are process-wide; clearing them needs
-    the libtiff that Pillow loaded (found in /proc/self/maps, so Linux only)."""
-    try:
-        import ctypes
-
-        from PIL import TiffImagePlugin  # noqa: F401  (loads libtiff with Pillow's core)
-        with open("/proc/self/maps", encoding="utf-8", errors="replace") as f:
-            libs = {line.split()[-1] for line in f if "libtiff" in line and ".so" in line}
-        for lib in libs:
-            tiff = ctypes.CDLL(lib)
-            for name in ("TIFFSetWarningHandler", "TIFFSetErrorHandler"):
-                fn = getattr(tiff, name)
-                fn.restype = ctypes.c_void_p
-                fn.argtypes = [ctypes.c_void_p]
-                fn(None)
-    except (OSError, AttributeError, ImportError):
-        pass
-
-
-_quiet_libtiff()
+quiet_libtiff()
 
 
 class ExemplarError(ValueError):
@@ -415,7 +392,23 @@ def open_image(data: bytes, name: str) -> Image.Image:
     if w <= 0 or h <= 0:
         img.close()
         raise ExemplarError(f"{name} has no pixels.")
+    if img.format == "TIFF":
+        try:
+            check_tiff_blocks(img.tag_v2, name, len(data) + w * h * _pixel_bytes(img.mode))
+        except ExemplarError:
+            img.close()
+            raise
     return img
+
+
+def check_tiff_blocks(tags, name: str, other: int = 0) -> None:
+    """Refuse a TIFF whose tiles or strips (from its header, before any
+    decoding) would make the decoder allocate, with ``other`` bytes already
+    counted, more than IMPORT_BUDGET."""
+    block, what = block_bytes(tags)
+    if block + other > IMPORT_BUDGET:
+        raise ExemplarError(f"{name} claims {what}, so decoding it would need about {(block + other) // 2**20} MB, "
+                            f"more than the {IMPORT_BUDGET // 2**20} MB an import may use; it is not read.")
 
 
 def _decode(data: bytes, name: str, fit: str, toroidal: bool | None, source: str) -> Exemplar:
@@ -489,19 +482,18 @@ def _decode_png16(data: bytes, name: str, fit: str, toroidal: bool | None, w: in
     return _fit_decoded(px, fit, toroidal, (w, h))
 
 
-def _is_tiff(data: bytes) -> bool:
-    return data[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
-
-
 def _decode_tiff_multi(data: bytes, name: str, fit: str, toroidal: bool | None, info: dict):
-    """A TIFF Pillow cannot read (2 to 4 channels of 16-bit integers or
-    floats: float normal maps, RGB heights...) through tifffile, with the same
-    size and memory limits."""
+    """A TIFF Pillow cannot read or would read as 8 bits (2 to 4 channels of
+    16-bit integers or floats: normal maps, float heights...) through tifffile
+    at full precision, with the same size and memory limits."""
     import tifffile
     with tifffile.TiffFile(io.BytesIO(data)) as tif:
         page = tif.pages.first
         shape, dtype = tuple(page.shape), np.dtype(page.dtype)
-        if len(shape) == 3 and shape[0] <= 4 < shape[2]:
+        planar = len(shape) == 3 and int(page.planarconfig) == 2
+        if planar:  # (samples, h, w)
+            shape = (*shape[1:], shape[0])
+        elif len(shape) == 3 and shape[0] <= 4 < shape[2]:
             raise ExemplarError(f"{name}: planar (channel-first) TIFFs are not supported; save it interleaved.")
         if len(shape) not in (2, 3) or (len(shape) == 3 and not 1 <= shape[2] <= 4) \
                 or dtype.kind not in "uf" or dtype.itemsize > 8:
@@ -511,11 +503,13 @@ def _decode_tiff_multi(data: bytes, name: str, fit: str, toroidal: bool | None, 
             raise ExemplarError(f"{name} is {w}x{h} px, too large to import (at most {MAX_INPUT_PIXELS // 2**20} Mpixels).")
         c = shape[2] if len(shape) == 3 else 1
         cost = len(data) + w * h * c * (dtype.itemsize + 8 + 4) + (16 << 20)
+        check_tiff_blocks({t.code: t.value for t in page.tags.values()}, name, cost)
         if cost > IMPORT_BUDGET:
             raise ExemplarError(f"{name} ({w}x{h} px, {c} x {dtype}) would need about {cost // 2**20} MB to import, "
                                 f"more than the {IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
+        bits = int(page.bitspersample)
         a = page.asarray()
-    a = a.reshape(h, w, c)
+    a = (np.moveaxis(a.reshape(c, h, w), 0, -1) if planar else a).reshape(h, w, c)
     if dtype.kind == "f":
         if not np.all(np.isfinite(a)):
             raise ExemplarError("The exemplar holds values that are not numbers (NaN or infinity).")
@@ -524,8 +518,9 @@ def _decode_tiff_multi(data: bytes, name: str, fit: str, toroidal: bool | None, 
         px = ((a.astype(np.float64) - lo) / scale).astype(np.float32)
         info.update(depth=32, range=(lo, lo + scale))
     else:
-        top = float(np.iinfo(dtype).max) if dtype.itemsize <= 2 else max(1.0, float(a.max()))
-        px = (a / top).astype(np.float32)
+        top = float((1 << bits) - 1) if 8 < bits < 8 * dtype.itemsize or dtype.itemsize <= 2 \
+            else max(1.0, float(a.max()))
+        px = np.minimum(a / top, 1.0).astype(np.float32)
         info.update(depth=8 if dtype.itemsize == 1 else 16, range=(0.0, 1.0))
     del a
     return _fit_decoded(px, fit, toroidal, (w, h))
@@ -540,10 +535,13 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
         try:
             im0 = open_image(data, name)
         except UnidentifiedImageError:
-            if _is_tiff(data):  # a TIFF Pillow cannot read: 2 to 4 channels of 16-bit integers or floats
+            if is_tiff(data):  # a TIFF Pillow cannot read: 2 to 4 channels of 16-bit integers or floats
                 return _decode_tiff_multi(data, name, fit, toroidal, info)
             raise
         with im0:
+            if im0.format == "TIFF" and loses_precision(im0.tag_v2):  # 16-bit RGB...: Pillow reads 8 bits
+                im0.close()
+                return _decode_tiff_multi(data, name, fit, toroidal, info)
             if im0.format == "PNG" and im0.mode in ("RGB", "RGBA", "LA") and _png_bit_depth(data) == 16:
                 w, h = im0.size
                 im0.close()

@@ -44,8 +44,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from PIL import Image
 
-from .exemplar import Exemplar, ExemplarError, load_exemplar_bytes
+from .exemplar import HIRES_MAX, IMPORT_BUDGET, Exemplar, ExemplarError, crop_box, decoding, fit_rule
+from .exemplar import import_cost, load_exemplar_bytes, open_image
 from .safeio import ReadError, printable, read_limited
+from .tiffinfo import is_tiff, loses_precision, page_tags
 
 IMAGE = "image"  # the one map of a single-image exemplar
 ROLES = ("basecolor", "normal", "height", "roughness", "ao", "metallic", "opacity")
@@ -64,6 +66,7 @@ _SUFFIX = {name: role for role, names in ROLE_NAMES.items() for name in names}
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".tga", ".qoi")
 MAX_MAPS = len(ROLES)
 MAX_FOLDER_ENTRIES = 10000  # a folder with more files than this is not scanned for maps
+MATERIAL_BUDGET = 2 * IMPORT_BUDGET  # bytes a whole material's import may use (its files, one decode, the fitted maps)
 _NAME = re.compile(r"^(?P<base>.+?)[_\-. ](?P<word>[A-Za-z]+)(?:[_\-. ]\d{1,2}k)?$", re.IGNORECASE)
 
 
@@ -105,6 +108,27 @@ def _claim(found: dict[str, str], role: str, path: str) -> None:
     found[role] = path
 
 
+def check_found(full: str, folder: str, chosen: bool = False) -> None:
+    """A map found by its name in ``folder`` is read only if it is a regular
+    file (a FIFO, device, folder or broken link is an error, not skipped), and,
+    unless the user ``chosen`` it, not a link to a file outside that folder
+    (as a project's references: nothing outside is read without a word)."""
+    shown = printable(os.path.basename(full))
+    try:
+        st = os.stat(full)
+    except OSError:
+        raise MaterialError(f"The map {shown} cannot be read (a broken link, or no permission).") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise MaterialError(f"The map {shown} is a folder, not an image file.")
+    if not stat.S_ISREG(st.st_mode):
+        raise MaterialError(f"The map {shown} is not a regular file (a FIFO, device or socket); it is not read.")
+    if not chosen and os.path.islink(full):
+        real, home = os.path.realpath(full), os.path.realpath(folder)
+        if os.path.commonpath([real, home]) != home:
+            raise MaterialError(f"The map {shown} is a link to {printable(real)}, outside the material's folder; "
+                                "it is not read (choose that file itself to use it).")
+
+
 def siblings(path: str) -> dict[str, str]:
     """The maps of the material ``path`` belongs to, by the naming rule
     ({role: path}, ``path`` included); {} when its name says no role."""
@@ -113,13 +137,14 @@ def siblings(path: str) -> dict[str, str]:
         return {}
     base, _ = named
     folder = os.path.dirname(os.path.abspath(path))
+    own = os.path.basename(os.path.abspath(path))
     found: dict[str, str] = {}
     for name in _listdir(folder):
         r = role_of(name)
         if r is not None and r[0] == base:
             full = os.path.join(folder, name)
-            if os.path.isfile(full):
-                _claim(found, r[1], full)
+            check_found(full, folder, chosen=name == own)
+            _claim(found, r[1], full)
     return found
 
 
@@ -129,9 +154,10 @@ def folder_maps(folder: str) -> dict[str, str]:
     bases = set()
     for name in _listdir(folder):
         r = role_of(name)
-        full = os.path.join(folder, name)
-        if r is None or not os.path.isfile(full):
+        if r is None:
             continue
+        full = os.path.join(folder, name)
+        check_found(full, folder)
         bases.add(r[0])
         _claim(found, r[1], full)
     if not found:
@@ -144,20 +170,81 @@ def folder_maps(folder: str) -> dict[str, str]:
 
 
 def assign_roles(paths: list[str]) -> dict[str, str]:
-    """Roles of several chosen files, by the naming rule ({role: path})."""
+    """Roles of several chosen files, by the naming rule ({role: path}); the
+    files' sizes together are checked against MATERIAL_BUDGET (nothing read yet)."""
     if len(paths) == 1:
         p = paths[0]
-        if os.path.isdir(p):
-            return folder_maps(p)
-        return siblings(p) or {IMAGE: p}
-    found: dict[str, str] = {}
+        found = folder_maps(p) if os.path.isdir(p) else siblings(p) or {IMAGE: p}
+        check_total_size(found)
+        return found
+    found = {}
     for p in paths:
         r = role_of(p)
         if r is None:
             raise MaterialError(f"The name {printable(os.path.basename(p))} says no role; end it in _basecolor, "
                                 "_normal, _height, _roughness, _ao, _metallic or _opacity.")
         _claim(found, r[1], p)
+    check_total_size(found)
     return found
+
+
+def _over_budget(total: int, n: int) -> MaterialError:
+    return MaterialError(f"The {n} maps of this material would need about {total // 2**20} MB to import together, "
+                         f"more than the {MATERIAL_BUDGET // 2**20} MB a material may use; reduce them first.")
+
+
+def check_total_size(found: dict[str, str]) -> None:
+    """Refuse maps whose files together are larger than MATERIAL_BUDGET (they are
+    all held while the material is imported), before any is read."""
+    total = sum(os.stat(p).st_size for p in found.values() if os.path.isfile(p))
+    if total > MATERIAL_BUDGET:
+        raise _over_budget(total, len(found))
+
+
+def map_costs(data: bytes, name: str, fit: str) -> tuple[int, int]:
+    """(peak bytes besides the file, bytes kept afterwards) of importing one
+    map by the fit rule, from its header (nothing decoded)."""
+    with decoding(name):
+        try:
+            img = open_image(data, name)
+        except Exception as exc:
+            if isinstance(exc, ExemplarError) or not is_tiff(data):
+                raise
+            tags = page_tags(data)  # a TIFF Pillow cannot read: through tifffile
+            w, h = (max(1, int(tags.get(t, 1) or 1)) for t in (256, 257))
+            c = min(4, max(1, int(tags.get(277, 1) or 1)))
+            peak = w * h * c * (8 + 8 + 4) + (16 << 20)
+        else:
+            with img:
+                w, h = img.size
+                c = 4 if img.mode == "P" else min(4, len(img.getbands()))
+                peak = import_cost(w, h, img.mode, 0, fit, img.format or "")
+                deep = (img.format == "PNG" and data[24:25] == b"\x10") or \
+                    (img.format == "TIFF" and loses_precision(img.tag_v2))
+                if deep:  # decoded at 16 bits by imagecodecs or tifffile
+                    peak = max(peak, w * h * 4 * (2 + 4 + 4 + 4) + (16 << 20))
+    _x, _y, side = crop_box(w, h, fit)
+    limit = fit_rule(fit)[1]
+    target = min(limit, 1 << max(0, side - 1).bit_length())
+    hires = min(side, HIRES_MAX) ** 2 if side != target else 0
+    return peak, c * 4 * (target * target + hires)
+
+
+def check_budget(files: list[tuple[str, str, bytes]], fit: str) -> None:
+    """Refuse a material whose import would need more than MATERIAL_BUDGET at its
+    peak: every file (held throughout), the largest single decode and every
+    fitted map, estimated from the headers before any map is decoded."""
+    peaks, kept = [0], 0
+    for role, name, data in files:
+        try:
+            p, k = map_costs(data, printable(os.path.basename(name)), fit)
+        except ExemplarError as exc:
+            raise MaterialError(f"The {ROLE_LABELS[role].lower()} map: {exc}") from None
+        peaks.append(p)
+        kept += k
+    total = sum(len(d) for _, _, d in files) + max(peaks) + kept
+    if total > MATERIAL_BUDGET:
+        raise _over_budget(total, len(files))
 
 
 def ordered(roles) -> list[str]:
@@ -394,6 +481,7 @@ def load_material(files: list[tuple[str, str, bytes]], fit: str = "resize", toro
     if IMAGE in roles and len(roles) > 1:
         raise MaterialError("A single image cannot be combined with other maps; give it a role.")
     files = sorted(files, key=lambda f: -1 if f[0] == IMAGE else ROLES.index(f[0]))
+    check_budget(files, fit)
     maps: dict[str, MaterialMap] = {}
     first_name, first_size = "", None
     for role, name, data in files:

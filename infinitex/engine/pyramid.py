@@ -22,6 +22,7 @@ import numpy as np
 
 from . import fixed
 from .controls import NO_CONTROLS, Controls
+from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis
 from .params import SynthParams, correction_margins, subpass_order
 from .similarity import border_margin
@@ -113,6 +114,31 @@ def set_uniforms(prog: moderngl.Program, **values) -> None:
 
 def _next_pow2(n: int) -> int:
     return 1 << max(0, (int(n) - 1).bit_length())
+
+
+def feature_textures(gpu: Gpu, controls: Controls, an, l: int, region: Rect, period: int, dummy) -> tuple[list, dict]:
+    """The features active over ``region`` (level l) as the shader reads
+    them (Controls.feature_lookup), bound to units 3 (table), 6 (cells) and
+    7 (their lists; ``dummy`` when there are none); the textures (to release)
+    and the uniforms."""
+    found = controls.feature_lookup(l, an.L, an.size, an.toroidal, region.x0, region.y0, region.x1, region.y1,
+                                    period)
+    uni = dict(features=3, fcells=6, fentries=7, nfeat=0, fcell_origin=(0, 0), fcell_dims=(1, 1), fcell_shift=0)
+    if found is None:
+        for unit in (3, 6, 7):
+            dummy.use(unit)
+        return [], uni
+    table, cells, entries, origin, shift = found
+    arrays = [(pack_rows(table, TABLE_ROW).reshape(-1, 2 * TABLE_ROW, 4), 4), (cells, 2),
+              (pack_rows(entries, ENTRY_ROW), 1)]
+    texs = []
+    for unit, (arr, comps) in zip((3, 6, 7), arrays):
+        tex = gpu.ctx.texture((arr.shape[1], arr.shape[0]), comps, np.ascontiguousarray(arr).tobytes(), dtype="i4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.use(unit)
+        texs.append(tex)
+    uni.update(nfeat=len(table), fcell_origin=origin, fcell_dims=(cells.shape[1], cells.shape[0]), fcell_shift=shift)
+    return texs, uni
 
 
 class _LevelBuffer:
@@ -400,14 +426,7 @@ class Pyramid:
             assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
             parent.tex.use(0)
             set_uniforms(prog, parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
-        feats = self.controls.feature_table(l, an.L, an.size, an.toroidal, region.x0, region.y0,
-                                            region.x1, region.y1, p.level_period(l))
-        ftex = None
-        if feats is not None:
-            ftex = self.gpu.ctx.texture((2, feats.shape[0]), 4, feats.tobytes(), dtype="i4")
-            ftex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        (ftex or self._dummy_i).use(3)
-        nfeat = 0 if feats is None else feats.shape[0]
+        ftexs, funi = feature_textures(self.gpu, self.controls, an, l, region, p.level_period(l), self._dummy_i)
         efield = self._efield_texture(l)
         (efield or self._dummy).use(1)
         cvals = None
@@ -420,8 +439,7 @@ class Pyramid:
         set_uniforms(prog, has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
                      m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
                      period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
-                     cfield=2, has_cfield=int(ctex is not None), features=3, nfeat=nfeat,
-                     lattice_shift=lshift or (-1, -1))
+                     cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi)
         fa.use()
         fa.viewport = (0, 0, region.w, region.h)
         vao.render(moderngl.TRIANGLES)
@@ -460,17 +478,18 @@ class Pyramid:
         # Write the exact strip back, split where the buffer wraps.
         prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
         a.use(0)
-        (ftex or self._dummy_i).use(3)
+        for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
+            tex.use(unit)
         set_uniforms(prog, src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
-                     h=h, m=an.size, period=p.level_period(l), features=3, nfeat=nfeat)
+                     h=h, m=an.size, period=p.level_period(l), **funi)
         buf.fbo.use()
         for piece in self._texel_pieces(buf, strip):
             g0, t0, w, hh = piece
             set_uniforms(prog, region_g0=g0, region_t0=t0)
             buf.fbo.viewport = (t0[0], t0[1], w, hh)
             vao.render(moderngl.TRIANGLES)
-        if ftex is not None:
-            ftex.release()
+        for tex in ftexs:
+            tex.release()
         return region.w * region.h
 
     def _efield_texture(self, l: int):

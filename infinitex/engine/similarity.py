@@ -97,7 +97,12 @@ def lattice_similarity_sets(desc: np.ndarray, k: int, nx: int, ny: int) -> np.nd
     ``u + (i m/nx, j m/ny) mod m`` (exact integer distances between the
     projected neighborhoods; ties go to the first offset in (j, i) order);
     missing entries (a 1x1 block) repeat u. The rectified exemplar is
-    toroidal by construction, so every such position is usable."""
+    toroidal by construction, so every such position is usable.
+
+    The positions u + cells form classes of nx*ny texels; the distances within
+    a class come from one Gram matrix (BLAS, exact: integers below 2^53), a
+    batch of classes at a time, so 16 x 16 cells cost a matrix product instead
+    of 255 passes over the exemplar."""
     m = desc.shape[0]
     cx, cy = m // nx, m // ny
     ys, xs = np.mgrid[0:m, 0:m]
@@ -106,22 +111,28 @@ def lattice_similarity_sets(desc: np.ndarray, k: int, nx: int, ny: int) -> np.nd
     offsets = np.array([(i * cx, j * cy) for j in range(ny) for i in range(nx) if i or j], dtype=np.int64)
     if k == 1 or len(offsets) == 0:
         return out.astype(np.int16)
-    d64 = desc.astype(np.int64)
+    P, D = nx * ny, desc.shape[2]
     K = min(k - 1, len(offsets))
-    big = np.iinfo(np.int64).max
-    bd = np.full((m, m, K), big, dtype=np.int64)   # best distances, ascending
-    bo = np.zeros((m, m, K), dtype=np.int64)       # their offset indices
-    for n, (ox, oy) in enumerate(offsets):
-        d = ((np.roll(d64, shift=(-oy, -ox), axis=(0, 1)) - d64) ** 2).sum(axis=-1)
-        pos = (bd <= d[..., None]).sum(axis=-1)  # after equal entries: earlier offsets win ties
-        for s_ in range(K - 1, -1, -1):
-            shift_in = (pos < s_)
-            put = pos == s_
-            if s_ > 0:
-                bd[..., s_] = np.where(shift_in, bd[..., s_ - 1], np.where(put, d, bd[..., s_]))
-                bo[..., s_] = np.where(shift_in, bo[..., s_ - 1], np.where(put, n, bo[..., s_]))
-            else:
-                bd[..., 0] = np.where(put, d, bd[..., 0])
-                bo[..., 0] = np.where(put, n, bo[..., 0])
+    # Class c = (y mod cy) * cx + x mod cx; member a = (y // cy) * nx + x // cx.
+    X = desc.astype(np.float64).reshape(ny, cy, nx, cx, D).transpose(1, 3, 0, 2, 4).reshape(cy * cx, P, D)
+    jm, im = np.divmod(np.arange(P), nx)
+    # Per class, key[a, b] = P (|x_b|^2 - 2 x_a.x_b) + (the offset from a to b in
+    # (j, i) order): |x_a - x_b|^2 less |x_a|^2 (the same for all b), scaled so
+    # the offset breaks ties. One matrix product of integers below 2^53: exact.
+    order = (((jm[None, :] - jm[:, None]) % ny) * nx + (im[None, :] - im[:, None]) % nx).astype(np.float64)
+    order[np.arange(P), np.arange(P)] = np.inf  # a itself is C^1
+    rows = np.concatenate([-2.0 * P * X, np.ones((*X.shape[:2], 1))], axis=2)
+    cols = np.ascontiguousarray(np.concatenate([X, P * (X * X).sum(axis=-1, keepdims=True)], axis=2).transpose(0, 2, 1))
+    bo = np.empty((cy * cx, P, K), dtype=np.int64)
+    step = max(1, (1 << 22) // (P * P))
+    for c0 in range(0, cy * cx, step):
+        key = np.matmul(rows[c0:c0 + step], cols[c0:c0 + step])
+        key += order
+        for slot in range(K):  # the K smallest: distinct keys, so ties go to the first offset
+            best = np.argmin(key, axis=2)
+            bo[c0:c0 + step, :, slot] = order[np.arange(P)[None, :], best] - 1
+            if slot + 1 < K:
+                np.put_along_axis(key, best[:, :, None], np.inf, axis=2)
+    bo = bo.reshape(cy, cx, ny, nx, K).transpose(2, 0, 3, 1, 4).reshape(m, m, K)
     out[:, :, 1:1 + K] = (ident[:, :, None, :] + offsets[bo]) % m
     return out.astype(np.int16)

@@ -37,7 +37,7 @@ from infinitex.project import Autosave, Display, History, View
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay
 from ..session import Frame, Session, frame_for
-from ..settings import config_dir, load_settings, save_settings
+from ..settings import check_config_file, config_dir, load_settings, save_settings
 from . import panels
 from .canvas_input import CanvasInputMixin
 from .dialogs import Dialogs
@@ -146,6 +146,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             p.ini_disable = True
         p.ini_folder_type = hello_imgui.IniFolderType.absolute_path
         p.ini_filename = os.path.join(config_dir(), "imgui.ini")
+        if not p.ini_disable:  # hello_imgui opens it blocking: nothing but a small regular file there
+            usable, note = check_config_file(p.ini_filename)
+            p.ini_disable = not usable
+            if note:
+                self.notice = (note, time.monotonic())
         p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
         # Idle means idle: with nothing to refine and no job, the runner waits for
         # events (input wakes it at once) and draws one frame every few seconds

@@ -47,6 +47,8 @@ from .features import (
     MAX_FEATURE_RADIUS,
     MAX_FEATURES,
     Feature,
+    feature_arrays,
+    feature_bins,
     features_from_json,
     features_to_json,
     fit_features,
@@ -68,8 +70,8 @@ from .lattice import Lattice
 __all__ = [
     "Controls", "NO_CONTROLS", "NEUTRAL", "TILE", "CanvasField", "ExemplarArray", "ExemplarField", "ExemplarMask",
     "Feature", "FEATURE_CELL", "MAX_FEATURE_RADIUS", "MAX_FEATURES", "Lattice", "apply_dab", "dab_rect",
-    "dab_weights", "features_from_json", "features_to_json", "fit_features", "modulated_rq",
-    "reduce_toward_neutral",
+    "dab_weights", "feature_arrays", "feature_bins", "features_from_json", "features_to_json", "fit_features",
+    "modulated_rq", "reduce_toward_neutral",
 ]
 
 
@@ -88,8 +90,11 @@ class Controls:
         e = self.randomness_exemplar
         c = self.randomness_canvas
         a = self.avoid
-        return Controls(None if e is None or e.neutral else e, None if c is None or c.neutral else c,
-                        tuple(self.features), self.lattice, None if a is None or a.empty else a)
+        out = (None if e is None or e.neutral else e, None if c is None or c.neutral else c,
+               tuple(self.features), self.lattice, None if a is None or a.empty else a)
+        if all(x is y for x, y in zip(out, (e, c, self.features, self.lattice, a))):
+            return self  # already normalized: keep what is cached (the features' arrays)
+        return Controls(*out)
 
     def exemplar_inputs(self) -> tuple:
         """What is painted over the exemplar (randomness field, avoid mask): a
@@ -117,13 +122,23 @@ class Controls:
         if a is not None and a.full:
             raise ValueError("The avoid mask covers the whole exemplar: leave some of it usable.")
         L = m.bit_length() - 1
-        for f in self.features:
-            f.validate(m, L)
+        if self.features:
+            f = self._features
+            levels = (f[:, 8] == 1) & ((f[:, 4] < 0) | (f[:, 4] > f[:, 5]) | (f[:, 5] > L))
+            bad = ((f[:, 6:8] < 0) | (f[:, 6:8] >= m)).any(axis=1) | (f[:, 2] < 0) | (f[:, 2] > f[:, 3]) \
+                | (f[:, 3] > MAX_FEATURE_RADIUS) | levels
+            for i in np.flatnonzero(bad)[:1]:
+                self.features[i].validate(m, L)  # its sentence
+
+    @cached_property
+    def _features(self) -> np.ndarray:
+        """The features as int64 arrays (feature_arrays), computed once."""
+        return feature_arrays(self.features)
 
     @cached_property
     def features_key(self) -> str:
         import hashlib
-        return hashlib.sha256(repr(self.features).encode()).hexdigest()
+        return hashlib.sha256(self._features.tobytes() + repr(self._features.shape).encode()).hexdigest()
 
     def level_signature(self, level: int, m: int = 0) -> tuple:
         """What level ``level`` reads of the controls (fields change all levels)."""
@@ -133,57 +148,55 @@ class Controls:
                 None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)),
                 None if self.avoid is None else self.avoid.key)
 
-    @cached_property
-    def _feature_index(self) -> dict:
-        """Spatial index: FEATURE_CELL-sized canvas cells -> feature indices."""
-        index: dict = {}
-        for i, f in enumerate(self.features):
-            x0, y0, x1, y1 = f.bbox()
-            for cy in range(y0 // FEATURE_CELL, (y1 - 1) // FEATURE_CELL + 1):
-                for cx in range(x0 // FEATURE_CELL, (x1 - 1) // FEATURE_CELL + 1):
-                    index.setdefault((cx, cy), []).append(i)
-        return index
+    def _meeting(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+        """Indices (ascending) of the features whose reach (Feature.bbox) meets a finest-level rectangle."""
+        f = self._features
+        r = f[:, 3] + 2
+        return np.flatnonzero((f[:, 0] - r < x1) & (x0 < f[:, 0] + r + 1) & (f[:, 1] - r < y1) & (y0 < f[:, 1] + r + 1))
 
     def features_in(self, x0: int, y0: int, x1: int, y1: int) -> list[int]:
         """Indices (in order) of the features whose reach meets a finest-level rectangle."""
-        if not self.features:
-            return []
-        index = self._feature_index
-        cells = ((x1 - 1) // FEATURE_CELL - x0 // FEATURE_CELL + 1) * ((y1 - 1) // FEATURE_CELL - y0 // FEATURE_CELL + 1)
-        if cells > len(index):
-            found = {i for lst in index.values() for i in lst}
-        else:
-            found = set()
-            for cy in range(y0 // FEATURE_CELL, (y1 - 1) // FEATURE_CELL + 1):
-                for cx in range(x0 // FEATURE_CELL, (x1 - 1) // FEATURE_CELL + 1):
-                    found.update(index.get((cx, cy), ()))
-        out = []
-        for i in sorted(found):
-            fx0, fy0, fx1, fy1 = self.features[i].bbox()
-            if fx0 < x1 and x0 < fx1 and fy0 < y1 and y0 < fy1:
-                out.append(i)
-        return out
+        return self._meeting(x0, y0, x1, y1).tolist() if self.features else []
 
     def feature_table(self, level: int, L: int, m: int, toroidal: bool, x0: int, y0: int, x1: int, y1: int,
                       period: int = 0) -> np.ndarray | None:
         """The features active at ``level`` over a level-pixel rectangle, as the
         int32 (N, 2, 4) table the passes read: (p_F,l x, y, frac x + 16 frac y,
         radius in 1/16 level pixels), (u_F x, y, 0, 0); None when there are none.
-        With a period (a toroidal tile) every feature applies, modulo the tile."""
+        With a period (a toroidal tile) every feature applies, modulo the tile.
+        Computed on arrays (Feature.level_range, radius_at and clamped, for all at once)."""
+        if not self.features:
+            return None
         k = L - level
-        rows = []
-        found = range(len(self.features)) if period else self.features_in(x0 << k, y0 << k, x1 << k, y1 << k)
-        for i in found:
-            f = self.features[i]
-            a, b = f.level_range(L)
-            if not a <= level <= b:
-                continue
-            f = f.clamped(m, toroidal)
-            r16 = (f.radius_at(level, L) << 4) >> k
-            px, py = f.canvas
-            fx, fy = ((px << 4) >> k) & 15, ((py << 4) >> k) & 15
-            rows.append([[px >> k, py >> k, fx + 16 * fy, r16], [f.exemplar[0], f.exemplar[1], 0, 0]])
-        return np.asarray(rows, dtype=np.int32) if rows else None
+        f = self._features if period else self._features[self._meeting(x0 << k, y0 << k, x1 << k, y1 << k)]
+        first = np.where(f[:, 8] == 1, f[:, 4], 0)  # Feature.level_range
+        last = np.where(f[:, 8] == 1, f[:, 5], max(0, L - 2))
+        f, first, last = (a[(first <= level) & (level <= last)] for a in (f, first, last))
+        if not len(f):
+            return None
+        inner, outer = f[:, 2], f[:, 3]
+        radius = outer - ((outer - inner) * (level - first)) // np.maximum(1, last - first)
+        u = f[:, 6:8]
+        if not toroidal:  # Feature.clamped: the copied disc does not wrap across the exemplar's border
+            r = outer[:, None]
+            u = np.where(2 * r + 1 >= m, m // 2, np.minimum(np.maximum(u, r), m - 1 - r))
+        px, py = f[:, 0], f[:, 1]
+        table = np.zeros((len(f), 2, 4), dtype=np.int32)
+        table[:, 0] = np.stack([px >> k, py >> k, (((px << 4) >> k) & 15) + 16 * (((py << 4) >> k) & 15),
+                                (radius << 4) >> k], axis=-1)
+        table[:, 1, :2] = u
+        return table
+
+    def feature_lookup(self, level: int, L: int, m: int, toroidal: bool, x0: int, y0: int, x1: int, y1: int,
+                       period: int = 0):
+        """What the shader reads of the features over a strip: (feature_table,
+        then feature_bins' cells, entries, origin and shift), or None when none
+        is active there. A pixel then tests only the features whose reach meets
+        its cell: the cost follows the features a strip touches."""
+        table = self.feature_table(level, L, m, toroidal, x0, y0, x1, y1, period)
+        if table is None:
+            return None
+        return (table, *feature_bins(table, x0, y0, x1 - x0, y1 - y0, period))
 
     def changed_rects(self, other: Controls) -> list | None:
         """Finest-level rectangles outside which ``other`` reads the same as this

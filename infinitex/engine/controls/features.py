@@ -4,8 +4,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 MAX_FEATURE_RADIUS = 2047   # finest-level pixels: keeps the integer geometry inside 32 bits
-FEATURE_CELL = 256          # spatial index cell, finest-level pixels
+FEATURE_CELL = 256          # (no longer used: the features are found by their arrays, see feature_arrays)
+BIN_SHIFT = 2               # the shader's cells: 4 x 4 level pixels at first (coarser if the lists get too long)
+MAX_BIN_ENTRIES = 1 << 21   # entries of the cells' feature lists per strip (then the cells grow)
+MAX_BIN_CELLS = 1 << 20     # cells per strip (a large tile's strip gets larger cells)
+TABLE_ROW = 512             # features per row of the table texture (2 texels each)
+ENTRY_ROW = 4096            # entries per row of the cell lists' texture
 
 
 @dataclass(frozen=True)
@@ -112,3 +119,77 @@ def fit_features(features, m: int) -> tuple[Feature, ...]:
         lv = None if f.levels is None else (min(f.levels[0], L), min(f.levels[1], L))
         out.append(f if (u, lv) == (f.exemplar, f.levels) else replace(f, exemplar=u, levels=lv))
     return tuple(out)
+
+
+def feature_arrays(features) -> np.ndarray:
+    """int64 (N, 9): canvas x, y, inner, outer, first and last level, exemplar
+    x, y, and 1 if the levels are given (0: the default range) of each feature, in order."""
+    return np.array([(*f.canvas, f.inner, f.outer, *(f.levels or (0, 0)), *f.exemplar, f.levels is not None)
+                     for f in features], dtype=np.int64).reshape(-1, 9)
+
+
+def _intervals(p: np.ndarray, lim: np.ndarray, origin: int, size: int, shift: int, period: int):
+    """Per feature, the cells (first, last; two intervals, the second possibly
+    empty) along one axis whose pixels g may satisfy |g - p| <= lim (with a
+    period: the offset wrapped as the shader wraps it, and g taken mod period)."""
+    n = max(1, -(-size // (1 << shift)))
+    if not period:
+        a, b = p - lim - origin, p + lim - origin
+        return [((np.clip(a >> shift, 0, n - 1), np.minimum(b >> shift, n - 1)), (b >= 0) & (a < size))], n
+    q = (p - lim) & (period - 1)
+    whole = 2 * lim + 1 >= period
+    end = q + 2 * lim
+    first = (np.where(whole, 0, q >> shift), np.where(whole | (end >= period), n - 1, end >> shift))
+    second = (np.zeros_like(q), (end - period) >> shift)
+    return [(first, np.ones(len(p), bool)), (second, ~whole & (end >= period))], n
+
+
+def feature_bins(table: np.ndarray, x0: int, y0: int, w: int, h: int, period: int = 0):
+    """The cells of the shader's feature lookup over a strip of level pixels
+    [x0, x0+w) x [y0, y0+h) (with a period: over the period, the pixels taken
+    mod period): per cell, the rows of ``table`` (feature_table's) whose reach
+    (the shader's ``|d| <= r/16 + 2`` square) meets it, in table order, so a
+    pixel tests only the features that can touch it (later features still
+    win). Returns (cells int32 (ny, nx, 2): first entry and count; entries
+    int32 (E,); origin (x, y); shift: a cell is 2^shift level pixels)."""
+    p = table[:, 0, :2].astype(np.int64)
+    lim = (table[:, 0, 3].astype(np.int64) >> 4) + 2
+    ox, oy = (0, 0) if period else (x0, y0)
+    sw, sh = (period, period) if period else (w, h)
+    shift = min(BIN_SHIFT, 30)  # GLSL shifts stay below 32
+    while True:
+        xs, nx = _intervals(p[:, 0], lim, ox, sw, shift, period)
+        ys, ny = _intervals(p[:, 1], lim, oy, sh, shift, period)
+        if nx * ny > MAX_BIN_CELLS and shift < 30:
+            shift += 1
+            continue
+        rects = []
+        for (xa, xb), xok in xs:
+            for (ya, yb), yok in ys:
+                ok = xok & yok & (xa <= xb) & (ya <= yb)
+                idx = np.flatnonzero(ok)
+                rects.append((idx, xa[idx], xb[idx], ya[idx], yb[idx]))
+        total = sum(int(((xb - xa + 1) * (yb - ya + 1)).sum()) for _, xa, xb, ya, yb in rects)
+        if total <= max(MAX_BIN_ENTRIES, 4 * len(table)) or nx * ny == 1 or shift >= 30:
+            break
+        shift += 1
+    row, xa, xb, ya, yb = (np.concatenate(a) for a in zip(*rects))
+    cw = xb - xa + 1
+    count = cw * (yb - ya + 1)
+    owner = np.repeat(np.arange(len(row)), count)
+    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    cell = (ya[owner] + local // cw[owner]) * nx + xa[owner] + local % cw[owner]
+    key = np.sort(cell * len(table) + row[owner])  # by cell, then table order
+    key = key[np.r_[True, key[1:] != key[:-1]]] if len(key) else key  # a cell meets a period's copies once
+    cell, entries = key // len(table), (key % len(table)).astype(np.int32)
+    counts = np.bincount(cell, minlength=nx * ny)
+    cells = np.stack([np.cumsum(counts) - counts, counts], axis=-1).astype(np.int32).reshape(ny, nx, 2)
+    return cells, entries, (ox, oy), shift
+
+
+def pack_rows(a: np.ndarray, per_row: int) -> np.ndarray:
+    """A list of items (N, ...) as rows of ``per_row`` items, zero-padded: a texture's layout."""
+    rows = max(1, -(-len(a) // per_row))
+    out = np.zeros((rows * per_row, *a.shape[1:]), dtype=a.dtype)
+    out[:len(a)] = a
+    return out.reshape(rows, per_row, *a.shape[1:])

@@ -10,8 +10,15 @@ from functools import cached_property
 
 import numpy as np
 
+from ..exemplar import ExemplarError
+
 NEUTRAL = 32768
 TILE = 64  # canvas field tile side, finest-level pixels
+MAX_FIELD_TILES = 65536  # tiles a canvas map may cover (a 16384 x 16384 px area); as the project loader's cap
+
+
+class FieldTooLarge(ExemplarError):
+    """A canvas randomness map that would cover more than MAX_FIELD_TILES tiles; one sentence."""
 
 
 def reduce_toward_neutral(a: np.ndarray) -> np.ndarray:
@@ -160,9 +167,14 @@ class CanvasField:
 
     @classmethod
     def from_image(cls, values: np.ndarray, x: int, y: int) -> CanvasField:
-        """A painted region (uint16 H x W) placed with its top-left at canvas (x, y)."""
+        """A painted region (uint16 H x W) placed with its top-left at canvas (x, y).
+        FieldTooLarge, before any tile is made, if it would cover more than MAX_FIELD_TILES tiles."""
         values = _u16(values)
         h, w = values.shape
+        count = ((x + w - 1) // TILE - x // TILE + 1) * ((y + h - 1) // TILE - y // TILE + 1)
+        if count > MAX_FIELD_TILES:
+            raise FieldTooLarge(f"The canvas randomness map ({w}x{h} px) would cover {count} tiles of {TILE}x{TILE} "
+                                f"px; at most {MAX_FIELD_TILES} are allowed (about 16384 x 16384 px).")
         tiles = {}
         for ty in range(y // TILE, (y + h - 1) // TILE + 1):
             for tx in range(x // TILE, (x + w - 1) // TILE + 1):

@@ -8,27 +8,46 @@ import os
 import numpy as np
 from PIL import Image
 
-from ..exemplar import MAX_FILE_BYTES, ExemplarError, crop_box, decoding, open_image
+from ..exemplar import IMPORT_BUDGET, MAX_FILE_BYTES, ExemplarError, crop_box, decoding, open_image
 from ..safeio import ReadError, printable, read_limited
+
+
+def field_map_cost(w: int, h: int, mode: str, file_bytes: int) -> int:
+    """An upper bound of the bytes reading a w x h map needs at its peak: the
+    file, the decoded image (4 bytes a pixel at most), its conversion to one
+    8-bit or 32-bit band, and the uint16 values (plus a margin)."""
+    return file_bytes + w * h * (4 + 4 + 4 + 2) + (16 << 20)
 
 
 def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
     """A grayscale randomness map as uint16 field values (1/32768ths): 8-bit
     M = value / 128 (0 calm, 128 neutral, 255 almost 2), 16-bit M = value / 32768.
-    Color images are read as their luminance. Same safeguards as exemplars."""
+    Color images are read as their luminance. Same safeguards as exemplars:
+    regular files only, the size and the decoder's tiles or strips checked from
+    the header, and the cost of reading it against IMPORT_BUDGET, before decoding."""
     name = f"The {what} {printable(os.path.basename(path) or path)}"
     try:
         data = read_limited(path, MAX_FILE_BYTES, "image")
     except ReadError as exc:
         raise ExemplarError(f"The {what}: {exc}") from None
     with decoding(name), open_image(data, name) as img:
+        w, h = img.size
+        cost = field_map_cost(w, h, img.mode, len(data))
+        if cost > IMPORT_BUDGET:
+            raise ExemplarError(f"{name} ({w}x{h} px) would need about {cost // 2**20} MB to read, more than the "
+                                f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
         img.load()
         if img.mode.startswith("I;16") or img.mode == "I":
-            return np.clip(np.asarray(img).astype(np.int64), 0, 65535).astype(np.uint16)
+            a = np.asarray(img)
+            if a.dtype.kind == "u" and a.dtype.itemsize == 2:
+                return np.ascontiguousarray(a, dtype=np.uint16)
+            return np.clip(a, 0, 65535).astype(np.uint16)
         if img.mode in ("LAB", "HSV", "CMYK", "YCbCr"):
             img = img.convert("RGB")
         g = img if img.mode == "L" else img.convert("L")
-        return np.ascontiguousarray((np.asarray(g).astype(np.uint32) * 256).astype(np.uint16))
+        values = np.asarray(g).astype(np.uint16)
+        values *= 256
+        return values
 
 
 def fit_field_map(values: np.ndarray, fit: str, m: int) -> np.ndarray:

@@ -43,16 +43,31 @@ int modulated_rq(int rq, uint E, uint C) {
 }
 
 // Placed features (engine/controls/features.py Feature, LH05 4.3). Table texture, one
-// row per feature: (p_F,l.x, p_F,l.y, frac.x + 16 frac.y, radius in 1/16 level
-// pixels), (u_F.x, u_F.y, -, -). A pixel whose center lies within the radius
-// takes S = (u_F + h (g - p_F,l)) mod m; later features win. With a period n
-// (toroidal output) offsets wrap modulo n.
+// row per feature (2 texels, TABLE_ROW = 512 rows a texture row): (p_F,l.x, p_F,l.y,
+// frac.x + 16 frac.y, radius in 1/16 level pixels), (u_F.x, u_F.y, -, -). A pixel whose
+// center lies within the radius takes S = (u_F + h (g - p_F,l)) mod m; later features
+// win. With a period n (toroidal output) offsets wrap modulo n. A pixel tests only the
+// features listed for its cell (features.py feature_bins: 2^fcell_shift level pixels
+// from fcell_origin, or of g mod n with a period), in table order: the same result as
+// testing them all, at the cost of the features that reach it.
 uniform int nfeat;
 uniform isampler2D features;
+uniform isampler2D fcells;      // per cell: (first entry, count)
+uniform isampler2D fentries;    // the cells' lists of table rows, ENTRY_ROW = 4096 a texture row
+uniform ivec2 fcell_origin;
+uniform ivec2 fcell_dims;
+uniform int fcell_shift;
 
 ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
-    for (int i = 0; i < nfeat; i++) {
-        ivec4 a = texelFetch(features, ivec2(0, i), 0);
+    if (nfeat == 0) {
+        return s;
+    }
+    ivec2 q = period > 0 ? (g & (period - 1)) : g - fcell_origin;
+    ivec2 cell = texelFetch(fcells, clamp(q >> fcell_shift, ivec2(0), fcell_dims - 1), 0).xy;
+    for (int j = cell.x; j < cell.x + cell.y; j++) {
+        int i = texelFetch(fentries, ivec2(j & 4095, j >> 12), 0).x;
+        ivec2 row = ivec2(2 * (i & 511), i >> 9);
+        ivec4 a = texelFetch(features, row, 0);
         ivec2 d = g - a.xy;
         if (period > 0) {
             d = ((d + period / 2) & (period - 1)) - period / 2;
@@ -63,7 +78,7 @@ ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
         }
         ivec2 d16 = d * 16 + 8 - ivec2(a.z & 15, a.z >> 4);
         if (d16.x * d16.x + d16.y * d16.y <= a.w * a.w) {
-            s = (texelFetch(features, ivec2(1, i), 0).xy + h * d) & (m - 1);
+            s = (texelFetch(features, row + ivec2(1, 0), 0).xy + h * d) & (m - 1);
         }
     }
     return s;
