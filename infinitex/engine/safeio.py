@@ -173,7 +173,7 @@ def parse_json(raw: bytes, max_depth: int, max_digits: int = 18) -> object:
 # -- writing -------------------------------------------------------------------
 
 
-def _read_umask() -> int:
+def read_umask() -> int:
     """The process umask, without changing it where /proc tells it (os.umask()
     is a set-and-restore, racy with other threads creating files)."""
     try:
@@ -188,7 +188,7 @@ def _read_umask() -> int:
     return m
 
 
-_UMASK = _read_umask()
+_UMASK = read_umask()
 
 
 def _existing(real: str, shown: str) -> os.stat_result | None:

@@ -255,15 +255,7 @@ def _inside(path: str, folder: str) -> bool:
 
 
 def _same_folder(a: str, b: str) -> bool:
-    a, b = a or os.curdir, b or os.curdir
-    try:
-        if os.path.realpath(a) == os.path.realpath(b):
-            return True
-    except (OSError, ValueError):
-        return False
-    sa = _stat(a)
-    sb = _stat(b) if sa is not None else None
-    return sb is not None and os.path.samestat(sa, sb)
+    return same_file(a or os.curdir, b or os.curdir)
 
 
 def is_tile_name(name: str, stem: str, cols: int, rows: int) -> bool:

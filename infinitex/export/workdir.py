@@ -27,7 +27,7 @@ import secrets
 import shutil
 import stat
 
-from infinitex.engine.safeio import TMP_SUFFIX, WriteError, printable
+from infinitex.engine.safeio import TMP_SUFFIX, WriteError, printable, read_umask
 
 _O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 _O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
@@ -37,20 +37,7 @@ _TEMP = re.compile(r"^\..*\.(\d+)\.[0-9a-f]{12}" + re.escape(TMP_SUFFIX) + r"$")
 _PLAIN_NAME = re.compile(r"^[^/\x00]+$")
 
 
-def _umask() -> int:
-    try:
-        with open("/proc/self/status", encoding="ascii", errors="replace") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    m = os.umask(0o022)
-    os.umask(m)
-    return m
-
-
-FILE_MODE = 0o666 & ~_umask()  # what an ordinary write gives a new output file
+FILE_MODE = 0o666 & ~read_umask()  # what an ordinary write gives a new output file
 
 
 def _alive(pid: int) -> bool:

@@ -253,7 +253,7 @@ def test_atomic_write_gives_ordinary_permissions_and_follows_links(tmp_path, mon
     import infinitex.engine.safeio as sio
     old = os.umask(0o027)
     try:
-        assert sio._read_umask() == 0o027  # read without changing it
+        assert sio.read_umask() == 0o027  # read without changing it
         monkeypatch.setattr(sio, "_UMASK", 0o027)  # it is read once, at import
         atomic_write(str(tmp_path / "new.png"), b"a")
         assert stat.S_IMODE(os.stat(tmp_path / "new.png").st_mode) == 0o640
