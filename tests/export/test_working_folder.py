@@ -4,17 +4,16 @@ untrusted. Each test plants what the issue describes (links to files and
 folders outside, FIFOs, garbage listed with its true size and hash) and checks
 that nothing outside changed, the output is the right one (or the export was
 refused in one line before any work) and it ended in bounded time."""
-import contextlib
 import hashlib
 import json
 import os
-import signal
 import stat
 import subprocess
 import sys
 import zlib
 
 import numpy as np
+import fuzzing
 import pytest
 import tifffile
 
@@ -42,21 +41,6 @@ def synth(gpu):
 @pytest.fixture(scope="module")
 def whole(synth):
     return to_u8(synth.colors(synth.window(RECT)))
-
-
-@contextlib.contextmanager
-def bounded(seconds: float):
-    """Fail (instead of hanging) when the body runs past ``seconds``: SIGALRM
-    interrupts even an open() blocked on a FIFO."""
-    def on_alarm(_sig, _frame):
-        raise TimeoutError(f"still running after {seconds} s")
-    old = signal.signal(signal.SIGALRM, on_alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def snapshot(folder) -> dict:
@@ -349,7 +333,7 @@ def test_a_fifo_at_a_listed_tile_does_not_block_the_export(synth, whole, tmp_pat
     os.unlink(tile)
     os.mkfifo(tile)  # listed in the manifest, now a FIFO: no writer will ever come
     again = job(synth, out, fmt)
-    with bounded(300):
+    with fuzzing.time_limit(300):  # fails (Hang) instead of blocking on the FIFO
         again.run()
     assert again.kept == 3 and again.rendered == 1
     if fmt == "tiff":
