@@ -13,7 +13,7 @@ from infinitex.engine import fixed
 from infinitex.engine.analysis import Analysis
 from infinitex.engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
 from infinitex.engine.similarity import border_margin
-from infinitex.engine.params import SynthParams, subpass_order
+from infinitex.engine.params import FIDELITY_RADIUS, FIDELITY_SEARCH, SynthParams, subpass_order
 
 
 def field_values(controls: Controls, an: Analysis, params: SynthParams, level: int,
@@ -211,6 +211,70 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     return out
 
 
+def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
+                     params: SynthParams, level: int, controls: Controls = NO_CONTROLS,
+                     subpass: int = 0) -> np.ndarray:
+    """One subpass of the fidelity stage, from its definition (fidelity.frag's
+    header): every candidate's whole patch cost, no early exit, no deduplication."""
+    s, R = params.subgrid, FIDELITY_RADIUS
+    h, m = an.h(level), an.size
+    H, W = S.shape[:2]
+    E = fixed.quantized_colors(an.levels[level].stack)
+    ys, xs = np.mgrid[0:H, 0:W]
+    sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
+    ys, xs = ys[sel], xs[sel]
+
+    def s_at(dx, dy):
+        return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
+
+    patch = [(dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1) if (dx, dy) != (0, 0)]
+    nb = {d: E[s_at(*d)[:, 1], s_at(*d)[:, 0]] for d in patch}
+    border = -1 if an.toroidal else border_margin(m, h)
+
+    def inside(u):
+        return (u & (m - 1)) if border < 0 else np.clip(u, border, m - 1 - border)
+
+    def cost(u):
+        c = np.zeros(len(u), np.int64)
+        for dx, dy in patch:
+            t = u + h * np.array([dx, dy])
+            t = (t & (m - 1)) if border < 0 else np.clip(t, 0, m - 1)
+            e = nb[(dx, dy)] - E[t[:, 1], t[:, 0]]
+            c += (e * e).sum(axis=1)
+        if controls.avoid is not None:
+            c = np.where(controls.avoid.values[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, c)
+        return c
+
+    best_u = S[ys, xs].astype(np.int64)
+    best = cost(best_u)
+
+    def consider(u):
+        nonlocal best, best_u
+        c = cost(u)
+        better = c < best
+        best = np.where(better, c, best)
+        best_u = np.where(better[:, None], u, best_u)
+
+    for dx, dy in fixed.CANDIDATE_OFFSETS:
+        if (dx, dy) != (0, 0):
+            consider(inside(s_at(dx, dy) - h * np.array([dx, dy])))
+    if controls.lattice_shift(m, level) is None:
+        gx, gy = xs + origin[0], ys + origin[1]
+        period = params.level_period(level)
+        if period:
+            gx, gy = gx & (period - 1), gy & (period - 1)
+        fseed = fixed.fidelity_seed(params.seed, subpass)
+        for t in range(FIDELITY_SEARCH):
+            radius = (m >> 2) >> t
+            if radius < 2:
+                break
+            ox, oy = fixed.walk_offsets(gx, gy, level, fseed, t, radius)
+            consider(inside(best_u + np.stack([ox, oy], axis=1)))
+    out = S.copy()
+    out[ys, xs] = best_u
+    return out
+
+
 def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int,
                level: int | None = None, uncorrected_level: int | None = None,
                controls: Controls = NO_CONTROLS) -> np.ndarray:
@@ -224,7 +288,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
     wins = {}
     x0, y0, x1, y1 = x, y, x + w, y + h
     for l in range(level, -1, -1):
-        p = params.passes_at(l) * s * s * fixed.read_radius(an.model)
+        p = (params.passes_at(l) * fixed.read_radius(an.model) + params.fidelity_at(l) * FIDELITY_RADIUS) * s * s
         a = 2 * s
         wx0, wy0 = ((x0 - p) // a) * a, ((y0 - p) // a) * a
         wx1, wy1 = -((-(x1 + p)) // a) * a, -((-(y1 + p)) // a) * a
@@ -240,6 +304,9 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
                 for phase in order:
                     S = correct_subpass(S, phase, (wx0, wy0), an, params, l, controls, n_sub)
                     n_sub += 1
+        if l != uncorrected_level and params.fidelity_at(l):
+            for n_sub, phase in enumerate(ph for order in subpass_order(s, params.fidelity_at(l)) for ph in order):
+                S = fidelity_subpass(S, phase, (wx0, wy0), an, params, l, controls, n_sub)
         S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction (writeback)
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]

@@ -111,6 +111,20 @@ def walk_seed(seed: int, subpass: int) -> int:
         return int(lowbias32(np.uint32((seed ^ ((subpass + 1) * 0x85EBCA6B)) & 0xFFFFFFFF)))
 
 
+FIDELITY_SALT = 0x6A09E667  # keeps the fidelity stage's random search apart from the correction's walk
+
+
+def fidelity_seed(seed: int, subpass: int) -> int:
+    """The seed of the fidelity stage's random search in its subpass number ``subpass``."""
+    return walk_seed((seed ^ FIDELITY_SALT) & 0xFFFFFFFF, subpass)
+
+
+def quantized_colors(stack: np.ndarray) -> np.ndarray:
+    """A level's colors as the fidelity stage compares them: (m, m, C <= 4) integers
+    in [0, 255] (the first 4 channels, clipped to [0, 1])."""
+    return np.rint(np.clip(stack[:, :, :4], 0.0, 1.0) * 255.0).astype(np.int64)
+
+
 def walk_offsets(gx: np.ndarray, gy: np.ndarray, level: int, wseed: int, t: int, radius: int):
     """Step t's offset of the random walk, in [-radius, radius) per axis, as the correction shader computes it."""
     hx, hy = hash2(gx, gy, level, (wseed + t * WALK_STEP) & 0xFFFFFFFF)

@@ -143,10 +143,24 @@ class LevelTextures:
         # Row r of the projection -> uniform P[2r] (dims 0-3), P[2r+1] (dims 4-7).
         self.proj = np.ascontiguousarray(lv.proj, dtype=np.int32).tobytes()
         self.shift = lv.shift
+        self._gpu, self._stack = gpu, lv.stack
+        self._colors = None
+
+    @property
+    def colors(self):
+        """E_l as the fidelity stage reads it (fixed.quantized_colors, RGBA8UI), uploaded on first use."""
+        if self._colors is None:
+            q = fixed.quantized_colors(self._stack)
+            rgba = np.zeros(q.shape[:2] + (4,), np.uint8)
+            rgba[:, :, :q.shape[2]] = q
+            self._colors = self._gpu.ctx.texture((q.shape[1], q.shape[0]), 4, rgba.tobytes(), dtype="u1")
+            self._colors.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return self._colors
 
     def release(self) -> None:
-        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []):
-            t.release()
+        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []) + [self._colors]:
+            if t is not None:
+                t.release()
 
 
 def _sim_textures(gpu: Gpu, simset: np.ndarray) -> list:

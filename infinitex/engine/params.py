@@ -9,6 +9,12 @@ DEFAULT_JITTER = 0.6
 # TBN10 random-walk steps when the analysis has no similarity sets (k = 0).
 DEFAULT_WALK = 6
 FIRST_CORRECTED_LEVEL = 3  # LH05: correction is skipped on levels 0-2
+# The fidelity stage (discrete patch optimization, shaders/fidelity.frag): patches
+# of (2 FIDELITY_RADIUS + 1)^2 level pixels, FIDELITY_SEARCH random candidates
+# around the best (radius m/4, halved each step) after the 8 neighbors' predictions.
+FIDELITY_RADIUS = 3
+FIDELITY_SEARCH = 4
+MAX_FIDELITY = 6
 
 
 @dataclass(frozen=True)
@@ -33,6 +39,7 @@ class SynthParams:
                                # None: DEFAULT_WALK without similarity sets (k = 0), else off
     level_passes: tuple[int, ...] | None = None  # correction passes per level, coarse to fine (0: not corrected);
                                                  # overrides `passes` and `corrected`; None: `passes` on `corrected`
+    fidelity: tuple[int, ...] | None = None  # fidelity-stage iterations per level, coarse to fine (None: none)
 
     @classmethod
     def default(cls, levels: int, **kw) -> "SynthParams":
@@ -53,6 +60,12 @@ class SynthParams:
         if self.level_passes is not None:
             return int(self.level_passes[level]) if 0 <= level < len(self.level_passes) else 0
         return int(self.passes) if level in self.corrected_levels() else 0
+
+    def fidelity_at(self, level: int) -> int:
+        """Iterations of the fidelity stage on ``level`` (0: none)."""
+        if self.fidelity is None or not 0 <= level < len(self.fidelity):
+            return 0
+        return int(self.fidelity[level])
 
     def corrected_levels(self) -> frozenset[int]:
         """The levels chosen for correction (whatever their pass counts)."""
@@ -79,6 +92,12 @@ class SynthParams:
                                  f"got {len(self.level_passes)}.")
             if not all(0 <= int(c) <= 8 for c in self.level_passes):
                 raise ValueError("Correction passes must be between 0 and 8 on every level.")
+        if self.fidelity is not None:
+            if len(self.fidelity) != levels + 1:
+                raise ValueError(f"Expected {levels + 1} fidelity iteration counts (one per level), "
+                                 f"got {len(self.fidelity)}.")
+            if not all(0 <= int(c) <= MAX_FIDELITY for c in self.fidelity):
+                raise ValueError(f"Fidelity iterations must be between 0 and {MAX_FIDELITY} on every level.")
         if self.walk is not None and not 0 <= self.walk <= 12:
             raise ValueError("Random-walk steps must be between 0 and 12.")
         if not 1 <= self.subgrid <= 4:
@@ -108,8 +127,44 @@ class SynthParams:
     def level_signature(self, level: int) -> tuple:
         """What level ``level`` itself depends on (beyond coarser levels)."""
         corr = level in self.correcting_levels()
+        fid = self.fidelity_at(level)
         return (self.jitter[level], self.seed, self.level_period(level), corr,
-                (self.passes_at(level), self.subgrid, self.kappa, self.walk) if corr else None)
+                (self.passes_at(level), self.subgrid, self.kappa, self.walk) if corr else None,
+                (fid, self.subgrid) if fid else None)
+
+
+# "Structure / Variety" (a document setting): 0 is the per-pixel synthesis alone
+# (most variety); each step up runs the fidelity stage more, for textures whose
+# elements must come out whole (weaves, cells, text, bricks). Per preset: the
+# stage's iterations per level from the finest (the last count repeats down to
+# FIRST_CORRECTED_LEVEL) and the factor on the fine levels' randomness.
+STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
+STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
+STRUCTURE_PRESETS = (
+    ((), 1.0),
+    ((1, 1, 2, 2), 1.0),
+    ((2, 2, 2, 2), 1.0),
+    ((3, 3, 3, 3), 1.0),
+    ((3, 3, 3, 3), 0.5),
+)
+STRUCTURE_FINE_LEVELS = 3  # the levels whose randomness a preset scales
+DEFAULT_STRUCTURE = 2
+
+
+def structure_params(params: SynthParams, structure: int) -> SynthParams:
+    """``params`` with the fidelity stage and fine randomness of a Structure preset
+    (0: ``params`` unchanged)."""
+    if not 0 <= int(structure) < STRUCTURE_LEVELS:
+        raise ValueError(f"Structure must be from 0 ({STRUCTURE_NAMES[0]}) to {STRUCTURE_LEVELS - 1} "
+                         f"({STRUCTURE_NAMES[-1]}).")
+    counts, factor = STRUCTURE_PRESETS[int(structure)]
+    if not counts:
+        return params
+    L = params.L
+    fid = tuple(counts[min(L - l, len(counts) - 1)] if l >= min(FIRST_CORRECTED_LEVEL, L) else 0
+                for l in range(L + 1))
+    jitter = tuple(r * factor if l > L - STRUCTURE_FINE_LEVELS else r for l, r in enumerate(params.jitter))
+    return replace(params, fidelity=fid, jitter=jitter)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:
@@ -129,22 +184,26 @@ def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:
     return out
 
 
-def correction_margins(s: int, passes: int, radius: int) -> tuple[int, int, int, int]:
+def correction_margins(s: int, passes: int, radius: int,
+                       stages: tuple[tuple[int, int], ...] = ()) -> tuple[int, int, int, int]:
     """Exact padding (left, right, top, bottom) a region needs so that after all
-    subpasses its interior is independent of what lies outside (LH05 3.4).
+    subpasses its interior is independent of what lies outside (LH05 3.4):
+    ``passes`` correction passes reading ``radius`` around each pixel, then each
+    further stage of ``stages`` as (passes, radius) (the fidelity stage).
 
     Tracks, per phase, how far from each side of the (s-aligned) buffer its
     pixels are exact; a rewritten pixel is exact once everything it reads is.
     """
     phases = [(i, j) for j in range(s) for i in range(s)]
     margin = {ph: [0, 0, 0, 0] for ph in phases}
-    foot = [(dx, dy) for dy in range(-radius, radius + 1) for dx in range(-radius, radius + 1)]
-    for order in subpass_order(s, passes):
-        for ph in order:
-            new = [0, 0, 0, 0]
-            for dx, dy in foot:
-                other = margin[((ph[0] + dx) % s, (ph[1] + dy) % s)]
-                new = [max(new[0], other[0] - dx), max(new[1], other[1] + dx),
-                       max(new[2], other[2] - dy), max(new[3], other[3] + dy)]
-            margin[ph] = new
+    for n, r in ((passes, radius),) + tuple(stages):
+        foot = [(dx, dy) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
+        for order in subpass_order(s, n):
+            for ph in order:
+                new = [0, 0, 0, 0]
+                for dx, dy in foot:
+                    other = margin[((ph[0] + dx) % s, (ph[1] + dy) % s)]
+                    new = [max(new[0], other[0] - dx), max(new[1], other[1] + dx),
+                           max(new[2], other[2] - dy), max(new[3], other[3] + dy)]
+                margin[ph] = new
     return tuple(max(margin[ph][i] for ph in phases) for i in range(4))

@@ -24,7 +24,7 @@ from . import fixed
 from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis
-from .params import SynthParams, correction_margins, subpass_order
+from .params import FIDELITY_RADIUS, FIDELITY_SEARCH, SynthParams, correction_margins, subpass_order
 from .similarity import border_margin
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
@@ -207,8 +207,9 @@ class Pyramid:
         self._signatures = self._level_signatures()
         self.corrected = params.correcting_levels()
         radius = fixed.read_radius(self.an.model)
-        self.margins = [correction_margins(params.subgrid, params.passes_at(l), radius) if l in self.corrected
-                        else (0, 0, 0, 0) for l in range(self.an.L + 1)]
+        self.margins = [correction_margins(params.subgrid, params.passes_at(l), radius,
+                                           ((params.fidelity_at(l), FIDELITY_RADIUS),))
+                        for l in range(self.an.L + 1)]
         if old is None:
             return
         first = next((l for l in range(self.an.L + 1) if old[l] != self._signatures[l]), None)
@@ -446,7 +447,7 @@ class Pyramid:
         if ctex is not None:
             ctex.release()
 
-        # Correction subpasses, ping-ponging a <-> b.
+        # Correction subpasses, then the fidelity stage's, on scratch a.
         if l in self.corrected:
             lt = self.gan.level(l)
             prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
@@ -464,16 +465,10 @@ class Pyramid:
             set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
                          border=-1 if an.toroidal else border_margin(an.size, h),
                          avoid=5, has_avoid=int(avoid is not None))
-            n_sub = 0
-            for order in subpass_order(s, p.passes_at(l)):
-                for phase in order:
-                    a.use(0)
-                    set_uniforms(prog, active_phase=phase, walk_seed=fixed.walk_seed(p.seed, n_sub))
-                    n_sub += 1
-                    fb.use()
-                    fb.viewport = (0, 0, region.w, region.h)
-                    vao.render(moderngl.TRIANGLES)
-                    a, fa, b, fb = b, fb, a, fa
+            self._subpasses(prog, vao, subpass_order(s, p.passes_at(l)), qdims, (a, fa, b, fb),
+                            lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
+        if p.fidelity_at(l):
+            self._fidelity(l, region, qdims, lshift is not None, (a, fa, b, fb))
 
         # Write the exact strip back, split where the buffer wraps.
         prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
@@ -491,6 +486,45 @@ class Pyramid:
         for tex in ftexs:
             tex.release()
         return region.w * region.h
+
+    def _subpasses(self, prog, vao, orders, qdims, scratch, per_subpass) -> None:
+        """Run the subpasses of ``orders`` (lists of phases) over the packed state
+        in scratch ``a`` of ``scratch`` = (a, its framebuffer, b, b's): each
+        renders only its phase's block into b (reading all of a), which is then
+        copied back into a, so a pass computes each pixel once.
+        ``per_subpass(n)``: the uniforms of subpass number n."""
+        a, fa, b, fb = scratch
+        copy, copy_vao = self.gpu.program("copy.frag", SUB_S=self.params.subgrid)
+        n_sub = 0
+        for order in orders:
+            for phase in order:
+                block = (phase[0] * qdims[0], phase[1] * qdims[1], qdims[0], qdims[1])
+                a.use(0)
+                set_uniforms(prog, active_phase=phase, **per_subpass(n_sub))
+                n_sub += 1
+                fb.use()
+                fb.viewport = block
+                vao.render(moderngl.TRIANGLES)
+                b.use(0)
+                set_uniforms(copy, src=0)
+                fa.use()
+                fa.viewport = block
+                copy_vao.render(moderngl.TRIANGLES)
+
+    def _fidelity(self, l: int, region: Rect, qdims: tuple[int, int], lattice: bool, scratch) -> None:
+        """The fidelity stage's subpasses on the scratch pair (as _subpasses)."""
+        p, an = self.params, self.an
+        prog, vao = self.gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=FIDELITY_RADIUS,
+                                     FID_SEARCH=FIDELITY_SEARCH)
+        self.gan.level(l).colors.use(1)
+        avoid = self._avoid_texture()
+        (avoid or self._dummy).use(5)
+        set_uniforms(prog, src=0, colors=1, avoid=5, has_avoid=int(avoid is not None),
+                     dims=(region.w, region.h), qdims=qdims, h=an.h(l), m=an.size,
+                     border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
+                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
+        self._subpasses(prog, vao, subpass_order(p.subgrid, p.fidelity_at(l)), qdims, scratch,
+                        lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})
 
     def _efield_texture(self, l: int):
         e = self.controls.randomness_exemplar

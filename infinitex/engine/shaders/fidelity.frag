@@ -1,0 +1,116 @@
+// One subpass of the fidelity stage: discrete texture optimization over whole
+// patches (Kwatra et al. 2005, Han et al. 2006), on a quadrant-packed scratch
+// buffer. Only the block of phase `active_phase` is rendered (pyramid.py
+// _subpasses); each of its pixels p, with N(q) = E_l[S[q]] (8-bit colors), takes
+//   among the candidates u: S[p] itself, then the predictions of its 8 neighbors
+//     S[p + d] - h d (row-major), then FID_SEARCH random samples around the best
+//     so far (radius m/4 halved each step, below 2 stops; offsets hashed from the
+//     global position mod the period, the level, the seed and the subpass),
+//   the first of least cost(u) = sum over d in [-R, R]^2, d != 0, of
+//     ||N(p + d) - E_l[u + h d]||^2   (a u inside the avoid mask: never better).
+// On a non-toroidal exemplar (border >= 0) predictions and samples are clamped
+// to [border, m-1-border] and exemplar patches read clamped to [0, m-1]; on
+// lattice levels (no_search = 1) only the predictions are tried.
+// Integer sums (at most 4 * 255^2 * 80 < 2^25), so the result is exact; skipping
+// a candidate already tried and stopping a sum once it reaches the best cannot
+// change it (costs only grow as taps are added, and ties keep the first).
+
+uniform isampler2D src;       // current state, packed
+uniform usampler2D colors;    // E_l as engine/fixed.py quantized_colors (RGBA8UI), m x m
+uniform ivec2 dims;
+uniform ivec2 qdims;
+uniform ivec2 active_phase;
+uniform int h;
+uniform int m;
+uniform int border;           // < 0: toroidal exemplar
+uniform ivec2 origin;         // global level-l position of scratch pixel (0, 0)
+uniform int level;
+uniform int period;           // n_l, or 0
+uniform uint search_seed;     // engine/fixed.py fidelity_seed
+uniform int no_search;
+uniform int has_avoid;
+uniform usampler2D avoid;     // m x m, 1 = avoid
+
+const int R = FID_RADIUS;
+const int SIDE = 2 * R + 1;
+const int NT = SIDE * SIDE;
+const int NCAND = 9 + FID_SEARCH;
+const uint AVOIDED = 0xfffffffeu;
+
+out ivec4 result;
+
+ivec2 fetch_s(ivec2 p) {
+    return texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0).xy;
+}
+
+ivec2 exemplar_tap(ivec2 u) {
+    return border < 0 ? (u & (m - 1)) : clamp(u, ivec2(0), ivec2(m - 1));
+}
+
+ivec2 keep_inside(ivec2 u) {
+    return border < 0 ? (u & (m - 1)) : clamp(u, ivec2(border), ivec2(m - 1 - border));
+}
+
+ivec4 nb[NT];  // N(p + d), row-major over the patch (the centre unused)
+
+uint patch_cost(ivec2 u, uint limit) {
+    uint cost = 0u;
+    for (int t = 0; t < NT; ++t) {
+        if (t == NT / 2) continue;
+        ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
+        ivec4 e = nb[t] - ivec4(texelFetch(colors, exemplar_tap(u + h * d), 0));
+        ivec4 sq = e * e;
+        cost += uint(sq.x + sq.y + sq.z + sq.w);
+        if (cost >= limit) return limit;  // cannot win: stop early
+    }
+    return cost;
+}
+
+void main() {
+    ivec2 X = ivec2(gl_FragCoord.xy);
+    ivec2 phase = X / qdims;
+    ivec4 here = texelFetch(src, X, 0);
+    if (phase != active_phase) {
+        result = here;
+        return;
+    }
+    ivec2 p = (X - phase * qdims) * SUB_S + phase;
+    for (int t = 0; t < NT; ++t) {
+        ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
+        nb[t] = t == NT / 2 ? ivec4(0) : ivec4(texelFetch(colors, fetch_s(p + d), 0));
+    }
+    ivec2 tried[NCAND];
+    int ntried = 0;
+    ivec2 best_u = here.xy;
+    uint best = (has_avoid != 0 && texelFetch(avoid, best_u, 0).r != 0u) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
+    tried[ntried++] = best_u;
+    for (int j = 0; j < NCAND; ++j) {
+        ivec2 u;
+        if (j < 9) {
+            if (j == 4) continue;
+            ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
+            u = keep_inside(fetch_s(p + d) - h * d);
+        } else {
+            if (no_search != 0) break;
+            int Rs = (m >> 2) >> (j - 9);
+            if (Rs < 2) break;
+            ivec2 g = origin + p;
+            if (period > 0) g &= period - 1;
+            ivec2 H = hash2(g, level, search_seed + uint(j - 9) * 0x9E3779B9u);  // in [-1024, 1024)
+            u = keep_inside(best_u + floor_shift(ivec4(H * Rs, 0, 0), 10).xy);  // offset in [-Rs, Rs)
+        }
+        bool seen = false;
+        for (int i = 0; i < ntried; ++i) {
+            seen = seen || tried[i] == u;
+        }
+        if (seen) continue;  // the same cost again: it cannot be better
+        tried[ntried++] = u;
+        if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) continue;
+        uint c = patch_cost(u, best);
+        if (c < best) {
+            best = c;
+            best_u = u;
+        }
+    }
+    result = ivec4(best_u, 0, 0);
+}
