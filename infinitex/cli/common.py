@@ -51,6 +51,28 @@ def jitter_arg(text: str) -> list[float]:
     return vals
 
 
+def structure_arg(text: str) -> int:
+    """A Structure preset: its number (0 to 4) or its name (variety, light, balanced, strong, maximum)."""
+    from infinitex.engine.params import STRUCTURE_NAMES
+    names = [n.lower() for n in STRUCTURE_NAMES]
+    t = text.strip().lower()
+    if t in names:
+        return names.index(t)
+    if t.isdigit() and int(t) < len(names):
+        return int(t)
+    raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a Structure preset: use 0 to {len(names) - 1} "
+                                     f"or {', '.join(names)}")
+
+
+def add_structure_arg(p: argparse.ArgumentParser, default) -> None:
+    from infinitex.engine.params import DEFAULT_STRUCTURE, STRUCTURE_NAMES
+    names = ", ".join(f"{i} {n.lower()}" for i, n in enumerate(STRUCTURE_NAMES))
+    p.add_argument("--fidelity", type=structure_arg, default=default, metavar="PRESET",
+                   help=f"Structure / Variety: how hard the synthesis keeps the exemplar's elements whole ({names}; "
+                        + (f"default {DEFAULT_STRUCTURE}, {STRUCTURE_NAMES[DEFAULT_STRUCTURE].lower()})"
+                           if default is not None else "default: the project's own)"))
+
+
 def passes_arg(text: str) -> list[int]:
     try:
         if len(text) > 64:

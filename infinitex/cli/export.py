@@ -21,6 +21,7 @@ from .common import (
     ProgressBar,
     add_lattice_args,
     add_randomness_args,
+    add_structure_arg,
     analysis_progress,
     check_lattice_args,
     check_out,
@@ -79,6 +80,7 @@ def build_parser() -> Parser:
                         "worker that dies are rendered again elsewhere")
     add_randomness_args(p)
     add_lattice_args(p)
+    add_structure_arg(p, None)
     p.add_argument("--allow-outside-exemplar", action="store_true",
                    help="read an exemplar the project refers to outside the project's folder")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -178,6 +180,8 @@ def run_export(argv: list[str]) -> int:
             geometry = "original"
         except ReadError as exc:
             raise CliError(str(exc), EXIT_INPUT) from None
+    if args.fidelity is not None:
+        doc = replace(doc, structure=args.fidelity)
     if args.rect:
         rect, tor = Rect.of(x, y, w, h), 0
     elif args.toroidal is not None:

@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from infinitex.engine.exemplar import FIT_MODES
+from infinitex.engine.params import DEFAULT_STRUCTURE, structure_params
 from infinitex.engine.safeio import atomic_write, printable
 from infinitex.engine.synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
 
@@ -26,6 +27,7 @@ from .common import (
     Parser,
     add_lattice_args,
     add_randomness_args,
+    add_structure_arg,
     analysis_progress,
     check_lattice_args,
     check_out,
@@ -67,6 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--walk", type=integer, default=None, metavar="N",
                    help="TBN10 random-walk steps added to each correction (0 to 12; default: 6 when the "
                         "analysis has no similarity sets, --k 0 or an exemplar over 512 px, else 0)")
+    add_structure_arg(p, DEFAULT_STRUCTURE)
     p.add_argument("--fit", choices=FIT_MODES, default="resize",
                    help="how a non power-of-two or non-square image becomes the exemplar: resize or crop to at "
                         "most 512 px, or with -2048 to at most 2048 px (large photos)")
@@ -157,8 +160,8 @@ def run_synth(argv: list[str]) -> int:
         raise CliError(str(exc), EXIT_USAGE) from None
     an = analyze(ex, settings, use_cache=not args.no_cache, progress=analysis_progress(args.quiet))
     try:
-        params = replace(params, seed=args.seed, passes=args.passes[0], level_passes=level_passes,
-                         kappa=args.kappa, walk=args.walk)
+        params = structure_params(replace(params, seed=args.seed, passes=args.passes[0], level_passes=level_passes,
+                                          kappa=args.kappa, walk=args.walk), args.fidelity)
         params.validate(an.L)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None

@@ -28,7 +28,7 @@ from infinitex.engine.controls import (
 from infinitex.engine.controls.lattice import Lattice, LatticeError
 from infinitex.engine.exemplar import FIT_MODES, MAX_FILE_BYTES
 from infinitex.engine.material import IMAGE, ROLES
-from infinitex.engine.params import DEFAULT_JITTER, SynthParams
+from infinitex.engine.params import DEFAULT_JITTER, DEFAULT_STRUCTURE, STRUCTURE_LEVELS, SynthParams, structure_params
 from infinitex.engine.safeio import (
     read_limited,
 )
@@ -91,6 +91,7 @@ class Document:
     subgrid: int = 2
     kappa: float = 0.5
     corrected: tuple[int, ...] | None = None
+    structure: int = DEFAULT_STRUCTURE  # Structure / Variety preset (engine/params.py STRUCTURE_NAMES)
     randomness_exemplar: ExemplarField | None = None   # painted over the exemplar (m x m)
     avoid_exemplar: ExemplarMask | None = None         # exemplar regions the synthesis does not copy (m x m)
     randomness_canvas: CanvasField | None = None       # painted over the canvas (sparse tiles)
@@ -173,8 +174,9 @@ class Document:
     def params(self, L: int) -> SynthParams:
         corrected = None if self.corrected is None else tuple(l for l in self.corrected if l <= L)
         level_passes = self.passes_for(L) if self.level_passes else None
-        return SynthParams(jitter=self.jitter_for(L), seed=self.seed, passes=self.passes,
+        base = SynthParams(jitter=self.jitter_for(L), seed=self.seed, passes=self.passes,
                            subgrid=self.subgrid, kappa=self.kappa, corrected=corrected, level_passes=level_passes)
+        return structure_params(base, self.structure)
 
     def with_jitter(self, L: int, level: int, value: float) -> Document:
         j = list(self.jitter_for(L))
@@ -200,6 +202,8 @@ class Document:
             raise ProjectError("Randomness values must lie between 0 and 1.")
         if self.avoid_exemplar is not None and self.avoid_exemplar.full:
             raise ProjectError("The avoided regions cover the whole exemplar: leave some of it usable.")
+        if not 0 <= self.structure < STRUCTURE_LEVELS:
+            raise ProjectError(f"Structure must be a preset from 0 to {STRUCTURE_LEVELS - 1}.")
         if len(self.level_passes) > MAX_LEVELS or any(not 0 <= c <= 8 for c in self.level_passes):
             raise ProjectError(f"Correction passes per level must be at most {MAX_LEVELS} counts from 0 to 8.")
         try:

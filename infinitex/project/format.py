@@ -29,6 +29,7 @@ from infinitex.engine.controls import (
 from infinitex.engine.controls.lattice import Lattice, LatticeError
 from infinitex.engine.exemplar import MAX_FILE_BYTES, MAX_SIZE
 from infinitex.engine.material import IMAGE, ROLES
+from infinitex.engine.params import STRUCTURE_LEVELS
 from infinitex.engine.safeio import (
     JSONLimitError,
     ReadError,
@@ -55,7 +56,7 @@ from .document import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 5              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); files without them are written as 1
+VERSION = 6              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
@@ -153,7 +154,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+        "version": 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
             2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
@@ -170,6 +171,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
             **({"level_passes": list(doc.level_passes)} if doc.level_passes else {}),
             "subgrid": doc.subgrid, "kappa": doc.kappa,
             "corrected": None if doc.corrected is None else list(doc.corrected),
+            "structure": doc.structure,
         },
         **({"randomness": fields} if fields else {}),
         **({"avoid": avoid} if avoid else {}),
@@ -526,6 +528,8 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         passes=_int_in(s, "passes", "synthesis", 0, 8),
         level_passes=tuple(level_passes),
         subgrid=_int_in(s, "subgrid", "synthesis", 1, 4),
+        # Files from before the fidelity stage have none: they keep their texture (Variety).
+        structure=_int_in(s, "structure", "synthesis", 0, STRUCTURE_LEVELS - 1) if "structure" in s else 0,
         kappa=float(kappa),
         corrected=None if corrected is None else tuple(corrected),
         randomness_exemplar=fields[0],

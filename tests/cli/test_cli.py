@@ -112,3 +112,20 @@ def test_synth_passes_per_level(tmp_path):
         assert r.returncode == 0, r.stderr
     ia, ib, ic = (np.asarray(Image.open(p)) for p in (a, b, c))
     assert np.array_equal(ia, ib) and not np.array_equal(ia, ic)
+
+
+def test_synth_fidelity_presets(tmp_path):
+    """--fidelity takes a Structure preset by number or name (the same texture
+    either way, another per preset, the default being Balanced); anything else
+    is a one-line usage error."""
+    outs = {k: str(tmp_path / f"{k}.png") for k in ("default", "balanced", "two", "variety", "strong")}
+    for key, extra in (("default", []), ("balanced", ["--fidelity", "Balanced"]), ("two", ["--fidelity", "2"]),
+                       ("variety", ["--fidelity", "variety"]), ("strong", ["--fidelity", "3"])):
+        r = run(GRAVEL, "-o", outs[key], "--size", "64", "48", *extra, "-q")
+        assert r.returncode == 0, r.stderr
+    img = {k: np.asarray(Image.open(p)) for k, p in outs.items()}
+    assert np.array_equal(img["default"], img["balanced"]) and np.array_equal(img["two"], img["balanced"])
+    assert not np.array_equal(img["variety"], img["balanced"]) and not np.array_equal(img["strong"], img["balanced"])
+    for bad in ("5", "extreme", "-1"):
+        r = run(GRAVEL, "-o", outs["default"], "--fidelity", bad)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "fidelity" in r.stderr.lower()

@@ -103,6 +103,30 @@ def test_project_round_trip_per_level_passes(doc, tmp_path):
             load_project(str(path))
 
 
+def test_structure_reaches_the_synthesis_and_round_trips(doc, tmp_path):
+    from infinitex.engine.params import DEFAULT_STRUCTURE, STRUCTURE_LEVELS
+    assert doc.structure == DEFAULT_STRUCTURE and doc.params(7).fidelity is not None
+    assert replace(doc, structure=0).params(7).fidelity is None  # Variety: the per-pixel synthesis alone
+    strong = replace(doc, structure=STRUCTURE_LEVELS - 1)
+    assert sum(strong.params(7).fidelity) > sum(doc.params(7).fidelity)
+    assert strong.params(7).jitter[7] < doc.params(7).jitter[7] == doc.jitter_for(7)[7]
+    with pytest.raises(ProjectError, match="Structure"):
+        replace(doc, structure=STRUCTURE_LEVELS).validate()
+    path = tmp_path / "s.itex"
+    save_project(str(path), Project(replace(doc, structure=3)))
+    saved = json.loads(path.read_text())
+    assert saved["version"] == 6 and saved["synthesis"]["structure"] == 3
+    assert load_project(str(path)).document.structure == 3
+    del saved["synthesis"]["structure"]  # a project from before the fidelity stage keeps its texture
+    path.write_text(json.dumps(saved))
+    assert load_project(str(path)).document.structure == 0
+    for bad in (9, -1, "3", True, 2.5):
+        saved["synthesis"]["structure"] = bad
+        path.write_text(json.dumps(saved))
+        with pytest.raises(ProjectError, match="structure"):
+            load_project(str(path))
+
+
 def test_project_round_trip_embedded(doc, tmp_path):
     d = replace(doc.with_all_jitter(7, 0.25), seed=42, passes=3, kappa=0.75, corrected=(4, 5, 6, 7), toroidal=True,
                 fit="crop-2048", k=0, feature_weight=0.75)

@@ -1,5 +1,6 @@
-"""The Randomness panel: the randomness of every scale at once and of each
-scale (jitter, one undo step a drag), Reset, the seed and New seed."""
+"""The Randomness panel: Structure / Variety (the fidelity stage's preset), the
+randomness of every scale at once and of each scale (jitter, one undo step a
+drag), Reset, the seed and New seed."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -7,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
 
-from infinitex.engine.params import DEFAULT_JITTER
+from infinitex.engine.params import DEFAULT_JITTER, DEFAULT_STRUCTURE, STRUCTURE_LEVELS, STRUCTURE_NAMES
 
 from .widgets import tip
 
@@ -21,6 +22,17 @@ def draw(p: Panels) -> None:
     doc, L = ed.doc, ed.session.L
     jit = doc.jitter_for(L)
     imgui.push_item_width(-90)
+    changed, v = imgui.slider_int("Structure", doc.structure, 0, STRUCTURE_LEVELS - 1,
+                                  STRUCTURE_NAMES[doc.structure])
+    tip("How hard the synthesis keeps the exemplar's elements whole. Toward Variety: every pixel is "
+        "chosen on its own, the most variety, but strands, cell walls, letters and bricks may break. "
+        "Toward Maximum: whole patches are matched and their seams moved to where they show least, so "
+        "elements come out whole; slower to settle, and the fine scales vary less. "
+        f"Default {STRUCTURE_NAMES[DEFAULT_STRUCTURE]} (fidelity stage: patch optimization)")
+    if changed:
+        ed.edit(replace(ed.doc, structure=int(v)), "Structure", group="structure")
+    if imgui.is_item_deactivated():
+        ed.history.end_group()
     p.overall = sum(jit) / len(jit)
     changed, v = imgui.slider_float("All levels", p.overall, 0.0, 1.0, "%.2f")
     tip("Randomness at every scale at once: 0 repeats the exemplar as it is (a plain tiling), "
