@@ -75,6 +75,7 @@ from infinitex.engine.controls.lattice import (  # noqa: E402
 )
 from infinitex.engine.exemplar import load_exemplar, load_full  # noqa: E402
 from infinitex.engine.imagefile import PIL_MODES, to_u8, write_png  # noqa: E402
+from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
 
@@ -149,6 +150,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--sheet", metavar="OUT.png", default=os.path.join(ROOT, "out", "contact-sheet.png"))
     ap.add_argument("--sizes", nargs="+", type=int, default=[256, 512])
+    ap.add_argument("--fidelity", type=int, default=DEFAULT_STRUCTURE, metavar="PRESET",
+                    help=f"Structure preset of ours (default {DEFAULT_STRUCTURE}, the documents' default)")
     ap.add_argument("--exemplars", nargs="+", default=[os.path.join(os.path.dirname(ROOT), "shared", "exemplars"),
                                                        os.path.join(ROOT, "bench", "exemplars")])
     args = ap.parse_args(argv)
@@ -165,14 +168,14 @@ def main(argv=None) -> int:
         sys.stderr.write(f"no exemplars in {args.exemplars}\n")
         return 2
     tmp = tempfile.mkdtemp(prefix="infinitex-quality-")
-    results: dict = {"sizes": args.sizes, "origin": list(ORIGIN), "exemplars": {}}
+    results: dict = {"sizes": args.sizes, "origin": list(ORIGIN), "structure": args.fidelity, "exemplars": {}}
     sheet_rows = []
     renderer = None
     for path in paths:
         name = os.path.splitext(os.path.basename(path))[0]
         ex = load_exemplar(path)
         an = analyze(ex)
-        synth = Synthesizer(an)
+        synth = Synthesizer(an, structure_params(SynthParams.default(an.L), args.fidelity))
         renderer = synth.gpu.renderer
         m = ex.size
         ex_png = os.path.join(tmp, f"{name}.png")
@@ -202,7 +205,7 @@ def main(argv=None) -> int:
             peer = _load_as(peer_png, ex.channels)
             env = dict(os.environ, INFINITEX_CACHE=tempfile.mkdtemp(prefix="cold-cache-"))
             ours_cold = _timed([sys.executable, "main.py", "synth", path, "-o", os.path.join(tmp, "o.png"),
-                                "--size", str(n), str(n), "--origin", *map(str, ORIGIN), "-q"], env)
+                                "--size", str(n), str(n), "--origin", *map(str, ORIGIN), "--fidelity", str(args.fidelity), "-q"], env)
             peer_cold = _timed([sys.executable, "-c", f"import gmic; gmic.run({cmd!r})"], env)
             row = {
                 "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal, ps=True),

@@ -69,7 +69,12 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--exemplar", default=os.path.join(ROOT, "infinitex", "assets", "gravel.png"),
                     help="exemplar resampled to each analysis size and used for synthesis")
+    ap.add_argument("--fidelity", type=int, default=None, metavar="PRESET",
+                    help="Structure preset of the measured synthesis (default: the documents' default)")
     args = ap.parse_args(argv)
+    from infinitex.engine.params import DEFAULT_STRUCTURE, STRUCTURE_LEVELS, STRUCTURE_NAMES, SynthParams, \
+        structure_params
+    fidelity = DEFAULT_STRUCTURE if args.fidelity is None else args.fidelity
 
     from infinitex.engine.analysis import analyze
     from infinitex.engine.exemplar import load_exemplar
@@ -88,9 +93,11 @@ def main(argv=None) -> int:
         res["analysis_peak_mb"][size] = round(r["peak_mb"], 1)
 
     ex = load_exemplar(args.exemplar)
-    synth = Synthesizer(analyze(ex))
+    an = analyze(ex)
+    synth = Synthesizer(an, structure_params(SynthParams.default(an.L), fidelity))
     ctx = synth.gpu.ctx
     res["renderer"] = synth.gpu.renderer
+    res["structure"] = STRUCTURE_NAMES[fidelity]
     res["exemplar_size"] = ex.size
     synth.window(Rect.of(0, 0, 64, 64))  # compile shaders
     synth.toroidal(32)
@@ -102,6 +109,14 @@ def main(argv=None) -> int:
         return run
 
     res["full_ms"] = {n: round(timed(full(n), runs), 1) for n in (256, 512)}
+    # The full 512^2 window at every Structure preset (the others as set).
+    res["structure_full_512_ms"] = {}
+    measured = synth.params
+    for s in range(STRUCTURE_LEVELS):
+        synth.set_params(structure_params(SynthParams.default(an.L), s))
+        synth.window(Rect.of(0, 0, 64, 64))
+        res["structure_full_512_ms"][STRUCTURE_NAMES[s]] = round(timed(full(512), max(2, runs - 2)), 1)
+    synth.set_params(measured)
 
     vp = synth.viewport()
     vp.show(Rect.of(0, 0, 512, 512))
@@ -132,7 +147,8 @@ def main(argv=None) -> int:
     rows = [("renderer", res["renderer"])]
     rows += [(f"analysis {s}^2 (cold)", f"{res['analysis_s'][s]:.2f} s, peak {res['analysis_peak_mb'][s]:.0f} MB")
              for s in sizes]
-    rows += [(f"full {n}^2 window", f"{res['full_ms'][n]:.0f} ms") for n in (256, 512)]
+    rows += [(f"full {n}^2 window ({res['structure']})", f"{res['full_ms'][n]:.0f} ms") for n in (256, 512)]
+    rows += [(f"full 512^2, Structure {k}", f"{v:.0f} ms") for k, v in res["structure_full_512_ms"].items()]
     rows += [("pan 512^2, 8 px/frame", f"{res['pan_ms']:.1f} ms/frame (max {res['pan_max_ms']:.0f})"),
              ("pan speedup (full/pan)", f"{res['pan_speedup']:.1f}x"),
              ("zoom out 1/4, 512^2 view", f"{res['zoom_out_ms']:.0f} ms"),

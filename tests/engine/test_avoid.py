@@ -125,7 +125,7 @@ def test_mask_values_and_errors():
 
 
 def test_documents_and_projects_keep_the_mask(tmp_path):
-    doc = Document(ExemplarSource.from_file(GRAVEL))
+    doc = Document(ExemplarSource.from_file(GRAVEL), structure=0)  # Variety: a version-5 file
     mask = crevice(128)
     d = replace(doc, avoid_exemplar=mask)
     assert d.controls(128).avoid == mask and d.controls(256).avoid == mask.scaled(256)

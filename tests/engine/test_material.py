@@ -315,7 +315,7 @@ def test_projects_embed_or_reference_every_map_hash_checked(session, tmp_path, f
     p = str(folder / "ref.itex")
     save_project(p, proj, embed=False)
     d = json.load(open(p))
-    assert d["material"]["maps"][0]["path"] == "stones_normal.png" and d["version"] == 4
+    assert d["material"]["maps"][0]["path"] == "stones_normal.png" and d["version"] == (4 if doc.structure == 0 else 6)
     assert load_project(p).document == doc
     # a changed map is refused
     tampered = tmp_path / "t"
