@@ -37,6 +37,13 @@ def create_context() -> moderngl.Context:
                         + "; ".join(errors) + "). On Debian install libegl1 and libgl1.")
 
 
+def set_uniforms(prog: moderngl.Program, **values) -> None:
+    """Set uniforms by name, skipping those the compiler optimized out."""
+    for name, value in values.items():
+        if name in prog:
+            prog[name].value = value
+
+
 def read_shader(name: str) -> str:
     with open(os.path.join(SHADER_DIR, name), encoding="utf-8") as f:
         return f.read()

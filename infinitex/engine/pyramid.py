@@ -23,9 +23,10 @@ import numpy as np
 from . import fixed
 from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
-from .gpu import Gpu, GpuAnalysis
-from .params import FIDELITY_RADIUS, FIDELITY_SEARCH, SynthParams, correction_margins, subpass_order
+from .gpu import Gpu, GpuAnalysis, set_uniforms
+from .params import FIDELITY_RADIUS, SynthParams, correction_margins, subpass_order
 from .similarity import border_margin
+from .stages import run_fidelity, run_subpasses
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -103,13 +104,6 @@ def _merge(rects: list[Rect]) -> list[Rect]:
 
 class SynthesisError(ValueError):
     """A request the synthesis cannot serve (e.g. coordinates out of range)."""
-
-
-def set_uniforms(prog: moderngl.Program, **values) -> None:
-    """Set uniforms by name, skipping those the compiler optimized out."""
-    for name, value in values.items():
-        if name in prog:
-            prog[name].value = value
 
 
 def _next_pow2(n: int) -> int:
@@ -465,10 +459,12 @@ class Pyramid:
             set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
                          border=-1 if an.toroidal else border_margin(an.size, h),
                          avoid=5, has_avoid=int(avoid is not None))
-            self._subpasses(prog, vao, subpass_order(s, p.passes_at(l)), qdims, (a, fa, b, fb),
-                            lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
+            run_subpasses(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, (a, fa, b, fb),
+                          lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
         if p.fidelity_at(l):
-            self._fidelity(l, region, qdims, lshift is not None, (a, fa, b, fb))
+            avoid = self._avoid_texture()
+            run_fidelity(self.gpu, self.gan, p, l, region, qdims, lshift is not None, (a, fa, b, fb),
+                         avoid or self._dummy, avoid is not None)
 
         # Write the exact strip back, split where the buffer wraps.
         prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
@@ -486,45 +482,6 @@ class Pyramid:
         for tex in ftexs:
             tex.release()
         return region.w * region.h
-
-    def _subpasses(self, prog, vao, orders, qdims, scratch, per_subpass) -> None:
-        """Run the subpasses of ``orders`` (lists of phases) over the packed state
-        in scratch ``a`` of ``scratch`` = (a, its framebuffer, b, b's): each
-        renders only its phase's block into b (reading all of a), which is then
-        copied back into a, so a pass computes each pixel once.
-        ``per_subpass(n)``: the uniforms of subpass number n."""
-        a, fa, b, fb = scratch
-        copy, copy_vao = self.gpu.program("copy.frag", SUB_S=self.params.subgrid)
-        n_sub = 0
-        for order in orders:
-            for phase in order:
-                block = (phase[0] * qdims[0], phase[1] * qdims[1], qdims[0], qdims[1])
-                a.use(0)
-                set_uniforms(prog, active_phase=phase, **per_subpass(n_sub))
-                n_sub += 1
-                fb.use()
-                fb.viewport = block
-                vao.render(moderngl.TRIANGLES)
-                b.use(0)
-                set_uniforms(copy, src=0)
-                fa.use()
-                fa.viewport = block
-                copy_vao.render(moderngl.TRIANGLES)
-
-    def _fidelity(self, l: int, region: Rect, qdims: tuple[int, int], lattice: bool, scratch) -> None:
-        """The fidelity stage's subpasses on the scratch pair (as _subpasses)."""
-        p, an = self.params, self.an
-        prog, vao = self.gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=FIDELITY_RADIUS,
-                                     FID_SEARCH=FIDELITY_SEARCH)
-        self.gan.level(l).colors.use(1)
-        avoid = self._avoid_texture()
-        (avoid or self._dummy).use(5)
-        set_uniforms(prog, src=0, colors=1, avoid=5, has_avoid=int(avoid is not None),
-                     dims=(region.w, region.h), qdims=qdims, h=an.h(l), m=an.size,
-                     border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
-                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
-        self._subpasses(prog, vao, subpass_order(p.subgrid, p.fidelity_at(l)), qdims, scratch,
-                        lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})
 
     def _efield_texture(self, l: int):
         e = self.controls.randomness_exemplar

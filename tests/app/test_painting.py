@@ -24,6 +24,7 @@ from infinitex.project import (
 from infinitex.app.session import Frame, Session
 from infinitex.export.window import ExportJob
 from infinitex.engine.controls import CanvasField, ExemplarField
+from infinitex.engine.params import DEFAULT_STRUCTURE
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 
@@ -108,7 +109,9 @@ def test_undo_memory_grows_with_what_was_painted(doc):
     assert per_stroke <= 6  # a 100 x 40 px stroke touches at most 3 x 2 tiles
 
 
-def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path):
+@pytest.mark.parametrize("structure", [0, DEFAULT_STRUCTURE])
+def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path, structure):
+    doc = replace(doc, structure=structure)
     s = Session(gpu)
     s.load_now(doc)
     frame = Frame(level=s.L, want=Rect.of(-200, -150, 400, 300))
@@ -127,7 +130,8 @@ def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path
     got = s.pyramid.read(s.L, frame.want)
     fresh = Synthesizer(s.analysis, s.params, gpu=gpu, controls=d.controls(s.analysis.size)).window(frame.want)
     assert np.array_equal(got, fresh)
-    assert max(pixels) * 2 < full  # a dab re-synthesizes a part of the view (bench/paint.py measures it)
+    if structure == 0:  # a dab re-synthesizes a part of the view (bench/paint.py measures it); the fidelity
+        assert max(pixels) * 2 < full  # stage carries a change further (its margins), over most of this small view
     far, _ = field.painted(5000.0, 5000.0, 24.0, 0)
     s.sync(replace(d, randomness_canvas=far))
     assert s.pyramid.pixels_synthesized == 0  # paint outside what is held costs nothing now

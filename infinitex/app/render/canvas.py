@@ -14,9 +14,9 @@ import moderngl
 import numpy as np
 from PIL import Image
 
-from infinitex.engine.gpu import Gpu, read_shader
+from infinitex.engine.gpu import Gpu, read_shader, set_uniforms
 from infinitex.engine.imagefile import to_u8
-from infinitex.engine.pyramid import Pyramid, set_uniforms
+from infinitex.engine.pyramid import Pyramid
 from infinitex.project import Display, View
 
 from ..session import Frame, level_rect
