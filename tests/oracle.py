@@ -13,7 +13,7 @@ from infinitex.engine import fixed
 from infinitex.engine.analysis import Analysis
 from infinitex.engine.controls import NEUTRAL, NO_CONTROLS, Controls, modulated_rq
 from infinitex.engine.similarity import border_margin
-from infinitex.engine.params import FIDELITY_RADIUS, FIDELITY_SEARCH, SynthParams, subpass_order
+from infinitex.engine.params import FIDELITY_SEARCH, SynthParams, subpass_order
 
 
 def field_values(controls: Controls, an: Analysis, params: SynthParams, level: int,
@@ -216,7 +216,7 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
                      subpass: int = 0) -> np.ndarray:
     """One subpass of the fidelity stage, from its definition (fidelity.frag's
     header): every candidate's whole patch cost, no early exit, no deduplication."""
-    s, R = params.subgrid, FIDELITY_RADIUS
+    s, R = params.subgrid, params.fidelity_radius
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
     E = fixed.quantized_colors(an.levels[level].stack)
@@ -288,7 +288,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
     wins = {}
     x0, y0, x1, y1 = x, y, x + w, y + h
     for l in range(level, -1, -1):
-        p = (params.passes_at(l) * fixed.read_radius(an.model) + params.fidelity_at(l) * FIDELITY_RADIUS) * s * s
+        p = (params.passes_at(l) * fixed.read_radius(an.model) + params.fidelity_at(l) * params.fidelity_radius) * s * s
         a = 2 * s
         wx0, wy0 = ((x0 - p) // a) * a, ((y0 - p) // a) * a
         wx1, wy1 = -((-(x1 + p)) // a) * a, -((-(y1 + p)) // a) * a

@@ -10,9 +10,11 @@ DEFAULT_JITTER = 0.6
 DEFAULT_WALK = 6
 FIRST_CORRECTED_LEVEL = 3  # LH05: correction is skipped on levels 0-2
 # The fidelity stage (discrete patch optimization, shaders/fidelity.frag): patches
-# of (2 FIDELITY_RADIUS + 1)^2 level pixels, FIDELITY_SEARCH random candidates
-# around the best (radius m/4, halved each step) after the 8 neighbors' predictions.
+# of (2 R + 1)^2 level pixels (R = SynthParams.fidelity_radius, default
+# FIDELITY_RADIUS), FIDELITY_SEARCH random candidates around the best (radius
+# m/4, halved each step) after the 8 neighbors' predictions.
 FIDELITY_RADIUS = 3
+FIDELITY_RADII = (2, 3, 4, 5)
 FIDELITY_SEARCH = 4
 MAX_FIDELITY = 6
 
@@ -40,6 +42,7 @@ class SynthParams:
     level_passes: tuple[int, ...] | None = None  # correction passes per level, coarse to fine (0: not corrected);
                                                  # overrides `passes` and `corrected`; None: `passes` on `corrected`
     fidelity: tuple[int, ...] | None = None  # fidelity-stage iterations per level, coarse to fine (None: none)
+    fidelity_radius: int = FIDELITY_RADIUS   # its patches: (2 R + 1)^2 level pixels
 
     @classmethod
     def default(cls, levels: int, **kw) -> "SynthParams":
@@ -98,6 +101,8 @@ class SynthParams:
                                  f"got {len(self.fidelity)}.")
             if not all(0 <= int(c) <= MAX_FIDELITY for c in self.fidelity):
                 raise ValueError(f"Fidelity iterations must be between 0 and {MAX_FIDELITY} on every level.")
+        if self.fidelity_radius not in FIDELITY_RADII:
+            raise ValueError(f"The fidelity patch radius must be one of {', '.join(map(str, FIDELITY_RADII))}.")
         if self.walk is not None and not 0 <= self.walk <= 12:
             raise ValueError("Random-walk steps must be between 0 and 12.")
         if not 1 <= self.subgrid <= 4:
@@ -130,22 +135,23 @@ class SynthParams:
         fid = self.fidelity_at(level)
         return (self.jitter[level], self.seed, self.level_period(level), corr,
                 (self.passes_at(level), self.subgrid, self.kappa, self.walk) if corr else None,
-                (fid, self.subgrid) if fid else None)
+                (fid, self.subgrid, self.fidelity_radius) if fid else None)
 
 
 # "Structure / Variety" (a document setting): 0 is the per-pixel synthesis alone
 # (most variety); each step up runs the fidelity stage more, for textures whose
 # elements must come out whole (weaves, cells, text, bricks). Per preset: the
 # stage's iterations per level from the finest (the last count repeats down to
-# FIRST_CORRECTED_LEVEL) and the factor on the fine levels' randomness.
+# FIRST_CORRECTED_LEVEL), the factor on the fine levels' randomness and the
+# patch radius.
 STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
 STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
 STRUCTURE_PRESETS = (
-    ((), 1.0),
-    ((1, 1, 2, 2), 1.0),
-    ((2, 2, 2, 2), 1.0),
-    ((3, 3, 3, 3), 1.0),
-    ((3, 3, 3, 3), 0.5),
+    ((), 1.0, FIDELITY_RADIUS),
+    ((1, 1, 2, 2), 1.0, 3),
+    ((2, 2, 2, 2), 1.0, 3),
+    ((2, 2, 2, 2), 1.0, 5),
+    ((3, 3, 3, 3), 0.5, 5),
 )
 STRUCTURE_FINE_LEVELS = 3  # the levels whose randomness a preset scales
 DEFAULT_STRUCTURE = 2
@@ -157,14 +163,14 @@ def structure_params(params: SynthParams, structure: int) -> SynthParams:
     if not 0 <= int(structure) < STRUCTURE_LEVELS:
         raise ValueError(f"Structure must be from 0 ({STRUCTURE_NAMES[0]}) to {STRUCTURE_LEVELS - 1} "
                          f"({STRUCTURE_NAMES[-1]}).")
-    counts, factor = STRUCTURE_PRESETS[int(structure)]
+    counts, factor, radius = STRUCTURE_PRESETS[int(structure)]
     if not counts:
         return params
     L = params.L
     fid = tuple(counts[min(L - l, len(counts) - 1)] if l >= min(FIRST_CORRECTED_LEVEL, L) else 0
                 for l in range(L + 1))
     jitter = tuple(r * factor if l > L - STRUCTURE_FINE_LEVELS else r for l, r in enumerate(params.jitter))
-    return replace(params, fidelity=fid, jitter=jitter)
+    return replace(params, fidelity=fid, jitter=jitter, fidelity_radius=radius)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:

@@ -24,7 +24,7 @@ from . import fixed
 from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis, set_uniforms
-from .params import FIDELITY_RADIUS, SynthParams, correction_margins, subpass_order
+from .params import SynthParams, correction_margins, subpass_order
 from .similarity import border_margin
 from .stages import run_fidelity, run_subpasses
 
@@ -202,7 +202,7 @@ class Pyramid:
         self.corrected = params.correcting_levels()
         radius = fixed.read_radius(self.an.model)
         self.margins = [correction_margins(params.subgrid, params.passes_at(l), radius,
-                                           ((params.fidelity_at(l), FIDELITY_RADIUS),))
+                                           ((params.fidelity_at(l), params.fidelity_radius),))
                         for l in range(self.an.L + 1)]
         if old is None:
             return

@@ -12,7 +12,7 @@ import moderngl
 
 from . import fixed
 from .gpu import Gpu, GpuAnalysis, set_uniforms
-from .params import FIDELITY_RADIUS, FIDELITY_SEARCH, SynthParams, subpass_order
+from .params import FIDELITY_SEARCH, SynthParams, subpass_order
 from .similarity import border_margin
 
 
@@ -46,7 +46,8 @@ def run_fidelity(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdi
     """The fidelity stage's iterations on level ``l``'s padded ``region`` (see
     shaders/fidelity.frag); ``lattice``: a lattice level (no random search)."""
     an = gan.analysis
-    prog, vao = gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=FIDELITY_RADIUS, FID_SEARCH=FIDELITY_SEARCH)
+    prog, vao = gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius,
+                            FID_SEARCH=FIDELITY_SEARCH)
     gan.level(l).colors.use(1)
     avoid_tex.use(5)
     set_uniforms(prog, src=0, colors=1, avoid=5, has_avoid=int(has_avoid),

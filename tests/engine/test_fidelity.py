@@ -137,9 +137,9 @@ def test_structure_presets():
     L = 7
     base = SynthParams.default(L)
     assert structure_params(base, 0) == base  # Variety: the stage off, the randomness as set
-    fids = [structure_params(base, s).fidelity for s in range(1, STRUCTURE_LEVELS)]
-    totals = [sum(f) for f in fids]
-    assert totals == sorted(totals) and totals[0] > 0  # more structure, more work
+    presets = [structure_params(base, s) for s in range(1, STRUCTURE_LEVELS)]
+    work = [sum(p.fidelity) * (2 * p.fidelity_radius + 1) ** 2 for p in presets]
+    assert all(a < b for a, b in zip(work, work[1:])) and work[0] > 0  # more structure, more work
     with pytest.raises(ValueError):
         structure_params(base, STRUCTURE_LEVELS)
     # Fewer levels than the presets name: matched from the finest level.
@@ -147,3 +147,13 @@ def test_structure_presets():
     assert len(small.fidelity) == 3 and small.fidelity[-1] > 0
     with pytest.raises(ValueError):
         replace(base, fidelity=(9,) * (L + 1)).validate(L)
+    with pytest.raises(ValueError, match="radius"):
+        replace(base, fidelity=(1,) * (L + 1), fidelity_radius=7).validate(L)
+
+
+@pytest.mark.parametrize("radius", [2, 5])
+def test_other_patch_radii_match_the_oracle(analyses, gpu, radius):
+    an = analyses["gravel-color"]
+    params = with_fidelity(an, seed=4, fidelity_radius=radius)
+    gl = Synthesizer(an, params, gpu=gpu).window(Rect.of(-FAR + 5, 33, 18, 14))
+    assert np.array_equal(gl, oracle.synthesize(an, params, -FAR + 5, 33, 18, 14))

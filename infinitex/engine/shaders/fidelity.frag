@@ -11,7 +11,7 @@
 // On a non-toroidal exemplar (border >= 0) predictions and samples are clamped
 // to [border, m-1-border] and exemplar patches read clamped to [0, m-1]; on
 // lattice levels (no_search = 1) only the predictions are tried.
-// Integer sums (at most 4 * 255^2 * 80 < 2^25), so the result is exact; skipping
+// Integer sums (at most 4 * 255^2 * 120 < 2^25), so the result is exact; skipping
 // a candidate already tried and stopping a sum once it reaches the best cannot
 // change it (costs only grow as taps are added, and ties keep the first).
 
