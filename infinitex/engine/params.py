@@ -142,35 +142,32 @@ class SynthParams:
 # (most variety); each step up runs the fidelity stage more, for textures whose
 # elements must come out whole (weaves, cells, text, bricks). Per preset: the
 # stage's iterations per level from the finest (the last count repeats down to
-# FIRST_CORRECTED_LEVEL), the factor on the fine levels' randomness and the
-# patch radius.
+# FIRST_CORRECTED_LEVEL) and the patch radius. (Less randomness on the fine
+# levels was measured too and did not help: docs/benchmarks.md.)
 STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
 STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
 STRUCTURE_PRESETS = (
-    ((), 1.0, FIDELITY_RADIUS),
-    ((1, 1, 2, 2), 1.0, 3),
-    ((2, 2, 2, 2), 1.0, 3),
-    ((2, 2, 2, 2), 1.0, 5),
-    ((3, 3, 3, 3), 0.5, 5),
+    ((), FIDELITY_RADIUS),
+    ((1, 1, 2, 2), 3),
+    ((2, 2, 2, 2), 3),
+    ((2, 2, 2, 2), 5),
+    ((3, 3, 3, 3), 5),
 )
-STRUCTURE_FINE_LEVELS = 3  # the levels whose randomness a preset scales
 DEFAULT_STRUCTURE = 2
 
 
 def structure_params(params: SynthParams, structure: int) -> SynthParams:
-    """``params`` with the fidelity stage and fine randomness of a Structure preset
-    (0: ``params`` unchanged)."""
+    """``params`` with the fidelity stage of a Structure preset (0: ``params`` unchanged)."""
     if not 0 <= int(structure) < STRUCTURE_LEVELS:
         raise ValueError(f"Structure must be from 0 ({STRUCTURE_NAMES[0]}) to {STRUCTURE_LEVELS - 1} "
                          f"({STRUCTURE_NAMES[-1]}).")
-    counts, factor, radius = STRUCTURE_PRESETS[int(structure)]
+    counts, radius = STRUCTURE_PRESETS[int(structure)]
     if not counts:
         return params
     L = params.L
     fid = tuple(counts[min(L - l, len(counts) - 1)] if l >= min(FIRST_CORRECTED_LEVEL, L) else 0
                 for l in range(L + 1))
-    jitter = tuple(r * factor if l > L - STRUCTURE_FINE_LEVELS else r for l, r in enumerate(params.jitter))
-    return replace(params, fidelity=fid, jitter=jitter, fidelity_radius=radius)
+    return replace(params, fidelity=fid, fidelity_radius=radius)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:

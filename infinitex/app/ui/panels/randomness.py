@@ -27,7 +27,7 @@ def draw(p: Panels) -> None:
     tip("How hard the synthesis keeps the exemplar's elements whole. Toward Variety: every pixel is "
         "chosen on its own, the most variety, but strands, cell walls, letters and bricks may break. "
         "Toward Maximum: whole patches are matched and their seams moved to where they show least, so "
-        "elements come out whole; slower to settle, and the fine scales vary less. "
+        "elements come out whole; more copied, slower to settle. "
         f"Default {STRUCTURE_NAMES[DEFAULT_STRUCTURE]} (fidelity stage: patch optimization)")
     if changed:
         ed.edit(replace(ed.doc, structure=int(v)), "Structure", group="structure")
