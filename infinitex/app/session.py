@@ -154,13 +154,15 @@ class Refiner:
                 finished = False  # do not start a big piece late in the frame
                 break
             rect = want
-            if cost > max(remaining, 0.25 * budget_s) and want.h > 16:
+            # Bands at least twice as tall as the margins they are padded with.
+            min_band = max(MIN_BAND, 2 * (self.pyramid.margins[l][2] + self.pyramid.margins[l][3]))
+            if cost > max(remaining, 0.25 * budget_s) and want.h > min_band // 2:
                 valid = self._valid(l)
                 grow = (valid is not None and valid.x0 <= want.x0 and valid.x1 >= want.x1
                         and valid.y0 <= want.y0 < valid.y1)
                 start = valid.y1 if grow else want.y0
                 rows = int(max(remaining, 0.25 * budget_s) / (self.cost[l] * (want.w + 24)))
-                rect = Rect(want.x0, want.y0, want.x1, min(want.y1, start + max(MIN_BAND, rows)))
+                rect = Rect(want.x0, want.y0, want.x1, min(want.y1, start + max(min_band, rows)))
             pixels += self._request(l, rect)
             if rect != want:
                 finished = False
