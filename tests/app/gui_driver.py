@@ -20,6 +20,8 @@ from imgui_bundle.immapp import testing
 
 from gui_harness import Harness
 
+from infinitex.engine.params import DEFAULT_STRUCTURE
+
 
 def main(out: str) -> int:
     h = Harness(out, window_size=(1000, 700))
@@ -62,6 +64,18 @@ def main(out: str) -> int:
         ctx.mouse_wheel_y(4)
         settle(ctx)
         check("wheel zooms back", abs(ed.view.zoom - 1.0) < 1e-9, f"zoom {ed.view.zoom}")
+
+        # The Structure slider: Variety (the per-pixel synthesis alone) is another
+        # texture, one undo step. The painting below runs at Variety, whose reach
+        # is small (the fidelity stage carries a change much further).
+        before_structure, steps = canvas(ctx), len(ed.history.undo_stack)
+        check("documents start at the default Structure", ed.doc.structure == DEFAULT_STRUCTURE, str(ed.doc.structure))
+        ctx.item_input_value("//**/Structure", 0)
+        settle(ctx)
+        check("the Structure slider edits the document", ed.doc.structure == 0, str(ed.doc.structure))
+        check("Structure is one undo step", len(ed.history.undo_stack) == steps + 1,
+              f"{len(ed.history.undo_stack) - steps} steps")
+        check("Structure changes the canvas", not np.array_equal(before_structure, canvas(ctx)), "same canvas")
 
         # Paint randomness on the canvas: one stroke changes the canvas near the
         # stroke only, is one undo step, and undo restores the canvas exactly.

@@ -83,9 +83,11 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     from infinitex.engine.pyramid import Rect
     from infinitex.engine.synth import Synthesizer
     from infinitex.export import read_tiles
+    from infinitex.project import Document, ExemplarSource
     _drive("gui_export.py", tmp_path, 10)
-    synth = Synthesizer(analyze(load_exemplar(os.path.join(ROOT, "infinitex", "assets",
-                                                           "gravel.png"))), gpu=gpu)
+    gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
+    an = analyze(load_exemplar(gravel))
+    synth = Synthesizer(an, Document(ExemplarSource.from_file(gravel)).params(an.L), gpu=gpu)  # the editor's
     whole = to_u8(synth.colors(synth.window(Rect.of(*TIFF_RECT))))
     assert np.array_equal(tifffile.imread(tmp_path / "big.tif"), whole[..., 0])
     x, y, w, h = TILES_RECT
