@@ -5,7 +5,7 @@ import oracle
 import pytest
 
 from infinitex.engine.controls import Controls, Feature
-from infinitex.engine.params import SynthParams
+from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 
@@ -42,12 +42,13 @@ def features_around(x, y, n=6, seed=0, L=7):
     return tuple(out)
 
 
-@pytest.mark.parametrize("name", ["gravel-appearance", "torus-color-k3"])
+@pytest.mark.parametrize("name, structure", [("gravel-appearance", 0), ("torus-color-k3", 0),
+                                             ("gravel-appearance", DEFAULT_STRUCTURE)])
 @pytest.mark.parametrize("x, y", [(-20, 15), (FAR - 120, -FAR + 80)])
-def test_gl_matches_oracle_with_features(analyses, gpu, name, x, y):
+def test_gl_matches_oracle_with_features(analyses, gpu, name, structure, x, y):
     an = analyses[name]
     controls = Controls(features=features_around(x + 20, y + 18, L=an.L))
-    params = SynthParams.default(an.L, seed=5)
+    params = structure_params(SynthParams.default(an.L, seed=5), structure)
     gl = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(x, y, 40, 36))
     ref = oracle.synthesize(an, params, x, y, 40, 36, controls=controls)
     assert np.array_equal(gl, ref)

@@ -22,7 +22,7 @@ from infinitex.engine.controls.lattice import (
     detect,
     rectified_exemplar,
 )
-from infinitex.engine.params import SynthParams
+from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
 
@@ -178,11 +178,13 @@ def test_windows_agree_in_lattice_mode(cases, gpu, ox, oy):
     assert np.array_equal(small, big[21:82, 37:87])
 
 
-@pytest.mark.parametrize("levels", [None, 2])
-def test_gl_matches_oracle_in_lattice_mode(cases, gpu, levels):
+@pytest.mark.parametrize("levels, structure", [(None, 0), (2, 0), (None, DEFAULT_STRUCTURE)])
+def test_gl_matches_oracle_in_lattice_mode(cases, gpu, levels, structure):
+    """Also with the fidelity stage (the default Structure): on lattice levels it
+    tries the neighbors' predictions only."""
     lat, ex, an = cases["bricks"]
     ctl = Controls(lattice=replace(lat, levels=levels))
-    params = replace(SynthParams.default(an.L), seed=7)
+    params = structure_params(replace(SynthParams.default(an.L), seed=7), structure)
     synth = Synthesizer(an, params, gpu=gpu, controls=ctl)
     for x, y in [(5, -9), (-FAR + 17, FAR - 64)]:
         gl = synth.window(Rect.of(x, y, 24, 20))
