@@ -255,7 +255,7 @@ def test_dask_local_cluster_gives_the_same_bytes_and_survives_a_killed_worker(sy
     rect = Rect.of(-2048, 1000, 4096, 4096)
     args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiff",
             "--rect", str(rect.x0), str(rect.y0), "4096", "4096", "--tile", "512",
-            "--scheduler", "--workers", "2", "-o", str(tmp_path / "d.tif")]
+            "--scheduler", "--workers", "2", "--fidelity", "variety", "-o", str(tmp_path / "d.tif")]  # as `synth`
     proc = subprocess.Popen(args, env=env, stderr=subprocess.PIPE)
     manifest = tmp_path / "d.tif.parts" / "manifest.jsonl"
     killed = None
