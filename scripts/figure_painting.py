@@ -18,7 +18,7 @@ from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.controls import NEUTRAL, CanvasField, Controls  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
 from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
-from infinitex.engine.params import SynthParams  # noqa: E402
+from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
 
@@ -34,7 +34,8 @@ def main(out: str) -> None:
         field[:, 2 * w // 3:] = 65535
         rows = []
         for controls in (Controls(), Controls(None, CanvasField.from_image(field, 0, 0))):
-            synth = Synthesizer(an, SynthParams.default(an.L, seed=3), controls=controls)
+            synth = Synthesizer(an, structure_params(SynthParams.default(an.L, seed=3), DEFAULT_STRUCTURE),
+                                controls=controls)
             img = to_u8(synth.colors(synth.window(Rect.of(0, 0, w, h))))
             synth.release()
             rows.append(np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[..., :3])
