@@ -35,6 +35,9 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--dabs", type=int, default=64)
     ap.add_argument("--radius", type=float, default=24.0, help="brush radius in screen pixels (48 px brush)")
+    ap.add_argument("--fidelity", type=int, default=None, metavar="PRESET",
+                    help="Structure preset of the painted document (default: the documents' default; at Balanced "
+                         "on llvmpipe the stroke outlasts the test engine's 60 s watchdog)")
     args = ap.parse_args(argv)
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
@@ -73,6 +76,12 @@ def main(argv=None) -> int:
 
     def test(ctx):
         settle(ctx)
+        if args.fidelity is not None and ed.doc.structure != args.fidelity:
+            from dataclasses import replace
+            ed.edit(replace(ed.doc, structure=args.fidelity), "Structure")
+            for _ in range(3):
+                ctx.yield_()
+            settle(ctx)
         pyr = ed.session.pyramid
         orig_update = pyr.update_controls
 
@@ -118,6 +127,7 @@ def main(argv=None) -> int:
         full = full_view[0]
         results.update({
             "canvas": list(ed.canvas_size), "renderer": ed.renderer, "brush_px": 2 * args.radius,
+            "structure": ed.doc.structure,
             "dabs": tool.dabs - d0, "frames_with_a_dab": len(dab_frames),
             "latency_ms_median": 1000 * statistics.median(lat), "latency_ms_p90": 1000 * lat[int(0.9 * (len(lat) - 1))],
             "latency_ms_max": 1000 * lat[-1],

@@ -25,11 +25,6 @@ from infinitex.export.loaded import LoadedDocument
 from infinitex.project import Document, View
 
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
-# A paint dab or a moved feature is re-synthesized in place within this time (by
-# the learned costs); what would take longer is left to the refinement, which
-# shows coarse scales first and keeps the editor responsive (the fidelity stage
-# carries a change far: see docs/limits.md).
-LOCAL_UPDATE_S = 0.15
 
 
 # -- progressive refinement --------------------------------------------------
@@ -201,13 +196,7 @@ class Session(LoadedDocument):
             # they reach (a change of the exemplar field refines everything).
             self.controls = controls
             self.synth.set_params(params, controls)
-            spent = [0.0]
-
-            def afford(level: int, pixels: int) -> bool:  # past the budget, the refiner takes over
-                spent[0] += pixels * self.refiner.cost[level]
-                return spent[0] <= LOCAL_UPDATE_S
-
-            self.pyramid.update_controls(controls, afford=afford)
+            self.pyramid.update_controls(controls)
             self.refiner.version += 1
             self.refiner.extra_pixels += self.pyramid.pixels_synthesized
 

@@ -15,7 +15,6 @@ written back. A full window is the special case of one strip per level.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import moderngl
@@ -211,8 +210,7 @@ class Pyramid:
         if first is not None:
             self.invalidate(first)
 
-    def update_controls(self, controls: Controls, changed: list[Rect] | None = None,
-                        afford: Callable[[int, int], bool] | None = None) -> int:
+    def update_controls(self, controls: Controls, changed: list[Rect] | None = None) -> int:
         """Adopt new controls that differ from the current ones only inside the
         finest-level canvas rectangles ``changed`` (painted randomness, placed
         features; None: computed from the two controls), re-synthesizing in
@@ -227,10 +225,6 @@ class Pyramid:
         reach the next level. The result is bit-identical to synthesizing from
         scratch. Areas not held now cost
         nothing and are synthesized with the new controls when shown.
-        ``afford(level, pixels)``, when given, is asked before each level's
-        strips: once it answers False that level and the finer ones are
-        forgotten instead (to be synthesized again when shown, e.g. by the
-        editor's time-budgeted refinement), so one update never takes long.
         Returns the number of level pixels synthesized."""
         controls = controls.normalized()
         controls.validate(self.an.size, self.an.settings.lattice)
@@ -258,12 +252,7 @@ class Pyramid:
             reach = max(self.margins[l])
             dirty = [r.pad(reach, reach, reach, reach).intersect(buf.valid) for r in inputs]
             parent_changed = []
-            merged = _merge([r for r in dirty if not r.empty])
-            if afford is not None and merged and not afford(l, sum(self.padded(l, r).w * self.padded(l, r).h
-                                                                    for r in merged)):
-                self.invalidate(l)
-                break
-            for r in merged:
+            for r in _merge([r for r in dirty if not r.empty]):
                 before = self._read_rect(buf, r)
                 total += self._synthesize_strip(l, r, buf)
                 diff = np.any(self._read_rect(buf, r) != before, axis=-1)

@@ -158,26 +158,3 @@ def test_other_patch_radii_match_the_oracle(analyses, gpu, radius):
     gl = Synthesizer(an, params, gpu=gpu).window(Rect.of(-FAR + 5, 33, 18, 14))
     assert np.array_equal(gl, oracle.synthesize(an, params, -FAR + 5, 33, 18, 14))
 
-
-def test_an_update_past_its_budget_forgets_the_finer_levels_and_stays_exact(analyses, gpu):
-    an = analyses["gravel-appearance"]
-    params = with_fidelity(an, seed=6)
-    view = Rect.of(-80, 40, 128, 96)
-    synth = Synthesizer(an, params, gpu=gpu)
-    vp = synth.viewport()
-    try:
-        vp.show(view)
-        field, _ = CanvasField().painted(-20.0, 90.0, 30.0, 0)
-        asked = []
-
-        def afford(level, pixels):
-            asked.append(level)
-            return level < an.L - 1
-        vp.pyramid.update_controls(Controls(randomness_canvas=field), None, afford)
-        assert asked[-1] == an.L - 1 and vp.pyramid.buffers[an.L].valid is None  # forgotten, not stale
-        assert vp.pyramid.buffers[an.L - 2].valid is not None
-        vp.show(view)
-        fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(randomness_canvas=field)).window(view)
-        assert np.array_equal(vp.read(view), fresh)
-    finally:
-        vp.release()
