@@ -228,7 +228,10 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
         return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
 
     patch = [(dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1) if (dx, dy) != (0, 0)]
-    nb = {d: E[s_at(*d)[:, 1], s_at(*d)[:, 0]] for d in patch}
+    nb = {}
+    for d in patch:
+        u = s_at(*d)
+        nb[d] = E[u[:, 1], u[:, 0]]
     border = -1 if an.toroidal else border_margin(m, h)
 
     def inside(u):

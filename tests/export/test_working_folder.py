@@ -75,6 +75,18 @@ def job(synth, out, fmt="tiff", **kw) -> TiledExport:
     return TiledExport(synth, RECT, str(out), fmt, TILE, key="k", **kw)
 
 
+def interrupted(synth, out, fmt="tiff", after: int = 4) -> TiledExport:
+    """An export stopped once ``after`` tiles are done (as by Ctrl+C), its parts kept."""
+    j = job(synth, out, fmt)
+
+    def stop(done, total):
+        if done == after:
+            raise ExportInterrupted()
+    with pytest.raises(ExportInterrupted):
+        j.run(stop)
+    return j
+
+
 def parts_of(synth, out, fmt="tiff") -> tuple[TiledExport, str]:
     """A fresh parts folder (as a first run makes it) and the manifest's key line."""
     j = job(synth, out, fmt)
@@ -274,13 +286,7 @@ def test_a_manifest_vouches_only_for_what_this_users_exports_wrote(synth, whole,
     (another place's, swapped between names, listed with their plain SHA-256):
     the keyed hash of each file's name and bytes keeps none of them."""
     out = tmp_path / "v.tif"
-    first = job(synth, out)
-
-    def stop(done, total):
-        if done == 4:
-            raise ExportInterrupted()
-    with pytest.raises(ExportInterrupted):
-        first.run(stop)
+    first = interrupted(synth, out)
     a, b = (os.path.join(first.parts, n) for n in ("0_0.zz", "1_1.zz"))
     da, db = open(a, "rb").read(), open(b, "rb").read()
     with open(a, "wb") as f:
@@ -347,13 +353,7 @@ def test_a_fifo_at_a_listed_tile_does_not_block_the_export(synth, whole, tmp_pat
 
 def test_a_listed_first_tile_that_is_not_compressed_data_is_rendered_again(synth, whole, tmp_path):
     out = tmp_path / "z.tif"
-    first = job(synth, out)
-
-    def stop(done, total):
-        if done == 4:
-            raise ExportInterrupted()
-    with pytest.raises(ExportInterrupted):
-        first.run(stop)
+    first = interrupted(synth, out)
     bad = b"II*\x00 this is not zlib data" * 40
     with open(os.path.join(first.parts, "0_0.zz"), "wb") as f:
         f.write(bad)
@@ -432,12 +432,7 @@ def test_a_zarr_store_with_a_link_inside_is_refused_and_its_target_untouched(syn
 def test_an_earlier_zarr_store_is_reused_only_if_it_fits(synth, whole, tmp_path):
     import zarr
     out = tmp_path / "r.zarr"
-
-    def stop(done, total):
-        if done == 3:
-            raise ExportInterrupted()
-    with pytest.raises(ExportInterrupted):
-        job(synth, out, "zarr").run(stop)
+    interrupted(synth, out, "zarr", after=3)
     meta = tmp_path / "r.zarr.parts" / "data.zarr" / "0" / ".zarray"
     d = json.loads(meta.read_text())
     d["chunks"] = [512, 512]  # a store of another export's tiles: its chunks would decode to other pixels
