@@ -74,7 +74,7 @@ from infinitex.engine.controls.lattice import (  # noqa: E402
     render_original,
 )
 from infinitex.engine.exemplar import load_exemplar, load_full  # noqa: E402
-from infinitex.engine.imagefile import PIL_MODES, to_u8, write_png  # noqa: E402
+from infinitex.engine.imagefile import PIL_MODES, to_rgb8, to_u8, write_png  # noqa: E402
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
@@ -122,12 +122,6 @@ def regularity(exemplar: np.ndarray, out: np.ndarray, vectors) -> list[float]:
 def _save(path: str, a: np.ndarray) -> None:
     a = to_u8(a)
     Image.fromarray(a[..., 0] if a.shape[2] == 1 else a).save(path)
-
-
-def _rgb(a: np.ndarray) -> np.ndarray:
-    """uint8 (H, W, 3) for the contact sheet (gray repeated, alpha dropped)."""
-    u = to_u8(a)
-    return u[..., :3] if u.shape[2] >= 3 else np.repeat(u[..., :1], 3, axis=2)
 
 
 def _load_as(path: str, channels: int) -> np.ndarray:
@@ -225,9 +219,9 @@ def main(argv=None) -> int:
             print(f"{name:<13}{n:>5}  ours {ours_warm * 1000:7.0f} ms  peer {peer_warm * 1000:7.0f} ms  "
                   f"(cold {ours_cold:5.1f} s / {peer_cold:5.1f} s)", flush=True)
             if n == args.sizes[0]:
-                ex_big = np.asarray(Image.fromarray(_rgb(ex.pixels)).resize((n, n), Image.NEAREST))
+                ex_big = np.asarray(Image.fromarray(to_rgb8(ex.pixels)).resize((n, n), Image.NEAREST))
                 blank = np.full((n, n, 3), 40, dtype=np.uint8)
-                cells = [ex_big, _rgb(ours), _rgb(tiled), _rgb(peer), blank if lat_out is None else _rgb(lat_out)]
+                cells = [ex_big, to_rgb8(ours), to_rgb8(tiled), to_rgb8(peer), blank if lat_out is None else to_rgb8(lat_out)]
                 sheet_rows.append(np.concatenate(cells, axis=1))
         results["exemplars"][name] = entry
         synth.release()

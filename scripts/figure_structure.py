@@ -19,7 +19,7 @@ sys.path.insert(0, ROOT)
 
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
-from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
+from infinitex.engine.imagefile import to_rgb8, write_png  # noqa: E402
 from infinitex.engine.params import DEFAULT_STRUCTURE, STRUCTURE_NAMES, SynthParams, structure_params  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
@@ -28,21 +28,17 @@ EXEMPLARS = (("bench", "exemplars", "weave.png"), ("bench", "exemplars", "cells.
              ("bench", "exemplars", "text.png"), ("infinitex", "assets", "brick.png"))
 
 
-def _rgb(a: np.ndarray) -> np.ndarray:
-    return a[..., :3] if a.shape[2] >= 3 else np.repeat(a[..., :1], 3, axis=2)
-
-
 def main(out: str) -> None:
     n, zoom, gap = 112, 2, 6
     rows = []
     for parts in EXEMPLARS:
         ex = load_exemplar(os.path.join(ROOT, *parts))
         an = analyze(ex)
-        cells = [to_u8(ex.pixels)[:n, :n]]
+        cells = [ex.pixels[:n, :n]]
         for s in (0, DEFAULT_STRUCTURE):
             with Synthesizer(an, structure_params(SynthParams.default(an.L), s)) as synth:
-                cells.append(to_u8(synth.colors(synth.window(Rect.of(10007, -20011, n, n)))))
-        big = [np.kron(_rgb(c), np.ones((zoom, zoom, 1), np.uint8)) for c in cells]
+                cells.append(synth.colors(synth.window(Rect.of(10007, -20011, n, n))))
+        big = [np.kron(to_rgb8(c), np.ones((zoom, zoom, 1), np.uint8)) for c in cells]
         row = np.concatenate([np.pad(b, ((0, gap), (0, gap), (0, 0)), constant_values=255) for b in big], axis=1)
         rows.append(row)
     img = np.concatenate(rows, axis=0)

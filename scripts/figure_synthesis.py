@@ -13,14 +13,10 @@ sys.path.insert(0, ROOT)
 
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
-from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
+from infinitex.engine.imagefile import to_rgb8, write_png  # noqa: E402
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
-
-
-def _rgb(a: np.ndarray) -> np.ndarray:
-    return a[..., :3] if a.shape[2] >= 3 else np.repeat(a[..., :1], 3, axis=2)
 
 
 def main(out: str) -> None:
@@ -30,9 +26,9 @@ def main(out: str) -> None:
         ex = load_exemplar(os.path.join(ROOT, "infinitex", "assets", f"{name}.png"))
         an = analyze(ex)
         with Synthesizer(an, structure_params(SynthParams.default(an.L), DEFAULT_STRUCTURE)) as synth:
-            img = _rgb(to_u8(synth.colors(synth.window(Rect.of(123456, -98765, n, n)))))
+            img = to_rgb8(synth.colors(synth.window(Rect.of(123456, -98765, n, n))))
         exu = np.full((n, ex.size, 3), 255, np.uint8)
-        exu[:ex.size] = _rgb(to_u8(ex.pixels))
+        exu[:ex.size] = to_rgb8(ex.pixels)
         pairs.append(np.concatenate([exu, np.full((n, 4, 3), 255, np.uint8), img,
                                      np.full((n, gap, 3), 255, np.uint8)], axis=1))
     write_png(out, np.concatenate(pairs, axis=1)[:, :-gap])

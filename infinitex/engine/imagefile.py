@@ -17,6 +17,12 @@ def to_u8(a: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(a * 255.0), 0, 255).astype(np.uint8)
 
 
+def to_rgb8(a: np.ndarray) -> np.ndarray:
+    """(H, W, C) [0, 1] floats to uint8 RGB for figures: gray repeated, alpha dropped."""
+    u = to_u8(a)
+    return u[..., :3] if u.shape[2] >= 3 else np.repeat(u[..., :1], 3, axis=2)
+
+
 def to_u16(a: np.ndarray) -> np.ndarray:
     """[0, 1] floats to uint16, rounded (16-bit exports)."""
     return np.clip(np.rint(a * 65535.0), 0, 65535).astype(np.uint16)
