@@ -86,7 +86,6 @@ class Refiner:
         self.last_pixels = 0
         self.last_ms = 0.0
         self.version = 0  # bumps whenever pixels were synthesized
-        self.extra_pixels = 0  # synthesized outside step/preview (local updates), reported with the next
 
     def _valid(self, level: int) -> Rect | None:
         buf = self.pyramid.buffers[level]
@@ -112,8 +111,7 @@ class Refiner:
         return n
 
     def _done(self, t0: float, pixels: int) -> None:
-        self.last_pixels = pixels + self.extra_pixels
-        self.extra_pixels = 0
+        self.last_pixels = pixels
         self.version += bool(pixels)
         self.last_ms = (time.perf_counter() - t0) * 1000.0
 
@@ -138,6 +136,15 @@ class Refiner:
     def step(self, frame: Frame, budget_s: float) -> bool:
         """Synthesize for at most about ``budget_s``; True when the frame is exact."""
         t0 = time.perf_counter()
+        pyr = self.pyramid
+        if not pyr.settled:  # a paint dab or a feature move first: the view shows it next
+            before = pyr.pixels_synthesized
+            settled = pyr.settle(budget_s)
+            self.gpu.ctx.finish()
+            self._done(t0, pyr.pixels_synthesized - before)
+            if not settled or time.perf_counter() - t0 > budget_s:
+                return False
+            t0 = time.perf_counter()
         pixels = 0
         finished = True
         for l, want in enumerate(self.pyramid.plan(frame.level, frame.want)):
@@ -196,9 +203,9 @@ class Session(LoadedDocument):
             # they reach (a change of the exemplar field refines everything).
             self.controls = controls
             self.synth.set_params(params, controls)
-            self.pyramid.update_controls(controls)
-            self.refiner.version += 1
-            self.refiner.extra_pixels += self.pyramid.pixels_synthesized
+            # The work is done a budget at a time by the refinement, so a dab
+            # never holds the editor up (see Pyramid.settle).
+            self.pyramid.update_controls(controls, defer=True)
 
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None) -> None:
         super().install(doc, ex, an, material)

@@ -38,10 +38,13 @@ def create_context() -> moderngl.Context:
 
 
 def set_uniforms(prog: moderngl.Program, **values) -> None:
-    """Set uniforms by name, skipping those the compiler optimized out."""
+    """Set uniforms by name, skipping those the compiler optimized out (bytes: written raw)."""
     for name, value in values.items():
         if name in prog:
-            prog[name].value = value
+            if isinstance(value, bytes):
+                prog[name].write(value)
+            else:
+                prog[name].value = value
 
 
 def read_shader(name: str) -> str:

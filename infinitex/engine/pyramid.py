@@ -15,7 +15,7 @@ written back. A full window is the special case of one strip per level.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator
 
 import moderngl
 import numpy as np
@@ -24,82 +24,13 @@ from . import fixed
 from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis, set_uniforms
+from .local_update import LocalUpdates
 from .params import SynthParams, correction_margins, subpass_order
+from .rect import Rect
 from .similarity import border_margin
-from .stages import run_fidelity, run_subpasses
+from .stages import Draw, fidelity_draws, subpass_draws
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
-
-
-@dataclass(frozen=True)
-class Rect:
-    """Half-open integer rectangle [x0, x1) x [y0, y1)."""
-
-    x0: int
-    y0: int
-    x1: int
-    y1: int
-
-    @classmethod
-    def of(cls, x: int, y: int, w: int, h: int) -> "Rect":
-        return cls(int(x), int(y), int(x) + int(w), int(y) + int(h))
-
-    @property
-    def w(self) -> int:
-        return self.x1 - self.x0
-
-    @property
-    def h(self) -> int:
-        return self.y1 - self.y0
-
-    @property
-    def empty(self) -> bool:
-        return self.w <= 0 or self.h <= 0
-
-    def contains(self, o: "Rect") -> bool:
-        return self.x0 <= o.x0 and self.y0 <= o.y0 and o.x1 <= self.x1 and o.y1 <= self.y1
-
-    def intersect(self, o: "Rect") -> "Rect":
-        return Rect(max(self.x0, o.x0), max(self.y0, o.y0), min(self.x1, o.x1), min(self.y1, o.y1))
-
-    def pad(self, left: int, right: int, top: int, bottom: int) -> "Rect":
-        return Rect(self.x0 - left, self.y0 - top, self.x1 + right, self.y1 + bottom)
-
-    def align(self, a: int) -> "Rect":
-        """Smallest enclosing rectangle whose edges are multiples of a."""
-        return Rect((self.x0 // a) * a, (self.y0 // a) * a, -((-self.x1) // a) * a, -((-self.y1) // a) * a)
-
-    def half(self) -> "Rect":
-        """The parent-level pixels whose children cover this rectangle."""
-        return Rect(self.x0 // 2, self.y0 // 2, (self.x1 - 1) // 2 + 1, (self.y1 - 1) // 2 + 1)
-
-    def minus(self, o: "Rect") -> list["Rect"]:
-        """self \\ o as at most 4 disjoint rectangles."""
-        i = self.intersect(o)
-        if i.empty:
-            return [] if self.empty else [self]
-        out = [Rect(self.x0, self.y0, self.x1, i.y0), Rect(self.x0, i.y1, self.x1, self.y1),
-               Rect(self.x0, i.y0, i.x0, i.y1), Rect(i.x1, i.y0, self.x1, i.y1)]
-        return [r for r in out if not r.empty]
-
-
-def _merge(rects: list[Rect]) -> list[Rect]:
-    """Overlapping rectangles merged into their bounding boxes (until disjoint)."""
-    out = list(rects)
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(out)):
-            for j in range(i + 1, len(out)):
-                if not out[i].intersect(out[j]).empty:
-                    a, b = out[i], out[j]
-                    out[i] = Rect(min(a.x0, b.x0), min(a.y0, b.y0), max(a.x1, b.x1), max(a.y1, b.y1))
-                    del out[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return out
 
 
 class SynthesisError(ValueError):
@@ -158,7 +89,7 @@ class _LevelBuffer:
         self.tex.release()
 
 
-class Pyramid:
+class Pyramid(LocalUpdates):
     """Per-level exact coordinate buffers for one analysis and parameter set.
 
     ``scrolling=True`` keeps power-of-two wrap-around buffers with a prefetch
@@ -183,6 +114,10 @@ class Pyramid:
         self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
         self._dummy_i = gpu.ctx.texture((2, 1), 4, np.zeros(8, np.int32).tobytes(), dtype="i4")
         self.controls = NO_CONTROLS
+        # Per level, the regions a local update has still to synthesize again
+        # (already grown by the level's reach; clipped to what is held when done).
+        self.dirty: list[list[Rect]] = [[] for _ in range(self.an.L + 1)]
+        self._job = None  # the dirty region being synthesized: (level, its steps, its scratch)
         self.set_params(params, controls)
 
     # -- parameters ---------------------------------------------------------
@@ -210,59 +145,6 @@ class Pyramid:
         if first is not None:
             self.invalidate(first)
 
-    def update_controls(self, controls: Controls, changed: list[Rect] | None = None) -> int:
-        """Adopt new controls that differ from the current ones only inside the
-        finest-level canvas rectangles ``changed`` (painted randomness, placed
-        features; None: computed from the two controls), re-synthesizing in
-        place just what that changes in the held buffers.
-
-        Level by level, coarse to fine: the inputs that changed are the pixels
-        whose field value changed and the children of the parent pixels whose
-        value actually changed; the dirty region is those grown by the reach of
-        correction (outside it no result can change), clipped to what the level
-        holds, and synthesized again as strips. Comparing each strip with what
-        it held before tells which pixels actually changed, and only those
-        reach the next level. The result is bit-identical to synthesizing from
-        scratch. Areas not held now cost
-        nothing and are synthesized with the new controls when shown.
-        Returns the number of level pixels synthesized."""
-        controls = controls.normalized()
-        controls.validate(self.an.size, self.an.settings.lattice)
-        self.gpu.activate()
-        if changed is None:
-            rects = self.controls.changed_rects(controls)
-            changed = None if rects is None else [Rect(*r) for r in rects]
-        if changed is None or controls.exemplar_inputs() != self.controls.exemplar_inputs():
-            self.set_params(self.params, controls)  # the whole canvas changes
-            return 0
-        self.controls = controls
-        self._signatures = self._level_signatures()
-        L = self.an.L
-        total = 0
-        parent_changed: list[Rect] = []
-        for l in range(L + 1):
-            k = L - l
-            buf = self.buffers[l]
-            if buf is None or buf.valid is None:
-                break  # finer levels hold nothing this could have reached
-            # Inputs that changed: where the field changed, and the children of
-            # the parent pixels whose values actually changed.
-            inputs = [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)) for r in changed if not r.empty]
-            inputs += [Rect(2 * r.x0, 2 * r.y0, 2 * r.x1, 2 * r.y1) for r in parent_changed]
-            reach = max(self.margins[l])
-            dirty = [r.pad(reach, reach, reach, reach).intersect(buf.valid) for r in inputs]
-            parent_changed = []
-            for r in _merge([r for r in dirty if not r.empty]):
-                before = self._read_rect(buf, r)
-                total += self._synthesize_strip(l, r, buf)
-                diff = np.any(self._read_rect(buf, r) != before, axis=-1)
-                if diff.any():  # only pixels whose value changed reach the next level
-                    ys, xs = np.nonzero(diff)
-                    parent_changed.append(Rect(r.x0 + int(xs.min()), r.y0 + int(ys.min()),
-                                               r.x0 + int(xs.max()) + 1, r.y0 + int(ys.max()) + 1))
-        self.pixels_synthesized = total
-        return total
-
     def _read_rect(self, buf: _LevelBuffer, r: Rect) -> np.ndarray:
         """The held coordinates of ``r`` (H, W, 2) int16, read back piece by piece."""
         out = np.empty((r.h, r.w, 2), dtype=np.int16)
@@ -278,7 +160,10 @@ class Pyramid:
 
     def invalidate(self, first_level: int = 0) -> None:
         """Forget the contents of levels >= first_level."""
+        if self._job is not None and self._job[0] >= first_level:
+            self._end_job()
         for l in range(first_level, self.an.L + 1):
+            self.dirty[l] = []
             if self.buffers[l] is not None:
                 self.buffers[l].valid = None
 
@@ -406,82 +291,104 @@ class Pyramid:
         return self._scratch[key]
 
     def _synthesize_strip(self, l: int, strip: Rect, buf: _LevelBuffer) -> int:
+        region = self.padded(l, strip)
+        steps = self._strip_steps(l, strip, self._scratch_pair(region.w, region.h), buf)
+        for _ in steps:
+            pass
+        return region.w * region.h
+
+    def _strip_steps(self, l: int, strip: Rect, scratch, buf: _LevelBuffer | None,
+                     piece_px: int | None = None) -> Iterator[None]:
+        """Synthesize ``strip`` of level l into ``buf`` (None: the level's buffer at
+        the end, over what it then holds), a draw (or a piece of one, ``piece_px``)
+        per step: upsample + jitter, correction, fidelity stage, on ``scratch``;
+        the write-back is the last step. Returns (as the generator's value) the
+        rectangle of the pixels that changed, when ``buf`` is None."""
         p = self.params
         s = p.subgrid
         an = self.an
         region = self.padded(l, strip)
         qdims = (region.w // s, region.h // s)
-        a, fa, b, fb = self._scratch_pair(region.w, region.h)
+        a, fa, b, fb = scratch
         h = an.h(l)
-
-        # Upsample + jitter into scratch a (modulated by the randomness fields).
-        prog, vao = self.gpu.program("upsample.frag", SUB_S=s)
-        if l > 0:
-            parent = self.buffers[l - 1]
-            assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
-            parent.tex.use(0)
-            set_uniforms(prog, parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
         ftexs, funi = feature_textures(self.gpu, self.controls, an, l, region, p.level_period(l), self._dummy_i)
-        efield = self._efield_texture(l)
-        (efield or self._dummy).use(1)
         cvals = None
         if self.controls.randomness_canvas is not None:
             cvals = self.controls.randomness_canvas.region(an.L - l, region.x0, region.y0, region.w, region.h,
                                                            p.level_period(l))
         ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
-        (ctex or self._dummy).use(2)
-        lshift = self.controls.lattice_shift(an.size, l)
-        set_uniforms(prog, has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
-                     m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
-                     period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
-                     cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi)
-        fa.use()
-        fa.viewport = (0, 0, region.w, region.h)
-        vao.render(moderngl.TRIANGLES)
-        if ctex is not None:
-            ctex.release()
+        try:
+            # Upsample + jitter into scratch a (modulated by the randomness fields), at once.
+            prog, vao = self.gpu.program("upsample.frag", SUB_S=s)
+            efield = self._efield_texture(l)
+            textures = {1: efield or self._dummy, 2: ctex or self._dummy}
+            uni: dict = {}
+            if l > 0:
+                parent = self.buffers[l - 1]
+                assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
+                textures[0] = parent.tex
+                uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
+            lshift = self.controls.lattice_shift(an.size, l)
+            uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
+                       m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
+                       period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
+                       cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi)
+            for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
+                textures[unit] = tex
+            yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni).steps()
 
-        # Correction subpasses, then the fidelity stage's, on scratch a.
-        if l in self.corrected:
-            lt = self.gan.level(l)
-            prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
-            sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
-            for unit, tex in enumerate([lt.feat, lt.nbhd] + sims, start=1):
-                tex.use(unit)
-            set_uniforms(prog, src=0, feat=1, nbhd=2, sim01=3, sim23=4,
-                         dims=(region.w, region.h), qdims=qdims, k=an.k, h=h, m=an.size,
-                         shift=lt.shift, psi=fixed.psi_q(p.kappa))
-            prog["P"].write(lt.proj)
-            # Lattice levels keep their lattice candidates only.
-            walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
+            # Correction subpasses, then the fidelity stage's, on scratch a.
+            draws = []
             avoid = self._avoid_texture()
-            (avoid or self._dummy).use(5)
-            set_uniforms(prog, walk=walk, origin=(region.x0, region.y0), level=l, period=p.level_period(l),
-                         border=-1 if an.toroidal else border_margin(an.size, h),
-                         avoid=5, has_avoid=int(avoid is not None))
-            run_subpasses(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, (a, fa, b, fb),
-                          lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
-        if p.fidelity_at(l):
-            avoid = self._avoid_texture()
-            run_fidelity(self.gpu, self.gan, p, l, region, qdims, lshift is not None, (a, fa, b, fb),
-                         avoid or self._dummy, avoid is not None)
+            if l in self.corrected:
+                lt = self.gan.level(l)
+                prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
+                sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
+                # Lattice levels keep their lattice candidates only.
+                walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
+                uni = dict(feat=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, k=an.k, h=h,
+                           m=an.size, shift=lt.shift, psi=fixed.psi_q(p.kappa), P=lt.proj, walk=walk,
+                           origin=(region.x0, region.y0), level=l, period=p.level_period(l),
+                           border=-1 if an.toroidal else border_margin(an.size, h),
+                           avoid=5, has_avoid=int(avoid is not None))
+                textures = dict(enumerate([lt.feat, lt.nbhd] + sims, start=1))
+                textures[5] = avoid or self._dummy
+                draws += subpass_draws(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch,
+                                       textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
+            if p.fidelity_at(l):
+                draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
+                                        avoid or self._dummy, avoid is not None)
+            for d in draws:
+                yield from d.steps(piece_px)
 
-        # Write the exact strip back, split where the buffer wraps.
-        prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
-        a.use(0)
-        for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
-            tex.use(unit)
-        set_uniforms(prog, src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
-                     h=h, m=an.size, period=p.level_period(l), **funi)
-        buf.fbo.use()
-        for piece in self._texel_pieces(buf, strip):
-            g0, t0, w, hh = piece
-            set_uniforms(prog, region_g0=g0, region_t0=t0)
-            buf.fbo.viewport = (t0[0], t0[1], w, hh)
-            vao.render(moderngl.TRIANGLES)
-        for tex in ftexs:
-            tex.release()
-        return region.w * region.h
+            # Write the exact strip back, split where the buffer wraps.
+            changed = None
+            deferred = buf is None
+            if deferred:  # a local update: into what the level holds now
+                buf = self.buffers[l]
+                strip = strip.intersect(buf.valid) if buf is not None and buf.valid is not None else Rect(0, 0, 0, 0)
+                if strip.empty:
+                    return None
+                before = self._read_rect(buf, strip)
+            prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
+            uni = dict(src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
+                       h=h, m=an.size, period=p.level_period(l), **funi)
+            textures = {0: a, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
+            for g0, t0, w, hh in self._texel_pieces(buf, strip):
+                yield from Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
+                                dict(uni, region_g0=g0, region_t0=t0)).steps()
+            if deferred:
+                diff = np.any(self._read_rect(buf, strip) != before, axis=-1)
+                if diff.any():
+                    ys, xs = np.nonzero(diff)
+                    changed = Rect(strip.x0 + int(xs.min()), strip.y0 + int(ys.min()),
+                                   strip.x0 + int(xs.max()) + 1, strip.y0 + int(ys.max()) + 1)
+            return changed
+        finally:
+            for tex in ftexs:
+                tex.release()
+            if ctex is not None:
+                ctex.release()
 
     def _efield_texture(self, l: int):
         e = self.controls.randomness_exemplar
@@ -500,6 +407,7 @@ class Pyramid:
         return self._efield["avoid"]
 
     def _release_efield(self) -> None:
+        self._end_job()  # it may read them
         for t in self._efield.values():
             t.release()
         self._efield.clear()

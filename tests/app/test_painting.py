@@ -125,12 +125,12 @@ def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path
         field, _ = field.painted(-100 + 25 * i, 10.0 + 3 * i, 24.0, 0)
         d = replace(d, randomness_canvas=field)
         s.sync(d)
-        pixels.append(s.pyramid.pixels_synthesized)
-        if structure == 0:
-            assert s.refine(frame, 1.0)  # still exact: nothing left to refine
-        else:  # an update past its time budget leaves the finer levels to the refinement
-            while not s.refine(frame, 1.0):
-                pass
+        assert not s.pyramid.settled and s.pyramid.pixels_synthesized == 0  # a dab never holds the editor up
+        n = 0
+        while not s.refine(frame, 0.05):  # the refinement settles it a budget at a time
+            n += s.refiner.last_pixels
+        pixels.append(n + s.refiner.last_pixels)
+        assert s.pyramid.settled
     got = s.pyramid.read(s.L, frame.want)
     fresh = Synthesizer(s.analysis, s.params, gpu=gpu, controls=d.controls(s.analysis.size)).window(frame.want)
     assert np.array_equal(got, fresh)
@@ -138,7 +138,7 @@ def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path
         assert max(pixels) * 2 < full  # stage carries a change further (its margins), over most of this small view
     far, _ = field.painted(5000.0, 5000.0, 24.0, 0)
     s.sync(replace(d, randomness_canvas=far))
-    assert s.pyramid.pixels_synthesized == 0  # paint outside what is held costs nothing now
+    assert s.refine(frame, 1.0) and s.refiner.last_pixels == 0  # paint outside what is held costs nothing now
     s.sync(d)
     # Exports use the fields too.
     job = ExportJob(s, Rect.of(-50, -20, 96, 64), os.path.join(str(tmp_path), "unused.png"))

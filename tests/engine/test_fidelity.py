@@ -95,6 +95,47 @@ def test_a_local_update_equals_a_fresh_synthesis(analyses, gpu):
         vp.release()
 
 
+def test_a_deferred_update_spread_over_calls_with_pans_and_new_dabs_equals_a_fresh_synthesis(analyses, gpu):
+    """What the editor does: a dab only records work; settle() does it a piece
+    at a time while the view pans and more dabs come; the end is exact."""
+    an = analyses["gravel-appearance"]
+    params = with_fidelity(an, seed=9)
+    view = Rect.of(-FAR + 500, FAR - 900, 160, 120)
+    vp = Synthesizer(an, params, gpu=gpu).viewport()
+    pyr = vp.pyramid
+    field = CanvasField()
+    try:
+        vp.show(view)
+        calls = 0
+        for i, (cx, cy, value) in enumerate([(60, 50, 0), (150, 20, 65535), (30, 100, 0)]):
+            field, _ = field.painted(view.x0 + cx, view.y0 + cy, 18.0, value)
+            assert pyr.update_controls(Controls(randomness_canvas=field), defer=True) == 0
+            assert not pyr.settled
+            for _ in range(3 + i):  # a few pieces, not the whole update
+                assert not pyr.settle(0.0)
+                calls += 1
+            view = Rect.of(view.x0 + 37, view.y0 - 21, 160, 120)  # a pan between pieces
+            vp.show(view)
+        while not pyr.settle(0.0):
+            calls += 1
+        assert pyr.settled and calls > 20
+        fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(randomness_canvas=field)).window(view)
+        assert np.array_equal(vp.read(view), fresh)
+
+        # New parameters in the middle of an update: it is dropped with what it changed.
+        field, _ = field.painted(view.x0 + 80, view.y0 + 60, 18.0, 65535)
+        pyr.update_controls(Controls(randomness_canvas=field), defer=True)
+        assert not pyr.settle(0.0)
+        params2 = replace(params, seed=10)
+        pyr.set_params(params2)
+        vp.show(view)
+        assert pyr.settle(0.0)
+        fresh = Synthesizer(an, params2, gpu=gpu, controls=Controls(randomness_canvas=field)).window(view)
+        assert np.array_equal(vp.read(view), fresh)
+    finally:
+        vp.release()
+
+
 def test_a_tiled_toroidal_exemplar_is_a_fixed_point(analyses, gpu):
     """With no jitter the synthesis tiles a toroidal exemplar; every patch then
     matches the exemplar exactly, so the stage changes nothing."""

@@ -1,0 +1,126 @@
+"""Local updates of the synthesis pyramid: what a paint dab or a moved feature
+changes, re-synthesized in place, at once or a time budget at a time
+(:class:`LocalUpdates`, a part of :class:`~infinitex.engine.pyramid.Pyramid`).
+
+Each level keeps a dirty region: the pixels within correction reach of an input
+that changed (a changed field value, or a child of a parent pixel whose value
+changed). :meth:`LocalUpdates.settle` synthesizes them coarse to fine; comparing
+each region with what it held before tells which pixels actually changed, and
+only those reach the next level, so the result is bit-identical to synthesizing
+from scratch. A region is one job whose draws run a piece at a time on its own
+scratch buffers, so the editor spreads a large update over frames at no extra
+cost while it pans, draws and takes more strokes.
+"""
+from __future__ import annotations
+
+import time
+
+from .controls import Controls
+from .rect import Rect, merge_rects
+
+JOB_PIECE_PX = 16384  # a local update spread over frames renders at most this many pixels at a time
+
+
+class LocalUpdates:
+    """The pyramid's local updates (uses its buffers, margins and strip synthesis)."""
+
+    def update_controls(self, controls: Controls, changed: list[Rect] | None = None, *, defer: bool = False) -> int:
+        """Adopt new controls that differ from the current ones only inside the
+        finest-level canvas rectangles ``changed`` (painted randomness, placed
+        features; None: computed from the two controls), re-synthesizing in
+        place just what that changes in the held buffers.
+
+        The pixels whose field value changed, grown by the reach of correction
+        (outside it no result can change), become each level's dirty region;
+        :meth:`settle` synthesizes them again coarse to fine. Comparing each
+        strip with what it held before tells which pixels actually changed, and
+        only their children join the next level's dirty region. The result is
+        bit-identical to synthesizing from scratch; areas not held cost nothing
+        and are synthesized with the new controls when shown.
+
+        ``defer``: only record the work (the editor settles it a little per
+        frame); else it is done now. Returns the level pixels synthesized now."""
+        controls = controls.normalized()
+        controls.validate(self.an.size, self.an.settings.lattice)
+        self.gpu.activate()
+        if changed is None:
+            rects = self.controls.changed_rects(controls)
+            changed = None if rects is None else [Rect(*r) for r in rects]
+        if changed is None or controls.exemplar_inputs() != self.controls.exemplar_inputs():
+            self.set_params(self.params, controls)  # the whole canvas changes
+            self.pixels_synthesized = 0
+            return 0
+        self.controls = controls
+        self._signatures = self._level_signatures()
+        L = self.an.L
+        for l in range(L + 1):
+            k = L - l
+            self._mark(l, [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)) for r in changed if not r.empty])
+        self.pixels_synthesized = 0
+        if not defer:
+            self.settle()
+        return self.pixels_synthesized
+
+    def _mark(self, l: int, inputs: list[Rect]) -> None:
+        """Add the pixels within reach of changed inputs to level l's dirty region."""
+        reach = max(self.margins[l])
+        grown = [r.pad(reach, reach, reach, reach) for r in inputs if not r.empty]
+        if grown:
+            self.dirty[l] = merge_rects(self.dirty[l] + grown)
+
+    @property
+    def settled(self) -> bool:
+        """No local update is waiting."""
+        return self._job is None and not any(self.dirty)
+
+    def settle(self, budget_s: float | None = None) -> bool:
+        """Carry out the waiting local updates, coarsest level first, for about
+        ``budget_s`` seconds (None: all of them): a dirty region is one job,
+        synthesized a draw at a time (a piece of a draw at a time, on its own
+        scratch buffers), so it spreads over calls at no extra cost. Adds the
+        level pixels synthesized to ``pixels_synthesized``; True when none is left.
+
+        Between calls the buffers stay consistent: a level's pixels are exact
+        for its parent's current pixels except within its dirty region, so new
+        strips synthesized meanwhile (a pan) are right or marked, and the final
+        result is the fresh synthesis."""
+        deadline = None if budget_s is None else time.perf_counter() + budget_s
+        while True:
+            if self._job is None:
+                nxt = next(((l, r) for l in range(self.an.L + 1) for r in self.dirty[l]), None)
+                if nxt is None:
+                    return True
+                l, r = nxt
+                self.dirty[l].remove(r)
+                buf = self.buffers[l]
+                r = r.intersect(buf.valid) if buf is not None and buf.valid is not None else Rect(0, 0, 0, 0)
+                if r.empty:
+                    continue
+                region = self.padded(l, r)
+                a, b = self.gpu.int_texture((region.w, region.h), 2), self.gpu.int_texture((region.w, region.h), 2)
+                scratch = (a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b]))
+                piece = None if deadline is None else JOB_PIECE_PX
+                self._job = (l, self._strip_steps(l, r, scratch, None, piece), scratch)
+                self.pixels_synthesized += region.w * region.h
+            l, steps, _ = self._job
+            try:
+                while True:
+                    next(steps)
+                    if deadline is not None:
+                        self.gpu.ctx.finish()
+                        if time.perf_counter() > deadline:
+                            return False
+            except StopIteration as stop:
+                changed = stop.value
+            self._end_job()
+            if changed is not None and l < self.an.L:  # only pixels whose value changed reach the next level
+                self._mark(l + 1, [Rect(2 * changed.x0, 2 * changed.y0, 2 * changed.x1, 2 * changed.y1)])
+
+    def _end_job(self) -> None:
+        """Drop the local update in progress (finished or no longer wanted)."""
+        if self._job is not None:
+            _, steps, scratch = self._job
+            self._job = None
+            steps.close()
+            for o in (scratch[1], scratch[3], scratch[0], scratch[2]):
+                o.release()
