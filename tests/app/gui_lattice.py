@@ -83,8 +83,50 @@ def main(out: str) -> int:
         check("rectified geometry differs from the original", not np.array_equal(rect, on_lattice), "same canvas")
         ctx.item_click("//**/Original geometry")
         check("original geometry comes back exactly", np.array_equal(canvas(ctx), on_lattice), "canvas differs")
+        testing.capture(ctx, os.path.join(out, "lattice.png"))  # docs/lattice-editor.png
+
+        # A handle dropped where the block no longer fits: the block shrinks, the origin stays.
+        H, W = ed.tool.image().shape[:2]
+        vp = imgui.get_main_viewport()
+        check("the Lattice window leaves the canvas room", W * ed.tool.zoom <= 0.3 * vp.work_size.x,
+              f"image {W} px at {ed.tool.zoom}x in a {vp.work_size.x:.0f} px window")
+        r = ctx.item_info("//Lattice/**/lattice-handles").rect_full
+        z = ed.tool.zoom
+        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + lat.origin[0] * z, r.min.y + lat.origin[1] * z))
+        ctx.mouse_down(0)
+        target = (round(W / 2), round(H - 1.3 * abs(lat.t2[1])))
+        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + target[0] * z, r.min.y + target[1] * z))
+        ctx.yield_(2)
+        ctx.mouse_up(0)
+        settle(ctx)
+        shrunk = ed.doc.lattice
+        check("a block that does not fit shrinks instead of refusing", shrunk is not None
+              and shrunk.nx * shrunk.ny < lat.nx * lat.ny and abs(shrunk.origin[0] - target[0]) < 1.5
+              and abs(shrunk.origin[1] - target[1]) < 1.5 and "cells used" in ed.tool.message,
+              f"{shrunk} / {ed.tool.message!r}")
+        check("the shrunk block fits", shrunk is not None and shrunk.validate(W, H) is None, str(shrunk))
+        check("one undo step for the move", ed.history.undo_label() == "Move lattice origin", ed.history.undo_label())
+
+        # A rectangle dragged over one cell defines the lattice.
+        handles = ed.tool._handles(shrunk)
+        a = next(p for p in [(W * f, H * g) for f in (0.1, 0.3, 0.6) for g in (0.1, 0.3)]
+                 if min(abs(p[0] - hx) + abs(p[1] - hy) for hx, hy in handles) * z > 30)
+        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + a[0] * z, r.min.y + a[1] * z))
+        ctx.mouse_down(0)
+        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + (a[0] + 30) * z, r.min.y + (a[1] + 24) * z))
+        ctx.yield_(2)
+        ctx.mouse_up(0)
+        settle(ctx)
+        cell = ed.doc.lattice
+        check("a rectangle over one cell defines the lattice", cell is not None
+              and abs(cell.t1[0] - 30) < 1.0 and cell.t1[1] == 0 and cell.t2[0] == 0 and abs(cell.t2[1] - 24) < 1.0
+              and cell.nx * cell.ny >= 4 and ed.history.undo_label() == "Mark lattice cell",
+              f"{cell} / {ed.history.undo_label()}")
+        check("its cells keep the marked phase", cell is not None
+              and abs(((cell.origin[0] - a[0]) / cell.t1[0]) - round((cell.origin[0] - a[0]) / cell.t1[0])) < 0.05
+              and abs(((cell.origin[1] - a[1]) / cell.t2[1]) - round((cell.origin[1] - a[1]) / cell.t2[1])) < 0.05,
+              str(cell))
         check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
-        testing.capture(ctx, os.path.join(out, "lattice.png"))
 
     return h.run(test)
 

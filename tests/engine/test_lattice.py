@@ -22,6 +22,7 @@ from infinitex.engine.controls.lattice import (
     detect,
     rectified_exemplar,
 )
+from infinitex.engine.controls.lattice_block import fit_block
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer
@@ -84,6 +85,33 @@ def test_block_outside_the_image_is_refused():
     with pytest.raises(LatticeError, match="does not fit"):
         lat.validate(160, 100)
     assert Lattice.parse(lat.to_text()) == lat
+
+
+@pytest.mark.parametrize("t1, t2", [((20.0, 0.0), (0.0, 14.0)), ((23.5, 3.0), (-4.0, 19.25)), ((7.0, 0.0), (0.0, 7.0))])
+@pytest.mark.parametrize("origin", [(10.0, 12.0), (150.0, 90.0), (-40.0, 300.0)])
+def test_fit_block_keeps_the_cells_and_fits_the_most(origin, t1, t2):
+    W, H = 160, 120
+    lat = fit_block(origin, t1, t2, W, H)
+    assert lat is not None and lat.t1 == t1 and lat.t2 == t2
+    lat.validate(W, H)  # fits
+    # The same cells: the block starts a whole number of cells from the origin.
+    basis = np.array([t1, t2]).T
+    ij = np.linalg.solve(basis, np.subtract(lat.origin, origin))
+    assert np.allclose(ij, np.round(ij), atol=1e-3)
+    # No block with more cells (aspect within 2:1) fits anywhere on those cells.
+    more = [(nx, ny) for nx in (1, 2, 4, 8, 16) for ny in (1, 2, 4, 8, 16) if nx * ny > lat.nx * lat.ny
+            and 0.5 <= nx * np.hypot(*t1) / (ny * np.hypot(*t2)) <= 2.0]
+    for nx, ny in more:
+        alt = fit_block(origin, t1, t2, W, H, most=(nx, ny))
+        assert alt.nx * alt.ny < nx * ny
+
+
+def test_fit_block_keeps_a_dropped_origin_and_refuses_a_cell_larger_than_the_image():
+    lat = fit_block((120.0, 90.0), (20.0, 0.0), (0.0, 14.0), 160, 120, most=(4, 4), keep_origin=True)
+    assert lat.origin == (120.0, 90.0) and (lat.nx, lat.ny) == (2, 2)  # shrunk, not moved
+    moved = fit_block((120.0, 90.0), (20.0, 0.0), (0.0, 14.0), 160, 120, most=(4, 4))
+    assert (moved.nx, moved.ny) == (4, 4) and moved.origin != (120.0, 90.0)
+    assert fit_block((0.0, 0.0), (200.0, 0.0), (0.0, 14.0), 160, 120) is None
 
 
 def test_rectification_maps_the_block_onto_the_square():

@@ -393,6 +393,7 @@ def detect(pixels: np.ndarray) -> Detection:
     b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
     lat = None
     if conf >= MIN_CONFIDENCE:
+        from .lattice_block import choose_block  # it builds Lattices: defined after this module
         lat = choose_block(b1, b2, W, H)
     return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
 
@@ -475,33 +476,6 @@ def _confidence(ac: np.ndarray, t1, t2, center, lobe: float = 0.0) -> float:
                 & (np.hypot(mids[:, 0], mids[:, 1]) >= lobe)]
     off = float(np.median(_sample(ac, mids, center))) if len(mids) else 0.0
     return float(np.clip((on - off) / max(1e-6, 1.0 - off), 0.0, 1.0))
-
-
-def choose_block(t1, t2, width: int, height: int) -> Lattice | None:
-    """The block for vectors t1, t2 in a width x height image: the most cells
-    (powers of two per side) whose parallelogram fits, with the rectified
-    aspect nx|t1| : ny|t2| within 2:1 (closest to square on ties), centred."""
-    l1, l2 = math.hypot(*t1), math.hypot(*t2)
-    best = None
-    for nx in (1, 2, 4, 8, 16):
-        for ny in (1, 2, 4, 8, 16):
-            bw = abs(nx * t1[0]) + abs(ny * t2[0])
-            bh = abs(nx * t1[1]) + abs(ny * t2[1])
-            if bw > width - 1 or bh > height - 1:
-                continue
-            ratio = (nx * l1) / (ny * l2)
-            if not 0.5 <= ratio <= 2.0:
-                continue
-            key = (nx * ny, -abs(math.log(ratio)))
-            if best is None or key > best[0]:
-                best = (key, nx, ny)
-    if best is None:
-        return None
-    _, nx, ny = best
-    cx = (width - (nx * t1[0] + ny * t2[0])) / 2.0
-    cy = (height - (nx * t1[1] + ny * t2[1])) / 2.0
-    return Lattice((round(cx, 3), round(cy, 3)), (round(t1[0], 3), round(t1[1], 3)),
-                   (round(t2[0], 3), round(t2[1], 3)), nx, ny)
 
 
 # -- the rectified exemplar ---------------------------------------------------------

@@ -20,12 +20,13 @@ import numpy as np
 from imgui_bundle import imgui
 
 from infinitex.engine.controls.lattice import (
+    MIN_VECTOR,
     Detection,
     Lattice,
     LatticeError,
-    choose_block,
     detect,
 )
+from infinitex.engine.controls.lattice_block import choose_block, fit_block
 from infinitex.engine.exemplar import ExemplarError, decode_full
 from infinitex.engine.imagefile import to_u8
 
@@ -49,6 +50,8 @@ class LatticeTool(Tool):
         self.zoom = 1.0
         self.draft: Lattice | None = None     # the lattice while a handle moves
         self.handle = -1                      # 0 origin, 1 t1, 2 t2
+        self.cell: tuple | None = None        # a rectangle marking one cell, while dragged (image pixels)
+        self._fitted = None                   # the image the window's zoom was fitted to
         self.detection: Detection | None = None
         self.message = ""
         self._image: tuple[str, np.ndarray] | None = None   # (sha256, pixels)
@@ -90,15 +93,45 @@ class LatticeTool(Tool):
         return self.draft if self.draft is not None else self.ed.doc.lattice
 
     def _commit(self, lat: Lattice | None, label: str) -> None:
+        """Make ``lat`` the document's lattice (one undo step). A block that does
+        not fit the image shrinks to the most cells that do, its origin kept
+        (the cells stay where they were put); refused only when not one fits."""
         img = self.image()
-        if lat is not None and img is not None:
-            try:
-                lat.validate(img.shape[1], img.shape[0])
-            except LatticeError as exc:
-                self.message = str(exc)
-                return
         self.message = ""
+        if lat is not None and img is not None:
+            H, W = img.shape[:2]
+            try:
+                lat.check_shape()
+                lat.validate(W, H)
+            except LatticeError as exc:
+                fit = None
+                try:
+                    lat.check_shape()
+                    fit = fit_block(lat.origin, lat.t1, lat.t2, W, H, (lat.nx, lat.ny), lat.levels, keep_origin=True)
+                except LatticeError:
+                    pass
+                if fit is None:
+                    self.message = str(exc)
+                    return
+                self.message = (f"{lat.nx}x{lat.ny} cells do not fit in the image here: "
+                                f"{fit.nx}x{fit.ny} cells used.")
+                lat = fit
         self.ed.edit(replace(self.ed.doc, lattice=lat), label)
+
+    def cell_lattice(self, a: tuple[float, float], b: tuple[float, float]) -> Lattice | None:
+        """The lattice of one cell marked by a rectangle from ``a`` to ``b``
+        (image pixels): axis-aligned vectors, as many cells as fit."""
+        img = self.image()
+        if img is None:
+            return None
+        x0, x1 = sorted((a[0], b[0]))
+        y0, y1 = sorted((a[1], b[1]))
+        w, h = round(x1 - x0, 2), round(y1 - y0, 2)
+        if min(w, h) < MIN_VECTOR:
+            return None
+        old = self.ed.doc.lattice
+        return fit_block((round(x0, 2), round(y0, 2)), (w, 0.0), (0.0, h), img.shape[1], img.shape[0],
+                         levels=old.levels if old is not None else None)
 
     def auto_detect(self) -> None:
         img = self.image()
@@ -204,7 +237,10 @@ class LatticeTool(Tool):
             imgui.push_text_wrap_pos(0)
             imgui.text_colored((1.0, 0.6, 0.4, 1.0), self.message)
             imgui.pop_text_wrap_pos()
-        imgui.text_disabled("Drag the handles in the Lattice window.")
+        imgui.push_text_wrap_pos(0)
+        imgui.text_disabled("In the Lattice window: drag a rectangle over one cell, or drag the handles "
+                            "(the block shrinks to what fits).")
+        imgui.pop_text_wrap_pos()
 
     # -- the Lattice window -----------------------------------------------------
 
@@ -213,18 +249,21 @@ class LatticeTool(Tool):
         return [o, (o[0] + lat.t1[0], o[1] + lat.t1[1]), (o[0] + lat.t2[0], o[1] + lat.t2[1])]
 
     def press_at(self, pos: tuple[float, float]) -> None:
-        """Start a handle drag at image position ``pos`` (if a handle is there)."""
+        """Start a drag at image position ``pos``: a handle's if one is there,
+        else a rectangle marking one cell."""
         lat = self.ed.doc.lattice
-        if lat is None:
-            return
         best = -1
-        for i, (hx, hy) in enumerate(self._handles(lat)):
+        for i, (hx, hy) in enumerate(self._handles(lat) if lat is not None else []):
             if math.hypot(hx - pos[0], hy - pos[1]) * self.zoom <= HANDLE_PX + 3:
                 best = i
         self.handle = best
         self.draft = lat if best >= 0 else None
+        self.cell = (pos, pos) if best < 0 else None
 
     def drag_to(self, pos: tuple[float, float]) -> None:
+        if self.cell is not None:
+            self.cell = (self.cell[0], pos)
+            return
         lat = self.draft
         if lat is None or self.handle < 0:
             return
@@ -238,12 +277,25 @@ class LatticeTool(Tool):
             self.draft = replace(lat, t2=v)
 
     def release_drag(self) -> None:
+        if self.cell is not None:
+            a, b = self.cell
+            self.cell = None
+            if math.hypot(b[0] - a[0], b[1] - a[1]) * self.zoom < 4:
+                return  # a click, not a rectangle
+            lat = self.cell_lattice(a, b)
+            if lat is None:
+                self.message = (f"Mark one cell with a rectangle at least {MIN_VECTOR:g} px a side "
+                                "that fits in the image.")
+                return
+            self._commit(lat, "Mark lattice cell")
+            return
         if self.draft is not None and self.draft != self.ed.doc.lattice:
             lat, self.draft = self.draft, None
             try:
                 lat.check_shape()
             except LatticeError as exc:
                 self.message = str(exc)
+                self.handle = -1
                 return
             self._commit(lat, ("Move lattice origin", "Move lattice vector t1", "Move lattice vector t2")[self.handle])
         self.draft, self.handle = None, -1
@@ -254,7 +306,15 @@ class LatticeTool(Tool):
         if img is None:
             return
         H, W = img.shape[:2]
-        size = (min(760, W * self.zoom + 40), min(820, H * self.zoom + PREVIEW + 130))
+        vp = imgui.get_main_viewport()
+        # Out of the canvas's way: at most 30% of the window's width, the image
+        # zoomed to fit that when first shown (the zoom slider and resizing take it further).
+        avail = (0.3 * vp.work_size.x - 40, vp.work_size.y - PREVIEW - 220)
+        if self._fitted != self._image[0]:
+            self._fitted = self._image[0]
+            fit = min(avail[0] / W, avail[1] / H)
+            self.zoom = float(min(4.0, max(0.25, 2.0 ** math.floor(math.log2(max(fit, 1e-3))))))
+        size = (min(avail[0] + 40, W * self.zoom + 40), min(vp.work_size.y - 80, H * self.zoom + PREVIEW + 130))
         if begin_tool_window(ed, self, "Lattice", size, (W, H), (0.25, 8.0), "%.2fx"):
             self._preview(img)
             imgui.begin_child("lattice-view", (0, 0), 0, imgui.WindowFlags_.horizontal_scrollbar)
@@ -271,8 +331,15 @@ class LatticeTool(Tool):
             if imgui.is_item_deactivated():
                 self.release_drag()
             lat = self.current()
+            dl = imgui.get_window_draw_list()
             if lat is not None:
-                self._draw(imgui.get_window_draw_list(), p0, lat, W, H)
+                self._draw(dl, p0, lat, W, H)
+            if self.cell is not None:
+                (ax, ay), (bx, by) = self.cell
+                z = self.zoom
+                dl.add_rect((p0.x + min(ax, bx) * z, p0.y + min(ay, by) * z),
+                            (p0.x + max(ax, bx) * z, p0.y + max(ay, by) * z),
+                            imgui.get_color_u32((0.3, 1.0, 0.5, 1.0)), thickness=2.0)
             imgui.end_child()
         imgui.end()
 
