@@ -128,6 +128,23 @@ def guess_toroidal(pixels: np.ndarray, tolerance: float = 1.6) -> bool:
     return bool(seam_x <= tolerance * inner_x + eps and seam_y <= tolerance * inner_y + eps)
 
 
+def seams_like_an_edge(pixels: np.ndarray, tolerance: float = 1.05) -> bool:
+    """True when each wrap-around seam differs no more than the most different
+    pair of adjacent interior columns (rows): the test for small patterns, whose
+    seam often falls on one of their own edges (a grid line at the border), which
+    the mean-based :func:`guess_toroidal` refuses. A cut photo's seam, a ramp's
+    jump, stand out from every interior pair and still fail."""
+    p = pixels.astype(np.float64)
+    if min(p.shape[:2]) < 2:
+        return False
+    cols = np.abs(np.diff(p, axis=1)).mean(axis=(0, 2) if p.ndim == 3 else 0)
+    rows = np.abs(np.diff(p, axis=0)).mean(axis=(1, 2) if p.ndim == 3 else 1)
+    seam_x = np.abs(p[:, 0] - p[:, -1]).mean()
+    seam_y = np.abs(p[0, :] - p[-1, :]).mean()
+    eps = 1e-6
+    return bool(seam_x <= tolerance * cols.max() + eps and seam_y <= tolerance * rows.max() + eps)
+
+
 def fit_rule(fit: str) -> tuple[str, int]:
     """("resize" or "crop", the largest side it makes) of a fit mode: the plain
     rules stop at DEFAULT_MAX (fast to analyze and synthesize), the "-2048" ones
@@ -209,11 +226,11 @@ def _finish(px: np.ndarray, hires, fit: str, toroidal: bool | None, source: str,
 
 def small_pattern(px: np.ndarray, toroidal: bool | None) -> np.ndarray:
     """A pattern smaller than MIN_SIZE that tiles seamlessly (its wrap-around
-    seams match, or ``toroidal`` says so), repeated to the smallest square of
+    seams match, or look like one of its own edges, or ``toroidal`` says so), repeated to the smallest square of
     whole periods that is at least MIN_SIZE: nothing is lost, the result tiles.
     Anything else smaller than MIN_SIZE is an ExemplarError."""
     h, w = px.shape[:2]
-    tiles = toroidal if toroidal is not None else (min(h, w) >= 2 and guess_toroidal(px))
+    tiles = toroidal if toroidal is not None else (min(h, w) >= 2 and (guess_toroidal(px) or seams_like_an_edge(px)))
     side = math.lcm(w, h)
     if not tiles:
         raise ExemplarError(f"The exemplar is {w}x{h} px; it must be at least {MIN_SIZE}x{MIN_SIZE} px (a smaller "

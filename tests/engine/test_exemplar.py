@@ -157,6 +157,17 @@ def test_small_seamless_patterns_are_repeated_to_the_minimum_size(tmp_path):
     p = ex.pixels[:, :, 0].astype(np.float64)
     wrapped = np.concatenate([p, p], axis=1)  # the repeat has no seam: the wrap looks like the interior
     assert np.abs(wrapped[:, 127] - wrapped[:, 128]).max() <= 1.2 * np.abs(np.diff(p, axis=1)).max()
+    # A 25 px grid whose lines fall on the border: the wrap seam is one of its own
+    # edges (the mean-based seam test refuses it); accepted, repeated exactly.
+    grid = np.full((25, 25), 0.8, np.float32)
+    grid[0, :] = grid[:, 0] = 0.1
+    grid += 0.05 * rng.random((25, 25)).astype(np.float32)
+    ex = from_array(grid)
+    assert ex.toroidal and ex.original_size == (25, 25)
+    # A cut photo under 32 px (a smooth ramp plus noise): its seam stands out from every interior pair.
+    cut = (np.linspace(0.1, 0.9, 25)[None, :] + 0.02 * rng.random((25, 25))).astype(np.float32)
+    with pytest.raises(ExemplarError, match="at least 32x32"):
+        from_array(cut)
     ramp = np.tile(np.linspace(0, 1, 20, dtype=np.float32), (20, 1))
     with pytest.raises(ExemplarError, match="tiles seamlessly"):
         from_array(ramp)
