@@ -9,6 +9,7 @@ from lattice_gen import (
     lattice_error,
     near_regular,
     random_basis,
+    rows,
     stochastic,
     tiles,
 )
@@ -47,6 +48,24 @@ def test_detection_finds_generated_lattices():
         d = detect(near_regular(rng, t1, t2))
         good += d.lattice is not None and lattice_error(d.t1, d.t2, t1, t2) <= 0.02
     assert good >= 0.95 * n, f"{good}/{n} lattices found"
+
+
+@pytest.mark.parametrize("kind", ["planks", "stripes"])
+def test_rows_stripes_and_planks_are_one_dimensional_lattices(kind):
+    """Rows (planks, stripes) at periods 6 to 60 px and any angle: the period
+    across them within 3% and at most 2 degrees off; the other vector along the
+    rows, at least 8 px (not an arbitrary 2 px cut of them)."""
+    rng = np.random.default_rng(7)
+    for period, angle in [(6, 0), (10, 40), (16, 90), (24, 0), (24, 17), (31, 69), (45, 0), (60, 120)]:
+        img, along = rows(rng, period=period, angle=angle, kind=kind)
+        d = detect(img)
+        assert d.lattice is not None, (kind, period, angle, d)
+        t1, t2 = np.array(d.t1), np.array(d.t2)
+        across = [t for t in (t1, t2) if abs(t @ along) < 0.05 * np.hypot(*t)]
+        lengthwise = [t for t in (t1, t2) if abs(t[0] * along[1] - t[1] * along[0]) < 0.05 * np.hypot(*t)]
+        assert across and lengthwise, (kind, period, angle, d.t1, d.t2)
+        assert abs(np.hypot(*across[0]) - period) <= 0.03 * period, (kind, period, angle, d.t1, d.t2)
+        assert np.hypot(*lengthwise[0]) >= 8.0
 
 
 def test_stochastic_images_have_no_lattice():

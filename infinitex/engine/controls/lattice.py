@@ -344,22 +344,46 @@ def detect(pixels: np.ndarray) -> Detection:
     ac = _autocorrelation(gray)
     hy, hx = ac.shape[0] // 2, ac.shape[1] // 2
     lobe = _lobe_radius(ac)
+    # A lattice must repeat at least MIN_REPEATS times across the image.
+    reach = min(gray.shape) / MIN_REPEATS
+    grid = _grid(ac, (hy, hx), lobe, reach, f)
+    rows = _rows(ac, (hy, hx), reach)
+    if grid is None and rows is None:
+        return replace(none, seconds=time.perf_counter() - t0)
+    # Rows win when the grid only cuts them into arbitrary cells (and they are
+    # confident), or when there is no confident grid.
+    if rows is not None and (grid is None or (_along(ac, (hy, hx), rows[3], grid[0], grid[1])
+                                              and rows[2] >= MIN_CONFIDENCE) or grid[2] < min(MIN_CONFIDENCE, rows[2])):
+        t1, t2, conf = rows[:3]
+    else:
+        t1, t2, conf = grid
+    t1, t2 = t1 * f, t2 * f
+    b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
+    lat = None
+    if conf >= MIN_CONFIDENCE:
+        from .lattice_block import choose_block  # it builds Lattices: defined after this module
+        lat = choose_block(b1, b2, W, H)
+    return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
+
+
+def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f: int):
+    """A two-dimensional lattice from the autocorrelation's peaks: (t1, t2, the
+    confidence) or None."""
+    hy, hx = center
     peaks = (ac == ndimage.maximum_filter(ac, size=3, mode="constant", cval=np.inf)) & (ac > 0.05)
     peaks[hy, hx] = False
     peaks[[0, -1], :] = False
     peaks[:, [0, -1]] = False
     ys, xs = np.nonzero(peaks)
     if ys.size < 2:
-        return replace(none, seconds=time.perf_counter() - t0)
+        return None
     vals = ac[ys, xs]
     vec = np.stack([xs - hx, ys - hy], axis=1).astype(np.float64)
     length = np.hypot(vec[:, 0], vec[:, 1])
-    # A lattice must repeat at least MIN_REPEATS times across the image.
-    reach = min(gray.shape) / MIN_REPEATS
     keep = (length >= max(MIN_VECTOR / f, lobe)) & (length <= reach)
     vec, vals, length = vec[keep], vals[keep], length[keep]
     if vals.size < 2:
-        return replace(none, seconds=time.perf_counter() - t0)
+        return None
     # Candidate bases: pairs among the shortest strong peaks, reduced. A basis
     # with a peak inside the motif has lattice points that miss (low median
     # correlation there); a basis of a coarser sub-lattice scores as high as
@@ -383,19 +407,88 @@ def detect(pixels: np.ndarray) -> Detection:
             if len(P) >= 2:
                 scored.append((float(np.median(_sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b))
     if not scored:
-        return replace(none, seconds=time.perf_counter() - t0)
+        return None
     top = max(s[0] for s in scored)
     _, _, t1, t2 = min((s for s in scored if s[0] >= top - 0.2 * abs(top)), key=lambda s: s[1])
     t1, t2 = _refine(ac, t1, t2, (hy, hx))
     t1, t2 = canonical_basis(t1, t2)
-    conf = _confidence(ac, t1, t2, (hy, hx), lobe)
-    t1, t2 = t1 * f, t2 * f
-    b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
-    lat = None
-    if conf >= MIN_CONFIDENCE:
-        from .lattice_block import choose_block  # it builds Lattices: defined after this module
-        lat = choose_block(b1, b2, W, H)
-    return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
+    return t1, t2, _confidence(ac, t1, t2, (hy, hx), lobe)
+
+
+RIDGE_MIN = 0.5  # rows: the median correlation along their direction
+
+
+def _rows(ac: np.ndarray, center: tuple[int, int], reach: float):
+    """A one-dimensional lattice (rows, stripes, planks, slightly curved rows):
+    the autocorrelation stays high along one direction (a ridge through lag 0)
+    and repeats across it. Returns (t1 along the rows, t2 across them, the
+    confidence, the direction along the rows) or None."""
+    hy, hx = center
+    rmax = min(hy, hx) - 2
+    if rmax < 8:
+        return None
+    th = np.deg2rad(np.arange(0.0, 180.0, 0.5))
+    r = np.arange(2.0, rmax / 2.0)  # the near half: curved rows stay on the ridge there
+    pts = (r[None, :, None] * np.stack([np.cos(th), np.sin(th)], axis=1)[:, None, :]).reshape(-1, 2)
+    along = _sample(ac, pts, center).reshape(len(th), len(r))
+    score = np.median(along, axis=1)
+    k = int(np.argmax(score))
+    if score[k] < RIDGE_MIN or np.percentile(along[k], 10) < 0.3:
+        return None
+    d = np.array([math.cos(th[k]), math.sin(th[k])])
+    n = np.array([-d[1], d[0]])
+    # The period across the rows (up to half the image): the shortest lag whose
+    # multiples correlate, on average, within 80% of the best lag's (a multiple
+    # of the period scores as well but is longer; half of it scores about
+    # nothing, as the rows fall between), each multiple read as the profile's
+    # highest value within half a pixel (thin joints make thin peaks).
+    step = 0.25
+    s = np.arange(0.0, rmax + 1.0, step)
+    prof = _sample(ac, s[:, None] * n[None, :], center)
+    local = ndimage.maximum_filter1d(prof, size=5, mode="nearest")  # +-0.5 px
+    periods = np.arange(MIN_VECTOR, rmax, step)
+    if periods.size == 0:
+        return None
+    comb = np.array([local[np.rint(np.arange(P, s[-1], P) / step).astype(int)].mean() for P in periods])
+    twice = periods <= s[-1] / 2  # seen at least twice: far lags alone are noisy (few pixels overlap)
+    if comb[twice].max(initial=-1.0) > 0.3:
+        comb = np.where(twice, comb, -1.0)
+    if comb.max() <= 0.3:
+        return None
+    i = int(np.nonzero(comb >= 0.8 * comb.max())[0][0])
+    while i + 1 < len(comb) and comb[i + 1] >= comb[i]:  # the top of that peak of the comb
+        i += 1
+    period = float(periods[i])
+    j = int(round(period / step))
+    j = j - 2 + int(np.argmax(prof[j - 2:j + 3]))  # the peak itself, then sub-pixel
+    if not 1 <= j < len(prof) - 1:
+        return None
+    a, b, c = prof[j - 1], prof[j], prof[j + 1]
+    den = a - 2 * b + c
+    period = (j + (0.0 if den >= 0 else float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)))) * step
+    if period < MIN_VECTOR:
+        return None
+    # Confidence: the correlation at the period's multiples against half-way
+    # between them (as for a grid), times how well the rows hold along.
+    ks = np.arange(1, max(1, int(s[-1] // period)) + 1)
+    on = float(local[np.minimum(np.rint(ks * period / step).astype(int), len(local) - 1)].mean())
+    half = float(_sample(ac, ((ks - 0.5) * period)[:, None] * n[None, :], center).mean())
+    conf = float(np.clip((on - half) / max(1e-6, 1.0 - half), 0.0, 1.0)) * min(1.0, float(score[k]) / 0.7)
+    t1, t2 = canonical_basis(d * max(period, 8.0), n * period)
+    return t1, t2, conf, d
+
+
+def _along(ac: np.ndarray, center, d, t1, t2) -> bool:
+    """Whether the 2-D basis (t1, t2) has a vector along the rows (direction d)
+    whose half-way point correlates as much as its end: then it only cuts the
+    rows into arbitrary cells and the rows' own lattice is the answer."""
+    d = np.asarray(d, float)
+    for v in (np.asarray(t1, float), np.asarray(t2, float)):
+        if abs(v[0] * d[1] - v[1] * d[0]) <= 0.1 * math.hypot(*v):
+            end, mid = _sample(ac, np.stack([v, 0.5 * v]), center)
+            if mid >= 0.8 * end:
+                return True
+    return False
 
 
 def _lattice_points(t1, t2, hy: int, hx: int, limit: int = 12) -> tuple[np.ndarray, np.ndarray]:
