@@ -49,12 +49,12 @@ from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.controls import Controls  # noqa: E402
 from infinitex.engine.controls.lattice import (  # noqa: E402
     autocorrelation_at,
-    detect,
     original_geometry_box,
     rectified_exemplar,
     render_original,
 )
 from infinitex.engine.controls.lattice_block import choose_block  # noqa: E402
+from infinitex.engine.controls.lattice_detect import detect  # noqa: E402
 from infinitex.engine.exemplar import from_array, load_full  # noqa: E402
 from infinitex.engine.imagefile import to_u8  # noqa: E402
 from infinitex.engine.params import SynthParams  # noqa: E402

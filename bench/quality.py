@@ -67,12 +67,12 @@ from infinitex.engine.analysis import (
 from infinitex.engine.controls import Controls  # noqa: E402
 from infinitex.engine.controls.lattice import (  # noqa: E402
     autocorrelation_at,
-    detect,
     original_geometry_box,
     rectified_exemplar,
     render_original,
 )
 from infinitex.engine.controls.lattice_block import choose_block  # noqa: E402
+from infinitex.engine.controls.lattice_detect import detect  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar, load_full  # noqa: E402
 from infinitex.engine.imagefile import PIL_MODES, to_rgb8, to_u8, write_png  # noqa: E402
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params  # noqa: E402

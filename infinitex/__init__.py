@@ -89,7 +89,7 @@ _EXPORTS = {
     "load_project": "project", "save_project": "project", "Document": "project",
     "Project": "project",
 }
-_RENAMED = {"detect_lattice": ("engine.controls.lattice", "detect")}
+_RENAMED = {"detect_lattice": ("engine.controls.lattice_detect", "detect")}
 
 __all__ = sorted([*_EXPORTS, *_RENAMED, "__version__", "ASSETS"])
 

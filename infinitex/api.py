@@ -17,11 +17,11 @@ from .engine.analysis import AnalysisSettings, analyze
 from .engine.controls import NO_CONTROLS, Controls
 from .engine.controls.lattice import (
     Lattice,
-    detect,
     original_geometry_box,
     rectified_exemplar,
     render_original,
 )
+from .engine.controls.lattice_detect import detect
 from .engine.exemplar import Exemplar, load_exemplar, load_full
 from .engine.imagefile import to_u8
 from .engine.params import SynthParams

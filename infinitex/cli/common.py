@@ -150,7 +150,8 @@ def add_lattice_args(p: argparse.ArgumentParser) -> None:
 def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None):
     """The lattice a --lattice argument names for ``image`` (input pixels),
     printed on stdout as one line; None for 'none' or when 'auto' finds none."""
-    from infinitex.engine.controls.lattice import Lattice, LatticeError, detect
+    from infinitex.engine.controls.lattice import Lattice, LatticeError
+    from infinitex.engine.controls.lattice_detect import detect
     if spec is None:
         return None
     H, W = image.shape[:2]

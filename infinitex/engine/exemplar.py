@@ -130,19 +130,15 @@ def guess_toroidal(pixels: np.ndarray, tolerance: float = 1.6) -> bool:
 
 def seams_like_an_edge(pixels: np.ndarray, tolerance: float = 1.05) -> bool:
     """True when each wrap-around seam differs no more than the most different
-    pair of adjacent interior columns (rows): the test for small patterns, whose
-    seam often falls on one of their own edges (a grid line at the border), which
-    the mean-based :func:`guess_toroidal` refuses. A cut photo's seam, a ramp's
-    jump, stand out from every interior pair and still fail."""
-    p = pixels.astype(np.float64)
+    pair of adjacent interior columns (rows): for small patterns, whose seam may
+    fall on one of their own edges (a grid line at the border), which the
+    mean-based :func:`guess_toroidal` refuses; a cut photo's seam stands out."""
+    p = pixels.astype(np.float64).reshape(pixels.shape[0], pixels.shape[1], -1)
     if min(p.shape[:2]) < 2:
         return False
-    cols = np.abs(np.diff(p, axis=1)).mean(axis=(0, 2) if p.ndim == 3 else 0)
-    rows = np.abs(np.diff(p, axis=0)).mean(axis=(1, 2) if p.ndim == 3 else 1)
-    seam_x = np.abs(p[:, 0] - p[:, -1]).mean()
-    seam_y = np.abs(p[0, :] - p[-1, :]).mean()
-    eps = 1e-6
-    return bool(seam_x <= tolerance * cols.max() + eps and seam_y <= tolerance * rows.max() + eps)
+    cols, rows = np.abs(np.diff(p, axis=1)).mean(axis=(0, 2)), np.abs(np.diff(p, axis=0)).mean(axis=(1, 2))
+    seam_x, seam_y = np.abs(p[:, 0] - p[:, -1]).mean(), np.abs(p[0, :] - p[-1, :]).mean()
+    return bool(seam_x <= tolerance * cols.max() + 1e-6 and seam_y <= tolerance * rows.max() + 1e-6)
 
 
 def fit_rule(fit: str) -> tuple[str, int]:

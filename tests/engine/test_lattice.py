@@ -20,10 +20,10 @@ from infinitex.engine.controls.lattice import (
     Lattice,
     LatticeError,
     autocorrelation_at,
-    detect,
     rectified_exemplar,
 )
 from infinitex.engine.controls.lattice_block import fit_block
+from infinitex.engine.controls.lattice_detect import detect
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
 from infinitex.engine.synth import Synthesizer

@@ -4,7 +4,7 @@ In its own window the exemplar *image* (the whole input, not the fitted
 square) is shown zoomable with the lattice drawn over it: the block of
 ``nx x ny`` cells that becomes the exemplar, and three handles (the origin,
 the ends of t1 and t2) to drag. Auto-detect finds the lattice
-(engine.controls.lattice.detect) and shows its confidence; below the image, the
+(engine.controls.lattice_detect.detect) and shows its confidence; below the image, the
 rectified exemplar is previewed live while a handle moves. The options panel
 holds the on/off switch, the cell counts, the number of lattice levels and
 whether the canvas shows the texture in the input's geometry or rectified.
@@ -21,12 +21,11 @@ from imgui_bundle import imgui
 
 from infinitex.engine.controls.lattice import (
     MIN_VECTOR,
-    Detection,
     Lattice,
     LatticeError,
-    detect,
 )
 from infinitex.engine.controls.lattice_block import choose_block, fit_block
+from infinitex.engine.controls.lattice_detect import Detection, detect
 from infinitex.engine.exemplar import ExemplarError, decode_full
 from infinitex.engine.imagefile import to_u8
 

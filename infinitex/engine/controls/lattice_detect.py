@@ -1,0 +1,355 @@
+"""Finding the lattice of a near-regular image (LH05 section 4.5; ALGORITHM.md
+section 5): the autocorrelation's peaks give a grid (two vectors), its ridges
+give rows (planks, stripes, lines); the confidence says how sure; the block of
+cells comes from :mod:`.lattice_block`."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import ndimage
+
+from .lattice import DETECT_SIDE, MIN_CONFIDENCE, MIN_REPEATS, MIN_SINE, MIN_VECTOR, Lattice
+from .lattice_block import choose_block
+
+
+@dataclass(frozen=True)
+class Detection:
+    """What :func:`detect` found: a lattice (None: no lattice found), the
+    confidence in [0, 1], and the time it took."""
+
+    lattice: Lattice | None
+    confidence: float
+    seconds: float
+    t1: tuple[float, float] | None = None  # the reduced basis, even when rejected
+    t2: tuple[float, float] | None = None
+
+
+def gauss_reduce(t1: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lagrange-Gauss reduction: the two shortest vectors spanning the same lattice."""
+    a, b = np.asarray(t1, float), np.asarray(t2, float)
+    if a @ a > b @ b:
+        a, b = b, a
+    for _ in range(64):
+        mu = round(float(a @ b) / float(a @ a))
+        b = b - mu * a
+        if b @ b >= a @ a:
+            break
+        a, b = b, a
+    return a, b
+
+
+def canonical_basis(t1, t2) -> tuple[np.ndarray, np.ndarray]:
+    """A basis oriented for people: the reduced basis, except that a short
+    lattice vector within 3 degrees of the x (or y) axis becomes t1 (or t2),
+    so rows of running-bond bricks stay rows; t1 points right, t2 to +y."""
+    a, b = gauss_reduce(np.asarray(t1, float), np.asarray(t2, float))
+    det = abs(a[0] * b[1] - a[1] * b[0])
+    vecs = [a, b, a + b, a - b]
+    limit = 2.5 * math.hypot(*b)
+    tol = math.sin(math.radians(3))
+
+    def pair(first, axis):
+        rest = [v for v in vecs if v is not first
+                and abs(abs(first[0] * v[1] - first[1] * v[0]) - det) <= 1e-6 * det]
+        return min(rest, key=lambda v: math.hypot(*v)) if rest else None
+
+    for axis in (0, 1):
+        aligned = [v for v in vecs if abs(v[1 - axis]) <= tol * math.hypot(*v) and math.hypot(*v) <= limit]
+        if aligned:
+            first = min(aligned, key=lambda v: math.hypot(*v))
+            other = pair(first, axis)
+            if other is not None:
+                a, b = (first, other) if axis == 0 else (other, first)
+                break
+    else:
+        if abs(b[0]) * math.hypot(*a) > abs(a[0]) * math.hypot(*b):  # b is more horizontal
+            a, b = b, a
+    if a[0] < 0 or (a[0] == 0 and a[1] < 0):
+        a = -a
+    if a[0] * b[1] - a[1] * b[0] < 0:
+        b = -b
+    return a, b
+
+
+def _autocorrelation(gray: np.ndarray) -> np.ndarray:
+    """Normalized autocorrelation (each lag divided by its overlap), centred:
+    index (H // 2, W // 2) holds lag 0; lags up to half the image each way."""
+    H, W = gray.shape
+    g = gray - ndimage.gaussian_filter(gray, max(H, W) / 8.0, mode="reflect")  # drop slow shading
+    g = g - g.mean()
+    sh = (2 * H, 2 * W)
+    F = np.fft.rfft2(g, s=sh)
+    ac = np.fft.irfft2(F * np.conj(F), s=sh)
+    ones = np.fft.rfft2(np.ones_like(g), s=sh)
+    count = np.fft.irfft2(ones * np.conj(ones), s=sh)
+    ac = np.fft.fftshift(ac / np.maximum(count, 1.0))
+    cy, cx = H, W
+    hy, hx = H // 2, W // 2
+    ac = ac[cy - hy:cy + hy + 1, cx - hx:cx + hx + 1]
+    zero = ac[hy, hx]
+    return ac / zero if zero > 1e-12 else np.zeros_like(ac)
+
+
+def _subpixel(ac: np.ndarray, y: int, x: int) -> tuple[float, float]:
+    """Parabolic sub-pixel offset of the peak at (y, x) per axis."""
+    def off(a, b, c):
+        d = a - 2 * b + c
+        return 0.0 if d >= 0 else float(np.clip(0.5 * (a - c) / d, -0.5, 0.5))
+    return (off(ac[y - 1, x], ac[y, x], ac[y + 1, x]), off(ac[y, x - 1], ac[y, x], ac[y, x + 1]))
+
+
+def _sample(ac: np.ndarray, pts: np.ndarray, center: tuple[int, int]) -> np.ndarray:
+    return ndimage.map_coordinates(ac, [pts[:, 1] + center[0], pts[:, 0] + center[1]], order=1, mode="constant")
+
+
+def detect(pixels: np.ndarray) -> Detection:
+    """Find the lattice of a near-regular image (H, W) or (H, W, C) in [0, 1].
+
+    Returns a Detection whose ``lattice`` is None when the image shows no
+    lattice (confidence below MIN_CONFIDENCE, or fewer than two independent
+    peaks): an answer, not an error. The block is the largest power-of-two
+    count of cells per side that fits in the image with a rectified aspect
+    within 2:1, centred in the image."""
+    t0 = time.perf_counter()
+    img = np.asarray(pixels, dtype=np.float64)
+    if img.ndim == 3:
+        img = img[:, :, :3].mean(axis=2) if img.shape[2] >= 3 else img[:, :, 0]
+    H, W = img.shape
+    f = max(1, math.ceil(max(H, W) / DETECT_SIDE))
+    gray = img
+    if f > 1:  # box reduction by an integer factor (exact scale for the vectors)
+        h2, w2 = H // f, W // f
+        gray = img[:h2 * f, :w2 * f].reshape(h2, f, w2, f).mean(axis=(1, 3))
+    none = Detection(None, 0.0, 0.0)
+    if min(gray.shape) < 16:
+        return replace(none, seconds=time.perf_counter() - t0)
+    ac = _autocorrelation(gray)
+    hy, hx = ac.shape[0] // 2, ac.shape[1] // 2
+    lobe = _lobe_radius(ac)
+    # A lattice must repeat at least MIN_REPEATS times across the image.
+    reach = min(gray.shape) / MIN_REPEATS
+    grid = _grid(ac, (hy, hx), lobe, reach, f)
+    rows = _rows(ac, (hy, hx), reach)
+    if grid is None and rows is None:
+        return replace(none, seconds=time.perf_counter() - t0)
+    # Rows win when the grid only cuts them into arbitrary cells (and they are
+    # confident), or when there is no confident grid.
+    if rows is not None and (grid is None or (_along(ac, (hy, hx), rows[3], grid[0], grid[1])
+                                              and rows[2] >= MIN_CONFIDENCE) or grid[2] < min(MIN_CONFIDENCE, rows[2])):
+        t1, t2, conf = rows[:3]
+    else:
+        t1, t2, conf = grid
+    t1, t2 = t1 * f, t2 * f
+    b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
+    lat = None
+    if conf >= MIN_CONFIDENCE:
+        lat = choose_block(b1, b2, W, H)
+    return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
+
+
+def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f: int):
+    """A two-dimensional lattice from the autocorrelation's peaks: (t1, t2, the
+    confidence) or None."""
+    hy, hx = center
+    peaks = (ac == ndimage.maximum_filter(ac, size=3, mode="constant", cval=np.inf)) & (ac > 0.05)
+    peaks[hy, hx] = False
+    peaks[[0, -1], :] = False
+    peaks[:, [0, -1]] = False
+    ys, xs = np.nonzero(peaks)
+    if ys.size < 2:
+        return None
+    vals = ac[ys, xs]
+    vec = np.stack([xs - hx, ys - hy], axis=1).astype(np.float64)
+    length = np.hypot(vec[:, 0], vec[:, 1])
+    keep = (length >= max(MIN_VECTOR / f, lobe)) & (length <= reach)
+    vec, vals, length = vec[keep], vals[keep], length[keep]
+    if vals.size < 2:
+        return None
+    # Candidate bases: pairs among the shortest strong peaks, reduced. A basis
+    # with a peak inside the motif has lattice points that miss (low median
+    # correlation there); a basis of a coarser sub-lattice scores as high as
+    # the true one but spans a larger cell: keep the smallest cell among those
+    # scoring near the best.
+    strong = vals >= 0.3 * vals.max()
+    vec, vals, length = vec[strong], vals[strong], length[strong]
+    shortest = np.argsort(length - 1e-6 * vals, kind="stable")[:12]
+    highest = np.argsort(-vals + 1e-6 * length, kind="stable")[:12]
+    cand = vec[np.unique(np.concatenate([shortest, highest]))]
+    cand = cand[np.argsort(np.hypot(cand[:, 0], cand[:, 1]), kind="stable")]
+    scored = []
+    for i in range(len(cand)):
+        for j in range(i + 1, len(cand)):
+            a, b = cand[i], cand[j]
+            if abs(a[0] * b[1] - a[1] * b[0]) < MIN_SINE * math.hypot(*a) * math.hypot(*b):
+                continue
+            a, b = gauss_reduce(a, b)
+            _, P = _lattice_points(a, b, hy, hx, limit=3)
+            P = P[np.hypot(P[:, 0], P[:, 1]) >= lobe]
+            if len(P) >= 2:
+                scored.append((float(np.median(_sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b))
+    if not scored:
+        return None
+    top = max(s[0] for s in scored)
+    _, _, t1, t2 = min((s for s in scored if s[0] >= top - 0.2 * abs(top)), key=lambda s: s[1])
+    t1, t2 = _refine(ac, t1, t2, (hy, hx))
+    t1, t2 = canonical_basis(t1, t2)
+    return t1, t2, _confidence(ac, t1, t2, (hy, hx), lobe)
+
+
+RIDGE_MIN = 0.5  # rows: the median correlation along their direction
+
+
+def _rows(ac: np.ndarray, center: tuple[int, int], reach: float):
+    """A one-dimensional lattice (rows, stripes, planks, slightly curved rows):
+    the autocorrelation stays high along one direction (a ridge through lag 0)
+    and repeats across it. Returns (t1 along the rows, t2 across them, the
+    confidence, the direction along the rows) or None."""
+    hy, hx = center
+    rmax = min(hy, hx) - 2
+    if rmax < 8:
+        return None
+    th = np.deg2rad(np.arange(0.0, 180.0, 0.5))
+    r = np.arange(2.0, rmax / 2.0)  # the near half: curved rows stay on the ridge there
+    pts = (r[None, :, None] * np.stack([np.cos(th), np.sin(th)], axis=1)[:, None, :]).reshape(-1, 2)
+    along = _sample(ac, pts, center).reshape(len(th), len(r))
+    score = np.median(along, axis=1)
+    k = int(np.argmax(score))
+    if score[k] < RIDGE_MIN or np.percentile(along[k], 10) < 0.3:
+        return None
+    d = np.array([math.cos(th[k]), math.sin(th[k])])
+    n = np.array([-d[1], d[0]])
+    # The period across the rows (up to half the image): the shortest lag whose
+    # multiples correlate, on average, within 80% of the best lag's (a multiple
+    # of the period scores as well but is longer; half of it scores about
+    # nothing, as the rows fall between), each multiple read as the profile's
+    # highest value within half a pixel (thin joints make thin peaks).
+    step = 0.25
+    s = np.arange(0.0, rmax + 1.0, step)
+    prof = _sample(ac, s[:, None] * n[None, :], center)
+    local = ndimage.maximum_filter1d(prof, size=5, mode="nearest")  # +-0.5 px
+    periods = np.arange(MIN_VECTOR, rmax, step)
+    if periods.size == 0:
+        return None
+    comb = np.array([local[np.rint(np.arange(P, s[-1], P) / step).astype(int)].mean() for P in periods])
+    twice = periods <= s[-1] / 2  # seen at least twice: far lags alone are noisy (few pixels overlap)
+    if comb[twice].max(initial=-1.0) > 0.3:
+        comb = np.where(twice, comb, -1.0)
+    if comb.max() <= 0.3:
+        return None
+    i = int(np.nonzero(comb >= 0.8 * comb.max())[0][0])
+    while i + 1 < len(comb) and comb[i + 1] >= comb[i]:  # the top of that peak of the comb
+        i += 1
+    period = float(periods[i])
+    j = int(round(period / step))
+    j = j - 2 + int(np.argmax(prof[j - 2:j + 3]))  # the peak itself, then sub-pixel
+    if not 1 <= j < len(prof) - 1:
+        return None
+    a, b, c = prof[j - 1], prof[j], prof[j + 1]
+    den = a - 2 * b + c
+    period = (j + (0.0 if den >= 0 else float(np.clip(0.5 * (a - c) / den, -0.5, 0.5)))) * step
+    if period < MIN_VECTOR:
+        return None
+    # Confidence: the correlation at the period's multiples against half-way
+    # between them (as for a grid), times how well the rows hold along.
+    ks = np.arange(1, max(1, int(s[-1] // period)) + 1)
+    on = float(local[np.minimum(np.rint(ks * period / step).astype(int), len(local) - 1)].mean())
+    half = float(_sample(ac, ((ks - 0.5) * period)[:, None] * n[None, :], center).mean())
+    conf = float(np.clip((on - half) / max(1e-6, 1.0 - half), 0.0, 1.0)) * min(1.0, float(score[k]) / 0.7)
+    t1, t2 = canonical_basis(d * max(period, 8.0), n * period)
+    return t1, t2, conf, d
+
+
+def _along(ac: np.ndarray, center, d, t1, t2) -> bool:
+    """Whether the 2-D basis (t1, t2) has a vector along the rows (direction d)
+    whose half-way point correlates as much as its end: then it only cuts the
+    rows into arbitrary cells and the rows' own lattice is the answer."""
+    d = np.asarray(d, float)
+    for v in (np.asarray(t1, float), np.asarray(t2, float)):
+        if abs(v[0] * d[1] - v[1] * d[0]) <= 0.1 * math.hypot(*v):
+            end, mid = _sample(ac, np.stack([v, 0.5 * v]), center)
+            if mid >= 0.8 * end:
+                return True
+    return False
+
+
+def _lattice_points(t1, t2, hy: int, hx: int, limit: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Integer pairs (n1, n2) != 0 and their lattice points inside the lag window."""
+    n = np.arange(-limit, limit + 1)
+    N1, N2 = np.meshgrid(n, n)
+    N = np.stack([N1.ravel(), N2.ravel()], axis=1)
+    N = N[(N != 0).any(axis=1)]
+    P = N @ np.stack([t1, t2])
+    inside = (np.abs(P[:, 0]) <= hx - 2) & (np.abs(P[:, 1]) <= hy - 2)
+    return N[inside], P[inside]
+
+
+def _refine(ac: np.ndarray, t1, t2, center) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares fit of (t1, t2) to the sub-pixel peaks found near every
+    lattice point in the window, weighted by how far they are (far peaks pin
+    the vectors down most)."""
+    hy, hx = center
+    for _ in range(2):
+        N, P = _lattice_points(t1, t2, hy, hx)
+        if len(N) < 2:
+            break
+        floor = 0.4 * float(_sample(ac, np.stack([t1, t2]), center).min())
+        rows, obs = [], []
+        for n, p in zip(N, P):
+            x, y = int(round(p[0])) + hx, int(round(p[1])) + hy
+            win = ac[y - 1:y + 2, x - 1:x + 2]
+            if win.shape != (3, 3):
+                continue
+            dy, dx = np.unravel_index(int(np.argmax(win)), (3, 3))
+            y, x = y + dy - 1, x + dx - 1
+            if not (1 <= y < ac.shape[0] - 1 and 1 <= x < ac.shape[1] - 1):
+                continue
+            if ac[y, x] < floor or ac[y, x] < ac[y - 1:y + 2, x - 1:x + 2].max():
+                continue  # weak, or not a local maximum
+            oy, ox = _subpixel(ac, y, x)
+            rows.append(n)
+            obs.append((x - hx + ox, y - hy + oy))
+        if len(rows) < 2:
+            break
+        A = np.asarray(rows, float)
+        Y = np.asarray(obs, float)
+        if np.linalg.matrix_rank(A) < 2:
+            break
+        T, *_ = np.linalg.lstsq(A, Y, rcond=None)
+        t1, t2 = T[0], T[1]
+    return np.asarray(t1, float), np.asarray(t2, float)
+
+
+def _lobe_radius(ac: np.ndarray) -> float:
+    """Radius of the autocorrelation's central lobe: the first radius at which
+    the correlation has dropped below 0.3 in some direction (lags inside it
+    say nothing about a lattice)."""
+    hy, hx = ac.shape[0] // 2, ac.shape[1] // 2
+    ys, xs = np.mgrid[-hy:ac.shape[0] - hy, -hx:ac.shape[1] - hx]
+    r = np.rint(np.hypot(xs, ys)).astype(np.int64).ravel()
+    n = min(hy, hx)
+    low = np.full(n + 1, np.inf)
+    sel = r <= n
+    np.minimum.at(low, r[sel], ac.ravel()[sel])
+    below = np.nonzero(low < 0.3)[0]
+    return float(below[0]) if below.size else float(n)
+
+
+def _confidence(ac: np.ndarray, t1, t2, center, lobe: float = 0.0) -> float:
+    """How much more the image correlates with itself at lattice points than
+    half-way between them, in [0, 1] (points inside the central lobe left out)."""
+    hy, hx = center
+    N, P = _lattice_points(t1, t2, hy, hx, limit=2)
+    P = P[np.hypot(P[:, 0], P[:, 1]) >= lobe]
+    if len(P) < 2:
+        return 0.0
+    on = float(np.median(_sample(ac, P, center)))
+    t1, t2 = np.asarray(t1, float), np.asarray(t2, float)
+    mids = np.concatenate([np.concatenate([P + half, half[None]])
+                           for half in (0.5 * t1, 0.5 * t2, 0.5 * (t1 + t2))])  # half-way points
+    mids = mids[(np.abs(mids[:, 0]) <= hx - 1) & (np.abs(mids[:, 1]) <= hy - 1)
+                & (np.hypot(mids[:, 0], mids[:, 1]) >= lobe)]
+    off = float(np.median(_sample(ac, mids, center))) if len(mids) else 0.0
+    return float(np.clip((on - off) / max(1e-6, 1.0 - off), 0.0, 1.0))
