@@ -68,6 +68,16 @@ def test_rows_stripes_and_planks_are_one_dimensional_lattices(kind):
         assert np.hypot(*lengthwise[0]) >= 8.0
 
 
+@pytest.mark.parametrize("cell", [12, 25, 40])
+def test_a_grid_of_thin_lines_gives_its_own_cell_not_a_larger_one(cell):
+    rng = np.random.default_rng(cell)
+    y, x = np.mgrid[0:256, 0:256]
+    img = np.where((y % cell == 0) | (x % cell == 0), 0.1, 0.8) + 0.05 * rng.standard_normal((256, 256))
+    d = detect(np.clip(img, 0, 1).astype(np.float32))
+    assert d.lattice is not None
+    assert lattice_error(d.t1, d.t2, np.array([cell, 0.0]), np.array([0.0, cell])) <= 0.03, (d.t1, d.t2)
+
+
 def test_stochastic_images_have_no_lattice():
     rng = np.random.default_rng(11)
     for _ in range(30):

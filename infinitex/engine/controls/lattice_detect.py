@@ -194,9 +194,39 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
         return None
     top = max(s[0] for s in scored)
     _, _, t1, t2 = min((s for s in scored if s[0] >= top - 0.2 * abs(top)), key=lambda s: s[1])
+    t1, t2 = _primitive(ac, (hy, hx), t1, t2, lobe)
     t1, t2 = _refine(ac, t1, t2, (hy, hx))
     t1, t2 = canonical_basis(t1, t2)
     return t1, t2, _confidence(ac, t1, t2, (hy, hx), lobe)
+
+
+def _primitive(ac: np.ndarray, center, t1, t2, lobe: float):
+    """The finest lattice the basis is a coarser version of: while a fraction
+    of a lattice vector (t/k for k up to 8, or (t1+t2)/2) and all its multiples
+    up to t correlate as much as the basis itself, that fraction is a lattice
+    vector too (a grid of thin lines otherwise comes out as cells of several
+    grid cells)."""
+    a, b = np.asarray(t1, float), np.asarray(t2, float)
+    for _ in range(6):
+        level = 0.85 * float(_sample(ac, np.stack([a, b]), center).min())
+        found = None
+        for v, keep in ((a, b), (b, a)):
+            for k in range(2, 9):
+                h = v / k
+                if math.hypot(*h) < max(lobe, MIN_VECTOR):
+                    break
+                if float(_sample(ac, np.outer(np.arange(1, k), h), center).min()) >= level:
+                    found = (h, keep)
+                    break
+            if found:
+                break
+        mid = 0.5 * (a + b)
+        if found is None and math.hypot(*mid) >= max(lobe, MIN_VECTOR) and float(_sample(ac, mid[None, :], center)[0]) >= level:
+            found = (mid, a)
+        if found is None:
+            break
+        a, b = gauss_reduce(*found)
+    return a, b
 
 
 RIDGE_MIN = 0.5  # rows: the median correlation along their direction
