@@ -136,20 +136,23 @@ def tiles(rng: np.random.Generator, side: int = 256, cell: float = 32.0, grout: 
 
 
 def rows(rng: np.random.Generator, side: int = 256, period: float = 24.0, angle: float = 0.0,
-         kind: str = "planks", noise: float = 0.04) -> tuple[np.ndarray, np.ndarray]:
+         kind: str = "planks", noise: float = 0.04, bend: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """A one-dimensional lattice rotated by ``angle`` degrees: ``planks`` (rows
     of boards, each its own shade, a wavy grain, 2 px dark joints) or
-    ``stripes`` (a sine across the rows). Returns the image and the unit
-    vector along the rows."""
+    ``stripes`` (a sine across the rows); ``bend``: the rows curve by that many
+    pixels across, once over the image. Returns the image and the unit vector
+    along the rows."""
     c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
     ys, xs = np.mgrid[0:side, 0:side].astype(np.float64) + 0.5
     u, v = c * xs + s * ys, -s * xs + c * ys  # along, across
+    v = v + bend * np.sin(2 * np.pi * u / side)
     if kind == "stripes":
         img = 0.5 + 0.35 * np.sin(2 * np.pi * v / period)
     else:
         idx = np.floor(v / period).astype(np.int64)
         shade = rng.uniform(0.45, 0.7, 4096)[idx % 4096]
-        grain = 0.06 * np.sin(2 * np.pi * u / rng.uniform(30, 70) + 3 * np.sin(v / 5.0))
+        lam, phase = rng.uniform(30, 70, 4096)[idx % 4096], rng.uniform(0, 2 * np.pi, 4096)[idx % 4096]
+        grain = 0.06 * np.sin(2 * np.pi * u / lam + phase + 3 * np.sin(v / 5.0))  # each board its own
         img = np.where(v - idx * period < 2.0, 0.12, shade + grain)
     img = img + noise * rng.standard_normal((side, side))
     tone = np.array([1.0, 0.8, 0.6])

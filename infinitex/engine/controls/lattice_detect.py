@@ -133,6 +133,8 @@ def detect(pixels: np.ndarray) -> Detection:
     reach = min(gray.shape) / MIN_REPEATS
     grid = _grid(ac, (hy, hx), lobe, reach, f)
     rows = _rows(ac, (hy, hx), reach)
+    if rows is None and grid is not None:
+        rows = _rows_of_grid(ac, (hy, hx), grid)
     if grid is None and rows is None:
         return replace(none, seconds=time.perf_counter() - t0)
     # Rows win when the grid only cuts them into arbitrary cells (and they are
@@ -242,12 +244,17 @@ def _rows(ac: np.ndarray, center: tuple[int, int], reach: float):
     if rmax < 8:
         return None
     th = np.deg2rad(np.arange(0.0, 180.0, 0.5))
-    r = np.arange(2.0, rmax / 2.0)  # the near half: curved rows stay on the ridge there
-    pts = (r[None, :, None] * np.stack([np.cos(th), np.sin(th)], axis=1)[:, None, :]).reshape(-1, 2)
-    along = _sample(ac, pts, center).reshape(len(th), len(r))
-    score = np.median(along, axis=1)
-    k = int(np.argmax(score))
-    if score[k] < RIDGE_MIN or np.percentile(along[k], 10) < 0.3:
+    # The ridge over the near half of the lags, else over the nearest fifth
+    # (rows that bend stay on it only that far).
+    for far in (rmax / 2.0, rmax / 5.0):
+        r = np.arange(2.0, far)
+        pts = (r[None, :, None] * np.stack([np.cos(th), np.sin(th)], axis=1)[:, None, :]).reshape(-1, 2)
+        along = _sample(ac, pts, center).reshape(len(th), len(r))
+        score = np.median(along, axis=1)
+        k = int(np.argmax(score))
+        if score[k] >= RIDGE_MIN and np.percentile(along[k], 10) >= 0.3:
+            break
+    else:
         return None
     d = np.array([math.cos(th[k]), math.sin(th[k])])
     n = np.array([-d[1], d[0]])
@@ -292,13 +299,32 @@ def _rows(ac: np.ndarray, center: tuple[int, int], reach: float):
     return t1, t2, conf, d
 
 
+def _rows_of_grid(ac: np.ndarray, center, grid):
+    """Rows a grid's basis reveals (bent rows, whose ridge does not hold far):
+    one of its vectors is short and correlates half-way as much as at its end,
+    so it only cuts the rows; the other gives the period across them. The same
+    (t1, t2, confidence, direction) as :func:`_rows`, or None."""
+    t1, t2, conf = grid
+    for v, w in ((t1, t2), (t2, t1)):
+        end, mid = _sample(ac, np.stack([v, 0.5 * v]), center)
+        length = math.hypot(*v)
+        if length < 8.0 and mid >= 0.8 * end:
+            d = np.asarray(v, float) / length
+            n = np.array([-d[1], d[0]])
+            period = abs(float(np.asarray(w, float) @ n))
+            if period >= MIN_VECTOR:
+                a, b = canonical_basis(d * max(period, 8.0), n * period)
+                return a, b, conf, d
+    return None
+
+
 def _along(ac: np.ndarray, center, d, t1, t2) -> bool:
     """Whether the 2-D basis (t1, t2) has a vector along the rows (direction d)
     whose half-way point correlates as much as its end: then it only cuts the
     rows into arbitrary cells and the rows' own lattice is the answer."""
     d = np.asarray(d, float)
     for v in (np.asarray(t1, float), np.asarray(t2, float)):
-        if abs(v[0] * d[1] - v[1] * d[0]) <= 0.1 * math.hypot(*v):
+        if abs(v[0] * d[1] - v[1] * d[0]) <= 0.18 * math.hypot(*v):  # within about 10 degrees
             end, mid = _sample(ac, np.stack([v, 0.5 * v]), center)
             if mid >= 0.8 * end:
                 return True
