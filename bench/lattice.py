@@ -6,7 +6,8 @@ lattice mode keeps the lattice.
 1. Detection time for 128^2, 256^2 and 512^2 generated near-regular images
    (median of 9; target under 1 s at 512^2), and accuracy on 100 generated
    images (both vectors and the cell area within 2%) and 30 stochastic ones
-   (should be "no lattice").
+   (should be "no lattice"); rows (planks, stripes, straight or bent) and grids of
+   thin lines (the period within 3%).
 2. Lattice regularity: the autocorrelation of the output at the lattice
    vectors t1 and t2 (the cell's sides in the rectified geometry) over the
    exemplar's, for a 384^2 window synthesized with and without lattice mode
@@ -38,6 +39,7 @@ SHARED = os.path.join(os.path.dirname(HERE), "shared", "exemplars")
 
 from lattice_gen import (  # noqa: E402
     bricks,
+    rows,
     lattice_error,
     near_regular,
     random_basis,
@@ -89,6 +91,34 @@ def detection_accuracy(n: int = 100, n_stochastic: int = 30) -> dict:
         good += d.lattice is not None and lattice_error(d.t1, d.t2, t1, t2) <= 0.02
     false_pos = int(sum(detect(stochastic(rng)).lattice is not None for _ in range(n_stochastic)))
     return {"found": int(good), "of": n, "stochastic_false_positives": false_pos, "stochastic": n_stochastic}
+
+
+def rows_and_grids_accuracy() -> dict:
+    """Rows (planks and stripes, periods 5 to 60 px, any angle, straight or bent
+    up to 8 px) and grids of thin lines (8 to 48 px): found with the period
+    within 3% (rows: across them, at most 3 degrees off, 10 when bent; grids:
+    both vectors within 3%)."""
+    rng = np.random.default_rng(17)
+    found = total = 0
+    for kind in ("planks", "stripes"):
+        for _ in range(20):
+            period, angle = float(rng.uniform(5, 60)), float(rng.uniform(0, 180))
+            bend = float(rng.choice([0.0, 0.0, 4.0, 8.0]))
+            img, along = rows(rng, period=period, angle=angle, kind=kind, bend=bend)
+            d = detect(img)
+            total += 1
+            if d.lattice is None:
+                continue
+            tol = 0.05 if not bend else 0.18
+            across = [np.array(t) for t in (d.t1, d.t2) if abs(np.array(t) @ along) < tol * np.hypot(*t)]
+            found += bool(across) and abs(np.hypot(*across[0]) - period) <= 0.03 * period
+    grids = 0
+    for cell in (8, 12, 16, 20, 25, 32, 40, 48):
+        y, x = np.mgrid[0:256, 0:256]
+        img = np.where((y % cell == 0) | (x % cell == 0), 0.1, 0.8) + 0.05 * rng.standard_normal((256, 256))
+        d = detect(np.clip(img, 0, 1).astype(np.float32))
+        grids += d.lattice is not None and lattice_error(d.t1, d.t2, np.array([cell, 0.0]), np.array([0.0, cell])) <= 0.03
+    return {"rows_found": int(found), "rows": total, "grids_found": int(grids), "grids": 8}
 
 
 def lattice_for(img: np.ndarray):
@@ -200,11 +230,14 @@ def main() -> int:
 
     times = detection_times()
     acc = detection_accuracy()
+    acc.update(rows_and_grids_accuracy())
     print("Lattice detection (median of 9 generated images)")
     for side, t in times.items():
         print(f"  {side:4d}^2  {t * 1000:7.1f} ms")
     print(f"  accuracy: {acc['found']}/{acc['of']} generated lattices found within 2%; "
-          f"{acc['stochastic_false_positives']}/{acc['stochastic']} stochastic images given a lattice")
+          f"{acc['stochastic_false_positives']}/{acc['stochastic']} stochastic images given a lattice; "
+          f"rows {acc['rows_found']}/{acc['rows']}, grids of thin lines {acc['grids_found']}/{acc['grids']} "
+          "within 3%")
     rows = []
     print("\nLattice regularity: autocorrelation at t1, t2, output over exemplar (1.0 = as regular)")
     print(f"  {'case':34s} {'conf':>5s} {'cells':>7s} {'without lattice':>16s} {'with lattice':>14s}")
