@@ -137,17 +137,22 @@ class Refiner:
         """Synthesize for at most about ``budget_s``; True when the frame is exact."""
         t0 = time.perf_counter()
         pyr = self.pyramid
-        if not pyr.settled:  # a paint dab or a feature move first: the view shows it next
-            before = pyr.pixels_synthesized
-            settled = pyr.settle(budget_s)
-            self.gpu.ctx.finish()
-            self._done(t0, pyr.pixels_synthesized - before)
-            if not settled or time.perf_counter() - t0 > budget_s:
-                return False
-            t0 = time.perf_counter()
+        plan = pyr.plan(frame.level, frame.want)
         pixels = 0
         finished = True
-        for l, want in enumerate(self.pyramid.plan(frame.level, frame.want)):
+        if not pyr.settled:
+            # A paint dab or a feature move: shown next. When the view also
+            # misses pixels (a pan meanwhile), they share the frame: strips
+            # synthesized now are exact or get marked by the update (Pyramid.settle).
+            missing = any(not self.holds(l, want) for l, want in enumerate(plan))
+            before = pyr.pixels_synthesized
+            finished = pyr.settle(budget_s / 2 if missing else budget_s)
+            self.gpu.ctx.finish()
+            pixels += pyr.pixels_synthesized - before
+            if not missing or time.perf_counter() - t0 > budget_s:
+                self._done(t0, pixels)
+                return finished and not missing
+        for l, want in enumerate(plan):
             if self.holds(l, want):
                 continue
             remaining = budget_s - (time.perf_counter() - t0)

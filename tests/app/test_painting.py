@@ -148,6 +148,33 @@ def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path
     s.release()
 
 
+def test_a_pan_during_a_local_update_fills_the_view_and_ends_exact(doc, gpu):
+    """At Balanced a dab's update spans many frames; panning meanwhile gets its
+    share of each frame (the new area shows before the update ends) and the
+    end is the fresh synthesis."""
+    doc = replace(doc, structure=DEFAULT_STRUCTURE)
+    s = Session(gpu)
+    s.load_now(doc)
+    frame = Frame(level=s.L, want=Rect.of(-200, -150, 300, 200))
+    while not s.refine(frame, 1.0):
+        pass
+    field, _ = CanvasField().painted(-60.0, -40.0, 30.0, 0)
+    d = replace(doc, randomness_canvas=field)
+    s.sync(d)
+    assert not s.refine(frame, 0.01) and not s.pyramid.settled
+    panned = Frame(level=s.L, want=Rect.of(-200 + 160, -150, 300, 200))
+    steps = 0
+    while not s.refiner.holds(s.L, panned.want):
+        assert not s.refine(panned, 0.02)
+        steps += 1
+    assert not s.pyramid.settled  # the new area came first, the update is still going on
+    while not s.refine(panned, 0.05):
+        pass
+    fresh = Synthesizer(s.analysis, s.params, gpu=gpu, controls=d.controls(s.analysis.size)).window(panned.want)
+    assert np.array_equal(s.pyramid.read(s.L, panned.want), fresh)
+    s.release()
+
+
 def test_cli_maps(tmp_path):
     emap = np.full((128, 128), 128, np.uint8)
     emap[10:60, 10:90] = 0
