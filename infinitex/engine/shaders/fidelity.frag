@@ -51,14 +51,14 @@ ivec2 keep_inside(ivec2 u) {
     return border < 0 ? (u & (m - 1)) : clamp(u, ivec2(border), ivec2(m - 1 - border));
 }
 
-ivec4 nb[NT];  // N(p + d), row-major over the patch (the centre unused)
+uint nb[NT];  // N(p + d) packed RGBA8 (r in the low byte), row-major over the patch (the centre unused)
 
 uint patch_cost(ivec2 u, uint limit) {
     uint cost = 0u;
     for (int t = 0; t < NT; ++t) {
         if (t == NT / 2) continue;
         ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
-        ivec4 e = nb[t] - ivec4(texelFetch(colors, exemplar_tap(u + h * d), 0));
+        ivec4 e = ivec4((uvec4(nb[t]) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu) - ivec4(texelFetch(colors, exemplar_tap(u + h * d), 0));
         ivec4 sq = e * e;
         cost += uint(sq.x + sq.y + sq.z + sq.w);
         if (cost >= limit) return limit;  // cannot win: stop early
@@ -77,7 +77,8 @@ void main() {
     ivec2 p = (X - phase * qdims) * SUB_S + phase;
     for (int t = 0; t < NT; ++t) {
         ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
-        nb[t] = t == NT / 2 ? ivec4(0) : ivec4(texelFetch(colors, fetch_s(p + d), 0));
+        uvec4 c = t == NT / 2 ? uvec4(0u) : texelFetch(colors, fetch_s(p + d), 0);
+        nb[t] = c.r | (c.g << 8) | (c.b << 16) | (c.a << 24);
     }
     ivec2 tried[NCAND];
     int ntried = 0;
