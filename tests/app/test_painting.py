@@ -109,14 +109,20 @@ def test_undo_memory_grows_with_what_was_painted(doc):
     assert per_stroke <= 6  # a 100 x 40 px stroke touches at most 3 x 2 tiles
 
 
+def settled_session(gpu, doc, want: Rect) -> tuple[Session, Frame]:
+    """A session on ``doc`` whose view of ``want`` (finest level) is refined."""
+    s = Session(gpu)
+    s.load_now(doc)
+    frame = Frame(level=s.L, want=want)
+    while not s.refine(frame, 1.0):
+        pass
+    return s, frame
+
+
 @pytest.mark.parametrize("structure", [0, DEFAULT_STRUCTURE])
 def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path, structure):
     doc = replace(doc, structure=structure)
-    s = Session(gpu)
-    s.load_now(doc)
-    frame = Frame(level=s.L, want=Rect.of(-200, -150, 400, 300))
-    while not s.refine(frame, 1.0):
-        pass
+    s, frame = settled_session(gpu, doc, Rect.of(-200, -150, 400, 300))
     full = sum(s.pyramid.buffers[l].valid.w * s.pyramid.buffers[l].valid.h for l in range(s.L + 1))
     d = doc
     field = CanvasField()
@@ -153,11 +159,7 @@ def test_a_pan_during_a_local_update_fills_the_view_and_ends_exact(doc, gpu):
     share of each frame (the new area shows before the update ends) and the
     end is the fresh synthesis."""
     doc = replace(doc, structure=DEFAULT_STRUCTURE)
-    s = Session(gpu)
-    s.load_now(doc)
-    frame = Frame(level=s.L, want=Rect.of(-200, -150, 300, 200))
-    while not s.refine(frame, 1.0):
-        pass
+    s, frame = settled_session(gpu, doc, Rect.of(-200, -150, 300, 200))
     field, _ = CanvasField().painted(-60.0, -40.0, 30.0, 0)
     d = replace(doc, randomness_canvas=field)
     s.sync(d)
