@@ -97,8 +97,7 @@ class LocalUpdates:
                 if r.empty:
                     continue
                 region = self.padded(l, r)
-                a, b = self.gpu.int_texture((region.w, region.h), 2), self.gpu.int_texture((region.w, region.h), 2)
-                scratch = (a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b]))
+                scratch = self._new_scratch(region.w, region.h)  # its own: other strips may run meanwhile
                 piece = None if deadline is None else JOB_PIECE_PX
                 self._job = (l, self._strip_steps(l, r, scratch, None, piece), scratch)
                 self.pixels_synthesized += region.w * region.h

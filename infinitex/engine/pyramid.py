@@ -285,10 +285,14 @@ class Pyramid(LocalUpdates):
                     for o in (fa, fb, a, b):
                         o.release()
                 self._scratch.clear()
-            a = self.gpu.int_texture((w, h), 2)
-            b = self.gpu.int_texture((w, h), 2)
-            self._scratch[key] = (a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b]))
+            self._scratch[key] = self._new_scratch(w, h)
         return self._scratch[key]
+
+    def _new_scratch(self, w: int, h: int):
+        """Two w x h state textures and their framebuffers: (a, fa, b, fb)."""
+        a = self.gpu.int_texture((w, h), 2)
+        b = self.gpu.int_texture((w, h), 2)
+        return a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b])
 
     def _synthesize_strip(self, l: int, strip: Rect, buf: _LevelBuffer) -> int:
         region = self.padded(l, strip)
