@@ -132,7 +132,7 @@ def detect(pixels: np.ndarray) -> Detection:
     # A lattice must repeat at least MIN_REPEATS times across the image.
     reach = min(gray.shape) / MIN_REPEATS
     grid = _grid(ac, (hy, hx), lobe, reach, f)
-    rows = _rows(ac, (hy, hx), reach)
+    rows = _rows(ac, (hy, hx))
     if rows is None and grid is not None:
         rows = _rows_of_grid(ac, (hy, hx), grid)
     if grid is None and rows is None:
@@ -234,7 +234,7 @@ def _primitive(ac: np.ndarray, center, t1, t2, lobe: float):
 RIDGE_MIN = 0.5  # rows: the median correlation along their direction
 
 
-def _rows(ac: np.ndarray, center: tuple[int, int], reach: float):
+def _rows(ac: np.ndarray, center: tuple[int, int]):
     """A one-dimensional lattice (rows, stripes, planks, slightly curved rows):
     the autocorrelation stays high along one direction (a ridge through lag 0)
     and repeats across it. Returns (t1 along the rows, t2 across them, the
