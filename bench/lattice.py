@@ -37,6 +37,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "tests"))
 SHARED = os.path.join(os.path.dirname(HERE), "shared", "exemplars")
 
+import near_regular as real_set  # noqa: E402
 from lattice_gen import (  # noqa: E402
     bricks,
     rows,
@@ -119,6 +120,27 @@ def rows_and_grids_accuracy() -> dict:
         d = detect(np.clip(img, 0, 1).astype(np.float32))
         grids += d.lattice is not None and lattice_error(d.t1, d.t2, np.array([cell, 0.0]), np.array([0.0, cell])) <= 0.03
     return {"rows_found": int(found), "rows": total, "grids_found": int(grids), "grids": 8}
+
+
+def real_images_accuracy() -> dict:
+    """The real set: per image, the stored truth and what was found (or, when
+    the set cannot be fetched, why)."""
+    try:
+        images = real_set.fetch()
+    except real_set.Unavailable as e:
+        print(f"  real near-regular images: not measured ({e})")
+        return {"unavailable": str(e)}
+    out = []
+    for entry, path in images:
+        d = detect(real_set.load(path))
+        out.append({"image": entry["path"].split("/", 1)[1], "what": entry["what"], "kind": entry["kind"],
+                    "truth": entry["vectors"], "found": [list(d.t1), list(d.t2)] if d.lattice else None,
+                    "confidence": round(float(d.confidence), 3), "correct": bool(real_set.correct(entry, d))})
+    lat = [r for r in out if r["kind"] != "none"]
+    none = [r for r in out if r["kind"] == "none"]
+    return {"lattices_found": int(sum(r["correct"] for r in lat)), "lattices": len(lat),
+            "stochastic_false_positives": int(sum(not r["correct"] for r in none)), "stochastic": len(none),
+            "images": out}
 
 
 def lattice_for(img: np.ndarray):
@@ -238,6 +260,14 @@ def main() -> int:
           f"{acc['stochastic_false_positives']}/{acc['stochastic']} stochastic images given a lattice; "
           f"rows {acc['rows_found']}/{acc['rows']}, grids of thin lines {acc['grids_found']}/{acc['grids']} "
           "within 3%")
+    real = real_images_accuracy()
+    if "images" in real:
+        print(f"  real images: {real['lattices_found']}/{real['lattices']} lattices found within 3% of the "
+              f"hand-checked truth; {real['stochastic_false_positives']}/{real['stochastic']} stochastic "
+              "images given a lattice")
+        for r in real["images"]:
+            if not r["correct"]:
+                print(f"    missed: {r['image']} ({r['what']}): truth {r['truth']}, found {r['found']}")
     rows = []
     print("\nLattice regularity: autocorrelation at t1, t2, output over exemplar (1.0 = as regular)")
     print(f"  {'case':34s} {'conf':>5s} {'cells':>7s} {'without lattice':>16s} {'with lattice':>14s}")
@@ -253,7 +283,7 @@ def main() -> int:
     mean_plain = float(np.mean([min(r["plain"]) for r in gen]))
     mean_lat = float(np.mean([min(r["lattice"]) for r in gen]))
     print(f"\n  generated set, mean of the weaker axis: without {mean_plain:.2f}, with {mean_lat:.2f}")
-    result = {"detection_seconds": {str(k): v for k, v in times.items()}, "accuracy": acc,
+    result = {"detection_seconds": {str(k): v for k, v in times.items()}, "accuracy": acc, "real": real,
               "regularity": rows, "generated_mean_weaker_axis": {"plain": mean_plain, "lattice": mean_lat}}
     os.makedirs(os.path.dirname(args.json), exist_ok=True)
     atomic_write(args.json, json.dumps(result, indent=1).encode())

@@ -130,7 +130,7 @@ def detect(pixels: np.ndarray) -> Detection:
     hy, hx = ac.shape[0] // 2, ac.shape[1] // 2
     lobe = _lobe_radius(ac)
     # A lattice must repeat at least MIN_REPEATS times across the image.
-    reach = min(gray.shape) / MIN_REPEATS
+    reach = min(gray.shape) / MIN_REPEATS + 0.5
     grid = _grid(ac, (hy, hx), lobe, reach, f)
     rows = _rows(ac, (hy, hx))
     if rows is None and grid is not None:
@@ -175,8 +175,9 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
     # correlation there); a basis of a coarser sub-lattice scores as high as
     # the true one but spans a larger cell: keep the smallest cell among those
     # scoring near the best.
-    strong = vals >= 0.3 * vals.max()
-    vec, vals, length = vec[strong], vals[strong], length[strong]
+    vec, vals, length = _candidate_peaks(vec, vals, length)
+    if vals.size < 2:
+        return None
     shortest = np.argsort(length - 1e-6 * vals, kind="stable")[:12]
     highest = np.argsort(-vals + 1e-6 * length, kind="stable")[:12]
     cand = vec[np.unique(np.concatenate([shortest, highest]))]
@@ -191,15 +192,52 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
             _, P = _lattice_points(a, b, hy, hx, limit=3)
             P = P[np.hypot(P[:, 0], P[:, 1]) >= lobe]
             if len(P) >= 2:
-                scored.append((float(np.median(_sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b))
+                near = float(_sample(ac, np.stack([a, b, a + b, a - b]), (hy, hx)).min())
+                scored.append((float(np.median(_sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b, near))
     if not scored:
         return None
+    # Near the best median, the smallest cell whose own shortest vectors
+    # correlate about as much as the best basis's: a cell half as large whose
+    # every other point misses (a basket weave's straight neighbours, where
+    # the diagonal ones repeat) scores a good median but weak short vectors.
     top = max(s[0] for s in scored)
-    _, _, t1, t2 = min((s for s in scored if s[0] >= top - 0.2 * abs(top)), key=lambda s: s[1])
+    good = [s for s in scored if s[0] >= top - 0.2 * abs(top)]
+    best_near = max(s[4] for s in good)
+    _, _, t1, t2, _ = min((s for s in good if s[4] >= best_near - 0.2 * abs(best_near)), key=lambda s: s[1])
     t1, t2 = _primitive(ac, (hy, hx), t1, t2, lobe)
     t1, t2 = _refine(ac, t1, t2, (hy, hx))
     t1, t2 = canonical_basis(t1, t2)
     return t1, t2, _confidence(ac, t1, t2, (hy, hx), lobe)
+
+
+def _candidate_peaks(vec: np.ndarray, vals: np.ndarray, length: np.ndarray):
+    """The peaks worth pairing into bases: one of each +-v pair, the strong
+    ones (at least 0.3 of the highest; if they all lie in one direction, the
+    best of the other directions too), and no multiple of a shorter peak about
+    as strong (the rows of a far-reaching grid would crowd out its other
+    direction)."""
+    half = (vec[:, 1] > 0) | ((vec[:, 1] == 0) & (vec[:, 0] > 0))
+    vec, vals, length = vec[half], vals[half], length[half]
+    if vals.size == 0:
+        return vec, vals, length
+    strong = vals >= 0.3 * vals.max()
+    a = vec[np.argmax(vals)]
+    off = np.abs(vec[:, 0] * a[1] - vec[:, 1] * a[0]) >= MIN_SINE * length * math.hypot(*a)
+    if not (strong & off).any() and off.any():
+        strong[np.argmax(np.where(off, vals, -np.inf))] = True
+    vec, vals, length = vec[strong], vals[strong], length[strong]
+    kept: list[int] = []
+    for i in np.argsort(length, kind="stable"):
+        v = vec[i]
+        multiple = False
+        for j in kept:
+            k = round(float(v @ vec[j]) / float(vec[j] @ vec[j]))
+            if k >= 2 and vals[j] >= 0.85 * vals[i] and math.hypot(*(v - k * vec[j])) <= 1.5:
+                multiple = True
+                break
+        if not multiple:
+            kept.append(int(i))
+    return vec[kept], vals[kept], length[kept]
 
 
 def _primitive(ac: np.ndarray, center, t1, t2, lobe: float):
