@@ -12,12 +12,13 @@ same whatever the window, its order or the machine. One call::
     bricks = itx.synthesize("bricks.png", size=(512, 512), lattice="auto")  # rows kept
 
 ``synthesize(exemplar, size=(W, H), origin=(X, Y), *, seed=0, randomness=None,
-controls=NO_CONTROLS, lattice=None, geometry="original")``
+controls=NO_CONTROLS, lattice=None, geometry="original", structure="balanced")``
     ``exemplar`` is an image path, a float array in [0, 1] or an ``Exemplar``.
     ``randomness``: r for every level, or one per level coarse to fine
     (default 0.6). ``controls``: painted randomness and placed features
     (``Controls``). ``lattice``: a ``Lattice``, ``"auto"`` or None.
-``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice=None)``
+    ``structure``: the Structure / Variety preset, 0-4 or "variety" ... "maximum".
+``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice=None, structure="balanced")``
     An n x n toroidal tile (n a power of two, 32 to 4096).
 
 Step by step (an analysis and a GL context made once, many windows)::
@@ -25,6 +26,7 @@ Step by step (an analysis and a GL context made once, many windows)::
     ex = itx.load_exemplar("gravel.png")            # fit "resize" (or "crop", "resize-2048", "crop-2048")
     an = itx.analyze(ex)                            # CPU, cached on disk (INFINITEX_CACHE)
     params = itx.SynthParams.default(an.L, seed=7)  # jitter per level, passes, kappa, period...
+    params = itx.structure_params(params, 2)        # the Balanced preset (synthesize's default)
     with itx.Synthesizer(an, params) as s:
         coords = s.window(itx.Rect.of(0, 0, 256, 256))   # int32 (H, W, 2): exemplar (x, y)
         colors = s.colors(coords)                        # float32 (H, W, C) in [0, 1]
@@ -77,7 +79,7 @@ _EXPORTS = {
     "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.imagefile",
     "to_u8": "engine.imagefile",
     "Analysis": "engine.analysis", "AnalysisSettings": "engine.analysis", "analyze": "engine.analysis",
-    "SynthParams": "engine.params",
+    "SynthParams": "engine.params", "structure_params": "engine.params",
     "Synthesizer": "engine.synth", "Viewport": "engine.synth",
     "Rect": "engine.pyramid",
     "Controls": "engine.controls", "NO_CONTROLS": "engine.controls", "CanvasField": "engine.controls",

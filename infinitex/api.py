@@ -24,7 +24,7 @@ from .engine.controls.lattice import (
 from .engine.controls.lattice_detect import detect
 from .engine.exemplar import Exemplar, load_exemplar, load_full
 from .engine.imagefile import to_u8
-from .engine.params import SynthParams
+from .engine.params import DEFAULT_STRUCTURE, SynthParams, structure_index, structure_params
 from .engine.pyramid import Rect
 from .engine.synth import Synthesizer
 
@@ -53,7 +53,7 @@ def _exemplar(source, lattice: Lattice | str | None) -> tuple[Exemplar, Lattice 
 def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, int] = (0, 0), *,
                seed: int = 0, randomness: float | tuple[float, ...] | None = None,
                controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = None,
-               geometry: str = "original") -> np.ndarray:
+               geometry: str = "original", structure: int | str = DEFAULT_STRUCTURE) -> np.ndarray:
     """A ``size`` = (W, H) window of the exemplar's infinite texture at canvas
     position ``origin``, as uint8 (H, W, C).
 
@@ -64,10 +64,13 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
     a :class:`Lattice`, ``"auto"`` (detected; no lattice mode when none is
     found) or None; with a lattice, ``geometry`` is ``"original"`` (the
     input's geometry, origin and size in input pixels) or ``"rectified"``.
-    Windows of the same arguments agree bit for bit wherever they overlap."""
+    ``structure``: the Structure / Variety preset, 0 to 4 or its name
+    ("variety" ... "maximum"; default "balanced", as in the editor and the
+    command line). Windows of the same arguments agree bit for bit wherever
+    they overlap."""
     ex, lat = _exemplar(exemplar, lattice)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
-    params = _params(an.L, seed, randomness)
+    params = _params(an.L, seed, randomness, structure)
     if lat is not None:
         from dataclasses import replace
         controls = replace(controls, lattice=lat)
@@ -82,19 +85,25 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
 
 
 def tile(exemplar, n: int = 256, *, seed: int = 0, randomness: float | tuple[float, ...] | None = None,
-         controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = None) -> np.ndarray:
+         controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = None,
+         structure: int | str = DEFAULT_STRUCTURE) -> np.ndarray:
     """An n x n seamless (toroidal) tile, uint8 (n, n, C); n a power of two
-    from 32 to 4096. With a lattice the tile is rectified, whole cells."""
+    from 32 to 4096. With a lattice the tile is rectified, whole cells.
+    ``structure`` as for :func:`synthesize`."""
     ex, lat = _exemplar(exemplar, lattice)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
     if lat is not None:
         from dataclasses import replace
         controls = replace(controls, lattice=lat)
-    with Synthesizer(an, _params(an.L, seed, randomness), controls=controls) as s:
+    with Synthesizer(an, _params(an.L, seed, randomness, structure), controls=controls) as s:
         return to_u8(s.colors(s.toroidal(n)))
 
 
-def _params(L: int, seed: int, randomness) -> SynthParams:
+def _params(L: int, seed: int, randomness, structure: int | str) -> SynthParams:
+    return structure_params(_jitter_params(L, seed, randomness), structure_index(structure))
+
+
+def _jitter_params(L: int, seed: int, randomness) -> SynthParams:
     if randomness is None:
         return SynthParams.default(L, seed=seed)
     if isinstance(randomness, (int, float)):

@@ -53,15 +53,17 @@ def jitter_arg(text: str) -> list[float]:
 
 def structure_arg(text: str) -> int:
     """A Structure preset: its number (0 to 4) or its name (variety, light, balanced, strong, maximum)."""
-    from infinitex.engine.params import STRUCTURE_NAMES
-    names = [n.lower() for n in STRUCTURE_NAMES]
-    t = text.strip().lower()
-    if t in names:
-        return names.index(t)
-    if t.isdigit() and int(t) < len(names):
-        return int(t)
-    raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a Structure preset: use 0 to {len(names) - 1} "
-                                     f"or {', '.join(names)}")
+    from infinitex.engine.params import structure_index
+    try:
+        return structure_index(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).rstrip(".")) from None
+
+
+def add_make_tileable_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--make-tileable", action="store_true",
+                   help="a photo that does not wrap: re-synthesize its borders so it tiles (its interior kept; "
+                        "shading evened out between opposite borders) instead of repeating its edges")
 
 
 def add_structure_arg(p: argparse.ArgumentParser, default) -> None:

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from . import fixed
 
 DEFAULT_JITTER = 0.6
@@ -154,6 +156,21 @@ STRUCTURE_PRESETS = (
     ((3, 3, 3, 3), 5),
 )
 DEFAULT_STRUCTURE = 2
+
+
+def structure_index(value: int | str) -> int:
+    """A Structure preset from its number (0 to 4) or its name (any case)."""
+    names = [n.lower() for n in STRUCTURE_NAMES]
+    if isinstance(value, str):
+        t = value.strip().lower()
+        if t in names:
+            return names.index(t)
+        if t.isdigit() and int(t) < len(names):
+            return int(t)
+    elif isinstance(value, (int, np.integer)) and not isinstance(value, bool) and 0 <= value < len(names):
+        return int(value)
+    raise ValueError(f"{str(value)[:40]!r} is not a Structure preset: use 0 to {len(names) - 1} "
+                     f"or {', '.join(names)}.")
 
 
 def structure_params(params: SynthParams, structure: int) -> SynthParams:

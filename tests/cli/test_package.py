@@ -76,9 +76,16 @@ def test_the_api_docstring_example_runs(tmp_path):
     assert np.array_equal(again, img[10:42, 40:72])  # windows agree where they overlap
     ex = itx.load_exemplar(gravel)
     an = itx.analyze(ex)
-    with itx.Synthesizer(an, itx.SynthParams.default(an.L, seed=7)) as s:
+    from infinitex.engine.params import structure_params
+    with itx.Synthesizer(an, structure_params(itx.SynthParams.default(an.L, seed=7), 2)) as s:
         coords = s.window(itx.Rect.of(10_000, -3_000, 96, 64))
-        assert np.array_equal(itx.to_u8(s.colors(coords)), img)
+        assert np.array_equal(itx.to_u8(s.colors(coords)), img)  # the default is Balanced, as in the editor
+    variety = itx.synthesize(gravel, size=(96, 64), origin=(10_000, -3_000), seed=7, structure="variety")
+    with itx.Synthesizer(an, itx.SynthParams.default(an.L, seed=7)) as s:
+        assert np.array_equal(itx.to_u8(s.colors(s.window(itx.Rect.of(10_000, -3_000, 96, 64)))), variety)
+    assert not np.array_equal(variety, img)
+    with pytest.raises(ValueError, match="not a Structure preset"):
+        itx.synthesize(gravel, size=(8, 8), structure="sharp")
     t = itx.tile(gravel, 64)
     assert t.shape == (64, 64, 1)
     assert set(itx.__all__) <= set(dir(itx)) and callable(itx.detect_lattice)
