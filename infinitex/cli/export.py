@@ -21,6 +21,7 @@ from .common import (
     ProgressBar,
     add_lattice_args,
     add_randomness_args,
+    add_make_tileable_arg,
     add_structure_arg,
     analysis_progress,
     check_lattice_args,
@@ -81,6 +82,7 @@ def build_parser() -> Parser:
     add_randomness_args(p)
     add_lattice_args(p)
     add_structure_arg(p, None)
+    add_make_tileable_arg(p)
     p.add_argument("--allow-outside-exemplar", action="store_true",
                    help="read an exemplar the project refers to outside the project's folder")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -182,6 +184,11 @@ def run_export(argv: list[str]) -> int:
             raise CliError(str(exc), EXIT_INPUT) from None
     if args.fidelity is not None:
         doc = replace(doc, structure=args.fidelity)
+    if args.make_tileable:
+        if doc.maps or doc.lattice is not None:
+            raise CliError("--make-tileable works on a single image without a lattice (a material's maps and "
+                           "a lattice's block are not made tileable).", EXIT_USAGE)
+        doc = replace(doc, make_tileable=True)
     if args.rect:
         rect, tor = Rect.of(x, y, w, h), 0
     elif args.toroidal is not None:

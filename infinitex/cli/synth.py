@@ -27,6 +27,7 @@ from .common import (
     Parser,
     add_lattice_args,
     add_randomness_args,
+    add_make_tileable_arg,
     add_structure_arg,
     analysis_progress,
     check_lattice_args,
@@ -75,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "most 512 px, or with -2048 to at most 2048 px (large photos)")
     p.add_argument("--exemplar-toroidal", choices=("auto", "yes", "no"), default="auto",
                    help="does the exemplar tile? (auto: guessed from its wrap-around seam)")
+    add_make_tileable_arg(p)
     add_randomness_args(p)
     add_lattice_args(p)
     p.add_argument("--no-cache", action="store_true", help="do not read or write the analysis cache")
@@ -118,6 +120,9 @@ def run_synth(argv: list[str]) -> int:
     if args.coords and args.lattice and args.geometry != "rectified" and not args.toroidal:
         raise CliError("--coords needs --geometry rectified: in the original geometry each pixel blends "
                        "four synthesized texels.", EXIT_USAGE)
+    if args.make_tileable and (args.lattice or args.exemplar_toroidal != "auto"):
+        raise CliError("--make-tileable goes with neither --lattice (a lattice's block already tiles) nor "
+                       "--exemplar-toroidal (the result tiles).", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
     lattice = image = None
     if args.lattice:
@@ -129,6 +134,9 @@ def run_synth(argv: list[str]) -> int:
         ex = rectified_exemplar(image, lattice, source=args.exemplar)
     else:
         ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
+        if args.make_tileable:
+            from infinitex.engine.tileable import tileable_exemplar
+            ex = tileable_exemplar(ex)
     del image
     jit, L = args.jitter, ex.levels
     if jit is None:

@@ -80,6 +80,7 @@ class Document:
     exemplar: ExemplarSource
     fit: str = "resize"
     toroidal: bool | None = None       # None: use the guess from the seam test
+    make_tileable: bool = False        # re-synthesize the borders so the image wraps (engine/tileable.py)
     model: str = "appearance"
     k: int = 2
     feature_weight: float = 0.0        # LH06 feature-distance channel (appearance model); 0: off
@@ -108,7 +109,7 @@ class Document:
         lat = None if self.lattice is None else replace(self.lattice, levels=None)
         mat = tuple((r, s.sha256) for r, s in self.maps)
         return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat, mat, self.weights,
-                self.feature_weight)
+                self.feature_weight, self.make_tileable)
 
     @property
     def is_material(self) -> bool:

@@ -56,7 +56,7 @@ from .document import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 6              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); files without them are written as 1
+VERSION = 7              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
@@ -154,7 +154,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+        "version": 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
             2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
@@ -163,6 +163,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
             "path": ref_path,
             "fit": doc.fit,
             "toroidal": doc.toroidal,
+            **({"make_tileable": True} if doc.make_tileable else {}),
         },
         "analysis": {"model": doc.model, "k": doc.k,
                      **({"feature_weight": doc.feature_weight} if doc.feature_weight else {})},
@@ -510,6 +511,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     if not is_number(kappa) or not 0.0 <= kappa <= 100.0:
         raise ProjectError("synthesis.kappa must be a number from 0 to 100.")
     toroidal = _get(e, "toroidal", bool, "exemplar", optional=True)
+    make_tileable = bool(_get(e, "make_tileable", bool, "exemplar", optional=True))
     fields = _fields_from_json(d.get("randomness"))
     avoid = _avoid_from_json(d.get("avoid"))
     try:
@@ -520,6 +522,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         exemplar=source,
         fit=_get(e, "fit", str, "exemplar"),
         toroidal=toroidal,
+        make_tileable=make_tileable,
         model=_get(a, "model", str, "analysis"),
         k=_int_in(a, "k", "analysis", 0, 4),
         feature_weight=float(fw),

@@ -23,6 +23,7 @@ from infinitex.engine.exemplar import (
     load_exemplar_bytes,
 )
 from infinitex.engine.material import Material, MaterialError, load_material, single
+from infinitex.engine.tileable import tileable_exemplar
 
 from .document import Document
 
@@ -40,6 +41,8 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
     decoded whole (decode_full), if at hand; ``material``: the document's
     material, if already loaded."""
     if doc.maps:
+        if doc.make_tileable:
+            raise MaterialError("Make tileable works on single images, not on materials; turn it off.")
         material = material or material_for(doc)
         ex = material.guide(doc.weight_dict())
         if doc.model == "color" and ex.channels > 4:
@@ -53,6 +56,8 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
         grid = (doc.lattice.nx, doc.lattice.ny)
     else:
         ex = load_exemplar_bytes(doc.exemplar.data, name=doc.exemplar.name, fit=doc.fit, toroidal=doc.toroidal)
+        if doc.make_tileable:
+            ex = tileable_exemplar(ex)
         grid = (0, 0)
     return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid, feature_weight=doc.feature_weight)
 

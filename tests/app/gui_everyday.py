@@ -5,7 +5,7 @@
 
 Advanced collapsed on start and its controls explained on hover; the zoom
 keys; the shortcuts window; Open Recent; opening an image makes a new
-document; the title names the document and its unsaved state; an export
+document; Make tileable offered for a photo that does not tile; the title names the document and its unsaved state; an export
 says where it wrote; Save offered before unsaved edits are lost. Writes
 "ok NAME" / "FAIL NAME: why" lines to OUT_DIR/report.txt.
 """
@@ -144,6 +144,18 @@ def main(out: str) -> int:
               and not ed.history.can_undo() and not ed.history.dirty, f"{ed.doc.exemplar.name} {ed.project_path}")
         check("open recent lists it", ed.settings.recent and ed.settings.recent[0] == os.path.abspath(BRICK),
               str(ed.settings.recent))
+        # The brick photo does not tile: Make tileable is offered; it is one undo step.
+        ctx.set_ref("//Infinitex")
+        check("make tileable offered", ctx.item_exists("**/Make tileable") and not ed.session.exemplar.toroidal,
+              f"toroidal {ed.session.exemplar.toroidal}")
+        ctx.item_click("**/Make tileable")
+        settle(ctx)
+        check("make tileable reaches the synthesis", ed.doc.make_tileable and ed.session.exemplar.toroidal
+              and ed.session.analysis.toroidal, f"{ed.doc.make_tileable} {ed.session.exemplar.toroidal}")
+        ed.undo()
+        settle(ctx)
+        check("undo turns it off", not ed.doc.make_tileable and not ed.session.exemplar.toroidal,
+              f"{ed.doc.make_tileable}")
         ed.open_path(GRAVEL)
         settle(ctx)
         ctx.set_ref("//Infinitex")

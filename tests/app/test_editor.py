@@ -67,9 +67,9 @@ def test_lattice_tool_driven_by_the_test_engine(tmp_path):
 def test_everyday_use_driven_by_the_test_engine(tmp_path):
     """Advanced collapsed with explained controls, passes per scale (one undo step),
     zoom keys, F1, tile mode,
-    Open Recent, images as new documents, the title, Save before losing edits,
+    Open Recent, images as new documents, Make tileable, the title, Save before losing edits,
     the in-window file browser, the export notice (tests/app/gui_everyday.py)."""
-    _drive("gui_everyday.py", tmp_path, 24)
+    _drive("gui_everyday.py", tmp_path, 27)
     # On exit the editor kept the window size, the open side-panel sections and
     # the recent files for the next run.
     import json

@@ -71,13 +71,28 @@ def _fit_options(ed, doc, ex) -> None:
         "photos (more detail; analyzed in seconds with the random-walk search, slower to synthesize)")
     if changed:
         ed.edit(replace(doc, fit=fits[i]), "Import fit")
-    cur = 0 if doc.toroidal is None else (1 if doc.toroidal else 2)
-    labels = list(TOROIDAL_LABELS)
-    labels[0] = f"Auto (guess: {'tiles' if ex.toroidal_guess else 'does not tile'})"
-    changed, i = imgui.combo("Toroidal", cur, labels)
-    tip("Does the exemplar tile seamlessly? Then patches may cross its edges; Auto guesses from its border")
+    if not doc.make_tileable:
+        cur = 0 if doc.toroidal is None else (1 if doc.toroidal else 2)
+        labels = list(TOROIDAL_LABELS)
+        labels[0] = f"Auto (guess: {'tiles' if ex.toroidal_guess else 'does not tile'})"
+        changed, i = imgui.combo("Toroidal", cur, labels)
+        tip("Does the exemplar tile seamlessly? Then patches may cross its edges; Auto guesses from its border")
+        if changed:
+            ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
+    if doc.is_material:
+        return
+    if not doc.make_tileable and not ex.toroidal:
+        imgui.push_text_wrap_pos(0)
+        imgui.text_colored((1.0, 0.8, 0.4, 1.0),
+                           "This image does not seem to tile: if its edges show again every exemplar "
+                           "width (seams, dark or light patches when zoomed out), Make tileable fixes that.")
+        imgui.pop_text_wrap_pos()
+    changed, on = imgui.checkbox("Make tileable", doc.make_tileable)
+    tip("Re-synthesize the image's borders so that it wraps: its interior is kept, the shading is evened out "
+        "between opposite borders, and elements cut by a border are replaced by whole ones from the other side. "
+        "For photos that do not tile")
     if changed:
-        ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
+        ed.edit(replace(doc, make_tileable=on), "Make tileable" if on else "Make tileable off")
 
 
 def thumbnail(p: Panels, size: float) -> None:

@@ -1,0 +1,142 @@
+"""Make tileable: turn a photo that does not wrap into a toroidal exemplar.
+
+A photo's borders do not continue into each other, so a toroidal synthesis of
+it shows its border every exemplar width (the wood checkerboard). Two steps,
+both on the CPU:
+
+1. **Periodic component** (Moisan, "Periodic plus smooth image
+   decomposition", 2011): the image minus the smooth image whose Laplacian is
+   the jump across its wrap-around borders. It keeps every detail of the
+   interior and removes the brightness steps (shading, vignetting) between
+   opposite borders; no parameter.
+2. **Border cut** (Efros & Freeman 2001's minimum-error boundary cut, made
+   cyclic): the last ``band`` columns are laid over the first ones and each row
+   switches from one to the other where the two agree best (a shortest path
+   from top to bottom through the overlap's squared differences that closes on
+   itself, so the rows wrap too); then the same for rows. Elements cut by the
+   border are replaced by whole ones from the other side. The result is ``band``
+   pixels smaller each way.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+DEFAULT_BAND = 1 / 8  # of the side
+
+
+def periodic_component(img: np.ndarray) -> np.ndarray:
+    """Moisan's periodic component of an (H, W, C) float image."""
+    u = np.asarray(img, np.float64)
+    h, w = u.shape[:2]
+    v = np.zeros_like(u)
+    dy = u[-1] - u[0]
+    v[0] += dy
+    v[-1] -= dy
+    dx = u[:, -1] - u[:, 0]
+    v[:, 0] += dx
+    v[:, -1] -= dx
+    q = np.cos(2 * np.pi * np.arange(h) / h)[:, None]
+    r = np.cos(2 * np.pi * np.arange(w) / w)[None, :]
+    den = 2 * q + 2 * r - 4
+    den[0, 0] = 1.0
+    s_hat = np.fft.fft2(v, axes=(0, 1)) / den[:, :, None]
+    s_hat[0, 0] = 0.0
+    s = np.real(np.fft.ifft2(s_hat, axes=(0, 1)))
+    return u - s
+
+
+def _cyclic_cut(cost: np.ndarray, starts: int = 16) -> np.ndarray:
+    """Per row of ``cost`` (H, B), the column where the cut crosses it: the
+    cheapest path from the first row to the last moving at most one column per
+    row that ends within one column of where it started (so it wraps), over
+    up to ``starts`` start columns (spread over the band, and the cheapest
+    one of the first row), all followed at once."""
+    h, b = cost.shape
+    s0 = np.unique(np.concatenate([np.linspace(0, b - 1, min(starts, b)).round().astype(np.int64),
+                                   [int(np.argmin(cost[0]))]]))
+    n = len(s0)
+    acc = np.full((n, b), np.inf)
+    acc[np.arange(n), s0] = cost[0, s0]
+    back = np.zeros((h, n, b), np.int8)
+    pad = np.full((n, 1), np.inf)
+    rows = np.arange(n)[:, None]
+    cols = np.arange(b)[None, :]
+    for y in range(1, h):
+        stack = np.stack([np.concatenate([pad, acc[:, :-1]], axis=1), acc,
+                          np.concatenate([acc[:, 1:], pad], axis=1)])
+        k = np.argmin(stack, axis=0)
+        back[y] = k - 1
+        acc = stack[k, rows, cols] + cost[y][None, :]
+    # Close each path: it must end within one column of its start.
+    near = np.abs(cols - s0[:, None]) <= 1
+    end_cost = np.where(near, acc, np.inf)
+    i, end = np.unravel_index(int(np.argmin(end_cost)), end_cost.shape)
+    path = np.empty(h, np.int64)
+    path[-1] = end
+    for y in range(h - 1, 0, -1):
+        path[y - 1] = path[y] + back[y, i, path[y]]
+    return path
+
+
+def _wrap_columns(img: np.ndarray, band: int) -> np.ndarray:
+    """``img`` (H, W, C) made to wrap left-right: W - band columns."""
+    h, w = img.shape[:2]
+    right, left = img[:, w - band:], img[:, :band]  # right continues the image past its end; left starts it
+    cost = ((right - left) ** 2).sum(axis=2)
+    cut = _cyclic_cut(cost)
+    cols = np.arange(band)[None, :]
+    take_right = cols < cut[:, None]  # before the cut: what follows the last kept column
+    strip = np.where(take_right[:, :, None], right, left)
+    return np.concatenate([strip, img[:, band:w - band]], axis=1)
+
+
+def make_tileable(img: np.ndarray, band: int | None = None) -> np.ndarray:
+    """A toroidal version of ``img`` (H, W) or (H, W, C) in [0, 1]:
+    (H - band, W - band), float32. ``band`` defaults to 1/8 of the shorter side."""
+    a = np.asarray(img, np.float64)
+    squeeze = a.ndim == 2
+    if squeeze:
+        a = a[:, :, None]
+    h, w = a.shape[:2]
+    if band is None:
+        band = max(2, int(round(min(h, w) * DEFAULT_BAND)))
+    if not 2 <= band <= min(h, w) // 3:
+        raise ValueError(f"The border band must be 2 to {min(h, w) // 3} px for a {w}x{h} image.")
+    p = periodic_component(a)
+    p = _wrap_columns(p, band)
+    p = _wrap_columns(p.transpose(1, 0, 2), band).transpose(1, 0, 2)
+    out = np.clip(p, 0.0, 1.0).astype(np.float32)
+    return out[:, :, 0] if squeeze else out
+
+
+def _periodic_resize(a: np.ndarray, side: int) -> np.ndarray:
+    """A toroidal (H, W, C) image resampled to (side, side, C), still toroidal
+    (scipy's cubic spline with wrap-around boundaries; a Gaussian prefilter,
+    wrapped too, when it shrinks)."""
+    from scipy import ndimage
+    h, w = a.shape[:2]
+    out = []
+    for c in range(a.shape[2]):
+        plane = np.asarray(a[:, :, c], np.float64)
+        sig = (0.5 * max(0.0, h / side - 1.0), 0.5 * max(0.0, w / side - 1.0))
+        if max(sig) > 0:
+            plane = ndimage.gaussian_filter(plane, sig, mode="wrap")
+        out.append(ndimage.zoom(plane, (side / h, side / w), order=3, mode="grid-wrap", grid_mode=True))
+    return np.clip(np.stack(out, axis=2), 0.0, 1.0).astype(np.float32)
+
+
+def tileable_exemplar(ex):
+    """The exemplar ``ex`` made tileable (:func:`make_tileable`) at the same
+    size, toroidal. With a high-resolution copy, the cut is made on it and
+    the exemplar is resampled from the result, so both hold the same seams."""
+    from dataclasses import replace
+
+    from .exemplar import guess_toroidal
+    m = ex.size
+    if ex.hires is not None:
+        hires = make_tileable(ex.hires)
+        pixels = _periodic_resize(hires, m)
+    else:
+        hires = None
+        pixels = _periodic_resize(make_tileable(ex.pixels), m)
+    return replace(ex, pixels=pixels, hires=hires, toroidal=True, toroidal_guess=guess_toroidal(pixels))
