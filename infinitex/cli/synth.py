@@ -134,9 +134,12 @@ def run_synth(argv: list[str]) -> int:
         ex = rectified_exemplar(image, lattice, source=args.exemplar)
     else:
         ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
+        from infinitex.engine.tileable import recommended, tileable_exemplar
         if args.make_tileable:
-            from infinitex.engine.tileable import tileable_exemplar
             ex = tileable_exemplar(ex)
+        elif tor is None and not args.quiet and recommended(ex):
+            sys.stderr.write(f"note: {printable(os.path.basename(args.exemplar))} does not tile and its lighting "
+                             "varies; --make-tileable evens out the patches it would repeat\n")
     del image
     jit, L = args.jitter, ex.levels
     if jit is None:

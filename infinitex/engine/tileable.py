@@ -22,6 +22,13 @@ from __future__ import annotations
 import numpy as np
 
 DEFAULT_BAND = 1 / 8  # of the side
+# Make tileable is recommended for an exemplar that fails the seam test when its
+# large-scale shading (luminance blurred by 1/8 of its side, wrapped) varies by
+# at least this fraction of its contrast: there it removes the blotches a
+# plain synthesis repeats every exemplar width (wood, caustics, a text page),
+# while on evenly lit stochastic photos (gravel, pebbles, granite, grass) a
+# blind judgement preferred the plain synthesis (docs/formats.md#make-tileable).
+SHADING_OFFER = 0.18
 
 
 def periodic_component(img: np.ndarray) -> np.ndarray:
@@ -140,3 +147,28 @@ def tileable_exemplar(ex):
         hires = None
         pixels = _periodic_resize(make_tileable(ex.pixels), m)
     return replace(ex, pixels=pixels, hires=hires, toroidal=True, toroidal_guess=guess_toroidal(pixels))
+
+
+def shading_strength(pixels: np.ndarray) -> float:
+    """How much an (m, m, C) image's large-scale shading varies: the standard
+    deviation of its luminance blurred by m/8 (wrapped) over that of its
+    luminance."""
+    from scipy import ndimage
+    lum = np.asarray(pixels, np.float64).mean(axis=2)
+    sd = float(lum.std())
+    if sd < 1e-9:
+        return 0.0
+    return float(ndimage.gaussian_filter(lum, lum.shape[0] / 8.0, mode="wrap").std()) / sd
+
+
+def recommended(ex) -> bool:
+    """Whether to offer Make tileable for ``ex``: it does not tile by the seam
+    test and its shading varies enough to show as blotches (SHADING_OFFER).
+    Remembered on the exemplar."""
+    if ex.toroidal_guess:
+        return False
+    got = getattr(ex, "_tileable_offer", None)
+    if got is None:
+        got = shading_strength(ex.pixels) >= SHADING_OFFER
+        ex._tileable_offer = got
+    return got

@@ -19,6 +19,7 @@ from infinitex.engine.tileable import (
     _wrap_columns,
     make_tileable,
     periodic_component,
+    recommended,
     tileable_exemplar,
 )
 
@@ -90,6 +91,20 @@ def test_tileable_exemplar_keeps_its_size_and_its_hires_copy_agrees():
     assert np.abs(small - t.pixels[:, :, 0]).mean() < 0.02  # the same picture at both resolutions
 
 
+def test_it_is_offered_for_unevenly_lit_photos_only():
+    """Offered where it helps (a photo's shading, repeated, makes blotches),
+    not for an evenly lit stochastic image that fails the seam test, nor for
+    one that tiles."""
+    lit = from_array(photo())
+    rng = np.random.default_rng(5)
+    even = from_array(np.clip(0.5 + 0.15 * rng.standard_normal((128, 128, 3)), 0, 1))
+    even.toroidal_guess = False  # as if the seam test had failed
+    tiles = from_array(ndimage.gaussian_filter(rng.random((128, 128, 3)), (2, 2, 0), mode="wrap"))
+    assert recommended(lit) and not recommended(even)
+    assert tiles.toroidal_guess and not recommended(tiles)
+    assert not recommended(tileable_exemplar(lit))
+
+
 def test_zoomed_out_the_synthesis_no_longer_repeats_the_photo_s_shading(gpu):
     """The photo's dark corner and shading come back once per exemplar width
     in a plain synthesis (blotches when zoomed out); made tileable, the
@@ -138,6 +153,8 @@ def test_documents_projects_and_commands_carry_it(tmp_path):
     out = tmp_path / "o.png"
     r = cli("synth", str(path), "-o", str(out), "--size", "64", "64", "--make-tileable", "-q")
     assert r.returncode == 0, r.stderr
+    r = cli("synth", str(path), "-o", str(tmp_path / "n.png"), "--size", "64", "64")
+    assert r.returncode == 0 and "--make-tileable evens out" in r.stderr  # offered
     r2 = cli("synth", str(path), "-o", str(tmp_path / "p.png"), "--size", "64", "64", "-q")
     assert r2.returncode == 0 and not np.array_equal(np.asarray(Image.open(out)),
                                                      np.asarray(Image.open(tmp_path / "p.png")))

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
 
+from infinitex.engine.tileable import recommended
+
 from ..dialogs import IMAGE_FILTER
 from ..tools.feature import PAYLOAD as FEATURE_PAYLOAD
 from .widgets import tip
@@ -81,16 +83,17 @@ def _fit_options(ed, doc, ex) -> None:
             ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
     if doc.is_material:
         return
-    if not doc.make_tileable and not ex.toroidal:
+    if not doc.make_tileable and not ex.toroidal and recommended(ex):
         imgui.push_text_wrap_pos(0)
         imgui.text_colored((1.0, 0.8, 0.4, 1.0),
-                           "This image does not seem to tile: if its edges show again every exemplar "
-                           "width (seams, dark or light patches when zoomed out), Make tileable fixes that.")
+                           "This photo does not tile and its lighting varies: zoomed out, its dark and light "
+                           "patches come back every exemplar width. Make tileable evens them out.")
         imgui.pop_text_wrap_pos()
     changed, on = imgui.checkbox("Make tileable", doc.make_tileable)
     tip("Re-synthesize the image's borders so that it wraps: its interior is kept, the shading is evened out "
         "between opposite borders, and elements cut by a border are replaced by whole ones from the other side. "
-        "For photos that do not tile")
+        "For photos that do not tile, above all unevenly lit ones; on evenly lit stochastic photos (gravel, "
+        "pebbles) the plain synthesis often looks more natural")
     if changed:
         ed.edit(replace(doc, make_tileable=on), "Make tileable" if on else "Make tileable off")
 
