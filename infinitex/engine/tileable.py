@@ -19,7 +19,12 @@ both on the CPU:
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+from scipy import ndimage
+
+from .exemplar import Exemplar, guess_toroidal
 
 DEFAULT_BAND = 1 / 8  # of the side
 # Make tileable is recommended for an exemplar that fails the seam test when its
@@ -120,7 +125,6 @@ def _periodic_resize(a: np.ndarray, side: int) -> np.ndarray:
     """A toroidal (H, W, C) image resampled to (side, side, C), still toroidal
     (scipy's cubic spline with wrap-around boundaries; a Gaussian prefilter,
     wrapped too, when it shrinks)."""
-    from scipy import ndimage
     h, w = a.shape[:2]
     out = []
     for c in range(a.shape[2]):
@@ -132,13 +136,10 @@ def _periodic_resize(a: np.ndarray, side: int) -> np.ndarray:
     return np.clip(np.stack(out, axis=2), 0.0, 1.0).astype(np.float32)
 
 
-def tileable_exemplar(ex):
+def tileable_exemplar(ex: Exemplar) -> Exemplar:
     """The exemplar ``ex`` made tileable (:func:`make_tileable`) at the same
     size, toroidal. With a high-resolution copy, the cut is made on it and
     the exemplar is resampled from the result, so both hold the same seams."""
-    from dataclasses import replace
-
-    from .exemplar import guess_toroidal
     m = ex.size
     if ex.hires is not None:
         hires = make_tileable(ex.hires)
@@ -153,7 +154,6 @@ def shading_strength(pixels: np.ndarray) -> float:
     """How much an (m, m, C) image's large-scale shading varies: the standard
     deviation of its luminance blurred by m/8 (wrapped) over that of its
     luminance."""
-    from scipy import ndimage
     lum = np.asarray(pixels, np.float64).mean(axis=2)
     sd = float(lum.std())
     if sd < 1e-9:
@@ -161,7 +161,7 @@ def shading_strength(pixels: np.ndarray) -> float:
     return float(ndimage.gaussian_filter(lum, lum.shape[0] / 8.0, mode="wrap").std()) / sd
 
 
-def recommended(ex) -> bool:
+def recommended(ex: Exemplar) -> bool:
     """Whether to offer Make tileable for ``ex``: it does not tile by the seam
     test and its shading varies enough to show as blotches (SHADING_OFFER).
     Remembered on the exemplar."""
