@@ -30,10 +30,10 @@ def _run(args, tmp_path, timeout=600):
                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
 
 
-def _drive(script: str, tmp_path, min_checks: int) -> None:
+def _drive(script: str, tmp_path, min_checks: int, *args: str) -> None:
     """Run a GUI driver (tests/app/gui_*.py, see tests/app/gui_harness.py) and require
     every one of its checks, at least ``min_checks`` of them, to pass."""
-    proc = _run([os.path.join(HERE, script), str(tmp_path)], tmp_path)
+    proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path)
     report_path = tmp_path / "report.txt"
     if not report_path.exists() and "CrashHandler" in proc.stdout + proc.stderr:
         # The imgui test engine itself aborted before any check was written (seen
@@ -43,7 +43,7 @@ def _drive(script: str, tmp_path, min_checks: int) -> None:
         print(proc.stdout[-2000:] + proc.stderr[-2000:], file=sys.stderr)
         for entry in tmp_path.iterdir():
             shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
-        proc = _run([os.path.join(HERE, script), str(tmp_path)], tmp_path)
+        proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path)
     assert report_path.exists(), proc.stdout[-3000:] + proc.stderr[-3000:]
     report = report_path.read_text().splitlines()
     failures = [r for r in report if not r.startswith("ok")]
@@ -56,6 +56,15 @@ def test_editor_driven_by_the_test_engine(tmp_path):
     avoided exemplar regions, features, broken and outside projects, quitting
     (tests/app/gui_driver.py)."""
     _drive("gui_driver.py", tmp_path, 40)
+
+
+def test_fast_input_is_never_lost(tmp_path):
+    """Real X events (XTest) sent to the editor as a user's hand sends them,
+    after it has gone idle: a 750 px flick released at once pans exactly 750 px,
+    a 10 ms Ctrl+O opens the file chooser (Escape closes it), Escape closes an
+    open menu and the next tool key chooses the tool; three rounds
+    (tests/app/gui_fast_input.py; the issue's target, 20 rounds, is run by hand)."""
+    _drive("gui_fast_input.py", tmp_path, 15, "3")
 
 
 def test_lattice_tool_driven_by_the_test_engine(tmp_path):

@@ -44,7 +44,11 @@ class CanvasInputMixin:
         elif imgui.is_item_active() and self._canvas_button >= 0:
             (tool if self._canvas_button == 0 else self.tools[0]).drag(at, mouse)
         if imgui.is_item_deactivated() and self._canvas_button >= 0:
-            (tool if self._canvas_button == 0 else self.tools[0]).release()
+            # The last move can come in the same frame as the release (a quick
+            # flick, or input queued while a frame was busy): it counts.
+            held = tool if self._canvas_button == 0 else self.tools[0]
+            held.drag(at, mouse)
+            held.release()
             self._canvas_button = -1
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
@@ -152,3 +156,5 @@ class CanvasInputMixin:
             if t.name == name and t is not self.tool:
                 self.tool.release()
                 self.tool = t
+                if name.startswith("paint"):
+                    self.show_fields = True  # painting shows what is painted

@@ -3,8 +3,9 @@
 Native dialogs come from imgui-bundle's portable-file-dialogs (asynchronous:
 polled each frame, so the editor keeps drawing). Where no native chooser
 exists (Linux without zenity/kdialog, or INFINITEX_NO_NATIVE_DIALOGS=1) the
-in-window file browser imgui-bundle ships (ImFileDialog) is used, starting in
-the folder last used. INFINITEX_PATH_PROMPT=1 replaces it with a plain path
+in-window file browser imgui-bundle ships (ImFileDialog) is used. Every
+chooser starts in one place (``Dialogs.start_dir``): the project's folder once
+it is saved, else the folder last used. INFINITEX_PATH_PROMPT=1 replaces it with a plain path
 box (for scripted GUI tests, which type paths).
 """
 from __future__ import annotations
@@ -79,7 +80,16 @@ class Dialogs:
         self.modals: list[Modal] = []
         self.native = native_dialogs_available()
         self.prompt = bool(os.environ.get("INFINITEX_PATH_PROMPT"))
-        self.last_dir = os.getcwd()  # where the in-window browser starts (the folder last used)
+        self.last_dir = os.getcwd()  # the folder last used
+        self.project_dir: str | None = None  # the open project's folder, once it is saved (the editor keeps it)
+
+    def start_dir(self) -> str:
+        """Where every chooser starts, and where a bare default file name goes:
+        the project's folder once the project is saved, else the folder last used."""
+        for d in (self.project_dir, self.last_dir):
+            if d and os.path.isdir(d):
+                return d
+        return os.path.expanduser("~")
 
     @property
     def busy(self) -> bool:
@@ -90,14 +100,14 @@ class Dialogs:
         """Ask for a file to open or write; ``on_done(absolute path)`` when chosen.
         A relative ``default`` is taken in the folder last used."""
         if default and not os.path.isabs(os.path.expanduser(default)):
-            default = os.path.join(self.last_dir, default)
+            default = os.path.join(self.start_dir(), default)
         default = os.path.abspath(os.path.expanduser(default)) if default else ""
 
         def done(path: str) -> None:
             path = os.path.abspath(os.path.expanduser(path))
             self.last_dir = os.path.dirname(path)
             on_done(path)
-        req = PathRequest(title, save, filters, done, default, text=default or self.last_dir + os.sep)
+        req = PathRequest(title, save, filters, done, default, text=default or self.start_dir() + os.sep)
         if self.native:
             try:
                 req.native = (pfd.save_file(title, default, filters) if save
@@ -105,9 +115,9 @@ class Dialogs:
             except Exception:
                 req.native = None
         if req.native is None and not self.prompt:
-            start = os.path.dirname(default) if default else self.last_dir
+            start = os.path.dirname(default) if default else self.start_dir()
             if not os.path.isdir(start):
-                start = os.path.expanduser("~")
+                start = self.start_dir()
             dlg = ifd.FileDialog.instance()
             flt = browser_filter(filters)
             req.browser = bool(dlg.save(BROWSER_KEY, title, flt, start) if save
@@ -121,14 +131,14 @@ class Dialogs:
             paths = [os.path.abspath(os.path.expanduser(p)) for p in paths]
             self.last_dir = os.path.dirname(paths[0])
             on_done(paths)
-        req = PathRequest(title, False, filters, done, text=self.last_dir + os.sep, multi=True)
+        start = self.start_dir()
+        req = PathRequest(title, False, filters, done, text=start + os.sep, multi=True)
         if self.native:
             try:
-                req.native = pfd.open_file(title, self.last_dir, filters, pfd.opt.multiselect)
+                req.native = pfd.open_file(title, start, filters, pfd.opt.multiselect)
             except Exception:
                 req.native = None
         if req.native is None and not self.prompt:
-            start = self.last_dir if os.path.isdir(self.last_dir) else os.path.expanduser("~")
             req.browser = bool(ifd.FileDialog.instance().open(BROWSER_KEY, title, browser_filter(filters), True, start))
         self.path_request = req
 
@@ -148,6 +158,10 @@ class Dialogs:
             return
         if req.browser:
             dlg = ifd.FileDialog.instance()
+            if imgui.is_key_pressed(imgui.Key.escape, False):  # Escape cancels, as in every file chooser
+                dlg.close()
+                self.path_request = None
+                return
             if dlg.is_done(BROWSER_KEY):
                 if req.multi:
                     found = [str(p.path()) if hasattr(p, "path") else str(p) for p in dlg.get_results()] \

@@ -58,6 +58,7 @@ PANEL_WIDTH = 340
 # test engine, during a spawn; plain fork + exec (the documented switch) did not.
 subprocess._USE_VFORK = False
 IDLE_FPS = 0.25              # frames per second with nothing to do (input wakes the editor at once)
+ACTIVE_AFTER_INPUT_S = 0.5   # full frame rate this long after the last input event
 BACKGROUND_FPS = 4.0  # while worker processes export: progress, and the cores left to them
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
 
@@ -122,13 +123,19 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self.panels = panels.Panels(self)
         self.tools = make_tools(self)
         self.tool = self.tools[0]
-        self.show_fields = True          # randomness fields drawn as heat maps
+        # Randomness fields drawn as heat maps: off until a paint tool is chosen
+        # (the texture itself is what an artist looks at first); H toggles it.
+        self.show_fields = False
         self.overlay_canvas: FieldOverlay | None = None
         self.overlay_exemplar: FieldOverlay | None = None
         self.overlay_avoid: FieldOverlay | None = None
         self._canvas_button = -1         # mouse button that went down on the canvas
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
+        self._may_idle = False           # set after each frame: nothing to refine, no job
+        self._idle_fps = IDLE_FPS
+        self._last_input = 0.0           # monotonic time of the last input event seen
+        self._last_frame_t = 0.0
 
     # -- running ------------------------------------------------------------
 
@@ -152,11 +159,14 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             if note:
                 self.notice = (note, time.monotonic())
         p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
-        # Idle means idle: with nothing to refine and no job, the runner waits for
-        # events (input wakes it at once) and draws one frame every few seconds
-        # (the autosave clock); working or refining turns idling off (_after_frame).
-        p.fps_idling.fps_idle = IDLE_FPS
-        p.fps_idling.fps_idling_mode = hello_imgui.FpsIdlingMode.sleep
+        # Idle means idle, and no input is lost: the editor does its own waiting
+        # (_wait_for_input, before each frame), so the events that wake it are
+        # handled by the very frame they wake, and it stays awake while input
+        # keeps coming; the runner's own idling (which handled the waking event
+        # one frame late, that is up to a whole idle period late) stays off.
+        p.fps_idling.enable_idling = False
+        p.fps_idling.remember_enable_idling = False
+        p.callbacks.pre_new_frame = self._wait_for_input
         p.callbacks.post_init = self.post_init
         p.callbacks.show_gui = self.gui
         p.callbacks.before_exit = self.before_exit
@@ -230,6 +240,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
 
     def gui(self) -> None:
         self.frame_count += 1
+        self._last_frame_t = time.monotonic()
         self._tick_fps()
         vp = imgui.get_main_viewport()
         imgui.set_next_window_pos(vp.work_pos)
@@ -246,6 +257,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
                 self.params.app_shall_exit = True
             imgui.end()
             return
+        self.dialogs.project_dir = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else None
         self._update_engine()
         if self._close_requested:
             self._close_requested = False
@@ -273,6 +285,36 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.tool.window()
         self.shortcuts_window()
         self._after_frame()
+
+    @property
+    def idle(self) -> bool:
+        """Nothing to do: no refinement, no job, no input for a moment (the editor sleeps between frames)."""
+        return self._may_idle and time.monotonic() - self._last_input >= ACTIVE_AFTER_INPUT_S
+
+    def _wait_for_input(self) -> None:
+        """Before each frame (after the runner polled the window system): when
+        there is nothing to do, sleep until input arrives or the idle period
+        ends. The events glfw delivers while waiting go to imgui's queue, so
+        this frame handles them; and while events are queued or came recently
+        (imgui spreads fast input over frames: a press and release of one key,
+        a move and a release), the editor does not sleep at all."""
+        now = time.monotonic()
+        queue = len(imgui.get_current_context().input_events_queue)
+        if queue:
+            self._last_input = now
+        if (not self._may_idle or queue or now - self._last_input < ACTIVE_AFTER_INPUT_S
+                or getattr(self.params, "use_imgui_test_engine", False)):
+            return
+        timeout = 1.0 / self._idle_fps - (now - self._last_frame_t)
+        if timeout <= 0:
+            return
+        try:
+            import glfw
+            glfw.wait_events_timeout(timeout)  # releases the GIL: the analysis thread runs meanwhile
+        except Exception:
+            return
+        if len(imgui.get_current_context().input_events_queue):
+            self._last_input = time.monotonic()
 
     def _tick_fps(self) -> None:
         self._fps_n += 1
@@ -399,13 +441,13 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         # the cores more than a full frame rate: a few frames a second show progress.
         background = (isinstance(self.export_job, StreamedExport)
                       or (self.estimate is not None and not self.estimate.poll()))
-        self.params.fps_idling.fps_idle = BACKGROUND_FPS if background else IDLE_FPS
+        self._idle_fps = BACKGROUND_FPS if background else IDLE_FPS
         working = (isinstance(self.export_job, ExportJob) or self.pending is not None
                    or (self.session is not None and self.session.job is not None))
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)
         busy = working or (not self.refined and not waiting)
-        self.params.fps_idling.enable_idling = not busy
+        self._may_idle = not busy
         if self.quit_requested:
             self.params.app_shall_exit = True
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy)

@@ -284,9 +284,8 @@ class FilesMixin:
 
         def done(path: str) -> None:
             self.save_chosen(path, bool(native), then)
-        folder = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else os.getcwd()
-        name = self.project_path or os.path.join(folder, "untitled" + PROJECT_SUFFIX)
-        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=os.path.abspath(name))
+        name = self.project_path or "untitled" + PROJECT_SUFFIX  # a bare name goes to Dialogs.start_dir()
+        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=name)
         req = self.dialogs.path_request
         if req is not None and req.native is not None:
             native.append(True)

@@ -1,5 +1,6 @@
 """Keyboard shortcuts: undo and redo, open, save, quit, the zoom keys, the
-tool keys and H / T / M over the canvas, and the F1 window listing them all
+tool keys and H / T / M (anywhere but in a text field; Escape closes an open
+menu first), and the F1 window listing them all
 (``SHORTCUTS`` plus each tool's key).
 
 A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
@@ -17,9 +18,9 @@ SHORTCUTS = [
     ("0", "Fit one exemplar across the canvas"), ("Right or middle drag", "Pan (any tool)"),
     ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"), ("Ctrl+O", "Open an image or a project"),
     ("Ctrl+S / Ctrl+Shift+S", "Save / save as"), ("Ctrl+Q", "Quit"),
-    ("H", "Show or hide the painted randomness (cursor over the canvas)"),
-    ("T", "Tile mode: the periodic texture of the export tile size (cursor over the canvas)"),
-    ("M", "Show the next map of a material (cursor over the canvas)"),
+    ("H", "Show or hide the painted randomness"),
+    ("T", "Tile mode: the periodic texture of the export tile size"),
+    ("M", "Show the next map of a material"),
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
     ("F1  or  ?", "This list"),
 ]
@@ -30,6 +31,12 @@ class ShortcutsMixin:
 
     def _shortcuts(self) -> None:
         if self.dialogs.busy or imgui.get_io().want_text_input:
+            return
+        if imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id | imgui.PopupFlags_.any_popup_level):
+            # An open menu (or other popup) takes the keys; Escape closes it, as
+            # everywhere else, and the next key acts again.
+            if imgui.is_key_pressed(imgui.Key.escape, False):
+                imgui.internal.close_popups_except_modals()
             return
         ctrl = imgui.Key.mod_ctrl
         if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.z) or imgui.is_key_chord_pressed(ctrl | imgui.Key.y):
@@ -50,9 +57,9 @@ class ShortcutsMixin:
             self.show_shortcuts = not self.show_shortcuts
         if not (io.key_ctrl or io.key_alt or io.key_super) and not imgui.is_any_item_active():
             self._zoom_keys()
-        # Tool keys act on the canvas (under the mouse), never while typing or dragging a control.
-        if (self.cursor is not None and not (io.key_ctrl or io.key_alt or io.key_super)
-                and not imgui.is_any_item_active()):
+        # Tool keys work anywhere (as in Krita and Photoshop), never while typing
+        # in a field or dragging a control.
+        if not (io.key_ctrl or io.key_alt or io.key_super) and not imgui.is_any_item_active():
             for t in self.tools:
                 if t.key and imgui.is_key_pressed(getattr(imgui.Key, t.key.lower()), False):
                     self.set_tool(t.name)
@@ -92,7 +99,7 @@ class ShortcutsMixin:
         opened, keep = imgui.begin("Shortcuts (F1)", True, imgui.WindowFlags_.always_auto_resize
                                    | imgui.WindowFlags_.no_collapse)
         if opened and imgui.begin_table("shortcuts", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
-            for key, what in SHORTCUTS + [(f"{t.key}", f"{t.label} tool (cursor over the canvas)")
+            for key, what in SHORTCUTS + [(f"{t.key}", f"{t.label} tool")
                                           for t in self.tools if t.key]:
                 imgui.table_next_row()
                 imgui.table_next_column()

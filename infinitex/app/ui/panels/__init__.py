@@ -35,6 +35,7 @@ class Panels:
         self.overall = DEFAULT_JITTER  # the Randomness panel's "All levels" (the mean of the levels')
         self._export_popup = False     # the export progress window is open (read by the GUI tests)
         self._goto_open = False        # View > Go to coordinates was chosen: open its popup
+        self._tile_prompt = 0          # File > Export toroidal tile: 1 = open its window, 2 = open
 
     # The panels: each module's function takes this object first, so it serves
     # as a method as it is (``ed.panels.export_view()`` is export.export_view(panels)).
@@ -46,7 +47,8 @@ class Panels:
     material_panel = material.draw
     display_panel = display.draw
     export_panel, rectangle_export = export.draw, export.rectangle
-    export_view, export_tile = export.export_view, export.export_tile
+    export_view, export_tile, tile_prompt, tile_prompt_window = (export.export_view, export.export_tile,
+                                                                 export.tile_prompt, export.tile_prompt_window)
     synthesis_panel = synthesis.draw
     status_bar, canvas_overlay, progress_modals = status.status_bar, status.canvas_overlay, status.progress_modals
 

@@ -21,7 +21,7 @@ FIT_LABELS = [("resize", "Resize to a power of two"), ("crop", "Crop a power-of-
               ("resize-2048", "Resize, up to 2048 px"), ("crop-2048", "Crop, up to 2048 px")]
 TOROIDAL_LABELS = ["Auto", "Yes (tiles)", "No"]
 
-PANEL_IMAGE = 160
+PANEL_IMAGE = 320  # the thumbnail fills the panel: big enough to pick features from
 
 
 def draw(p: Panels) -> None:

@@ -141,7 +141,7 @@ def rectangle(p: Panels) -> None:
                     ed.estimate.close()
                 ed.estimate = ExportEstimate(ed.doc, ed.export_format, ed.stream_tile)
             ed.estimate.poll()
-            text, low = ed.estimate.describe(w, h, ed.export_workers, ed.dialogs.last_dir or ".")
+            text, low = ed.estimate.describe(w, h, ed.export_workers, ed.dialogs.start_dir())
             imgui.push_text_wrap_pos(0)
             if low:
                 imgui.text_colored((1.0, 0.55, 0.35, 1.0), text)
@@ -184,6 +184,42 @@ def _export_filter(ed) -> tuple[list[str], str]:
     if ed.export_depth == 32 and ed.session.material is not None and ed.session.material.single:
         return ["Float TIFF", "*.tif *.tiff"], ".tif"
     return PNG_FILTER, ".png"
+
+
+def tile_prompt(p: Panels) -> None:
+    """File > Export toroidal tile: a small window with the tile's size (and the
+    canvas preview of it) before the file is chosen."""
+    p._tile_prompt = 1
+
+
+def tile_prompt_window(p: Panels) -> None:
+    ed = p.ed
+    name = "Export toroidal tile###tileprompt"
+    if p._tile_prompt == 1:
+        imgui.open_popup(name)
+        p._tile_prompt = 2
+    if not p._tile_prompt:
+        return
+    vp = imgui.get_main_viewport()
+    imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 3), imgui.Cond_.always, (0.5, 0.5))
+    imgui.set_next_window_size((380, 0))
+    opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+    if not opened:
+        p._tile_prompt = 0
+        return
+    ed.tile_size = size_combo("Tile size", TILE_SIZES, ed.tile_size)
+    tip("Side of the seamless tile, in pixels")
+    _, ed.tile_mode = imgui.checkbox("Show the tile on the canvas (T)", ed.tile_mode)
+    tip("The canvas shows the periodic texture this tile size makes, tile borders drawn")
+    go = imgui.button("Choose file...", (150, 0))
+    imgui.same_line()
+    cancel = imgui.button("Cancel", (110, 0)) or imgui.is_key_pressed(imgui.Key.escape, False)
+    if go or cancel:
+        p._tile_prompt = 0
+        imgui.close_current_popup()
+    imgui.end_popup()
+    if go:
+        export_tile(p)
 
 
 def export_tile(p: Panels) -> None:

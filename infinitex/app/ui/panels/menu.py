@@ -71,7 +71,7 @@ def draw(p: Panels) -> None:
         if imgui.menu_item_simple("Export view as PNG...", enabled=ed.session.ready):
             p.export_view()
         if imgui.menu_item_simple("Export toroidal tile...", enabled=ed.session.ready):
-            p.export_tile()
+            p.tile_prompt()  # its size first
         imgui.separator()
         if imgui.menu_item_simple("Quit", "Ctrl+Q"):
             ed.request_quit()

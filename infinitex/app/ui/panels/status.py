@@ -22,7 +22,11 @@ def status_bar(p: Panels) -> None:
     ed = p.ed
     imgui.separator()
     s = ed.session
-    parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.fps:5.1f} fps"]
+    if ed.refined and ed.idle:
+        # Nothing to do: the editor sleeps until input comes, so a frame rate means nothing.
+        parts = ["idle"]
+    else:
+        parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.fps:5.1f} fps"]
     if ed.cursor is not None:
         cx, cy = ed.cursor
         parts.append(f"x {int(np.floor(cx))}  y {int(np.floor(cy))}")
@@ -54,6 +58,7 @@ def canvas_overlay(p: Panels, p0, w, h) -> None:
 
 
 def progress_modals(p: Panels) -> None:
+    p.tile_prompt_window()
     ed = p.ed
     job = ed.export_job
     name = "Exporting###export"

@@ -1,0 +1,199 @@
+"""Fast input as the window system delivers it: real X events (XTest, through
+python-xlib) sent to the real editor (xinput_editor.py, its own runner, idling
+and sleeping as it does for a user), each outcome checked exactly.
+
+    xvfb-run -a -s "-screen 0 1280x800x24" python tests/app/gui_fast_input.py OUT_DIR [ROUNDS]
+
+Each round, after the editor has gone idle (more than 3 s without input, so
+it sleeps between frames): a 750 px right-button flick released at once must
+pan exactly 750 px; a 10 ms Ctrl+O must open the file chooser; Escape in an
+open menu must close it, and the next tool key must choose the tool.
+Writes "ok NAME" / "FAIL NAME: why" lines to OUT_DIR/report.txt.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+from Xlib import XK, X, display
+from Xlib.ext import xtest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+IDLE_S = 3.5  # the runner sleeps between frames 3 s after the last input
+
+
+class Driver:
+    def __init__(self, out: str):
+        self.out = out
+        self.state_path = os.path.join(out, "state.json")
+        if os.path.exists(self.state_path):
+            os.remove(self.state_path)
+        self.proc = subprocess.Popen([sys.executable, os.path.join(HERE, "xinput_editor.py"), self.state_path],
+                                     stdout=open(os.path.join(out, "editor.log"), "w"), stderr=subprocess.STDOUT)
+        self.d = display.Display()
+        self.report: list[str] = []
+
+    # -- the editor's state ---------------------------------------------------
+
+    def state(self) -> dict:
+        try:
+            with open(self.state_path) as fh:
+                return json.load(fh)
+        except (OSError, ValueError):
+            return {}
+
+    def wait(self, cond, timeout: float, what: str) -> dict:
+        t = time.monotonic() + timeout
+        while time.monotonic() < t:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"the editor exited ({self.proc.returncode}) while waiting for {what}")
+            s = self.state()
+            if s and cond(s):
+                return s
+            time.sleep(0.01)
+        raise RuntimeError(f"timed out waiting for {what}: {self.state()}")
+
+    def check(self, name: str, cond: bool, why: str = "") -> None:
+        self.report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
+
+    # -- X input ----------------------------------------------------------------
+
+    def window_origin(self) -> tuple[int, int]:
+        """The editor window's top-left corner on the root window."""
+        root = self.d.screen().root
+        for w in root.query_tree().children:
+            name = w.get_wm_name()
+            if name and "Infinitex" in name:
+                c = w.translate_coords(root, 0, 0)
+                return -c.x, -c.y
+        return 0, 0
+
+    def move(self, x: float, y: float) -> None:
+        xtest.fake_input(self.d, X.MotionNotify, x=int(round(x)), y=int(round(y)))
+        self.d.sync()
+
+    def button(self, b: int, down: bool) -> None:
+        xtest.fake_input(self.d, X.ButtonPress if down else X.ButtonRelease, b)
+        self.d.sync()
+
+    def key(self, name: str, down: bool) -> None:
+        code = self.d.keysym_to_keycode(XK.string_to_keysym(name))
+        xtest.fake_input(self.d, X.KeyPress if down else X.KeyRelease, code)
+        self.d.sync()
+
+    def tap(self, name: str) -> None:
+        self.key(name, True)
+        time.sleep(0.003)
+        self.key(name, False)
+
+    def idle(self) -> None:
+        """Wait until the editor has nothing to do and has stopped drawing."""
+        self.wait(lambda s: s.get("ready") and s.get("refined") and not s.get("path_request")
+                  and not s.get("modals"), 600, "a refined, ready editor")
+        time.sleep(IDLE_S)
+
+    # -- the scenarios ------------------------------------------------------------
+
+    def flick(self, n: int) -> None:
+        s = self.wait(lambda s: s.get("ready") and s.get("canvas"), 600, "the canvas")
+        ox, oy = self.window_origin()
+        cx0, cy0, cw, ch = s["canvas"]
+        x, y = ox + cx0 + 40, oy + cy0 + ch / 2
+        self.move(x, y)
+        time.sleep(0.2)
+        self.idle()
+        v0 = self.state()["view"]
+        self.button(3, True)  # X button 3: the right button
+        for i in range(1, 11):
+            time.sleep(0.002)
+            self.move(x + 75 * i, y)
+        self.button(3, False)
+        self.wait(lambda s: s["view"] != v0, 10, "the pan")
+        time.sleep(0.5)
+        v1 = self.state()["view"]
+        moved = (v0[0] - v1[0]) * v0[2], (v0[1] - v1[1]) * v0[2]
+        self.check(f"round {n}: a 750 px flick released at once pans 750 px", moved == (750.0, 0.0),
+                   f"panned {moved[0]:.1f}, {moved[1]:.1f} px")
+
+    def ctrl_o(self, n: int) -> None:
+        self.idle()
+        self.key("Control_L", True)
+        time.sleep(0.003)
+        self.tap("o")
+        time.sleep(0.003)
+        self.key("Control_L", False)
+        try:
+            self.wait(lambda s: s.get("path_request"), 2.0, "the file chooser")
+            self.check(f"round {n}: a 10 ms Ctrl+O after idling opens the file chooser", True)
+        except RuntimeError as exc:
+            self.check(f"round {n}: a 10 ms Ctrl+O after idling opens the file chooser", False, str(exc))
+            return
+        self.tap("Escape")  # closes the chooser
+        try:
+            self.wait(lambda s: not s.get("path_request"), 2.0, "the chooser to close")
+            self.check(f"round {n}: Escape closes the file chooser", True)
+        except RuntimeError as exc:
+            self.check(f"round {n}: Escape closes the file chooser", False, str(exc))
+
+    def escape_menu(self, n: int) -> None:
+        ox, oy = self.window_origin()
+        self.idle()
+        start_tool = self.state()["tool"]
+        # The File menu: the menu bar's first item.
+        self.move(ox + 20, oy + 12)
+        time.sleep(0.05)
+        self.button(1, True)
+        time.sleep(0.01)
+        self.button(1, False)
+        try:
+            self.wait(lambda s: s.get("popup_open"), 2.0, "the File menu")
+        except RuntimeError as exc:
+            self.check(f"round {n}: the File menu opens", False, str(exc))
+            return
+        time.sleep(0.3)
+        self.tap("Escape")
+        try:
+            self.wait(lambda s: not s.get("popup_open"), 2.0, "the menu to close")
+            self.check(f"round {n}: Escape closes an open menu", True)
+        except RuntimeError as exc:
+            self.check(f"round {n}: Escape closes an open menu", False, str(exc))
+        want, key = ("paint-canvas", "b") if start_tool != "paint-canvas" else ("navigate", "n")
+        self.tap(key)
+        try:
+            s = self.wait(lambda s: s.get("tool") == want, 2.0, f"the {want} tool")
+            self.check(f"round {n}: the tool key after Escape chooses the tool", True)
+        except RuntimeError as exc:
+            self.check(f"round {n}: the tool key after Escape chooses the tool", False, str(exc))
+
+    def close(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+        with open(os.path.join(self.out, "report.txt"), "w") as fh:
+            fh.write("\n".join(self.report) + "\n")
+
+
+def main(out: str, rounds: int) -> int:
+    drv = Driver(out)
+    try:
+        for n in range(rounds):
+            for scenario in (drv.flick, drv.ctrl_o, drv.escape_menu):
+                try:
+                    scenario(n)
+                except RuntimeError as exc:  # a wait timed out: that scenario failed, the others still run
+                    drv.report.append(f"FAIL round {n}: {scenario.__name__}: {exc}")
+                    drv.tap("Escape")
+    except Exception as exc:
+        drv.report.append(f"FAIL driver: {exc}")
+    finally:
+        drv.close()
+    return 0 if drv.report and all(r.startswith("ok") for r in drv.report) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 1))
