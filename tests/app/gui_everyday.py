@@ -98,7 +98,7 @@ def main(out: str) -> int:
         ctx.yield_(2)
         check("F1 hides them again", not ed.show_shortcuts, "still shown")
 
-        # Without a native chooser, File > Open is the in-window file browser (ImFileDialog).
+        # Without a native chooser, File > Open is the in-window file browser (browser.py).
         ed.dialogs.prompt = False
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Open...")
@@ -110,6 +110,17 @@ def main(out: str) -> int:
         ctx.yield_(3)
         check("cancel closes it and changes nothing", ed.dialogs.path_request is None
               and ed.doc.exemplar.name == "gravel.png", "still open")
+        ctx.menu_click("File/Save As...")
+        ctx.yield_(3)
+        req = ed.dialogs.path_request
+        br = req.browser if req is not None else None
+        check("Save As proposes a file name in the start folder", br is not None and br.name == "untitled.itex"
+              and br.folder == ed.dialogs.start_dir(), f"{br and (br.name, br.folder)}")
+        check("the chooser lists no size for folders", br is not None and all(
+            e.size == 0 for e in br.listing() if e.is_dir), "a folder with a size")
+        ctx.key_press(imgui.Key.escape)
+        ctx.yield_(3)
+        check("Escape cancels the chooser", ed.dialogs.path_request is None, "still open")
         ed.dialogs.prompt = True
 
         # Tile mode: the canvas shows the periodic texture of the tile size (T toggles it).

@@ -3,10 +3,10 @@
 Native dialogs come from imgui-bundle's portable-file-dialogs (asynchronous:
 polled each frame, so the editor keeps drawing). Where no native chooser
 exists (Linux without zenity/kdialog, or INFINITEX_NO_NATIVE_DIALOGS=1) the
-in-window file browser imgui-bundle ships (ImFileDialog) is used. Every
-chooser starts in one place (``Dialogs.start_dir``): the project's folder once
-it is saved, else the folder last used. INFINITEX_PATH_PROMPT=1 replaces it with a plain path
-box (for scripted GUI tests, which type paths).
+in-window chooser of browser.py is used; INFINITEX_PATH_PROMPT=1 replaces it
+with a plain path box (for scripted GUI tests, which type paths). Every chooser
+starts in one place (``Dialogs.start_dir``): the project's folder once it is
+saved, else the folder last used; a save proposes a file name there.
 """
 from __future__ import annotations
 
@@ -16,11 +16,10 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from imgui_bundle import im_file_dialog as ifd
 from imgui_bundle import imgui
 from imgui_bundle import portable_file_dialogs as pfd
 
-BROWSER_KEY = "infinitex-path"
+from .browser import FileBrowser
 
 IMAGE_FILTER = ["Images and projects", "*.png *.jpg *.jpeg *.bmp *.tif *.tiff *.webp *.itex",
                 "All files", "*"]
@@ -47,7 +46,7 @@ class PathRequest:
     on_done: Callable[[str], None]
     default: str = ""
     native: object = None
-    browser: bool = False
+    browser: FileBrowser | None = None  # the in-window chooser
     text: str = ""
     opened: bool = False
     multi: bool = False  # several files (on_done gets a list; the path box takes them separated by ";")
@@ -59,19 +58,6 @@ class Modal:
     body: str
     buttons: list[tuple[str, Callable[[], None] | None]] = field(default_factory=list)
     opened: bool = False
-
-
-def browser_filter(filters: list[str]) -> str:
-    """Our ["Name", "*.png *.jpg", ...] pairs as an ImFileDialog filter string:
-    "Name (*.png;*.jpg){.png,.jpg},All files (*.*){.*}"."""
-    out = []
-    for name, patterns in zip(filters[::2], filters[1::2]):
-        exts = [p[1:] for p in patterns.split() if p.startswith("*.")]
-        if patterns.strip() == "*" or not exts:
-            out.append(f"{name} (*.*){{.*}}")
-        else:
-            out.append(f"{name} ({';'.join('*' + e for e in exts)}){{{','.join(exts)}}}")
-    return ",".join(out)
 
 
 class Dialogs:
@@ -98,7 +84,7 @@ class Dialogs:
     def ask_path(self, title: str, save: bool, filters: list[str], on_done: Callable[[str], None],
                  default: str = "") -> None:
         """Ask for a file to open or write; ``on_done(absolute path)`` when chosen.
-        A relative ``default`` is taken in the folder last used."""
+        A relative ``default`` (a proposed file name) is taken in ``start_dir()``."""
         if default and not os.path.isabs(os.path.expanduser(default)):
             default = os.path.join(self.start_dir(), default)
         default = os.path.abspath(os.path.expanduser(default)) if default else ""
@@ -118,10 +104,7 @@ class Dialogs:
             start = os.path.dirname(default) if default else self.start_dir()
             if not os.path.isdir(start):
                 start = self.start_dir()
-            dlg = ifd.FileDialog.instance()
-            flt = browser_filter(filters)
-            req.browser = bool(dlg.save(BROWSER_KEY, title, flt, start) if save
-                               else dlg.open(BROWSER_KEY, title, flt, False, start))
+            req.browser = FileBrowser(title, save, filters, start, os.path.basename(default) if save else "")
         self.path_request = req
 
     def ask_paths(self, title: str, filters: list[str], on_done: Callable[[list[str]], None]) -> None:
@@ -139,7 +122,7 @@ class Dialogs:
             except Exception:
                 req.native = None
         if req.native is None and not self.prompt:
-            req.browser = bool(ifd.FileDialog.instance().open(BROWSER_KEY, title, browser_filter(filters), True, start))
+            req.browser = FileBrowser(title, False, filters, start, multi=True)
         self.path_request = req
 
     def message(self, title: str, body: str) -> None:
@@ -156,20 +139,11 @@ class Dialogs:
         req = self.path_request
         if req is None:
             return
-        if req.browser:
-            dlg = ifd.FileDialog.instance()
-            if imgui.is_key_pressed(imgui.Key.escape, False):  # Escape cancels, as in every file chooser
-                dlg.close()
+        if req.browser is not None:
+            req.browser.draw()
+            if req.browser.done:
                 self.path_request = None
-                return
-            if dlg.is_done(BROWSER_KEY):
-                if req.multi:
-                    found = [str(p.path()) if hasattr(p, "path") else str(p) for p in dlg.get_results()] \
-                        if dlg.has_result() else []
-                else:
-                    found = [str(dlg.get_result().path())] if dlg.has_result() else []
-                dlg.close()
-                self.path_request = None
+                found = req.browser.result
                 if found:
                     req.on_done(found if req.multi else found[0])
             return
