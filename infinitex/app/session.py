@@ -182,7 +182,13 @@ class Refiner:
 
 
 class Session(LoadedDocument):
-    """A loaded document and the view's scrolling pyramid, refined per frame."""
+    """A loaded document and the view's scrolling pyramid, refined per frame.
+
+    Opening an image shows a texture at once: a quick analysis without
+    similarity sets is installed first (``previewing``), and the full one
+    replaces it when it is ready (the view stays where it is)."""
+
+    QUICK_PREVIEW = True
 
     def __init__(self, gpu: Gpu, cache_dir: str | None = None):
         super().__init__(gpu, cache_dir)

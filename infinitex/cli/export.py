@@ -243,7 +243,7 @@ def run_export(argv: list[str]) -> int:
     if args.scheduler not in (None, "local"):
         from infinitex.export.workers import probe_scheduler
         probe_scheduler(args.scheduler)  # a cluster out of reach fails now, not after the analysis
-    an = analyze(ex, settings, progress=analysis_progress(args.quiet))
+    an = analyze(ex, settings, progress=analysis_progress(args.quiet, ex, settings))
     gpu = Gpu()
     session = LoadedDocument(gpu)
     try:

@@ -169,7 +169,8 @@ def run_synth(argv: list[str]) -> int:
         settings.validate()
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    an = analyze(ex, settings, use_cache=not args.no_cache, progress=analysis_progress(args.quiet))
+    an = analyze(ex, settings, use_cache=not args.no_cache,
+                 progress=analysis_progress(args.quiet, ex, settings, use_cache=not args.no_cache))
     try:
         params = structure_params(replace(params, seed=args.seed, passes=args.passes[0], level_passes=level_passes,
                                           kappa=args.kappa, walk=args.walk), args.fidelity)

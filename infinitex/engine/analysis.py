@@ -502,6 +502,24 @@ def load_analysis(path: str, key: str, settings: AnalysisSettings, ex: Exemplar)
                     levels=levels, key=key)
 
 
+def is_cached(ex: Exemplar, settings: AnalysisSettings, cache_dir: str | None = None) -> bool:
+    """Whether ``analyze`` would load this analysis from the disk cache (only
+    analyses with similarity sets are cached)."""
+    if search_k(settings, ex.size) == 0:
+        return False
+    return os.path.exists(os.path.join(cache_dir or default_cache_dir(), f"{analysis_key(ex, settings)}.npz"))
+
+
+def describe_analysis(ex: Exemplar, settings: AnalysisSettings, cache_dir: str | None = None,
+                      use_cache: bool = True) -> str:
+    """What analyzing this exemplar will do, in a few words (progress lines)."""
+    if search_k(settings, ex.size) == 0:
+        return "analysis (random-walk search, no similarity sets)"
+    if use_cache and is_cached(ex, settings, cache_dir):
+        return "analysis (from the cache)"
+    return "analysis (first run: similarity sets, cached for next time)" if use_cache else "analysis"
+
+
 def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
             cache_dir: str | None = None, use_cache: bool = True,
             progress: ProgressFn | None = None) -> Analysis:

@@ -25,8 +25,13 @@ class LoadedDocument:
     editor's live :class:`~infinitex.app.session.Session` extends it with the
     view's progressively refined pyramid."""
 
+    # Install a quick preview analysis while the full one runs (the editor's
+    # session); exports and the command line always wait for the full one.
+    QUICK_PREVIEW = False
+
     def __init__(self, gpu: Gpu, cache_dir: str | None = None):
         self.gpu = gpu
+        self.previewing = False                # the installed analysis is the quick preview
         self.cache_dir = cache_dir
         self.key: tuple | None = None          # analysis key installed
         self.exemplar: Exemplar | None = None
@@ -52,14 +57,16 @@ class LoadedDocument:
 
     # -- documents ----------------------------------------------------------
 
-    def load(self, doc: Document) -> AnalysisJob:
-        """Start analyzing ``doc``'s exemplar (cancelling a job for another key)."""
+    def load(self, doc: Document, preview: bool | None = None) -> AnalysisJob:
+        """Start analyzing ``doc``'s exemplar (cancelling a job for another key);
+        ``preview`` (default: the class's QUICK_PREVIEW): install a quick
+        preview analysis first (see ``poll``)."""
         key = doc.analysis_key()
         if self.job is not None and not self.job.done:
             if self.job.key == key:
                 return self.job
             self.job.cancel()
-        self.job = AnalysisJob(doc, self.cache_dir)
+        self.job = AnalysisJob(doc, self.cache_dir, preview=self.QUICK_PREVIEW if preview is None else preview)
         return self.job
 
     def doc_params(self, doc: Document, L: int | None = None) -> SynthParams:
@@ -68,10 +75,19 @@ class LoadedDocument:
         return replace(params, period=self.period) if self.period else params
 
     def poll(self) -> AnalysisJob | None:
-        """Install a finished job; returns it once when it ends (success or not)."""
+        """Install a finished job; returns it once when it ends (success or not),
+        and once before that when its quick preview is ready and installed
+        (``previewing`` stays true until the full analysis replaces it)."""
         job = self.job
-        if job is None or not job.done:
+        if job is None:
             return None
+        if not job.done:
+            preview = job.take_preview()
+            if preview is None:
+                return None
+            self.install(job.doc, *preview)
+            self.previewing = True  # until the full analysis is installed
+            return job  # the document can be shown (and edited) now
         self.job = None
         if job.analysis is not None:
             self.install(job.doc, job.exemplar, job.analysis, job.material)
@@ -83,6 +99,7 @@ class LoadedDocument:
         if material is None:
             material = material_for(doc) if doc.maps else single(ex, [lv.stack for lv in an.levels])
         self.release_synthesis()
+        self.previewing = False
         self.exemplar, self.analysis, self.material = ex, an, material
         self._display = {}
         self.params = self.doc_params(doc, an.L)
@@ -123,7 +140,7 @@ class LoadedDocument:
 
     def load_now(self, doc: Document) -> None:
         """Analyze and install synchronously (CLI, tests); raises on failure."""
-        job = self.load(doc)
+        job = self.load(doc, preview=False)
         job.wait()
         self.poll()
         if job.error:

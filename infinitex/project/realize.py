@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -14,6 +15,8 @@ from infinitex.engine.analysis import (
     AnalysisCancelled,
     AnalysisSettings,
     analyze,
+    is_cached,
+    search_k,
 )
 from infinitex.engine.controls.lattice import LatticeError, rectified_exemplar
 from infinitex.engine.exemplar import (
@@ -66,8 +69,16 @@ class AnalysisJob:
     """Decode the exemplar and analyze it on a worker thread (numpy and scipy
     release the GIL for the heavy parts); poll ``done``; ``cancel()`` stops it."""
 
-    def __init__(self, doc: Document, cache_dir: str | None = None):
+    def __init__(self, doc: Document, cache_dir: str | None = None, preview: bool = False):
         self.doc = doc
+        # ``preview``: before the full analysis, a quick one without similarity
+        # sets (TBN10's random-walk search needs none: about a tenth of the
+        # time), so the editor shows a texture at once. Only where the full
+        # analysis would build sets and is not in the cache, for single images
+        # without a lattice.
+        self.want_preview = preview
+        self.preview: tuple[Exemplar, Analysis, Material] | None = None
+        self.preview_taken = False
         self.key = doc.analysis_key()
         self.cache_dir = cache_dir
         self.progress = 0.0
@@ -93,6 +104,19 @@ class AnalysisJob:
     def cancel(self) -> None:
         self._cancel.set()
 
+    def _needs_preview(self, ex: Exemplar, settings: AnalysisSettings) -> bool:
+        """The full analysis builds similarity sets (slow) and is not cached yet."""
+        if search_k(settings, ex.size) == 0 or settings.lattice != (0, 0):
+            return False
+        return not is_cached(ex, settings, self.cache_dir)
+
+    def take_preview(self) -> tuple[Exemplar, Analysis, Material] | None:
+        """The quick preview once it is ready, once (None otherwise)."""
+        if self.preview is None or self.preview_taken:
+            return None
+        self.preview_taken = True
+        return self.preview
+
     def _progress(self, frac: float, msg: str) -> None:
         if self._cancel.is_set():
             raise AnalysisCancelled()
@@ -104,7 +128,13 @@ class AnalysisJob:
         try:
             material = material_for(d) if d.maps else None
             ex, settings = exemplar_for(d, material=material)
-            self._progress(0.0, "Analyzing")
+            if self.want_preview and material is None and self._needs_preview(ex, settings):
+                self._progress(0.0, "Quick preview (random-walk search)")
+                quick = analyze(ex, replace(settings, k=0), progress=self._progress)
+                self.preview = (ex, quick, single(ex, [lv.stack for lv in quick.levels]))
+                self._progress(0.0, "Analyzing (similarity sets, cached for next time)")
+            else:
+                self._progress(0.0, "Analyzing")
             an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress)
             if material is None:
                 material = single(ex, [lv.stack for lv in an.levels])  # the same Gaussian stack

@@ -151,3 +151,41 @@ def test_canvas_magnification_equals_the_exports(session, gpu):
     want = _rgb(np.rint(session.material.magnified(session.material.primary, coords, z) * 255)).astype(np.int64)
     assert np.abs(shown - want).max() <= 3
     canvas.release()
+
+
+def test_a_quick_preview_shows_first_then_the_full_analysis(gpu, tmp_path):
+    """Opening an image not yet in the cache: the session installs a quick
+    analysis without similarity sets first (a texture at once), then the full
+    one; the second time (cached) there is no preview. Exports and the command
+    line (LoadedDocument) never get a preview."""
+    import time
+    from infinitex.engine.analysis import search_k
+    from infinitex.export.loaded import LoadedDocument
+    doc = Document(ExemplarSource.from_file(os.path.join(ROOT, "infinitex", "assets", "gravel.png")))
+    s = Session(gpu, cache_dir=str(tmp_path))
+    s.load(doc)
+    seen = []
+    t = time.monotonic() + 300
+    while time.monotonic() < t:
+        job = s.poll()
+        if job is not None:
+            seen.append((s.previewing, search_k(s.analysis.settings, s.analysis.size), s.generation))
+            if job.done:
+                break
+        time.sleep(0.01)
+    assert seen == [(True, 0, 1), (False, 2, 2)], seen
+    assert s.key == doc.analysis_key()
+    # The preview is a real texture of the same exemplar (the random-walk search).
+    s.release()
+    s2 = Session(gpu, cache_dir=str(tmp_path))
+    s2.load(doc)
+    s2.job.wait()
+    assert s2.job.preview is None  # the full analysis is cached: no preview needed
+    s2.poll()
+    assert not s2.previewing and s2.generation == 1
+    s2.release()
+    plain = LoadedDocument(gpu, cache_dir=str(tmp_path / "other"))
+    job = plain.load(doc)
+    job.wait()
+    assert job.preview is None and plain.poll() is job and not plain.previewing
+    plain.release()

@@ -72,6 +72,12 @@ class ExportsMixin:
         return path if self.dialogs.native and os.path.abspath(chosen) == os.path.abspath(path) else None
 
     def start_export(self, path: str, rect: Rect, toroidal: int = 0, confirmed: bool = False) -> None:
+        if self.session.previewing:
+            job = self.session.job
+            done = f" ({job.progress * 100:.0f}% done)" if job is not None else ""
+            self.dialogs.message("Export", "The canvas still shows the quick preview while the full analysis "
+                                 f"runs{done}; export once it is finished, so the file holds the final texture.")
+            return
         chosen = path
         if not os.path.splitext(path)[1]:
             single = self.session.material is None or self.session.material.single
