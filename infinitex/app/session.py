@@ -218,8 +218,9 @@ class Session(LoadedDocument):
             # never holds the editor up (see Pyramid.settle).
             self.pyramid.update_controls(controls, defer=True)
 
-    def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None) -> None:
-        super().install(doc, ex, an, material)
+    def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
+                preview: bool = False) -> None:
+        super().install(doc, ex, an, material, preview)
         self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16,
                                controls=self.controls)
         self.refiner = Refiner(self.pyramid, self.gpu)

@@ -70,8 +70,12 @@ class LoadedDocument:
         return self.job
 
     def doc_params(self, doc: Document, L: int | None = None) -> SynthParams:
-        """The document's parameters, periodic in tile mode."""
+        """The document's parameters, periodic in tile mode; the quick preview
+        skips the fidelity stage (it is replaced soon: its refinement must leave
+        the cores to the full analysis)."""
         params = doc.params(self.L if L is None else L)
+        if self.previewing:
+            params = replace(params, fidelity=None)
         return replace(params, period=self.period) if self.period else params
 
     def poll(self) -> AnalysisJob | None:
@@ -85,8 +89,7 @@ class LoadedDocument:
             preview = job.take_preview()
             if preview is None:
                 return None
-            self.install(job.doc, *preview)
-            self.previewing = True  # until the full analysis is installed
+            self.install(job.doc, *preview, preview=True)  # previewing until the full analysis is installed
             return job  # the document can be shown (and edited) now
         self.job = None
         if job.analysis is not None:
@@ -95,11 +98,12 @@ class LoadedDocument:
             self.failed[job.key] = job.error
         return job
 
-    def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None) -> None:
+    def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
+                preview: bool = False) -> None:
         if material is None:
             material = material_for(doc) if doc.maps else single(ex, [lv.stack for lv in an.levels])
         self.release_synthesis()
-        self.previewing = False
+        self.previewing = preview
         self.exemplar, self.analysis, self.material = ex, an, material
         self._display = {}
         self.params = self.doc_params(doc, an.L)

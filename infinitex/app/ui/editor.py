@@ -60,6 +60,7 @@ subprocess._USE_VFORK = False
 IDLE_FPS = 0.25              # frames per second with nothing to do (input wakes the editor at once)
 ACTIVE_AFTER_INPUT_S = 0.5   # full frame rate this long after the last input event
 BACKGROUND_FPS = 4.0  # while worker processes export: progress, and the cores left to them
+ANALYSIS_FPS = 8.0    # while only the analysis thread works (nothing to refine)
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
 
 
@@ -133,6 +134,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
         self._may_idle = False           # set after each frame: nothing to refine, no job
+        self._analyzing = False          # set after each frame: an analysis is running
         self._idle_fps = IDLE_FPS
         self._last_input = 0.0           # monotonic time of the last input event seen
         self._last_frame_t = 0.0
@@ -289,7 +291,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
     @property
     def idle(self) -> bool:
         """Nothing to do: no refinement, no job, no input for a moment (the editor sleeps between frames)."""
-        return self._may_idle and time.monotonic() - self._last_input >= ACTIVE_AFTER_INPUT_S
+        return (self._may_idle and not self._analyzing
+                and time.monotonic() - self._last_input >= ACTIVE_AFTER_INPUT_S)
 
     def _wait_for_input(self) -> None:
         """Before each frame (after the runner polled the window system): when
@@ -442,15 +445,21 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         background = (isinstance(self.export_job, StreamedExport)
                       or (self.estimate is not None and not self.estimate.poll()))
         self._idle_fps = BACKGROUND_FPS if background else IDLE_FPS
-        working = (isinstance(self.export_job, ExportJob) or self.pending is not None
-                   or (self.session is not None and self.session.job is not None))
+        analyzing = self.pending is not None or (self.session is not None and self.session.job is not None)
+        working = isinstance(self.export_job, ExportJob)
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)
-        busy = working or (not self.refined and not waiting)
+        shown = self.session is not None and self.session.ready and self.doc is not None
+        busy = working or (shown and not self.refined) or (not shown and not waiting and not analyzing)
+        if analyzing and not busy:
+            # Only the analysis thread works: a few frames a second show its
+            # progress and leave it the cores (full frames would starve it).
+            self._idle_fps = ANALYSIS_FPS
         self._may_idle = not busy
+        self._analyzing = analyzing
         if self.quit_requested:
             self.params.app_shall_exit = True
-        if self.screenshot and ((self.frame_count >= self.min_frames and not busy)
+        if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)
                                 or self.frame_count >= self.min_frames + 3000):
             self.params.app_shall_exit = True
 
