@@ -115,6 +115,22 @@ class Refiner:
         self.version += bool(pixels)
         self.last_ms = (time.perf_counter() - t0) * 1000.0
 
+    def _band(self, l: int, want: Rect, n: int) -> Rect:
+        """The next band of ``n`` rows of ``want`` to synthesize, the visible
+        centre first: a band across the middle, then growing what the level
+        holds up or down, toward the side that misses more. The level's
+        rectangle grows by union (Pyramid._target), so each band adds only its
+        own rows."""
+        valid = self._valid(l)
+        if (valid is None or valid.x0 > want.x0 or valid.x1 < want.x1
+                or valid.y1 <= want.y0 or valid.y0 >= want.y1):
+            y0 = max(want.y0, min((want.y0 + want.y1) // 2 - n // 2, want.y1 - n))
+            return Rect(want.x0, y0, want.x1, min(want.y1, y0 + n))
+        above, below = max(0, valid.y0 - want.y0), max(0, want.y1 - valid.y1)
+        if below >= above:
+            return Rect(want.x0, max(want.y0, valid.y0), want.x1, min(want.y1, valid.y1 + n))
+        return Rect(want.x0, max(want.y0, valid.y0 - n), want.x1, min(want.y1, valid.y1))
+
     def preview(self, frame: Frame, budget_s: float, min_level: int = 2) -> int:
         """While the user drags a control: complete whole levels, coarse to fine,
         as long as the next one fits in the budget (no bands: a preview is
@@ -164,12 +180,8 @@ class Refiner:
             # Bands at least twice as tall as the margins they are padded with.
             min_band = max(MIN_BAND, 2 * (self.pyramid.margins[l][2] + self.pyramid.margins[l][3]))
             if cost > max(remaining, 0.25 * budget_s) and want.h > min_band // 2:
-                valid = self._valid(l)
-                grow = (valid is not None and valid.x0 <= want.x0 and valid.x1 >= want.x1
-                        and valid.y0 <= want.y0 < valid.y1)
-                start = valid.y1 if grow else want.y0
                 rows = int(max(remaining, 0.25 * budget_s) / (self.cost[l] * (want.w + 24)))
-                rect = Rect(want.x0, want.y0, want.x1, min(want.y1, start + max(min_band, rows)))
+                rect = self._band(l, want, max(min_band, rows))
             pixels += self._request(l, rect)
             if rect != want:
                 finished = False
