@@ -223,6 +223,11 @@ def main(out: str) -> int:
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Export toroidal tile...")
         ctx.yield_(2)
+        # Its size first (the tile size set above), then the file.
+        check("the tile's size is asked first", ctx.window_info("//Export toroidal tile###tileprompt").window
+              is not None and ed.dialogs.path_request is None, "no size window")
+        ctx.item_click("//Export toroidal tile###tileprompt/Choose file...")
+        ctx.yield_(2)
         tile_path = os.path.join(out, "tile.png")
         ctx.item_input_value("//**/##path", tile_path)
         for _ in range(2000):

@@ -90,9 +90,10 @@ class Driver:
         self.key(name, False)
 
     def idle(self) -> None:
-        """Wait until the editor has nothing to do and has stopped drawing."""
-        self.wait(lambda s: s.get("ready") and s.get("refined") and not s.get("path_request")
-                  and not s.get("modals"), 600, "a refined, ready editor")
+        """Wait until the editor has nothing to do (the full analysis installed,
+        the view exact) and has stopped drawing."""
+        self.wait(lambda s: s.get("ready") and s.get("refined") and not s.get("analyzing")
+                  and not s.get("path_request") and not s.get("modals"), 600, "a refined, ready editor")
         time.sleep(IDLE_S)
 
     # -- the scenarios ------------------------------------------------------------
@@ -111,9 +112,8 @@ class Driver:
             time.sleep(0.002)
             self.move(x + 75 * i, y)
         self.button(3, False)
-        self.wait(lambda s: s["view"] != v0, 10, "the pan")
-        time.sleep(0.5)
-        v1 = self.state()["view"]
+        # The release handled (frames can take a second while the view refines).
+        v1 = self.wait(lambda s: s["view"] != v0 and not s.get("dragging"), 30, "the pan")["view"]
         moved = (v0[0] - v1[0]) * v0[2], (v0[1] - v1[1]) * v0[2]
         self.check(f"round {n}: a 750 px flick released at once pans 750 px", moved == (750.0, 0.0),
                    f"panned {moved[0]:.1f}, {moved[1]:.1f} px")

@@ -34,8 +34,10 @@ class ReportingEditor(Editor):
         state = {
             "ready": bool(self.session is not None and self.session.ready and self.doc is not None),
             "refined": bool(self.refined),
+            "analyzing": bool(self.pending is not None or (self.session is not None and self.session.job is not None)),
             "view": [self.view.x, self.view.y, self.view.zoom],
             "tool": self.tool.name,
+            "dragging": self._canvas_button >= 0,  # a button went down on the canvas and is not released yet
             "path_request": self.dialogs.path_request is not None,
             "modals": [m.title for m in self.dialogs.modals],
             "popup_open": bool(imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id | imgui.PopupFlags_.any_popup_level)),
