@@ -262,7 +262,7 @@ def editor(monkeypatch):
                 return material.primary
         ed = Fake()
         ed.doc, ed.project_path, ed.dialogs = doc, project_path, Dialogs(native)
-        ed.session = SimpleNamespace(material=material, synth=None, L=0)  # not ready: a window export says so
+        ed.session = SimpleNamespace(material=material, synth=None, L=0, previewing=False)  # not ready: a window export says so
         ed.write_coords, ed.export_depth, ed.export_magnify, ed.export_job = False, None, 1, None
         ed.export_format, ed.stream_tile, ed.export_workers = "png", 256, 1
         for k, v in kw.items():
