@@ -273,11 +273,9 @@ class ProgressBar:
             self.bar = None
 
 
-def analysis_progress(quiet: bool, ex=None, settings=None, use_cache: bool = True) -> ProgressBar:
-    """The analysis's progress bar; with the exemplar and settings its label
-    says what it does (a first run builds similarity sets and caches them)."""
-    if ex is None:
-        return ProgressBar("analysis", quiet)
+def analysis_progress(quiet: bool, ex, settings, use_cache: bool = True) -> ProgressBar:
+    """The analysis's progress bar, its label saying what the analysis does
+    (a first run builds similarity sets and caches them)."""
     from infinitex.engine.analysis import describe_analysis
     return ProgressBar(describe_analysis(ex, settings, use_cache=use_cache), quiet)
 

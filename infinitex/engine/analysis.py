@@ -502,12 +502,19 @@ def load_analysis(path: str, key: str, settings: AnalysisSettings, ex: Exemplar)
                     levels=levels, key=key)
 
 
+def _cache_path(key: str, cache_dir: str | None) -> str:
+    return os.path.join(cache_dir or default_cache_dir(), f"{key}.npz")
+
+
+def _cacheable(ex: Exemplar, settings: AnalysisSettings) -> bool:
+    """Without similarity sets the analysis takes seconds, less than reading a
+    cache entry that large (1.7 GB at 2048 px): only analyses with sets are cached."""
+    return search_k(settings, ex.size) > 0
+
+
 def is_cached(ex: Exemplar, settings: AnalysisSettings, cache_dir: str | None = None) -> bool:
-    """Whether ``analyze`` would load this analysis from the disk cache (only
-    analyses with similarity sets are cached)."""
-    if search_k(settings, ex.size) == 0:
-        return False
-    return os.path.exists(os.path.join(cache_dir or default_cache_dir(), f"{analysis_key(ex, settings)}.npz"))
+    """Whether ``analyze`` would load this analysis from the disk cache."""
+    return _cacheable(ex, settings) and os.path.exists(_cache_path(analysis_key(ex, settings), cache_dir))
 
 
 def describe_analysis(ex: Exemplar, settings: AnalysisSettings, cache_dir: str | None = None,
@@ -530,10 +537,8 @@ def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
     settings = settings or AnalysisSettings()
     settings.validate()
     key = analysis_key(ex, settings)
-    path = os.path.join(cache_dir or default_cache_dir(), f"{key}.npz")
-    # Without similarity sets the analysis takes seconds, less than reading a
-    # cache entry that large (1.7 GB at 2048 px): only analyses with sets are cached.
-    use_cache = use_cache and search_k(settings, ex.size) > 0
+    path = _cache_path(key, cache_dir)
+    use_cache = use_cache and _cacheable(ex, settings)
     if use_cache:
         cached = load_analysis(path, key, settings, ex)
         if cached is not None:
