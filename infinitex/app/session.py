@@ -25,6 +25,7 @@ from infinitex.export.loaded import LoadedDocument
 from infinitex.project import Document, View
 
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
+BAND_S = 0.6  # seconds of synthesis per band of a level too big to refine at once
 
 
 # -- progressive refinement --------------------------------------------------
@@ -72,7 +73,9 @@ def level_rect(want: Rect, from_level: int, to_level: int) -> Rect:
 
 class Refiner:
     """Brings a scrolling pyramid to a frame coarse level first, within a time
-    budget per call; a level too big for the budget grows in row bands.
+    budget per call, so the editor's frames stay short: the synthesis runs a
+    piece of a draw at a time (:meth:`Pyramid.start_request`), and a level too
+    big to show at once grows in row bands, the visible centre first.
 
     Every level is refined to ``plan[l]``: everything the frame's level will
     read, so refining that level band by band never sends a coarser one back
@@ -85,7 +88,12 @@ class Refiner:
         self.cost = [2e-6] * (L + 1)  # seconds per synthesized pixel, learned per level
         self.last_pixels = 0
         self.last_ms = 0.0
-        self.version = 0  # bumps whenever pixels were synthesized
+        self._job_s = 0.0  # seconds spent on the request in progress
+
+    @property
+    def version(self) -> int:
+        """Bumps whenever what the pyramid holds changed (the canvas redraws)."""
+        return self.pyramid.changes
 
     def _valid(self, level: int) -> Rect | None:
         buf = self.pyramid.buffers[level]
@@ -102,7 +110,7 @@ class Refiner:
         return want.w * want.h - (0 if have.empty else have.w * have.h)
 
     def _request(self, level: int, rect: Rect) -> int:
-        """Synthesize, wait for the GPU, and learn the level's cost per pixel."""
+        """Synthesize at once, wait for the GPU, and learn the level's cost per pixel."""
         t = time.perf_counter()
         n = self.pyramid.request(level, rect)
         self.gpu.ctx.finish()
@@ -112,7 +120,6 @@ class Refiner:
 
     def _done(self, t0: float, pixels: int) -> None:
         self.last_pixels = pixels
-        self.version += bool(pixels)
         self.last_ms = (time.perf_counter() - t0) * 1000.0
 
     def _band(self, l: int, want: Rect, n: int) -> Rect:
@@ -149,45 +156,63 @@ class Refiner:
         self._done(t0, pixels)
         return done
 
+    def _start(self, l: int, want: Rect) -> None:
+        """Start the request for level l: all it misses, or a band of about
+        BAND_S seconds (at least four times its margins tall, which cost as
+        much as they save) where that is much more."""
+        pyr = self.pyramid
+        ml, mr, mt, mb = pyr.margins[l]
+        min_band = max(MIN_BAND, 4 * (mt + mb))
+        rect = want
+        if self._missing(l, want) * self.cost[l] > 1.5 * BAND_S and want.h > 1.5 * min_band:
+            rows = int(BAND_S / (self.cost[l] * (want.w + ml + mr)))
+            rect = self._band(l, want, max(min_band, rows))
+        pyr.start_request(l, rect)
+        self._job_s = 0.0
+
     def step(self, frame: Frame, budget_s: float) -> bool:
-        """Synthesize for at most about ``budget_s``; True when the frame is exact."""
+        """Synthesize for about ``budget_s`` (a piece of a draw may overrun it a
+        little); True when the frame is exact."""
         t0 = time.perf_counter()
+        deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
         pixels = 0
-        finished = True
-        if not pyr.settled:
-            # A paint dab or a feature move: shown next. When the view also
-            # misses pixels (a pan meanwhile), they share the frame: strips
-            # synthesized now are exact or get marked by the update (Pyramid.settle).
-            missing = any(not self.holds(l, want) for l, want in enumerate(plan))
-            before = pyr.pixels_synthesized
-            finished = pyr.settle(budget_s / 2 if missing else budget_s)
-            self.gpu.ctx.finish()
-            pixels += pyr.pixels_synthesized - before
-            if not missing or time.perf_counter() - t0 > budget_s:
-                self._done(t0, pixels)
-                return finished and not missing
-        for l, want in enumerate(plan):
-            if self.holds(l, want):
+        while time.perf_counter() < deadline:
+            missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
+            job = pyr.requesting
+            if job is not None:
+                level, rect = job
+                if missing is None or level >= len(plan) or rect.intersect(plan[level]).empty:
+                    pyr.end_request()  # the view moved away from it
+                    continue
+                t = time.perf_counter()
+                before = pyr.request_pixels
+                done = pyr.advance_request(deadline)
+                self._job_s += time.perf_counter() - t
+                pixels += pyr.request_pixels - before
+                if done and pyr.request_pixels > 256:
+                    self.cost[level] = 0.5 * self.cost[level] + 0.5 * self._job_s / pyr.request_pixels
                 continue
-            remaining = budget_s - (time.perf_counter() - t0)
-            cost = self._missing(l, want) * self.cost[l]
-            if pixels and cost > remaining:
-                finished = False  # do not start a big piece late in the frame
+            if not pyr.settled and (missing is None or pyr.updating):
+                # A paint dab or a feature move: shown next. When the view also
+                # misses pixels (a pan meanwhile), the region in progress ends
+                # first and the request shares the frame: strips synthesized
+                # then are exact or get marked by the update (Pyramid.settle).
+                before = pyr.pixels_synthesized
+                remaining = deadline - time.perf_counter()
+                if missing is None:
+                    pyr.settle(remaining)
+                else:
+                    pyr.settle(remaining / 2, regions=1)
+                pixels += pyr.pixels_synthesized - before
+                continue
+            if missing is None:
                 break
-            rect = want
-            # Bands at least twice as tall as the margins they are padded with.
-            min_band = max(MIN_BAND, 2 * (self.pyramid.margins[l][2] + self.pyramid.margins[l][3]))
-            if cost > max(remaining, 0.25 * budget_s) and want.h > min_band // 2:
-                rows = int(max(remaining, 0.25 * budget_s) / (self.cost[l] * (want.w + 24)))
-                rect = self._band(l, want, max(min_band, rows))
-            pixels += self._request(l, rect)
-            if rect != want:
-                finished = False
-                break
+            self._start(missing, plan[missing])
         self._done(t0, pixels)
-        return finished
+        return (pyr.settled and pyr.requesting is None
+                and all(self.holds(l, want) for l, want in enumerate(plan)))
 
 
 # -- the session -------------------------------------------------------------

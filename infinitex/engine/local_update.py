@@ -18,8 +18,6 @@ import time
 from .controls import Controls
 from .rect import Rect, merge_rects
 
-JOB_PIECE_PX = 16384  # a local update spread over frames renders at most this many pixels at a time
-
 
 class LocalUpdates:
     """The pyramid's local updates (uses its buffers, margins and strip synthesis)."""
@@ -69,11 +67,16 @@ class LocalUpdates:
             self.dirty[l] = merge_rects(self.dirty[l] + grown)
 
     @property
+    def updating(self) -> bool:
+        """A dirty region is being synthesized (it must end before a request starts)."""
+        return self._job is not None
+
+    @property
     def settled(self) -> bool:
         """No local update is waiting."""
         return self._job is None and not any(self.dirty)
 
-    def settle(self, budget_s: float | None = None) -> bool:
+    def settle(self, budget_s: float | None = None, regions: int | None = None) -> bool:
         """Carry out the waiting local updates, coarsest level first, for about
         ``budget_s`` seconds (None: all of them): a dirty region is one job,
         synthesized a draw at a time (a piece of a draw at a time, on its own
@@ -83,8 +86,10 @@ class LocalUpdates:
         Between calls the buffers stay consistent: a level's pixels are exact
         for its parent's current pixels except within its dirty region, so new
         strips synthesized meanwhile (a pan) are right or marked, and the final
-        result is the fresh synthesis."""
+        result is the fresh synthesis. ``regions``: return after finishing
+        that many dirty regions (a request may start between two)."""
         deadline = None if budget_s is None else time.perf_counter() + budget_s
+        self.end_request()  # the two never interleave (see Pyramid.start_request)
         while True:
             if self._job is None:
                 nxt = next(((l, r) for l in range(self.an.L + 1) for r in self.dirty[l]), None)
@@ -98,22 +103,25 @@ class LocalUpdates:
                     continue
                 region = self.padded(l, r)
                 scratch = self._new_scratch(region.w, region.h)  # its own: other strips may run meanwhile
-                piece = None if deadline is None else JOB_PIECE_PX
-                self._job = (l, self._strip_steps(l, r, scratch, None, piece), scratch)
+                pace = None if deadline is None else self.pacer
+                self._job = (l, self._strip_steps(l, r, scratch, None, pace), scratch)
                 self.pixels_synthesized += region.w * region.h
             l, steps, _ = self._job
             try:
                 while True:
                     next(steps)
-                    if deadline is not None:
-                        self.gpu.ctx.finish()
-                        if time.perf_counter() > deadline:
-                            return False
+                    if deadline is not None and time.perf_counter() > deadline:
+                        return False
             except StopIteration as stop:
                 changed = stop.value
             self._end_job()
+            self.changes += 1
             if changed is not None and l < self.an.L:  # only pixels whose value changed reach the next level
                 self._mark(l + 1, [Rect(2 * changed.x0, 2 * changed.y0, 2 * changed.x1, 2 * changed.y1)])
+            if regions is not None:
+                regions -= 1
+                if regions <= 0:
+                    return self.settled
 
     def _end_job(self) -> None:
         """Drop the local update in progress (finished or no longer wanted)."""

@@ -15,6 +15,7 @@ written back. A full window is the special case of one strip per level.
 """
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 
 import moderngl
@@ -28,7 +29,7 @@ from .local_update import LocalUpdates
 from .params import SynthParams, correction_margins, subpass_order
 from .rect import Rect
 from .similarity import border_margin
-from .stages import Draw, fidelity_draws, subpass_draws
+from .stages import Draw, Pacer, fidelity_draws, subpass_draws
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -118,6 +119,10 @@ class Pyramid(LocalUpdates):
         # (already grown by the level's reach; clipped to what is held when done).
         self.dirty: list[list[Rect]] = [[] for _ in range(self.an.L + 1)]
         self._job = None  # the dirty region being synthesized: (level, its steps, its scratch)
+        self._request_job = None  # a request spread over frames: (level, rect, its steps)
+        self.request_pixels = 0  # level pixels the request in progress has synthesized
+        self.pacer = Pacer()  # sizes the pieces of work spread over frames
+        self.changes = 0  # bumps whenever what a level holds changed (the view redraws)
         self.set_params(params, controls)
 
     # -- parameters ---------------------------------------------------------
@@ -159,9 +164,11 @@ class Pyramid(LocalUpdates):
                 for l in range(self.an.L + 1)]
 
     def invalidate(self, first_level: int = 0) -> None:
-        """Forget the contents of levels >= first_level."""
+        """Forget the contents of levels >= first_level (and any request in progress)."""
+        self.end_request()
         if self._job is not None and self._job[0] >= first_level:
             self._end_job()
+        self.changes += 1
         for l in range(first_level, self.an.L + 1):
             self.dirty[l] = []
             if self.buffers[l] is not None:
@@ -200,22 +207,18 @@ class Pyramid(LocalUpdates):
 
     # -- synthesis ----------------------------------------------------------
 
-    def request(self, level: int, rect: Rect) -> int:
-        """Make level ``level`` exact over ``rect`` (and its ancestors as needed).
-
-        Returns the number of level pixels synthesized (0 when all was cached).
-        """
+    def _check(self, level: int, rect: Rect) -> None:
         if not 0 <= level <= self.an.L:
             raise SynthesisError(f"Level {level} does not exist (0..{self.an.L}).")
-        if rect.empty:
-            return 0
-        self.gpu.activate()
         lim = COORD_LIMIT >> (self.an.L - level)
         if min(rect.x0, rect.y0) < -lim or max(rect.x1, rect.y1) > lim:
             raise SynthesisError(f"Canvas positions must stay within +-{lim} at level {level}.")
+
+    def _targets(self, level: int, rect: Rect) -> list[tuple[int, Rect]]:
+        """What each level must hold for ``rect`` of ``level``, coarse to fine:
+        decided fine to coarse, a level needing of its parent only what its
+        *new* strips read."""
         targets = []
-        # Decide every level's rectangle first, fine to coarse: a level needs of
-        # its parent only what its *new* strips read; then synthesize coarse to fine.
         need: Rect | None = rect
         for l in range(level, -1, -1):
             if need is None:
@@ -230,11 +233,88 @@ class Pyramid(LocalUpdates):
                 r = self.padded(l, s).half()
                 need = r if need is None else Rect(min(need.x0, r.x0), min(need.y0, r.y0),
                                                    max(need.x1, r.x1), max(need.y1, r.y1))
+        return targets[::-1]
+
+    def request(self, level: int, rect: Rect) -> int:
+        """Make level ``level`` exact over ``rect`` (and its ancestors as needed).
+
+        Returns the number of level pixels synthesized (0 when all was cached).
+        A request in progress (:meth:`start_request`) is dropped.
+        """
+        self._check(level, rect)
+        self.end_request()
+        if rect.empty:
+            return 0
+        self.gpu.activate()
         total = 0
-        for l, target in reversed(targets):
+        for l, target in self._targets(level, rect):
             total += self._update_level(l, target)
         self.pixels_synthesized = total
         return total
+
+    # -- requests spread over frames ------------------------------------------
+
+    def start_request(self, level: int, rect: Rect) -> None:
+        """Begin what :meth:`request` does, to be carried out a piece at a time
+        by :meth:`advance_request` (the pieces sized by ``self.pacer``): the
+        editor's view refines between frames that stay short.
+
+        While it runs no other synthesis may touch the pyramid: :meth:`request`,
+        :meth:`settle` and any change of parameters drop it first, and the
+        buffers stay consistent (each level claims what it keeps until its new
+        strips are written back), so a dropped request loses only its work."""
+        self._check(level, rect)
+        self.end_request()
+        self.gpu.activate()
+        self._request_job = (level, rect, self._request_steps(self._targets(level, rect)))
+        self.request_pixels = 0
+
+    @property
+    def requesting(self) -> tuple[int, Rect] | None:
+        """The (level, rect) of the request in progress, or None."""
+        return None if self._request_job is None else self._request_job[:2]
+
+    def advance_request(self, deadline: float) -> bool:
+        """Carry the request in progress on until ``deadline``
+        (``time.perf_counter()`` seconds); True when none is left."""
+        if self._request_job is None:
+            return True
+        self.gpu.activate()
+        steps = self._request_job[2]
+        try:
+            while True:
+                next(steps)
+                if time.perf_counter() >= deadline:
+                    return False
+        except StopIteration:
+            self._request_job = None
+            return True
+
+    def end_request(self) -> None:
+        """Drop the request in progress, if any (what it finished stays)."""
+        if self._request_job is not None:
+            steps = self._request_job[2]
+            self._request_job = None
+            steps.close()
+
+    def _request_steps(self, targets: list[tuple[int, Rect]]) -> Iterator[None]:
+        for l, target in targets:
+            buf = self._ensure_buffer(l, target)
+            keep = buf.valid.intersect(target) if buf.valid is not None else None
+            keep = None if keep is None or keep.empty else keep
+            buf.valid = keep  # what stays exact while the new strips are written
+            self.changes += 1
+            for strip in [target] if keep is None else target.minus(keep):
+                region = self.padded(l, strip)
+                scratch = self._new_scratch(region.w, region.h)
+                try:
+                    yield from self._strip_steps(l, strip, scratch, buf, self.pacer)
+                finally:
+                    for o in (scratch[1], scratch[3], scratch[0], scratch[2]):
+                        o.release()
+                self.request_pixels += region.w * region.h
+            buf.valid = target
+            self.changes += 1
 
     def _ensure_buffer(self, l: int, target: Rect) -> _LevelBuffer:
         buf = self.buffers[l]
@@ -275,6 +355,7 @@ class Pyramid(LocalUpdates):
         for strip in strips:
             count += self._synthesize_strip(l, strip, buf)
         buf.valid = target
+        self.changes += 1
         return count
 
     def _scratch_pair(self, w: int, h: int):
@@ -302,10 +383,10 @@ class Pyramid(LocalUpdates):
         return region.w * region.h
 
     def _strip_steps(self, l: int, strip: Rect, scratch, buf: _LevelBuffer | None,
-                     piece_px: int | None = None) -> Iterator[None]:
+                     pace: Pacer | None = None) -> Iterator[None]:
         """Synthesize ``strip`` of level l into ``buf`` (None: the level's buffer at
-        the end, over what it then holds), a draw (or a piece of one, ``piece_px``)
-        per step: upsample + jitter, correction, fidelity stage, on ``scratch``;
+        the end, over what it then holds), a draw (or a piece of one, sized by
+        ``pace``) per step: upsample + jitter, correction, fidelity stage, on ``scratch``;
         the write-back is the last step. Returns (as the generator's value) the
         rectangle of the pixels that changed, when ``buf`` is None."""
         p = self.params
@@ -339,7 +420,7 @@ class Pyramid(LocalUpdates):
                        cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi)
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
-            yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni).steps()
+            yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni).steps(pace)
 
             # Correction subpasses, then the fidelity stage's, on scratch a.
             draws = []
@@ -363,7 +444,7 @@ class Pyramid(LocalUpdates):
                 draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
                                         avoid or self._dummy, avoid is not None)
             for d in draws:
-                yield from d.steps(piece_px)
+                yield from d.steps(pace)
 
             # Write the exact strip back, split where the buffer wraps.
             changed = None
@@ -380,7 +461,7 @@ class Pyramid(LocalUpdates):
             textures = {0: a, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
             for g0, t0, w, hh in self._texel_pieces(buf, strip):
                 yield from Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
-                                dict(uni, region_g0=g0, region_t0=t0)).steps()
+                                dict(uni, region_g0=g0, region_t0=t0)).steps(pace)
             if deferred:
                 diff = np.any(self._read_rect(buf, strip) != before, axis=-1)
                 if diff.any():
@@ -411,7 +492,8 @@ class Pyramid(LocalUpdates):
         return self._efield["avoid"]
 
     def _release_efield(self) -> None:
-        self._end_job()  # it may read them
+        self._end_job()  # they may read them
+        self.end_request()
         for t in self._efield.values():
             t.release()
         self._efield.clear()

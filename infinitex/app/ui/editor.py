@@ -48,7 +48,7 @@ from .tools import make_tools
 
 __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EXEMPLAR: where it always was
 
-REST_BUDGET_S = 0.060        # refining at rest: more work per frame, still a live UI
+REST_BUDGET_S = 0.022        # synthesis per frame while refining: with drawing, a frame takes about 33 ms
 PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
 INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
@@ -166,6 +166,10 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         # handled by the very frame they wake, and it stays awake while input
         # keeps coming; the runner's own idling (which handled the waking event
         # one frame late, that is up to a whole idle period late) stays off.
+        # No multisampled window: imgui smooths its own edges, and on a software
+        # GL (llvmpipe) the runner's default 8x multisampling cost 12 of the
+        # 18 ms a 1280 x 800 frame took to draw, time taken from the synthesis.
+        p.renderer_backend_options.open_gl_options.anti_aliasing_samples = 0
         p.fps_idling.enable_idling = False
         p.fps_idling.remember_enable_idling = False
         p.callbacks.pre_new_frame = self._wait_for_input
