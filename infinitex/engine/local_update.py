@@ -115,7 +115,7 @@ class LocalUpdates:
             except StopIteration as stop:
                 changed = stop.value
             self._end_job()
-            self.changes += 1
+            self._touch(l, changed)
             if changed is not None and l < self.an.L:  # only pixels whose value changed reach the next level
                 self._mark(l + 1, [Rect(2 * changed.x0, 2 * changed.y0, 2 * changed.x1, 2 * changed.y1)])
             if regions is not None:

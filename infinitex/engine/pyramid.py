@@ -123,6 +123,7 @@ class Pyramid(LocalUpdates):
         self.request_pixels = 0  # level pixels the request in progress has synthesized
         self.pacer = Pacer()  # sizes the pieces of work spread over frames
         self.changes = 0  # bumps whenever what a level holds changed (the view redraws)
+        self.touched: list[tuple[int, Rect]] | None = []  # what changed since take_touched (None: all)
         self.set_params(params, controls)
 
     # -- parameters ---------------------------------------------------------
@@ -169,6 +170,7 @@ class Pyramid(LocalUpdates):
         if self._job is not None and self._job[0] >= first_level:
             self._end_job()
         self.changes += 1
+        self.touched = None
         for l in range(first_level, self.an.L + 1):
             self.dirty[l] = []
             if self.buffers[l] is not None:
@@ -297,14 +299,38 @@ class Pyramid(LocalUpdates):
             self._request_job = None
             steps.close()
 
+    def _touch(self, l: int, r: Rect | None) -> None:
+        """Level l's pixels changed over ``r`` (its valid rectangle grew or
+        shrank there, or their values changed)."""
+        self.changes += 1
+        if r is not None and not r.empty and self.touched is not None:
+            self.touched.append((l, r))
+            if len(self.touched) > 64:
+                self.touched = None
+
+    def take_touched(self) -> list[tuple[int, Rect]] | None:
+        """The (level, rect)s whose pixels changed since the last call (None:
+        anything may have), for a view that redraws only those."""
+        out, self.touched = self.touched, []
+        return out
+
+    def _keep(self, l: int, target: Rect) -> tuple[_LevelBuffer, Rect | None, list[Rect]]:
+        """Prepare level l for ``target``: its buffer, what it keeps (which
+        becomes its valid rectangle until the new strips are written) and the
+        new strips."""
+        old = self.buffers[l].valid if self.buffers[l] is not None else None
+        buf = self._ensure_buffer(l, target)
+        keep = buf.valid.intersect(target) if buf.valid is not None else None
+        keep = None if keep is None or keep.empty else keep
+        buf.valid = keep
+        if old is not None and old != keep:
+            self._touch(l, old)
+        return buf, keep, [target] if keep is None else target.minus(keep)
+
     def _request_steps(self, targets: list[tuple[int, Rect]]) -> Iterator[None]:
         for l, target in targets:
-            buf = self._ensure_buffer(l, target)
-            keep = buf.valid.intersect(target) if buf.valid is not None else None
-            keep = None if keep is None or keep.empty else keep
-            buf.valid = keep  # what stays exact while the new strips are written
-            self.changes += 1
-            for strip in [target] if keep is None else target.minus(keep):
+            buf, keep, strips = self._keep(l, target)
+            for strip in strips:
                 region = self.padded(l, strip)
                 scratch = self._new_scratch(region.w, region.h)
                 try:
@@ -314,7 +340,8 @@ class Pyramid(LocalUpdates):
                         o.release()
                 self.request_pixels += region.w * region.h
             buf.valid = target
-            self.changes += 1
+            for strip in strips:
+                self._touch(l, strip)
 
     def _ensure_buffer(self, l: int, target: Rect) -> _LevelBuffer:
         buf = self.buffers[l]
@@ -349,13 +376,13 @@ class Pyramid(LocalUpdates):
             vao.render(moderngl.TRIANGLES)
 
     def _update_level(self, l: int, target: Rect) -> int:
-        buf = self._ensure_buffer(l, target)
-        strips = [target] if buf.valid is None else target.minus(buf.valid)
+        buf, keep, strips = self._keep(l, target)
         count = 0
         for strip in strips:
             count += self._synthesize_strip(l, strip, buf)
         buf.valid = target
-        self.changes += 1
+        for strip in strips:
+            self._touch(l, strip)
         return count
 
     def _scratch_pair(self, w: int, h: int):

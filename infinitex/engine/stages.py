@@ -32,7 +32,7 @@ class Pacer:
     tiles unevenly cost up to twice as much (8 aligned rows of the fidelity
     stage cost 7% more than the whole draw, 8 unaligned ones 50%)."""
 
-    piece_s: float = 0.008
+    piece_s: float = 0.006
     first_px: int = 4096  # a program not timed yet
     cost: dict = field(default_factory=dict)  # program -> seconds per pixel
 

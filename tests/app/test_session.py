@@ -10,10 +10,11 @@ import pytest
 from PIL import Image
 
 from infinitex.project import Display, Document, ExemplarSource, Project, View, save_project
-from infinitex.app.render.canvas import Canvas
+from infinitex.app.render.canvas import Canvas, union_box
 from infinitex.app.session import Session, frame_for
 from infinitex.export import decode_coords, encode_coords
 from infinitex.export.window import ExportJob, colors_u8
+from infinitex.engine.controls import CanvasField, Controls
 from infinitex.engine.pyramid import Rect, SynthesisError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -68,6 +69,90 @@ def test_progressive_refinement_equals_one_shot(session, gpu):
     _refine(session, frame, 0.002)
     got = session.pyramid.read(frame.level, frame.want)
     assert np.array_equal(got, session.synth.window(frame.want))
+
+
+def test_a_request_in_progress_survives_pans_edits_and_paint(session):
+    """The view refines a piece of a draw at a time; a pan away, a parameter
+    change and a paint dab in the middle of a request leave the pyramid
+    consistent, and the end is the fresh synthesis of the final document."""
+    W, H = 160, 120
+    params0, controls0 = session.params, session.controls
+    pyr = session.pyramid
+    try:
+        frame = frame_for(View(20000.0, 300.0, 1.0), W, H, session.L)
+        for _ in range(100):
+            session.refine(frame, 0.0005)
+            if pyr.requesting is not None:
+                break
+        level, rect = pyr.requesting
+        assert not pyr.advance_request(0.0)  # a piece, not the whole request
+        frame2 = frame_for(View(-90000.0, 300.0, 1.0), W, H, session.L)
+        session.refine(frame2, 0.0005)  # the request no longer wanted is dropped
+        assert pyr.requesting is None or pyr.requesting[1] != rect
+        for _ in range(100):
+            session.refine(frame2, 0.0005)
+            if pyr.requesting is not None:
+                break
+        assert pyr.requesting is not None
+        p2 = replace(params0, seed=params0.seed + 1)
+        session.synth.set_params(p2, controls0)
+        pyr.set_params(p2, controls0)
+        assert pyr.requesting is None  # dropped with the levels it depended on
+        for _ in range(5):
+            session.refine(frame2, 0.001)
+        cx, cy = ((frame2.want.x0 + frame2.want.x1) / 2, (frame2.want.y0 + frame2.want.y1) / 2)
+        field, _ = CanvasField().painted(cx, cy, 24.0, 0)
+        c2 = Controls(randomness_canvas=field)
+        session.synth.set_params(p2, c2)
+        pyr.update_controls(c2, defer=True)
+        _refine(session, frame2, 0.001)
+        assert np.array_equal(pyr.read(frame2.level, frame2.want), session.synth.window(frame2.want))
+    finally:
+        session.synth.set_params(params0, controls0)
+        pyr.set_params(params0, controls0)
+
+
+@pytest.mark.parametrize("zoom", [1.0, 0.5, 3.0])
+def test_redrawing_only_what_changed_equals_a_full_redraw(session, gpu, zoom):
+    """The editor redraws only the canvas pixels whose texels the synthesis
+    changed (Pyramid.take_touched); each frame equals a full redraw."""
+    W, H = 180, 140
+    a, b = Canvas(gpu), Canvas(gpu)
+    for c in (a, b):
+        c.set_exemplar(session.stack, session.analysis.toroidal, None, session.generation)
+        c.ensure_size(W, H)
+    view = View(777.3, -4242.6, zoom)
+    frame = frame_for(view, W, H, session.L)
+    session.pyramid.invalidate(0)
+    a.render(session.pyramid, frame, view, Display())
+    session.pyramid.take_touched()
+    partial = 0
+    field, _ = CanvasField().painted(777.0, -4242.0, 12.0, 0)
+    controls0 = session.controls
+    try:
+        for controls in (controls0, Controls(randomness_canvas=field)):  # a fresh view, then a dab on it
+            if controls is not controls0:
+                session.synth.set_params(session.params, controls)
+                session.pyramid.update_controls(controls, defer=True)
+            for _ in range(10000):
+                done = session.refine(frame, 0.003)
+                touched = session.pyramid.take_touched()
+                assert touched is not None
+                box = union_box(a.screen_box(l, r, session.L, view) for l, r in touched)
+                if box is not None:
+                    partial += box[2] * box[3] < W * H
+                    a.render(session.pyramid, frame, view, Display(), box=box)
+                b.render(session.pyramid, frame, view, Display())
+                assert np.array_equal(a.read(), b.read())
+                if done:
+                    break
+            assert done
+    finally:
+        session.synth.set_params(session.params, controls0)
+        session.pyramid.set_params(session.params, controls0)
+    assert partial > 0 or zoom > 1  # zoomed in, a dab's reach covers the whole little view
+    a.release()
+    b.release()
 
 
 def test_preview_completes_whole_levels(session):

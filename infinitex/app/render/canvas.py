@@ -17,6 +17,7 @@ from PIL import Image
 from infinitex.engine.gpu import Gpu, read_shader, set_uniforms
 from infinitex.engine.imagefile import to_u8
 from infinitex.engine.pyramid import Pyramid
+from infinitex.engine.rect import Rect
 from infinitex.project import Display, View
 
 from ..session import Frame, level_rect
@@ -32,10 +33,8 @@ class Canvas:
         self.gpu = gpu
         ctx = gpu.ctx
         with open(os.path.join(SHADER_DIR, "canvas.frag"), encoding="utf-8") as f:
-            frag = f.read()
-        head = "#version 330 core\n"
-        self.prog = ctx.program(vertex_shader=head + read_shader("fullscreen.vert"), fragment_shader=head + frag)
-        self.vao = ctx.vertex_array(self.prog, [(gpu.quad, "2f", "in_pos")])
+            self._frag = f.read()
+        self._programs: dict[tuple, tuple] = {}  # (mode, mag, alpha, shape kind) -> (program, vao)
         self.size = (0, 0)
         self.tex: moderngl.Texture | None = None
         self.fbo: moderngl.Framebuffer | None = None
@@ -97,6 +96,18 @@ class Canvas:
         self.shape_kind = SHAPE_KINDS[kind]
         self.shape_key = key
 
+    def _program(self, mode: int, mag: int, alpha: int, shape_kind: int):
+        """The canvas program compiled for one kind of draw (see canvas.frag)."""
+        key = (mode, mag, alpha, shape_kind)
+        if key not in self._programs:
+            head = (f"#version 330 core\n#define MODE {mode}\n#define MAG {mag}\n#define ALPHA {alpha}\n"
+                    f"#define SHAPE_KIND {shape_kind}\n")
+            ctx = self.gpu.ctx
+            prog = ctx.program(vertex_shader="#version 330 core\n" + read_shader("fullscreen.vert"),
+                               fragment_shader=head + self._frag)
+            self._programs[key] = (prog, ctx.vertex_array(prog, [(self.gpu.quad, "2f", "in_pos")]))
+        return self._programs[key]
+
     @property
     def has_hires(self) -> bool:
         return self.hires_tex is not None
@@ -117,31 +128,28 @@ class Canvas:
         self.size = (w, h)
 
     def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display,
-               geom: np.ndarray | None = None) -> int:
+               geom: np.ndarray | None = None, box: tuple[int, int, int, int] | None = None) -> int:
         """Draw into the canvas texture; returns the coarsest level drawn (-1: none).
 
         ``geom`` (2x2): the view is in a lattice's input geometry and this maps
-        its positions to the synthesized (rectified) canvas."""
+        its positions to the synthesized (rectified) canvas. ``box`` (x, y, w,
+        h in canvas pixels, as :meth:`screen_box` gives them): redraw only there
+        (what the pyramid changed since a full render of the same view), each
+        pixel exactly as a full render draws it."""
         self.gpu.activate()
         self.fbo.use()
         self.fbo.viewport = (0, 0, *self.size)
+        self.gpu.ctx.scissor = box
         self.gpu.ctx.clear(0.16, 0.16, 0.17, 1.0)
-        if pyramid is None or frame is None or self.stack_tex is None:
-            return -1
-        levels = []
-        for l in range(frame.level, -1, -1):
-            buf = pyramid.buffers[l]
-            if buf is None or buf.valid is None:
-                continue
-            want = level_rect(frame.want, frame.level, l)
-            inter = want.intersect(buf.valid)
-            if inter.empty:
-                continue
-            levels.append(l)
-            if buf.valid.contains(want):
-                break
-        if not levels:
-            return -1
+        try:
+            if pyramid is None or frame is None or self.stack_tex is None:
+                return -1
+            return self._draw_levels(pyramid, frame, view, display, geom, box)
+        finally:
+            self.gpu.ctx.scissor = None
+
+    def _draw_levels(self, pyramid: Pyramid, frame: Frame, view: View, display: Display,
+                     geom: np.ndarray | None, box: tuple[int, int, int, int] | None) -> int:
         L = len(pyramid.buffers) - 1
         tlx, tly = view.top_left(*self.size)
         G = np.eye(2) if geom is None else np.asarray(geom, dtype=np.float64)
@@ -149,17 +157,32 @@ class Canvas:
             tlx, tly = (float(v) for v in G @ np.array([tlx, tly]))
         ix, iy = math.floor(tlx), math.floor(tly)
         M = G / view.zoom  # screen pixel -> finest-level canvas pixel
+        want_box = frame.want if box is None else self._level_box(box, frame.level, L, tlx, tly, M)
+        levels = []
+        for l in range(frame.level, -1, -1):
+            buf = pyramid.buffers[l]
+            if buf is None or buf.valid is None:
+                continue
+            want = level_rect(want_box, frame.level, l)
+            inter = want.intersect(buf.valid)
+            if inter.empty:
+                continue
+            levels.append(l)
+            if buf.valid.contains(want):  # it covers what is drawn: coarser levels would be hidden
+                break
+        if not levels:
+            return -1
         mode = MODES.get(display.mode, 0)
-        p = self.prog
+        if mode == MODES["lit"] and self.shape_tex is None:
+            mode = MODES["relief"]
         self.stack_tex.use(1)
         if self.hires_tex is not None:
             self.hires_tex.use(2)
-        if mode == MODES["lit"] and self.shape_tex is None:
-            mode = MODES["relief"]
         if self.shape_tex is not None:
             self.shape_tex.use(3)
         az, el = math.radians(display.light_azimuth), math.radians(display.light_elevation)
         light = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
+        alpha = int(self.channels in (2, 4))
         for i, l in enumerate(reversed(levels)):  # coarse first, finer partial levels on top
             buf = pyramid.buffers[l]
             k = L - l
@@ -171,22 +194,43 @@ class Canvas:
             # real texture, patchy but sharp, LH05 5): each texel's coordinate is
             # extrapolated across the pixels it covers and the view's own level
             # (or the hi-res exemplar) is sampled there.
-            magnify = int(display.magnify != "nearest" and texel_px > 1.0)
-            self.gpu.ctx.scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, M)
-            use_hires = int(self.hires_tex is not None and display.magnify == "hires" and frame.level == L
-                            and magnify)
-            set_uniforms(p, coords=0, stack=1, hires=2, anchor=buf.anchor, cmask=buf.mask,
+            magnify = display.magnify != "nearest" and texel_px > 1.0 and not exact
+            use_hires = (self.hires_tex is not None and display.magnify == "hires" and frame.level == L and magnify)
+            mag = 0 if not magnify or mode in (1, 2, 3, 4) else (2 if use_hires else 1)
+            prog, vao = self._program(mode, mag, alpha if mode in (0, 3, 5) else 0,
+                                      self.shape_kind if mode == 5 else 0)
+            scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, M)
+            if box is not None:
+                scissor = box if scissor is None else _intersect(scissor, box)
+            self.gpu.ctx.scissor = scissor
+            set_uniforms(prog, coords=0, stack=1, hires=2, anchor=buf.anchor, cmask=buf.mask,
                          vlo=(buf.valid.x0, buf.valid.y0), vhi=(buf.valid.x1, buf.valid.y1),
                          tl_i=(ix, iy), tl_f=(tlx - ix, tly - iy), zoom=float(view.zoom), k=k, m=self.m,
                          geom=(float(M[0, 0]), float(M[0, 1]), float(M[1, 0]), float(M[1, 1])),
-                         layer=l, mag_layer=frame.level if l < frame.level else l, use_hires=use_hires,
-                         mode=mode, magnify=magnify, exact=int(exact),
-                         toroidal=int(self.toroidal), has_alpha=int(self.channels in (2, 4)),
-                         relief_strength=float(self.m) / 24.0, shape=3, shape_kind=self.shape_kind,
+                         layer=l, mag_layer=frame.level if l < frame.level else l,
+                         toroidal=int(self.toroidal), relief_strength=float(self.m) / 24.0, shape=3,
                          light=light, relief=float(display.relief) * self.m / 8.0)
-            self.vao.render(moderngl.TRIANGLES)
-        self.gpu.ctx.scissor = None
+            vao.render(moderngl.TRIANGLES)
         return levels[-1]
+
+    def _level_box(self, box: tuple[int, int, int, int], level: int, L: int, tlx: float, tly: float,
+                   M: np.ndarray) -> Rect:
+        """The level texels that the canvas pixels of ``box`` show (one texel more around)."""
+        x, y, w, h = box
+        corners = np.array([[x, y], [x + w, y], [x, y + h], [x + w, y + h]], dtype=np.float64)
+        pos = corners @ M.T + np.array([tlx, tly])
+        s = 1 << (L - level)
+        return Rect(math.floor(pos[:, 0].min() / s) - 1, math.floor(pos[:, 1].min() / s) - 1,
+                    math.floor(pos[:, 0].max() / s) + 2, math.floor(pos[:, 1].max() / s) + 2)
+
+    def screen_box(self, level: int, r: Rect, L: int, view: View, geom: np.ndarray | None = None):
+        """The canvas pixels (x, y, w, h) that show level texels ``r``, clipped (w or h 0: none)."""
+        tlx, tly = view.top_left(*self.size)
+        G = np.eye(2) if geom is None else np.asarray(geom, dtype=np.float64)
+        if geom is not None:
+            tlx, tly = (float(v) for v in G @ np.array([tlx, tly]))
+        x, y, w, h = self._screen_box(r.pad(1, 1, 1, 1), L - level, tlx, tly, G / view.zoom)
+        return (x, y, w, h)
 
     def _screen_box(self, r, k: int, tlx: float, tly: float, M: np.ndarray):
         """Canvas pixels covered by level-(L-k) rectangle r: (x, y, w, h), clipped.
@@ -238,3 +282,22 @@ def to_rgba(a: np.ndarray) -> np.ndarray:
     else:
         out[..., :3] = a
     return out
+
+
+def _intersect(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    x0, y0 = max(a[0], b[0]), max(a[1], b[1])
+    x1, y1 = min(a[0] + a[2], b[0] + b[2]), min(a[1] + a[3], b[1] + b[3])
+    return (x0, y0, max(0, x1 - x0), max(0, y1 - y0))
+
+
+def union_box(boxes) -> tuple[int, int, int, int] | None:
+    """The smallest box (x, y, w, h) holding the non-empty ones; None if none is."""
+    x0 = y0 = x1 = y1 = None
+    for x, y, w, h in boxes:
+        if w <= 0 or h <= 0:
+            continue
+        x0 = x if x0 is None else min(x0, x)
+        y0 = y if y0 is None else min(y0, y)
+        x1 = x + w if x1 is None else max(x1, x + w)
+        y1 = y + h if y1 is None else max(y1, y + h)
+    return None if x0 is None else (x0, y0, x1 - x0, y1 - y0)

@@ -20,6 +20,8 @@ import sys
 import time
 from dataclasses import replace
 
+import numpy as np
+
 from imgui_bundle import (  # imported before glfw (bundled libglfw)
     hello_imgui,
     imgui,
@@ -34,7 +36,7 @@ from infinitex.export.jobs import ExportEstimate, StreamedExport
 from infinitex.export.window import ExportJob
 from infinitex.project import Autosave, Display, History, View
 
-from ..render.canvas import Canvas
+from ..render.canvas import Canvas, union_box
 from ..render.overlays import FieldOverlay
 from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir, load_settings, save_settings
@@ -48,7 +50,7 @@ from .tools import make_tools
 
 __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EXEMPLAR: where it always was
 
-REST_BUDGET_S = 0.022        # synthesis per frame while refining: with drawing, a frame takes about 33 ms
+REST_BUDGET_S = 0.020        # synthesis per frame while refining: with drawing, a frame takes about 33 ms
 PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
 INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
@@ -183,8 +185,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
     def run(self) -> int:
         immapp.run(self.runner_params(), immapp.AddOnsParams())
         if self.screenshot:
-            import numpy as np
-
             from infinitex.engine.imagefile import write_png
             shot = hello_imgui.final_app_window_screenshot()
             if shot is None or not getattr(shot, "size", 0):
@@ -413,10 +413,18 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.pixels = s.refiner.last_pixels if s.refiner else 0
             self.canvas.ensure_size(w // scale, h // scale)
             view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-            key = (s.generation, s.params, s.refiner.version, self.frame, view, self.display, (w, h))
-            if key != self._canvas_key or self.canvas_request:
+            key = (s.generation, s.params, self.frame, view, self.display, (w, h),
+                   None if geom is None else tuple(np.ravel(geom)))
+            touched = s.pyramid.take_touched()
+            if key != self._canvas_key or self.canvas_request or touched is None:
                 self.canvas.render(s.pyramid, self.frame, view, self.display, geom)
                 self._canvas_key = key
+            elif touched:
+                # Only what the synthesis changed is drawn again (a band of the
+                # view's level is cheap; the whole canvas magnified is not).
+                box = union_box(self.canvas.screen_box(l, r, s.L, view, geom) for l, r in touched)
+                if box is not None:
+                    self.canvas.render(s.pyramid, self.frame, view, self.display, geom, box=box)
             if self.canvas_request:
                 self.canvas_pixels = self.canvas.read()
                 self.canvas_request = False

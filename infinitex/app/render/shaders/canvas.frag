@@ -5,6 +5,12 @@
 // the continuous level position base + frac, with the integer part kept
 // exact for far-away origins. Texels outside [vlo, vhi) are left to the
 // coarser level drawn before (progressive refinement).
+//
+// Compiled per draw kind (canvas.py): MODE (0 color, 1 coords, 2 patches,
+// 3 level, 4 relief, 5 lit), MAG (0 texel fetch, 1 synthesis magnification
+// from the stack, 2 from the hi-res exemplar), ALPHA (draw on a checkerboard)
+// and SHAPE_KIND (lit: 0 normal map, 1 height). llvmpipe runs the branches
+// of a uniform condition anyway: one program for all cost 9x for exact texels.
 
 uniform isampler2D coords;    // level buffer: texel of position g is (g - anchor) & cmask
 uniform ivec2 anchor;
@@ -23,16 +29,10 @@ uniform int mag_layer;        // stack layer sampled by magnification (the view'
                               // level standing in during refinement still shows sharp texture)
 uniform sampler2DArray stack; // uint8 Gaussian stack, RGBA
 uniform sampler2D hires;      // high-resolution exemplar (mipmapped)
-uniform int use_hires;
-uniform int mode;             // 0 color, 1 coords, 2 patches, 3 level (nearest color), 4 relief, 5 lit
 uniform sampler2DArray shape; // "lit": the normal map (encoded, rgb) or height (r) stack, half floats
-uniform int shape_kind;       // 0 normal map, 1 height
 uniform vec3 light;           // unit vector towards the light (x right, y up, z out of the surface)
 uniform float relief;         // height: finest-level pixels of relief for the full [0, 1] range; normals: tilt gain
-uniform int magnify;          // 0 nearest, 1 LH05 synthesis magnification
-uniform int exact;            // texels are exactly one screen pixel: fetch, no filtering
 uniform int toroidal;
-uniform int has_alpha;
 uniform float relief_strength;
 
 out vec4 color;
@@ -103,7 +103,7 @@ vec4 magnified_from(ivec2 base, vec2 frac, int source) {
 }
 
 vec4 magnified(ivec2 base, vec2 frac) {
-    return magnified_from(base, frac, use_hires != 0 ? 1 : 0);
+    return magnified_from(base, frac, MAG == 2 ? 1 : 0);
 }
 
 // The shape map at level position frac: magnified, or the texel's value.
@@ -122,54 +122,54 @@ void main() {
     if (any(lessThan(g, vlo)) || any(greaterThanEqual(g, vhi))) discard;
     ivec2 u = S(g);
     vec4 c;
-    if (mode == 1) {
-        c = vec4((vec2(u) + 0.5) / float(m), 0.25, 1.0);
-    } else if (mode == 4) {
-        float hx = luma(fetch(S(g + ivec2(1, 0)))) - luma(fetch(S(g - ivec2(1, 0))));
-        float hy = luma(fetch(S(g + ivec2(0, 1)))) - luma(fetch(S(g - ivec2(0, 1))));
-        float st = relief_strength / float(s);
-        vec3 n = normalize(vec3(-hx * st, -hy * st, 1.0));
-        float shade = 0.2 + 0.8 * max(dot(n, normalize(vec3(-0.6, -0.6, 0.55))), 0.0);
-        c = vec4(vec3(shade), 1.0);
-    } else if (mode == 3 || mode == 2 || exact != 0 || magnify == 0) {
-        c = fetch(u);
-    } else {
-        c = magnified(base, frac);
-    }
-    if (mode == 5) {
-        // Lit material: the normal map (or the height map's slopes) shaded by a
-        // directional light, the base color on top. Surface frame: x right, y up.
-        bool mag = exact == 0 && magnify != 0;
-        vec3 n;
-        if (shape_kind == 0) {
-            vec3 e = shape_at(base, frac, mag).rgb * 2.0 - 1.0;
-            n = normalize(vec3(e.xy * relief, max(e.z, 1e-3)));
-        } else {
-            float d = mag ? 0.5 : 1.0;  // texels between the samples
-            float hx = shape_at(base, frac + vec2(d, 0.0), mag).r - shape_at(base, frac - vec2(d, 0.0), mag).r;
-            float hy = shape_at(base, frac + vec2(0.0, d), mag).r - shape_at(base, frac - vec2(0.0, d), mag).r;
-            float g = relief / (2.0 * d * float(s));  // height per finest pixel
-            n = normalize(vec3(-hx * g, hy * g, 1.0));  // rows go down, y goes up
-        }
-        // Lambert, scaled so a flat surface keeps its base color at any light
-        // height: slopes facing the light brighten, the others darken to the ambient.
-        float diffuse = max(dot(n, light), 0.0) / max(light.z, 0.2);
-        c.rgb = min(c.rgb * (0.25 + 0.75 * diffuse), vec3(1.0));
-    }
-    if (has_alpha != 0 && (mode == 0 || mode == 3 || mode == 5)) {
-        ivec2 chk = ivec2(q) / 8;
-        float bg = ((chk.x + chk.y) & 1) == 0 ? 0.8 : 0.6;
-        c = vec4(mix(vec3(bg), c.rgb, c.a), 1.0);
-    }
-    if (mode == 2) {
-        ivec2 off = (u - g * s) & (m - 1);
-        c.rgb = mix(c.rgb, hue(uint(off.x) * 7919u + uint(off.y) * 104729u), 0.45);
-        float texel_px = zoom * float(s);
-        vec2 f = fract(frac);
-        bool right = (1.0 - f.x) * texel_px <= 1.0;
-        bool below = (1.0 - f.y) * texel_px <= 1.0;
-        if ((right && !coherent(g, ivec2(1, 0))) || (below && !coherent(g, ivec2(0, 1))))
-            c.rgb = vec3(0.05);
-    }
+#if MODE == 1
+    c = vec4((vec2(u) + 0.5) / float(m), 0.25, 1.0);
+#elif MODE == 4
+    float hx = luma(fetch(S(g + ivec2(1, 0)))) - luma(fetch(S(g - ivec2(1, 0))));
+    float hy = luma(fetch(S(g + ivec2(0, 1)))) - luma(fetch(S(g - ivec2(0, 1))));
+    float st = relief_strength / float(s);
+    vec3 n = normalize(vec3(-hx * st, -hy * st, 1.0));
+    float shade = 0.2 + 0.8 * max(dot(n, normalize(vec3(-0.6, -0.6, 0.55))), 0.0);
+    c = vec4(vec3(shade), 1.0);
+#elif MAG == 0
+    c = fetch(u);
+#else
+    c = magnified(base, frac);
+#endif
+#if MODE == 5
+    // Lit material: the normal map (or the height map's slopes) shaded by a
+    // directional light, the base color on top. Surface frame: x right, y up.
+    bool mag = MAG != 0;
+    vec3 n;
+#if SHAPE_KIND == 0
+    vec3 e = shape_at(base, frac, mag).rgb * 2.0 - 1.0;
+    n = normalize(vec3(e.xy * relief, max(e.z, 1e-3)));
+#else
+    float d = mag ? 0.5 : 1.0;  // texels between the samples
+    float hx = shape_at(base, frac + vec2(d, 0.0), mag).r - shape_at(base, frac - vec2(d, 0.0), mag).r;
+    float hy = shape_at(base, frac + vec2(0.0, d), mag).r - shape_at(base, frac - vec2(0.0, d), mag).r;
+    float gr = relief / (2.0 * d * float(s));  // height per finest pixel
+    n = normalize(vec3(-hx * gr, hy * gr, 1.0));  // rows go down, y goes up
+#endif
+    // Lambert, scaled so a flat surface keeps its base color at any light
+    // height: slopes facing the light brighten, the others darken to the ambient.
+    float diffuse = max(dot(n, light), 0.0) / max(light.z, 0.2);
+    c.rgb = min(c.rgb * (0.25 + 0.75 * diffuse), vec3(1.0));
+#endif
+#if ALPHA && (MODE == 0 || MODE == 3 || MODE == 5)
+    ivec2 chk = ivec2(q) / 8;
+    float bg = ((chk.x + chk.y) & 1) == 0 ? 0.8 : 0.6;
+    c = vec4(mix(vec3(bg), c.rgb, c.a), 1.0);
+#endif
+#if MODE == 2
+    ivec2 off = (u - g * s) & (m - 1);
+    c.rgb = mix(c.rgb, hue(uint(off.x) * 7919u + uint(off.y) * 104729u), 0.45);
+    float texel_px = zoom * float(s);
+    vec2 f = fract(frac);
+    bool right = (1.0 - f.x) * texel_px <= 1.0;
+    bool below = (1.0 - f.y) * texel_px <= 1.0;
+    if ((right && !coherent(g, ivec2(1, 0))) || (below && !coherent(g, ivec2(0, 1))))
+        c.rgb = vec3(0.05);
+#endif
     color = vec4(c.rgb, 1.0);
 }
