@@ -15,7 +15,6 @@ written back. A full window is the special case of one strip per level.
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 
 import moderngl
@@ -26,6 +25,7 @@ from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
+from .requests import SpreadRequests
 from .params import SynthParams, correction_margins, subpass_order
 from .rect import Rect
 from .similarity import border_margin
@@ -90,7 +90,7 @@ class _LevelBuffer:
         self.tex.release()
 
 
-class Pyramid(LocalUpdates):
+class Pyramid(LocalUpdates, SpreadRequests):
     """Per-level exact coordinate buffers for one analysis and parameter set.
 
     ``scrolling=True`` keeps power-of-two wrap-around buffers with a prefetch
@@ -254,95 +254,6 @@ class Pyramid(LocalUpdates):
         self.pixels_synthesized = total
         return total
 
-    # -- requests spread over frames ------------------------------------------
-
-    def start_request(self, level: int, rect: Rect) -> None:
-        """Begin what :meth:`request` does, to be carried out a piece at a time
-        by :meth:`advance_request` (the pieces sized by ``self.pacer``): the
-        editor's view refines between frames that stay short.
-
-        While it runs no other synthesis may touch the pyramid: :meth:`request`,
-        :meth:`settle` and any change of parameters drop it first, and the
-        buffers stay consistent (each level claims what it keeps until its new
-        strips are written back), so a dropped request loses only its work."""
-        self._check(level, rect)
-        self.end_request()
-        self.gpu.activate()
-        self._request_job = (level, rect, self._request_steps(self._targets(level, rect)))
-        self.request_pixels = 0
-
-    @property
-    def requesting(self) -> tuple[int, Rect] | None:
-        """The (level, rect) of the request in progress, or None."""
-        return None if self._request_job is None else self._request_job[:2]
-
-    def advance_request(self, deadline: float) -> bool:
-        """Carry the request in progress on until ``deadline``
-        (``time.perf_counter()`` seconds); True when none is left."""
-        if self._request_job is None:
-            return True
-        self.gpu.activate()
-        steps = self._request_job[2]
-        try:
-            while True:
-                next(steps)
-                if time.perf_counter() >= deadline:
-                    return False
-        except StopIteration:
-            self._request_job = None
-            return True
-
-    def end_request(self) -> None:
-        """Drop the request in progress, if any (what it finished stays)."""
-        if self._request_job is not None:
-            steps = self._request_job[2]
-            self._request_job = None
-            steps.close()
-
-    def _touch(self, l: int, r: Rect | None) -> None:
-        """Level l's pixels changed over ``r`` (its valid rectangle grew or
-        shrank there, or their values changed)."""
-        self.changes += 1
-        if r is not None and not r.empty and self.touched is not None:
-            self.touched.append((l, r))
-            if len(self.touched) > 64:
-                self.touched = None
-
-    def take_touched(self) -> list[tuple[int, Rect]] | None:
-        """The (level, rect)s whose pixels changed since the last call (None:
-        anything may have), for a view that redraws only those."""
-        out, self.touched = self.touched, []
-        return out
-
-    def _keep(self, l: int, target: Rect) -> tuple[_LevelBuffer, Rect | None, list[Rect]]:
-        """Prepare level l for ``target``: its buffer, what it keeps (which
-        becomes its valid rectangle until the new strips are written) and the
-        new strips."""
-        old = self.buffers[l].valid if self.buffers[l] is not None else None
-        buf = self._ensure_buffer(l, target)
-        keep = buf.valid.intersect(target) if buf.valid is not None else None
-        keep = None if keep is None or keep.empty else keep
-        buf.valid = keep
-        if old is not None and old != keep:
-            self._touch(l, old)
-        return buf, keep, [target] if keep is None else target.minus(keep)
-
-    def _request_steps(self, targets: list[tuple[int, Rect]]) -> Iterator[None]:
-        for l, target in targets:
-            buf, keep, strips = self._keep(l, target)
-            for strip in strips:
-                region = self.padded(l, strip)
-                scratch = self._new_scratch(region.w, region.h)
-                try:
-                    yield from self._strip_steps(l, strip, scratch, buf, self.pacer)
-                finally:
-                    for o in (scratch[1], scratch[3], scratch[0], scratch[2]):
-                        o.release()
-                self.request_pixels += region.w * region.h
-            buf.valid = target
-            for strip in strips:
-                self._touch(l, strip)
-
     def _ensure_buffer(self, l: int, target: Rect) -> _LevelBuffer:
         buf = self.buffers[l]
         if buf is not None and buf.fits(target):
@@ -486,9 +397,13 @@ class Pyramid(LocalUpdates):
             uni = dict(src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
                        h=h, m=an.size, period=p.level_period(l), **funi)
             textures = {0: a, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
+            # At once and without a pause: a level shown between two pieces
+            # would hold pixels the view was not told about (Pyramid.touched).
             for g0, t0, w, hh in self._texel_pieces(buf, strip):
-                yield from Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
-                                dict(uni, region_g0=g0, region_t0=t0)).steps(pace)
+                for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
+                              dict(uni, region_g0=g0, region_t0=t0)).steps():
+                    pass
+            yield
             if deferred:
                 diff = np.any(self._read_rect(buf, strip) != before, axis=-1)
                 if diff.any():

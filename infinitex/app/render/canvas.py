@@ -49,6 +49,7 @@ class Canvas:
         self.m = 0
         self.channels = 3
         self.toroidal = False
+        self.shown_key: tuple | None = None  # what the texture shows (redraw)
 
     # -- exemplar textures ----------------------------------------------------
 
@@ -126,6 +127,23 @@ class Canvas:
         self.tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.fbo = self.gpu.ctx.framebuffer([self.tex])
         self.size = (w, h)
+
+    def redraw(self, pyramid: Pyramid, frame: Frame, view: View, display: Display, geom: np.ndarray | None,
+               source: tuple, force: bool = False) -> None:
+        """Bring the texture up to date for this frame: drawn whole when the view,
+        the display or ``source`` (what the pyramid is synthesized from) changed,
+        else only where the synthesis changed texels since the last call (a band
+        of the view's level is cheap; the whole canvas magnified is not)."""
+        key = (source, frame, view, display, self.size, None if geom is None else tuple(np.ravel(geom)))
+        touched = pyramid.take_touched()
+        if key != self.shown_key or force or touched is None:
+            self.render(pyramid, frame, view, display, geom)
+            self.shown_key = key
+        elif touched:
+            L = len(pyramid.buffers) - 1
+            box = union_box(self.screen_box(l, r, L, view, geom) for l, r in touched)
+            if box is not None:
+                self.render(pyramid, frame, view, display, geom, box=box)
 
     def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display,
                geom: np.ndarray | None = None, box: tuple[int, int, int, int] | None = None) -> int:

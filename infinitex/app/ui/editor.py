@@ -20,8 +20,6 @@ import sys
 import time
 from dataclasses import replace
 
-import numpy as np
-
 from imgui_bundle import (  # imported before glfw (bundled libglfw)
     hello_imgui,
     imgui,
@@ -36,7 +34,7 @@ from infinitex.export.jobs import ExportEstimate, StreamedExport
 from infinitex.export.window import ExportJob
 from infinitex.project import Autosave, Display, History, View
 
-from ..render.canvas import Canvas, union_box
+from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay
 from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir, load_settings, save_settings
@@ -120,7 +118,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self._close_requested = False
         self.canvas_request = False
         self.canvas_pixels = None      # last canvas read back on request (tests)
-        self._canvas_key = None
         self._last_doc = None
         self._last_edit = 0.0
         self.panels = panels.Panels(self)
@@ -185,6 +182,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
     def run(self) -> int:
         immapp.run(self.runner_params(), immapp.AddOnsParams())
         if self.screenshot:
+            import numpy as np
+
             from infinitex.engine.imagefile import write_png
             shot = hello_imgui.final_app_window_screenshot()
             if shot is None or not getattr(shot, "size", 0):
@@ -413,25 +412,15 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.pixels = s.refiner.last_pixels if s.refiner else 0
             self.canvas.ensure_size(w // scale, h // scale)
             view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-            key = (s.generation, s.params, self.frame, view, self.display, (w, h),
-                   None if geom is None else tuple(np.ravel(geom)))
-            touched = s.pyramid.take_touched()
-            if key != self._canvas_key or self.canvas_request or touched is None:
-                self.canvas.render(s.pyramid, self.frame, view, self.display, geom)
-                self._canvas_key = key
-            elif touched:
-                # Only what the synthesis changed is drawn again (a band of the
-                # view's level is cheap; the whole canvas magnified is not).
-                box = union_box(self.canvas.screen_box(l, r, s.L, view, geom) for l, r in touched)
-                if box is not None:
-                    self.canvas.render(s.pyramid, self.frame, view, self.display, geom, box=box)
+            self.canvas.redraw(s.pyramid, self.frame, view, self.display, geom, (s.generation, s.params),
+                               force=self.canvas_request)
             if self.canvas_request:
                 self.canvas_pixels = self.canvas.read()
                 self.canvas_request = False
         else:
             self.canvas.ensure_size(w, h)
             self.canvas.render(None, None, self.view, self.display)
-            self._canvas_key = None
+            self.canvas.shown_key = None
             self.refined = False
         self.screen_fbo.use()
         imgui.set_cursor_screen_pos(p0)
