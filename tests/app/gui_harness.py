@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 if HERE not in sys.path:
@@ -27,10 +28,12 @@ class Harness:
     def check(self, name: str, cond: bool, why: str = "") -> None:
         self.report.append(f"ok {name}" if cond else f"FAIL {name}: {why}")
 
-    def settle(self, ctx, limit: int = 3000) -> None:
-        """Frames until the document is loaded, analyzed and the view refined."""
+    def settle(self, ctx, limit_s: float = 300.0) -> None:
+        """Frames until the document is loaded, analyzed and the view refined
+        (a time limit: frames are short, about 30 ms, while the view refines)."""
         ed = self.ed
-        for _ in range(limit):
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < limit_s:
             ctx.yield_()
             if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
                     and ed.pending is None and ed.session.job is None):
