@@ -35,7 +35,7 @@ import json
 import os
 import time
 import zipfile
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -411,15 +411,20 @@ def default_cache_dir() -> str:
     return os.path.join(base, "infinitex", "analysis")
 
 
-def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | None) -> list[LevelData]:
+def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | None,
+             reuse: list[LevelData] | None = None) -> list[LevelData]:
+    """Every level's data; ``reuse``: the levels of an analysis of the same
+    exemplar with the same settings but the search (k), whose stack, features
+    and neighborhoods are taken as they are (only the similarity sets differ)."""
     m, L = ex.size, ex.levels
     k = search_k(settings, m)
     report = progress or (lambda f, msg: None)
     report(0.0, "Gaussian stack")
-    stack = gaussian_stack(ex.pixels, ex.toroidal)
-    fstack = None
-    if settings.model == "appearance" and settings.feature_weight > 0:
-        fstack = gaussian_stack(settings.feature_weight * feature_distance(ex.pixels, ex.toroidal), ex.toroidal)
+    stack = fstack = None
+    if reuse is None:
+        stack = gaussian_stack(ex.pixels, ex.toroidal)
+        if settings.model == "appearance" and settings.feature_weight > 0:
+            fstack = gaussian_stack(settings.feature_weight * feature_distance(ex.pixels, ex.toroidal), ex.toroidal)
     levels: list[LevelData] = []
     # Work per level is roughly equal; the stack took ~5%.
     for level in range(L + 1):
@@ -427,15 +432,20 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
         base = 0.05 + 0.95 * level / (L + 1)
         step = 0.95 / (L + 1)
         report(base, f"level {level}/{L}: neighborhoods")
-        if settings.model == "appearance":
-            guide = stack[level] if fstack is None else np.concatenate([stack[level], fstack[level]], axis=2)
-            feat = appearance_features(guide, h, settings.appearance_sigma, ex.toroidal)
+        if reuse is not None:
+            lv = reuse[level]
+            level_stack, feat, proj, shift, nbhd = lv.stack, lv.feat, lv.proj, lv.shift, lv.nbhd
         else:
-            feat = color_features(stack[level])
-        sampled = gather_exemplar_neighborhood(feat, h, settings.model, sample_step(m))
-        proj, shift = runtime_projection(sampled, int(np.abs(feat).max()), settings.model)
-        del sampled
-        nbhd = exemplar_neighborhoods(feat, h, settings.model, proj, shift)
+            level_stack = stack[level]
+            if settings.model == "appearance":
+                guide = stack[level] if fstack is None else np.concatenate([stack[level], fstack[level]], axis=2)
+                feat = appearance_features(guide, h, settings.appearance_sigma, ex.toroidal)
+            else:
+                feat = color_features(stack[level])
+            sampled = gather_exemplar_neighborhood(feat, h, settings.model, sample_step(m))
+            proj, shift = runtime_projection(sampled, int(np.abs(feat).max()), settings.model)
+            del sampled
+            nbhd = exemplar_neighborhoods(feat, h, settings.model, proj, shift)
         report(base + 0.3 * step, f"level {level}/{L}: similarity sets")
         if k == 0:
             sims = None
@@ -449,7 +459,7 @@ def _compute(ex: Exemplar, settings: AnalysisSettings, progress: ProgressFn | No
         if settings.lattice != (0, 0) and 0 < level <= lattice_level_limit(m, *settings.lattice):
             report(base + 0.7 * step, f"level {level}/{L}: lattice similarity sets")
             lsims = lattice_similarity_sets(nbhd, k, *settings.lattice)
-        levels.append(LevelData(stack=stack[level], feat=feat, proj=proj, shift=int(shift),
+        levels.append(LevelData(stack=level_stack, feat=feat, proj=proj, shift=int(shift),
                                 nbhd=nbhd, simset=sims, lattice_simset=lsims))
     report(1.0, "done")
     return levels
@@ -529,13 +539,19 @@ def describe_analysis(ex: Exemplar, settings: AnalysisSettings, cache_dir: str |
 
 def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
             cache_dir: str | None = None, use_cache: bool = True,
-            progress: ProgressFn | None = None) -> Analysis:
+            progress: ProgressFn | None = None, reuse: Analysis | None = None) -> Analysis:
     """Analyze an exemplar, reusing the disk cache when it holds this exemplar
     and these settings. A damaged cache entry is recomputed and replaced.
     ``progress(fraction, message)`` is called as work proceeds; it may raise
-    :class:`AnalysisCancelled` to stop."""
+    :class:`AnalysisCancelled` to stop. ``reuse``: an analysis of the same
+    exemplar with the same settings except the search (the editor's quick
+    preview, k = 0): its stack and neighborhoods are taken, only the
+    similarity sets are computed."""
     settings = settings or AnalysisSettings()
     settings.validate()
+    if reuse is not None and (replace(reuse.settings, k=settings.k) != settings
+                              or reuse.key != analysis_key(ex, reuse.settings)):
+        raise ValueError("analyze(reuse=...) takes an analysis of the same exemplar and settings but k")
     key = analysis_key(ex, settings)
     path = _cache_path(key, cache_dir)
     use_cache = use_cache and _cacheable(ex, settings)
@@ -546,7 +562,7 @@ def analyze(ex: Exemplar, settings: AnalysisSettings | None = None, *,
                 progress(1.0, "loaded from cache")
             return cached
     t0 = time.perf_counter()
-    levels = _compute(ex, settings, progress)
+    levels = _compute(ex, settings, progress, None if reuse is None else reuse.levels)
     an = Analysis(size=ex.size, channels=ex.channels, toroidal=ex.toroidal, settings=settings,
                   levels=levels, key=key, seconds=time.perf_counter() - t0)
     if use_cache:

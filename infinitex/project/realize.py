@@ -135,7 +135,9 @@ class AnalysisJob:
                 self._progress(0.0, "Analyzing (similarity sets, cached for next time)")
             else:
                 self._progress(0.0, "Analyzing")
-            an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress)
+            # The preview's stack and neighborhoods are the full analysis's too.
+            an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress,
+                         reuse=None if self.preview is None else self.preview[1])
             if material is None:
                 material = single(ex, [lv.stack for lv in an.levels])  # the same Gaussian stack
             for role in material.roles:  # every map's stack, off the GUI thread

@@ -249,15 +249,18 @@ def test_a_quick_preview_shows_first_then_the_full_analysis(gpu, tmp_path):
     s = Session(gpu, cache_dir=str(tmp_path))
     s.load(doc)
     seen = []
+    quick = None
     t = time.monotonic() + 300
     while time.monotonic() < t:
         job = s.poll()
         if job is not None:
             seen.append((s.previewing, search_k(s.analysis.settings, s.analysis.size), s.generation))
+            quick = quick or s.analysis
             if job.done:
                 break
         time.sleep(0.01)
     assert seen == [(True, 0, 1), (False, 2, 2)], seen
+    assert s.analysis.levels[3].nbhd is quick.levels[3].nbhd  # the full analysis took the preview's work
     assert s.key == doc.analysis_key()
     # The preview is a real texture of the same exemplar (the random-walk search).
     s.release()

@@ -90,6 +90,28 @@ def test_cache_key_depends_on_content_and_settings(small_ex):
     assert k != analysis_key(small_ex, AnalysisSettings(k=3))
 
 
+@pytest.mark.parametrize("settings", [AnalysisSettings(), AnalysisSettings(feature_weight=1.0)])
+def test_the_full_analysis_reuses_the_quick_previews(small_ex, settings):
+    """The editor's quick preview (k = 0) hands its stack and neighborhoods
+    to the full analysis, which then equals one computed from scratch."""
+    from dataclasses import replace
+    quick = analyze(small_ex, replace(settings, k=0), use_cache=False)
+    reused = analyze(small_ex, settings, use_cache=False, reuse=quick)
+    fresh = analyze(small_ex, settings, use_cache=False)
+    assert reused.key == fresh.key
+    for a, b, q in zip(reused.levels, fresh.levels, quick.levels):
+        assert a.nbhd is q.nbhd and a.stack is q.stack  # taken, not computed again
+        for name in ("stack", "feat", "proj", "nbhd", "simset"):
+            x, y = getattr(a, name), getattr(b, name)
+            assert (x is None and y is None) or np.array_equal(x, y), name
+        assert a.shift == b.shift
+    other = from_array(small_ex.pixels[::-1], toroidal=small_ex.toroidal)
+    with pytest.raises(ValueError, match="same exemplar"):
+        analyze(other, settings, use_cache=False, reuse=quick)
+    with pytest.raises(ValueError, match="same exemplar"):
+        analyze(small_ex, replace(settings, model="color"), use_cache=False, reuse=quick)
+
+
 def test_cancel(tmp_path, small_ex):
     def stop(fraction, message):
         if fraction > 0.3:
