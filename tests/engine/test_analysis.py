@@ -150,3 +150,29 @@ def test_feature_distance_marks_the_elements_and_changes_the_appearance(small_ex
     assert plain.key != fd.key
     assert not np.array_equal(plain.levels[-1].feat, fd.levels[-1].feat)
     assert np.array_equal(plain.levels[-1].stack, fd.levels[-1].stack)  # colors unchanged
+
+
+def test_the_analysis_does_not_depend_on_the_machines_blas():
+    """The same exemplar gives the same features with any BLAS thread count
+    (OpenBLAS splits and orders its sums by thread count and CPU kernel):
+    another machine must synthesize the same texture. The appearance vectors
+    are rounded to integers, so this fails if they are computed in float32.
+    A flat level (E_0) has no appearance at all."""
+    from threadpoolctl import threadpool_limits
+
+    from infinitex.engine.analysis import appearance_features
+    ex = from_array(periodic_noise(256, channels=3, seed=11), toroidal=True)
+    stack = gaussian_stack(ex.pixels, ex.toroidal)
+    for level in (1, 2, 5):
+        h = 1 << (ex.levels - level)
+        got = []
+        for threads in (1, 2, 3):
+            with threadpool_limits(limits=threads, user_api="blas"):
+                got.append(appearance_features(stack[level], h, 1.5, ex.toroidal))
+        assert all(np.array_equal(got[0], g) for g in got[1:]), level
+    assert not appearance_features(stack[0], 1 << ex.levels, 1.5, ex.toroidal).any()
+    an = analyze(ex, AnalysisSettings(k=0), use_cache=False)
+    with threadpool_limits(limits=3, user_api="blas"):
+        again = analyze(ex, AnalysisSettings(k=0), use_cache=False)
+    for a, b in zip(an.levels, again.levels):
+        assert np.array_equal(a.feat, b.feat) and np.array_equal(a.nbhd, b.nbhd) and np.array_equal(a.proj, b.proj)
