@@ -377,7 +377,7 @@ class Material:
         on every filtered level (the finest level is the map itself)."""
         cached = self._stacks.get(role)
         if cached is None:
-            from .analysis import gaussian_stack
+            from .neighborhoods import gaussian_stack
             cached = gaussian_stack(self.maps[role].pixels, self.toroidal)
             if role == "normal":
                 cached = [lv if i == len(cached) - 1 else renormalize(lv) for i, lv in enumerate(cached)]

@@ -10,9 +10,9 @@ from infinitex.engine.analysis import (
     AnalysisSettings,
     analysis_key,
     analyze,
-    gaussian_stack,
 )
 from infinitex.engine.exemplar import from_array
+from infinitex.engine.neighborhoods import gaussian_stack
 from infinitex.engine.similarity import border_margin
 
 
@@ -132,7 +132,7 @@ def test_feature_distance_marks_the_elements_and_changes_the_appearance(small_ex
     """LH06's feature-distance channel from the exemplar's own elements: bright
     disks on a dark ground give 1 deep inside a disk, 0 far outside, 1/2 on its
     edge, the same through the wrap; the channel changes the appearance vectors."""
-    from infinitex.engine.analysis import feature_distance, otsu_threshold
+    from infinitex.engine.neighborhoods import feature_distance, otsu_threshold
     m = 64
     ys, xs = np.mgrid[0:m, 0:m]
     img = np.full((m, m, 3), 0.2, np.float32)
@@ -160,7 +160,7 @@ def test_the_analysis_does_not_depend_on_the_machines_blas():
     A flat level (E_0) has no appearance at all."""
     from threadpoolctl import threadpool_limits
 
-    from infinitex.engine.analysis import appearance_features
+    from infinitex.engine.neighborhoods import appearance_features
     ex = from_array(periodic_noise(256, channels=3, seed=11), toroidal=True)
     stack = gaussian_stack(ex.pixels, ex.toroidal)
     for level in (1, 2, 5):

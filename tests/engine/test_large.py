@@ -8,21 +8,19 @@ import pytest
 from conftest import periodic_noise
 
 from infinitex.engine import fixed
-from infinitex.engine.analysis import (
-    SIMSET_MAX,
-    AnalysisSettings,
-    projected,
-    runs,
-    tap,
-    tap_index,
-    analyze,
+from infinitex.engine.analysis import SIMSET_MAX, AnalysisSettings, analyze
+from infinitex.engine.neighborhoods import (
     appearance_features,
     augmented_period,
     color_features,
     exemplar_neighborhoods,
     gather_exemplar_neighborhood,
     gaussian_stack,
+    projected,
+    runs,
     runtime_projection,
+    tap,
+    tap_index,
 )
 from infinitex.engine.exemplar import ExemplarError, fit_rule, from_array
 from infinitex.engine.params import DEFAULT_WALK, SynthParams
