@@ -40,7 +40,7 @@ def _child(path: str, out: str) -> int:
             self.marks.setdefault("first_frame", now)
             super().gui()
             s = self.session
-            if s is not None and s.ready and s.refiner is not None and s.refiner.version > 0:
+            if s is not None and s.ready and s.refiner is not None and s.refiner.shows_texture:
                 self.marks.setdefault("first_texture", now)
                 if not getattr(s, "previewing", False) and s.job is None:
                     self.marks.setdefault("full_analysis", now)

@@ -91,9 +91,10 @@ class Refiner:
         self._job_s = 0.0  # seconds spent on the request in progress
 
     @property
-    def version(self) -> int:
-        """Bumps whenever what the pyramid holds changed (the canvas redraws)."""
-        return self.pyramid.changes
+    def shows_texture(self) -> bool:
+        """Some level holds synthesized pixels (the canvas has texture to draw)."""
+        return any(buf is not None and buf.valid is not None and not buf.valid.empty
+                   for buf in self.pyramid.buffers)
 
     def _valid(self, level: int) -> Rect | None:
         buf = self.pyramid.buffers[level]

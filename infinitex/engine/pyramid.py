@@ -122,7 +122,6 @@ class Pyramid(LocalUpdates, SpreadRequests):
         self._request_job = None  # a request spread over frames: (level, rect, its steps)
         self.request_pixels = 0  # level pixels the request in progress has synthesized
         self.pacer = Pacer()  # sizes the pieces of work spread over frames
-        self.changes = 0  # bumps whenever what a level holds changed (the view redraws)
         self.touched: list[tuple[int, Rect]] | None = []  # what changed since take_touched (None: all)
         self.set_params(params, controls)
 
@@ -169,7 +168,6 @@ class Pyramid(LocalUpdates, SpreadRequests):
         self.end_request()
         if self._job is not None and self._job[0] >= first_level:
             self._end_job()
-        self.changes += 1
         self.touched = None
         for l in range(first_level, self.an.L + 1):
             self.dirty[l] = []

@@ -66,7 +66,6 @@ class SpreadRequests:
     def _touch(self, l: int, r: Rect | None) -> None:
         """Level l's pixels changed over ``r`` (its valid rectangle grew or
         shrank there, or their values changed)."""
-        self.changes += 1
         if r is not None and not r.empty and self.touched is not None:
             self.touched.append((l, r))
             if len(self.touched) > 64:

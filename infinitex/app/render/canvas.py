@@ -169,10 +169,7 @@ class Canvas:
     def _draw_levels(self, pyramid: Pyramid, frame: Frame, view: View, display: Display,
                      geom: np.ndarray | None, box: tuple[int, int, int, int] | None) -> int:
         L = len(pyramid.buffers) - 1
-        tlx, tly = view.top_left(*self.size)
-        G = np.eye(2) if geom is None else np.asarray(geom, dtype=np.float64)
-        if geom is not None:
-            tlx, tly = (float(v) for v in G @ np.array([tlx, tly]))
+        tlx, tly, G = self._origin(view, geom)
         ix, iy = math.floor(tlx), math.floor(tly)
         M = G / view.zoom  # screen pixel -> finest-level canvas pixel
         want_box = frame.want if box is None else self._level_box(box, frame.level, L, tlx, tly, M)
@@ -231,6 +228,16 @@ class Canvas:
             vao.render(moderngl.TRIANGLES)
         return levels[-1]
 
+    def _origin(self, view: View, geom: np.ndarray | None) -> tuple[float, float, np.ndarray]:
+        """The canvas's top-left corner in finest-level pixels (through the
+        lattice's geometry ``geom``, if any) and that geometry (identity: none)."""
+        tlx, tly = view.top_left(*self.size)
+        if geom is None:
+            return tlx, tly, np.eye(2)
+        G = np.asarray(geom, dtype=np.float64)
+        x, y = G @ np.array([tlx, tly])
+        return float(x), float(y), G
+
     def _level_box(self, box: tuple[int, int, int, int], level: int, L: int, tlx: float, tly: float,
                    M: np.ndarray) -> Rect:
         """The level texels that the canvas pixels of ``box`` show (one texel more around)."""
@@ -243,10 +250,7 @@ class Canvas:
 
     def screen_box(self, level: int, r: Rect, L: int, view: View, geom: np.ndarray | None = None):
         """The canvas pixels (x, y, w, h) that show level texels ``r``, clipped (w or h 0: none)."""
-        tlx, tly = view.top_left(*self.size)
-        G = np.eye(2) if geom is None else np.asarray(geom, dtype=np.float64)
-        if geom is not None:
-            tlx, tly = (float(v) for v in G @ np.array([tlx, tly]))
+        tlx, tly, G = self._origin(view, geom)
         x, y, w, h = self._screen_box(r.pad(1, 1, 1, 1), L - level, tlx, tly, G / view.zoom)
         return (x, y, w, h)
 
