@@ -185,9 +185,8 @@ def run_export(argv: list[str]) -> int:
     if args.fidelity is not None:
         doc = replace(doc, structure=args.fidelity)
     if args.make_tileable:
-        if doc.maps or doc.lattice is not None:
-            raise CliError("--make-tileable works on a single image without a lattice (a material's maps and "
-                           "a lattice's block are not made tileable).", EXIT_USAGE)
+        if args.lattice not in (None, "none") or (doc.lattice is not None and args.lattice is None):
+            raise CliError("--make-tileable goes with no lattice (a lattice's block already tiles).", EXIT_USAGE)
         doc = replace(doc, make_tileable=True)
     if args.rect:
         rect, tor = Rect.of(x, y, w, h), 0

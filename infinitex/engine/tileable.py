@@ -16,6 +16,9 @@ both on the CPU:
    itself, so the rows wrap too); then the same for rows. Elements cut by the
    border are replaced by whole ones from the other side. The result is ``band``
    pixels smaller each way.
+
+A material's maps are cut along the same seams (the cost sums every map, each
+weighted by its contrast), so they stay aligned; normal maps are renormalized.
 """
 from __future__ import annotations
 
@@ -25,6 +28,7 @@ import numpy as np
 from scipy import ndimage
 
 from .exemplar import Exemplar, guess_toroidal
+from .material import Material, MaterialMap, renormalize
 
 DEFAULT_BAND = 1 / 8  # of the side
 # Make tileable is recommended for an exemplar that fails the seam test when its
@@ -90,35 +94,62 @@ def _cyclic_cut(cost: np.ndarray, starts: int = 16) -> np.ndarray:
     return path
 
 
-def _wrap_columns(img: np.ndarray, band: int) -> np.ndarray:
-    """``img`` (H, W, C) made to wrap left-right: W - band columns."""
-    h, w = img.shape[:2]
-    right, left = img[:, w - band:], img[:, :band]  # right continues the image past its end; left starts it
-    cost = ((right - left) ** 2).sum(axis=2)
-    cut = _cyclic_cut(cost)
-    cols = np.arange(band)[None, :]
-    take_right = cols < cut[:, None]  # before the cut: what follows the last kept column
+def _column_cut(guide: np.ndarray, band: int) -> np.ndarray:
+    """Where each row of ``guide`` (H, W, C) switches from its last ``band``
+    columns (laid over the first ones) back to the first ones (_cyclic_cut)."""
+    w = guide.shape[1]
+    right, left = guide[:, w - band:], guide[:, :band]  # right continues the image past its end; left starts it
+    return _cyclic_cut(((right - left) ** 2).sum(axis=2))
+
+
+def _wrap_columns(img: np.ndarray, band: int, cut: np.ndarray) -> np.ndarray:
+    """``img`` (H, W, C) made to wrap left-right along ``cut``: W - band columns."""
+    w = img.shape[1]
+    right, left = img[:, w - band:], img[:, :band]
+    take_right = np.arange(band)[None, :] < cut[:, None]  # before the cut: what follows the last kept column
     strip = np.where(take_right[:, :, None], right, left)
     return np.concatenate([strip, img[:, band:w - band]], axis=1)
+
+
+def make_tileable_maps(images: list[np.ndarray], band: int | None = None) -> list[np.ndarray]:
+    """Toroidal versions of aligned images (a material's maps), each (H, W) or
+    (H, W, C) in [0, 1], all cut along the same seams: (H - band, W - band),
+    float32. The seams follow all maps at once, each weighted by its own
+    contrast (a flat map has no say). ``band`` defaults to 1/8 of the shorter side."""
+    arrays = [np.asarray(img, np.float64) for img in images]
+    flat = [a.ndim == 2 for a in arrays]
+    arrays = [a[:, :, None] if f else a for a, f in zip(arrays, flat)]
+    h, w = arrays[0].shape[:2]
+    if any(a.shape[:2] != (h, w) for a in arrays):
+        raise ValueError("The maps made tileable together must have one size.")
+    if band is None:
+        band = max(2, int(round(min(h, w) * DEFAULT_BAND)))
+    if not 2 <= band <= min(h, w) // 3:
+        raise ValueError(f"The border band must be 2 to {min(h, w) // 3} px for a {w}x{h} image.")
+    parts = [periodic_component(a) for a in arrays]
+    if len(parts) == 1:
+        weights = [1.0]
+    else:
+        sd = [float(p.std()) for p in parts]
+        weights = [1.0 / v if v > 1e-6 else 0.0 for v in sd]
+        if not any(weights):
+            weights = [1.0] * len(parts)
+
+    def guide(ps):
+        return ps[0] if len(ps) == 1 else np.concatenate([p * wt for p, wt in zip(ps, weights)], axis=2)
+
+    cut = _column_cut(guide(parts), band)
+    parts = [_wrap_columns(p, band, cut).transpose(1, 0, 2) for p in parts]
+    cut = _column_cut(guide(parts), band)
+    parts = [_wrap_columns(p, band, cut).transpose(1, 0, 2) for p in parts]
+    out = [np.clip(p, 0.0, 1.0).astype(np.float32) for p in parts]
+    return [o[:, :, 0] if f else o for o, f in zip(out, flat)]
 
 
 def make_tileable(img: np.ndarray, band: int | None = None) -> np.ndarray:
     """A toroidal version of ``img`` (H, W) or (H, W, C) in [0, 1]:
     (H - band, W - band), float32. ``band`` defaults to 1/8 of the shorter side."""
-    a = np.asarray(img, np.float64)
-    squeeze = a.ndim == 2
-    if squeeze:
-        a = a[:, :, None]
-    h, w = a.shape[:2]
-    if band is None:
-        band = max(2, int(round(min(h, w) * DEFAULT_BAND)))
-    if not 2 <= band <= min(h, w) // 3:
-        raise ValueError(f"The border band must be 2 to {min(h, w) // 3} px for a {w}x{h} image.")
-    p = periodic_component(a)
-    p = _wrap_columns(p, band)
-    p = _wrap_columns(p.transpose(1, 0, 2), band).transpose(1, 0, 2)
-    out = np.clip(p, 0.0, 1.0).astype(np.float32)
-    return out[:, :, 0] if squeeze else out
+    return make_tileable_maps([img], band)[0]
 
 
 def _periodic_resize(a: np.ndarray, side: int) -> np.ndarray:
@@ -140,14 +171,34 @@ def tileable_exemplar(ex: Exemplar) -> Exemplar:
     """The exemplar ``ex`` made tileable (:func:`make_tileable`) at the same
     size, toroidal. With a high-resolution copy, the cut is made on it and
     the exemplar is resampled from the result, so both hold the same seams."""
-    m = ex.size
-    if ex.hires is not None:
-        hires = make_tileable(ex.hires)
-        pixels = _periodic_resize(hires, m)
-    else:
-        hires = None
-        pixels = _periodic_resize(make_tileable(ex.pixels), m)
-    return replace(ex, pixels=pixels, hires=hires, toroidal=True, toroidal_guess=guess_toroidal(pixels))
+    return _tileable_exemplars([ex])[0]
+
+
+def _tileable_exemplars(exs: list[Exemplar], normals: tuple[bool, ...] = ()) -> list[Exemplar]:
+    """Aligned exemplars made tileable together (one cut); ``normals[i]``:
+    exemplar i is a normal map, renormalized after the cut and the resampling."""
+    m = exs[0].size
+    hires = all(ex.hires is not None for ex in exs)
+    cut = make_tileable_maps([ex.hires if hires else ex.pixels for ex in exs])
+    out = []
+    for i, (ex, c) in enumerate(zip(exs, cut)):
+        normal = i < len(normals) and normals[i]
+        if normal:
+            c = renormalize(c)
+        pixels = _periodic_resize(c, m)
+        if normal:
+            pixels = renormalize(pixels)
+        out.append(replace(ex, pixels=pixels, hires=c if hires else None, toroidal=True,
+                           toroidal_guess=guess_toroidal(pixels)))
+    return out
+
+
+def tileable_material(material: Material) -> Material:
+    """A material whose maps are made tileable together: one cut for all of
+    them, so they stay aligned; normal maps stay unit length."""
+    roles = material.roles
+    exs = _tileable_exemplars([material.maps[r].exemplar for r in roles], tuple(r == "normal" for r in roles))
+    return Material({r: MaterialMap(r, ex) for r, ex in zip(roles, exs)}, True)
 
 
 def shading_strength(pixels: np.ndarray) -> float:

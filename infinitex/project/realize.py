@@ -26,14 +26,17 @@ from infinitex.engine.exemplar import (
     load_exemplar_bytes,
 )
 from infinitex.engine.material import Material, MaterialError, load_material, single
-from infinitex.engine.tileable import tileable_exemplar
+from infinitex.engine.tileable import tileable_exemplar, tileable_material
 
 from .document import Document
 
 
 def material_for(doc: Document) -> Material:
-    """The maps of a material document, decoded and fitted (all or nothing)."""
-    return load_material([(role, src.name, src.data) for role, src in doc.maps], fit=doc.fit, toroidal=doc.toroidal)
+    """The maps of a material document, decoded and fitted (all or nothing),
+    made tileable together when the document says so."""
+    material = load_material([(role, src.name, src.data) for role, src in doc.maps], fit=doc.fit,
+                             toroidal=doc.toroidal)
+    return tileable_material(material) if doc.make_tileable else material
 
 
 def exemplar_for(doc: Document, image: np.ndarray | None = None,
@@ -44,8 +47,6 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
     decoded whole (decode_full), if at hand; ``material``: the document's
     material, if already loaded."""
     if doc.maps:
-        if doc.make_tileable:
-            raise MaterialError("Make tileable works on single images, not on materials; turn it off.")
         material = material or material_for(doc)
         ex = material.guide(doc.weight_dict())
         if doc.model == "color" and ex.channels > 4:

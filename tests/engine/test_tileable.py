@@ -16,6 +16,7 @@ from scipy import ndimage
 
 from infinitex.engine.exemplar import from_array, guess_toroidal
 from infinitex.engine.tileable import (
+    _column_cut,
     _wrap_columns,
     make_tileable,
     periodic_component,
@@ -55,7 +56,7 @@ def test_the_border_cut_is_exact_when_the_overlap_repeats():
     rng = np.random.default_rng(1)
     period = rng.random((40, 50, 3))
     img = period[:, np.arange(50 + 12) % 50]
-    assert np.array_equal(_wrap_columns(img, 12), period)
+    assert np.array_equal(_wrap_columns_(img, 12), period)
 
 
 def test_a_photo_becomes_toroidal_and_keeps_its_interior():
@@ -123,7 +124,6 @@ def test_zoomed_out_the_synthesis_no_longer_repeats_the_photo_s_shading(gpu):
 
 
 def test_documents_projects_and_commands_carry_it(tmp_path):
-    from infinitex.engine.material import MaterialError
     from infinitex.project import Document, ExemplarSource, Project, load_project, save_project
     from infinitex.project.realize import exemplar_for
     path = tmp_path / "wood.png"
@@ -144,8 +144,6 @@ def test_documents_projects_and_commands_carry_it(tmp_path):
     proj.write_text(json.dumps(saved))
     with pytest.raises(Exception, match="make_tileable"):
         load_project(str(proj))
-    with pytest.raises(MaterialError, match="single images"):
-        exemplar_for(replace(doc, make_tileable=True).with_maps([("basecolor", doc.exemplar)]))
 
     def cli(*args):
         return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), *args],
@@ -163,3 +161,44 @@ def test_documents_projects_and_commands_carry_it(tmp_path):
     r = cli("export", str(path), "-o", str(tmp_path / "e.png"), "--toroidal", "64", "--make-tileable", "-q")
     assert r.returncode == 0, r.stderr
     assert np.asarray(Image.open(tmp_path / "e.png")).shape[:2] == (64, 64)
+
+
+def _wrap_columns_(img, band):
+    return _wrap_columns(img, band, _column_cut(img, band))
+
+
+def test_a_materials_maps_are_cut_together_and_stay_aligned(tmp_path):
+    """One cut for every map of a material: a height map that is the base
+    color's red channel stays exactly that after Make tileable (cut alone, its
+    seams would run elsewhere); normals stay unit length; documents, their
+    analysis exemplar and every map come out toroidal."""
+    from infinitex.engine.material import Material, MaterialMap
+    from infinitex.engine.tileable import make_tileable_maps, tileable_material
+    from infinitex.project import Document, ExemplarSource
+    from infinitex.project.realize import exemplar_for, material_for
+    base = photo(128, seed=4)
+    base[:, :, 1:] = np.roll(photo(128, seed=7), 50, axis=0)[:, :, 1:]  # green, blue: other content
+    height = np.ascontiguousarray(base[:, :, :1])
+    gy, gx = np.gradient(ndimage.gaussian_filter(height[:, :, 0].astype(np.float64), 2) * 40)
+    n = np.stack([-gx, -gy, np.ones_like(gx)], axis=2)
+    normal = (n / np.linalg.norm(n, axis=2, keepdims=True) * 0.5 + 0.5).astype(np.float32)
+    b, hgt = make_tileable_maps([base, height])
+    assert np.abs(hgt - b[:, :, :1]).max() < 1e-5
+    alone = make_tileable_maps([height])[0]  # cut on its own: elsewhere
+    assert np.abs(alone - hgt).max() > 0.05
+    mat = Material({r: MaterialMap(r, from_array(px, toroidal=False)) for r, px in
+                    (("basecolor", base), ("height", height), ("normal", normal))}, False)
+    made = tileable_material(mat)
+    assert made.toroidal and all(mp.exemplar.toroidal for mp in made.maps.values())
+    assert np.abs(made.maps["height"].pixels - made.maps["basecolor"].pixels[:, :, :1]).max() < 1e-5
+    length = np.linalg.norm(made.maps["normal"].pixels * 2.0 - 1.0, axis=2)
+    assert np.abs(length - 1.0).max() < 1e-3
+    for name, px in (("b.png", base), ("h.png", height[:, :, 0]), ("n.png", normal)):
+        Image.fromarray((px * 255).round().astype(np.uint8)).save(tmp_path / name)
+    src = {r: ExemplarSource.from_file(str(tmp_path / f)) for r, f in
+           (("basecolor", "b.png"), ("height", "h.png"), ("normal", "n.png"))}
+    doc = Document(src["basecolor"]).with_maps(list(src.items()))
+    plain, _ = exemplar_for(doc)
+    ex, _ = exemplar_for(replace(doc, make_tileable=True))
+    assert not plain.toroidal and ex.toroidal and ex.size == plain.size
+    assert all(mp.exemplar.toroidal for mp in material_for(replace(doc, make_tileable=True)).maps.values())

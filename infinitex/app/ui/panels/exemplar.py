@@ -81,7 +81,7 @@ def _fit_options(ed, doc, ex) -> None:
         tip("Does the exemplar tile seamlessly? Then patches may cross its edges; Auto guesses from its border")
         if changed:
             ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
-    if doc.is_material:
+    if doc.lattice is not None:
         return
     if not doc.make_tileable and not ex.toroidal and recommended(ex):
         imgui.push_text_wrap_pos(0)
