@@ -46,6 +46,61 @@ def field_values(controls: Controls, an: Analysis, params: SynthParams, level: i
     return E, C
 
 
+def canvas_mixes(controls: Controls, an: Analysis, params: SynthParams, level: int,
+                 gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """The packed canvas label mix of each level pixel (gx, gy), from the
+    definition (engine/controls/labels.py): per pixel, the 3 x 3 binomial sum
+    over its neighbors q of the labels sampled s x s over q's footprint."""
+    from infinitex.engine.controls import TILE
+    from infinitex.engine.controls.labels import MAX_LABELS, pack_mix, top_two
+    lc = controls.labels_canvas
+    k = an.L - level
+    f = 1 << k
+    s = min(f, 4)
+    step = f // s
+    n = params.period
+    counts = np.zeros(gx.shape + (MAX_LABELS + 1,), np.int64)
+
+    def label_at(X, Y):
+        if n:
+            X, Y = X & (n - 1), Y & (n - 1)
+        out = np.zeros(X.shape, np.int64)
+        for (tx, ty), t in lc.tiles.items():
+            sel = (X // TILE == tx) & (Y // TILE == ty)
+            out[sel] = t[Y[sel] - ty * TILE, X[sel] - tx * TILE]
+        return out
+
+    rows = np.arange(gx.size)
+    for dy, by in ((-1, 1), (0, 2), (1, 1)):
+        for dx, bx in ((-1, 1), (0, 2), (1, 1)):
+            for j in range(s):
+                for i in range(s):
+                    X = (gx + dx) * f + i * step + step // 2
+                    Y = (gy + dy) * f + j * step + step // 2
+                    lab = label_at(X.ravel(), Y.ravel())
+                    np.add.at(counts.reshape(-1, MAX_LABELS + 1), (rows, lab), bx * by)
+    total = 16 * s * s
+    painted = total - counts[..., 0]
+    i1, i2, w1, w2 = top_two(counts[..., 1:])
+    packed = pack_mix(i1, i2, w1, w2, (255 * painted) // total).astype(np.int64)
+    return np.where(painted > 0, packed, 0)
+
+
+def label_terms(controls: Controls, an: Analysis, params: SynthParams, level: int, xs, ys, origin, patch: bool):
+    """(canvas mixes t at the pixels, the exemplar mixes, W_l) or None without labels."""
+    from infinitex.engine.controls.labels import label_weight, typical_distance, typical_patch_cost
+    if not controls.labels_active:
+        return None
+    t = canvas_mixes(controls, an, params, level, xs + origin[0], ys + origin[1])
+    ex = controls.labels_exemplar.features(level, an.toroidal).astype(np.int64)
+    if patch:
+        typ = typical_patch_cost(fixed.quantized_colors(an.levels[level].stack), an.h(level),
+                                 params.fidelity_radius, an.toroidal)
+    else:
+        typ = typical_distance(an.levels[level].nbhd) * fixed.PSI_ONE
+    return t, ex, label_weight(typ, controls.label_strength, level, an.L)
+
+
 def _dense_canvas(c, x0: int, y0: int, w: int, h: int) -> np.ndarray:
     """The finest canvas field over a rectangle, pixel by pixel from the tiles."""
     from infinitex.engine.controls import TILE
@@ -164,6 +219,11 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     best_u = S[ys, xs].astype(np.int64)
     psi = fixed.psi_q(params.kappa)
     avoid = None if controls.avoid is None else controls.avoid.values
+    from infinitex.engine.controls.labels import SEED_SALT, label_cost
+    labels = label_terms(controls, an, params, level, xs, ys, origin, False)
+
+    def lab(u):
+        return 0 if labels is None else label_cost(labels[0], labels[1][u[:, 1], u[:, 0]], labels[2])
     for dx, dy in fixed.CANDIDATE_OFFSETS:
         nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
         bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
@@ -177,32 +237,47 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
                 u = sims[by, bx, i].astype(np.int64)
             e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
             dist = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP)
-            cost = dist * (fixed.PSI_ONE if i == 0 else psi)
+            cost = dist * (fixed.PSI_ONE if i == 0 else psi) + lab(u)
             if avoid is not None:
                 cost = np.where(avoid[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, cost)
             better = cost < best
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
-    steps = params.walk_steps(an.k, avoid is not None)
-    if steps and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
-        gx, gy = xs + origin[0], ys + origin[1]
-        period = params.level_period(level)
-        if period:
-            gx, gy = gx & (period - 1), gy & (period - 1)
-        wseed = fixed.walk_seed(params.seed, subpass)
-        border = None if an.toroidal else border_margin(m, h)
+    steps = np.full(len(ys), params.walk_steps(an.k, avoid is not None))
+    gx, gy = xs + origin[0], ys + origin[1]
+    period = params.level_period(level)
+    if period:
+        gx, gy = gx & (period - 1), gy & (period - 1)
+    wseed = fixed.walk_seed(params.seed, subpass)
+    border = None if an.toroidal else border_margin(m, h)
+    if labels is not None:  # a labeled pixel tries a texel of its main label, and walks
+        labeled = (labels[0] >> 24) != 0
+        hx, _ = fixed.hash2(gx, gy, level, (wseed ^ SEED_SALT) & 0xFFFFFFFF)
+        seeds = controls.labels_exemplar.seed_table(level, an.toroidal)
+        u = seeds[labels[0] & 15, (hx + 1024) & 63].astype(np.int64)
+        u = (u & (m - 1)) if border is None else np.clip(u, border, m - 1 - border)
+        e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
+        cost = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP) * psi + lab(u)
+        if avoid is not None:
+            cost = np.where(avoid[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, cost)
+        better = labeled & (cost < best)
+        best = np.where(better, cost, best)
+        best_u = np.where(better[:, None], u, best_u)
+        from infinitex.engine.params import DEFAULT_WALK
+        steps = np.where(labeled, np.maximum(steps, DEFAULT_WALK), steps)
+    if steps.max(initial=0) and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
         R = m >> 1
-        for t in range(steps):
+        for t in range(int(steps.max())):
             if R < 2:
                 break
             ox, oy = fixed.walk_offsets(gx, gy, level, wseed, t, R)
             u = best_u + np.stack([ox, oy], axis=1)
             u = (u & (m - 1)) if border is None else np.clip(u, border, m - 1 - border)
             e = nbhd[u[:, 1], u[:, 0]].astype(np.int64) - ns
-            cost = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP) * psi
+            cost = np.minimum((e * e).sum(axis=1), fixed.DIST_CLAMP) * psi + lab(u)
             if avoid is not None:
                 cost = np.where(avoid[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, cost)
-            better = cost < best
+            better = (cost < best) & (t < steps)
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
             R >>= 1
@@ -237,8 +312,13 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
     def inside(u):
         return (u & (m - 1)) if border < 0 else np.clip(u, border, m - 1 - border)
 
+    labels = label_terms(controls, an, params, level, xs, ys, origin, True)
+
     def cost(u):
+        from infinitex.engine.controls.labels import label_cost
         c = np.zeros(len(u), np.int64)
+        if labels is not None:
+            c += label_cost(labels[0], labels[1][u[:, 1], u[:, 0]], labels[2])
         for dx, dy in patch:
             t = u + h * np.array([dx, dy])
             t = (t & (m - 1)) if border < 0 else np.clip(t, 0, m - 1)

@@ -106,6 +106,14 @@ class Gpu:
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return tex
 
+    def u32_texture(self, data: np.ndarray):
+        """A single-channel uint32 (R32UI) texture of a (h, w) array."""
+        data = np.ascontiguousarray(data, dtype=np.uint32)
+        tex = self.ctx.texture((data.shape[1], data.shape[0]), 1, data.tobytes(), dtype="u4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.repeat_x = tex.repeat_y = False
+        return tex
+
     def u16_texture(self, data: np.ndarray):
         """A single-channel uint16 (R16UI) texture of a (h, w) array."""
         data = np.ascontiguousarray(data, dtype=np.uint16)

@@ -48,12 +48,14 @@ class LocalUpdates:
             self.set_params(self.params, controls)  # the whole canvas changes
             self.pixels_synthesized = 0
             return 0
+        b = 1 if controls.labels_active or self.controls.labels_active else 0  # the labels' blur: a level pixel
         self.controls = controls
         self._signatures = self._level_signatures()
         L = self.an.L
         for l in range(L + 1):
             k = L - l
-            self._mark(l, [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)) for r in changed if not r.empty])
+            self._mark(l, [Rect((r.x0 >> k) - b, (r.y0 >> k) - b, -((-r.x1) >> k) + b, -((-r.y1) >> k) + b)
+                           for r in changed if not r.empty])
         self.pixels_synthesized = 0
         if not defer:
             self.settle()

@@ -29,7 +29,7 @@ from .requests import SpreadRequests
 from .params import SynthParams, correction_margins, subpass_order
 from .rect import Rect
 from .similarity import border_margin
-from .stages import Draw, Pacer, fidelity_draws, subpass_draws
+from .stages import Draw, Pacer, fidelity_draws, label_draws, subpass_draws
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -111,7 +111,8 @@ class Pyramid(LocalUpdates, SpreadRequests):
         self._scratch: dict[tuple[int, int], tuple] = {}
         self.pixels_synthesized = 0  # level pixels upsampled by the last request
         gpu.activate()
-        self._efield: dict = {}  # textures of the exemplar inputs: level -> R_E,l; "avoid" -> the mask
+        self._efield: dict = {}  # textures of the exemplar inputs: level -> R_E,l; "avoid" -> the mask; labels
+        self._label_typical: dict = {}  # typical distances per level (texture by numbers' weights)
         self._dummy = gpu.u16_texture(np.full((1, 1), 32768, np.uint16))
         self._dummy_i = gpu.ctx.texture((2, 1), 4, np.zeros(8, np.int32).tobytes(), dtype="i4")
         self.controls = NO_CONTROLS
@@ -338,6 +339,7 @@ class Pyramid(LocalUpdates, SpreadRequests):
             cvals = self.controls.randomness_canvas.region(an.L - l, region.x0, region.y0, region.w, region.h,
                                                            p.level_period(l))
         ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
+        labels = None
         try:
             # Upsample + jitter into scratch a (modulated by the randomness fields), at once.
             prog, vao = self.gpu.program("upsample.frag", SUB_S=s)
@@ -361,9 +363,12 @@ class Pyramid(LocalUpdates, SpreadRequests):
             # Correction subpasses, then the fidelity stage's, on scratch a.
             draws = []
             avoid = self._avoid_texture()
+            if l in self.corrected or p.fidelity_at(l):
+                labels = label_draws(self.gpu, self._efield, self._label_typical, self.controls, an, p, l, region)
             if l in self.corrected:
                 lt = self.gan.level(l)
-                prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines())
+                prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines(),
+                                             **(labels.defines if labels else {}))
                 sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
                 # Lattice levels keep their lattice candidates only.
                 walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
@@ -374,11 +379,14 @@ class Pyramid(LocalUpdates, SpreadRequests):
                            avoid=5, has_avoid=int(avoid is not None))
                 textures = dict(enumerate([lt.feat, lt.nbhd] + sims, start=1))
                 textures[5] = avoid or self._dummy
+                if labels is not None:
+                    textures.update(labels.textures)
+                    uni.update(labels.correction)
                 draws += subpass_draws(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch,
                                        textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
             if p.fidelity_at(l):
                 draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
-                                        avoid or self._dummy, avoid is not None)
+                                        avoid or self._dummy, avoid is not None, labels)
             for d in draws:
                 yield from d.steps(pace)
 
@@ -414,6 +422,8 @@ class Pyramid(LocalUpdates, SpreadRequests):
                 tex.release()
             if ctex is not None:
                 ctex.release()
+            if labels is not None:
+                labels.canvas.release()
 
     def _efield_texture(self, l: int):
         e = self.controls.randomness_exemplar

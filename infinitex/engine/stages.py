@@ -16,7 +16,7 @@ import moderngl
 
 from . import fixed
 from .gpu import Gpu, GpuAnalysis, set_uniforms
-from .params import FIDELITY_SEARCH, SynthParams, subpass_order
+from .params import DEFAULT_WALK, FIDELITY_SEARCH, SynthParams, subpass_order
 from .similarity import border_margin
 
 
@@ -107,15 +107,69 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
 
 
 def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
-                   lattice: bool, scratch, avoid_tex, has_avoid: bool) -> list[Draw]:
+                   lattice: bool, scratch, avoid_tex, has_avoid: bool, labels: LabelDraws | None = None) -> list[Draw]:
     """The fidelity stage's iterations on level ``l``'s padded ``region`` (see
-    shaders/fidelity.frag); ``lattice``: a lattice level (no random search)."""
+    shaders/fidelity.frag); ``lattice``: a lattice level (no random search);
+    ``labels``: texture by numbers over the region, if any."""
     an = gan.analysis
     prog, vao = gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius,
-                            FID_SEARCH=FIDELITY_SEARCH)
+                            FID_SEARCH=FIDELITY_SEARCH, **(labels.defines if labels else {}))
     uniforms = dict(colors=1, avoid=5, has_avoid=int(has_avoid), dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
+    textures = {1: gan.level(l).colors, 5: avoid_tex}
+    if labels is not None:
+        textures.update(labels.textures)
+        uniforms.update(labels.fidelity)
     return subpass_draws(gpu, prog, vao, p.subgrid, subpass_order(p.subgrid, p.fidelity_at(l)), qdims, scratch,
-                         {1: gan.level(l).colors, 5: avoid_tex}, uniforms,
+                         textures, uniforms,
                          lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})
+
+
+@dataclass
+class LabelDraws:
+    """What the correction and the fidelity stage read of texture by numbers
+    over one padded region (engine/controls/labels.py): textures by unit, the
+    shader defines, each program's uniforms, and the region's own texture
+    (``canvas``, released by the caller)."""
+
+    textures: dict
+    defines: dict
+    correction: dict
+    fidelity: dict
+    canvas: Any
+
+
+def label_draws(gpu: Gpu, cache: dict, typical: dict, controls, an, p: SynthParams, l: int, region) -> LabelDraws | None:
+    """Level ``l``'s label inputs over ``region``, or None where no painted
+    label reaches it (the passes then compute exactly what they would without
+    labels). ``cache`` keeps the level's exemplar textures (released with the
+    exemplar inputs), ``typical`` the level's typical distances."""
+    import numpy as np
+
+    from .controls.labels import MAX_LABELS, SEED_COUNT, SEED_SALT, label_weight, typical_distance, typical_patch_cost
+    if not controls.labels_active:
+        return None
+    mix = controls.labels_canvas.features(an.L - l, region.x0, region.y0, region.w, region.h, p.period)
+    if mix is None:
+        return None
+    le = controls.labels_exemplar
+    if ("labels", l) not in cache:
+        cache[("labels", l)] = gpu.u32_texture(le.features(l, an.toroidal))
+        seeds = le.seed_table(l, an.toroidal).reshape(MAX_LABELS, SEED_COUNT * 2)
+        cache[("seeds", l)] = gpu.int_texture((SEED_COUNT, MAX_LABELS), 2, seeds)
+    if ("nbhd", l) not in typical:
+        typical[("nbhd", l)] = typical_distance(an.levels[l].nbhd) * fixed.PSI_ONE
+    strength = float(controls.label_strength)
+    uni = dict(lab_exemplar=8, lab_canvas=9, lab_seeds=10)
+    fid = {}
+    if p.fidelity_at(l):
+        key = ("patch", l, p.fidelity_radius)
+        if key not in typical:
+            typical[key] = typical_patch_cost(fixed.quantized_colors(an.levels[l].stack), an.h(l),
+                                              p.fidelity_radius, an.toroidal)
+        fid = dict(uni, lab_weight=label_weight(typical[key], strength, l, an.L))
+    canvas = gpu.u32_texture(np.ascontiguousarray(mix))
+    return LabelDraws({8: cache[("labels", l)], 9: canvas, 10: cache[("seeds", l)]},
+                      dict(LABELS=True, SEED_COUNT=SEED_COUNT, LAB_SEED_SALT=f"{SEED_SALT}u", LAB_WALK=DEFAULT_WALK),
+                      dict(uni, lab_weight=label_weight(typical[("nbhd", l)], strength, l, an.L)), fid, canvas)

@@ -65,10 +65,12 @@ from .fields import (
     modulated_rq,
     reduce_toward_neutral,
 )
+from .labels import MAX_LABELS, CanvasLabels, ExemplarLabels
 from .lattice import Lattice
 
 __all__ = [
-    "Controls", "NO_CONTROLS", "NEUTRAL", "TILE", "CanvasField", "ExemplarArray", "ExemplarField", "ExemplarMask",
+    "Controls", "NO_CONTROLS", "NEUTRAL", "TILE", "CanvasField", "CanvasLabels", "ExemplarArray", "ExemplarField",
+    "ExemplarLabels", "ExemplarMask", "MAX_LABELS",
     "Feature", "FEATURE_CELL", "MAX_FEATURE_RADIUS", "MAX_FEATURES", "Lattice", "apply_dab", "dab_rect",
     "dab_weights", "feature_arrays", "feature_bins", "features_from_json", "features_to_json", "fit_features",
     "modulated_rq", "reduce_toward_neutral",
@@ -84,22 +86,37 @@ class Controls:
     features: tuple[Feature, ...] = ()
     lattice: Lattice | None = None  # near-regular mode: the exemplar is this lattice's rectified block
     avoid: ExemplarMask | None = None  # exemplar regions the correction does not copy
+    # Texture by numbers (engine/controls/labels.py): the exemplar's label map,
+    # the labels painted over the canvas, and how strongly they are followed.
+    labels_exemplar: ExemplarLabels | None = None
+    labels_canvas: CanvasLabels | None = None
+    label_strength: float = 1.0
 
     def normalized(self) -> Controls:
-        """Neutral fields and empty masks dropped (they change nothing), so equal effects compare equal."""
+        """Neutral fields, empty masks and labels that constrain nothing dropped
+        (they change nothing), so equal effects compare equal."""
         e = self.randomness_exemplar
         c = self.randomness_canvas
         a = self.avoid
+        lc = self.labels_canvas
         out = (None if e is None or e.neutral else e, None if c is None or c.neutral else c,
-               tuple(self.features), self.lattice, None if a is None or a.empty else a)
-        if all(x is y for x, y in zip(out, (e, c, self.features, self.lattice, a))):
+               tuple(self.features), self.lattice, None if a is None or a.empty else a,
+               self.labels_exemplar, None if lc is None or lc.empty else lc, float(self.label_strength))
+        before = (e, c, self.features, self.lattice, a, self.labels_exemplar, lc, self.label_strength)
+        if all(x is y for x, y in zip(out[:7], before[:7])) and out[7] == before[7]:
             return self  # already normalized: keep what is cached (the features' arrays)
         return Controls(*out)
 
+    @property
+    def labels_active(self) -> bool:
+        """Canvas labels are painted and the exemplar has a label map: synthesis follows them."""
+        return self.labels_exemplar is not None and self.labels_canvas is not None and not self.labels_canvas.empty
+
     def exemplar_inputs(self) -> tuple:
-        """What is painted over the exemplar (randomness field, avoid mask): a
-        change of either reaches the whole canvas."""
-        return (self.randomness_exemplar, self.avoid)
+        """What is painted over the exemplar (randomness field, avoid mask, label
+        map) and the label strength: a change of any reaches the whole canvas."""
+        return (self.randomness_exemplar, self.avoid, self.labels_exemplar,
+                float(self.label_strength) if self.labels_exemplar is not None else None)
 
     def lattice_shift(self, m: int, level: int) -> tuple[int, int] | None:
         """(log2 cx, log2 cy) when ``level`` is a lattice level: jitter is
@@ -121,6 +138,18 @@ class Controls:
             raise ValueError(f"The avoid mask is {a.size}x{a.size}; the exemplar is {m}x{m}.")
         if a is not None and a.full:
             raise ValueError("The avoid mask covers the whole exemplar: leave some of it usable.")
+        le = self.labels_exemplar
+        if le is not None and le.size != m:
+            raise ValueError(f"The exemplar label map is {le.size}x{le.size}; the exemplar is {m}x{m}.")
+        if not 0.0 <= float(self.label_strength) <= 8.0:
+            raise ValueError("The label strength must be from 0 to 8.")
+        if self.labels_active and self.lattice is not None:
+            raise ValueError("Texture by numbers does not work on a lattice; turn one of them off.")
+        if self.labels_active:
+            missing = sorted(set(self.labels_canvas.used) - set(le.present))
+            if missing:
+                raise ValueError(f"The canvas labels use label {missing[0] + 1}, which the exemplar's label map "
+                                 f"does not have (it has {', '.join(str(i + 1) for i in le.present)}).")
         L = m.bit_length() - 1
         if self.features:
             f = self._features
@@ -143,10 +172,12 @@ class Controls:
     def level_signature(self, level: int, m: int = 0) -> tuple:
         """What level ``level`` reads of the controls (fields change all levels)."""
         e, c = self.randomness_exemplar, self.randomness_canvas
+        labels = (self.labels_exemplar.key, self.labels_canvas.key, float(self.label_strength)) \
+            if self.labels_active else None
         return (None if e is None else e.key, None if c is None else c.key,
                 self.features_key if self.features else None,
                 None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)),
-                None if self.avoid is None else self.avoid.key)
+                None if self.avoid is None else self.avoid.key, labels)
 
     def _meeting(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """Indices (ascending) of the features whose reach (Feature.bbox) meets a finest-level rectangle."""
@@ -206,6 +237,7 @@ class Controls:
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()
         out = before.changed_rects(after)
+        out += (self.labels_canvas or CanvasLabels()).changed_rects(other.labels_canvas or CanvasLabels())
         if self.features != other.features:
             old, new = set(self.features), set(other.features)
             out += [f.bbox() for f in old ^ new]  # added, removed, moved or resized

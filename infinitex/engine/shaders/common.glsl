@@ -83,3 +83,29 @@ ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
     }
     return s;
 }
+
+#ifdef LABELS
+// Texture by numbers (engine/controls/labels.py): two-label mixes packed as
+// i1 | i2 << 4 | w1 << 8 | w2 << 16 (| painted share << 24 on the canvas side).
+uniform usampler2D lab_exemplar;  // m x m, the exemplar texels' mixes at this level
+uniform usampler2D lab_canvas;    // the region's canvas mixes, at unpacked positions p
+uniform isampler2D lab_seeds;     // SEED_COUNT x 16: per label, exemplar texels of it
+uniform int lab_weight;           // W_l
+
+uint lab_weight_of(uint e, uint i) {
+    return (e & 15u) == i ? (e >> 8) & 255u : (((e >> 4) & 15u) == i ? (e >> 16) & 255u : 0u);
+}
+
+// (((D * share) >> 8) * W_l) >> 4, D = |t|^2 + |e|^2 - 2 t.e (labels.py label_cost).
+uint label_cost(uint t, uint e) {
+    uint share = t >> 24;
+    if (share == 0u) {
+        return 0u;
+    }
+    uint t1 = t & 15u, t2 = (t >> 4) & 15u, w1 = (t >> 8) & 255u, w2 = (t >> 16) & 255u;
+    uint v1 = (e >> 8) & 255u, v2 = (e >> 16) & 255u;
+    uint dot = w1 * lab_weight_of(e, t1) + (t2 != t1 ? w2 * lab_weight_of(e, t2) : 0u);
+    uint D = w1 * w1 + w2 * w2 + v1 * v1 + v2 * v2 - 2u * dot;
+    return (((D * share) >> 8) * uint(lab_weight)) >> 4;
+}
+#endif

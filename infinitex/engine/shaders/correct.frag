@@ -8,6 +8,10 @@
 //   candidates u = C^i(S[p+d] - h d), d in [-1,1]^2, i = 1..k (k = 0: u = S[p+d] - h d)
 //   keep the u minimizing psi(i) ||N_S(p) - N_E(u)||^2, first one on ties;
 //   a u inside the avoid mask costs more than any other (engine/controls/avoid.py).
+// LABELS (texture by numbers, engine/controls/labels.py): every candidate's cost
+//   also has label_cost(canvas mix at p, exemplar mix at u), and a pixel with a
+//   painted share tries one texel of its main label (lab_seeds, picked by hash)
+//   after the k-coherence candidates, psi-weighted like the walk's.
 // All arithmetic is integer (engine/fixed.py), so results are exact.
 
 uniform isampler2D src;       // current state, packed
@@ -111,6 +115,9 @@ void main() {
 
     uint best = 0xffffffffu;
     ivec2 best_u = here.xy;
+#ifdef LABELS
+    uint lab_t = texelFetch(lab_canvas, p, 0).r;
+#endif
     for (int j = 0; j < 9; ++j) {
         ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
         ivec2 base = (S[j] - h * d) & wrap;
@@ -128,6 +135,9 @@ void main() {
             ivec4 sq = e0 * e0 + e1 * e1;
             int dist = min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP);
             uint cost = uint(dist) * uint(i == 0 ? PSI_ONE : psi);
+#ifdef LABELS
+            cost += label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
+#endif
             if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
             if (cost < best) {
                 best = cost;
@@ -135,11 +145,36 @@ void main() {
             }
         }
     }
-    if (walk > 0) {
+#ifdef LABELS
+    if ((lab_t >> 24) != 0u) {
+        ivec2 g = origin + p;
+        if (period > 0) g &= period - 1;
+        int pick = (hash2(g, level, walk_seed ^ LAB_SEED_SALT).x + 1024) & (SEED_COUNT - 1);
+        ivec2 u = texelFetch(lab_seeds, ivec2(pick, int(lab_t & 15u)), 0).xy;
+        u = border < 0 ? (u & wrap) : clamp(u, ivec2(border), ivec2(m - 1 - border));
+        ivec4 e0, e1;
+        unpack8(texelFetch(nbhd, u, 0), e0, e1);
+        e0 -= lo;
+        e1 -= hi;
+        ivec4 sq = e0 * e0 + e1 * e1;
+        uint cost = uint(min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP)) * uint(psi)
+                    + label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
+        if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
+        if (cost < best) {
+            best = cost;
+            best_u = u;
+        }
+    }
+#endif
+    int steps = walk;
+#ifdef LABELS
+    if ((lab_t >> 24) != 0u) steps = max(steps, LAB_WALK);  // labeled pixels walk (to other labels' regions)
+#endif
+    if (steps > 0) {
         ivec2 g = origin + p;
         if (period > 0) g &= period - 1;
         int R = m >> 1;
-        for (int t = 0; t < walk && R >= 2; ++t) {
+        for (int t = 0; t < steps && R >= 2; ++t) {
             ivec2 H = hash2(g, level, walk_seed + uint(t) * 0x9E3779B9u);  // in [-1024, 1024)
             ivec2 off = floor_shift(ivec4(H * R, 0, 0), 10).xy;           // in [-R, R)
             ivec2 u = best_u + off;
@@ -150,6 +185,9 @@ void main() {
             e1 -= hi;
             ivec4 sq = e0 * e0 + e1 * e1;
             uint cost = uint(min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP)) * uint(psi);
+#ifdef LABELS
+            cost += label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
+#endif
             if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
             if (cost < best) {
                 best = cost;

@@ -11,6 +11,8 @@
 // On a non-toroidal exemplar (border >= 0) predictions and samples are clamped
 // to [border, m-1-border] and exemplar patches read clamped to [0, m-1]; on
 // lattice levels (no_search = 1) only the predictions are tried.
+// LABELS (engine/controls/labels.py): cost(u) also has label_cost(canvas mix at
+// p, exemplar mix at u).
 // Integer sums (at most 4 * 255^2 * 120 < 2^25), so the result is exact; skipping
 // a candidate already tried and stopping a sum once it reaches the best cannot
 // change it (costs only grow as taps are added, and ties keep the first).
@@ -83,7 +85,13 @@ void main() {
     ivec2 tried[NCAND];
     int ntried = 0;
     ivec2 best_u = here.xy;
+#ifdef LABELS
+    uint lab_t = texelFetch(lab_canvas, p, 0).r;
+    uint best = (has_avoid != 0 && texelFetch(avoid, best_u, 0).r != 0u) ? AVOIDED
+              : label_cost(lab_t, texelFetch(lab_exemplar, best_u, 0).r) + patch_cost(best_u, 0xffffffffu);
+#else
     uint best = (has_avoid != 0 && texelFetch(avoid, best_u, 0).r != 0u) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
+#endif
     tried[ntried++] = best_u;
     for (int j = 0; j < NCAND; ++j) {
         ivec2 u;
@@ -107,7 +115,13 @@ void main() {
         if (seen) continue;  // the same cost again: it cannot be better
         tried[ntried++] = u;
         if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) continue;
+#ifdef LABELS
+        uint lc = label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
+        if (lc >= best) continue;  // cannot win
+        uint c = lc + patch_cost(u, best - lc);
+#else
         uint c = patch_cost(u, best);
+#endif
         if (c < best) {
             best = c;
             best_u = u;

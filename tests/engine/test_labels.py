@@ -1,0 +1,146 @@
+"""Texture by numbers (engine/controls/labels.py): the synthesis follows labels
+painted on the canvas; exact (GL equals the oracle with and without the
+fidelity stage, near 0 and +-2^30, toroidal tiles; overlapping windows agree;
+a local update equals a fresh synthesis)."""
+from dataclasses import replace
+
+import numpy as np
+import oracle
+import pytest
+
+from infinitex.engine.controls import CanvasLabels, Controls, ExemplarLabels
+from infinitex.engine.controls.labels import mix_distance, pack_mix, top_two
+from infinitex.engine.params import SynthParams, structure_params
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
+
+FAR = 2 ** 30
+
+
+def halves(m: int) -> ExemplarLabels:
+    """Label 0 on the exemplar's left half, label 2 on its right half."""
+    v = np.zeros((m, m), np.uint8)
+    v[:, m // 2:] = 2
+    return ExemplarLabels(v)
+
+
+def stripes(x: int, y: int, w: int, h: int, band: int = 24) -> CanvasLabels:
+    """Vertical bands of label 0 and 2 (canvas values 1 and 3) over a rectangle, free around it."""
+    xs = np.arange(w)[None, :].repeat(h, axis=0)
+    v = np.where((xs // band) % 2 == 0, 1, 3).astype(np.uint8)
+    return CanvasLabels.from_image(v, x, y)
+
+
+def test_mixes_and_their_distance():
+    w = np.array([[5, 0, 3], [0, 0, 7], [2, 2, 0]])
+    i1, i2, w1, w2 = top_two(w)
+    assert list(i1) == [0, 2, 0] and list(i2) == [2, 2, 1]       # ties: the lower label first
+    assert list(w1) == [159, 255, 128] and list(w2) == [96, 0, 127]
+    a = pack_mix(np.array([0]), np.array([0]), np.array([255]), np.array([0])).astype(np.int64)
+    b = pack_mix(np.array([2]), np.array([2]), np.array([255]), np.array([0])).astype(np.int64)
+    assert mix_distance(a, a)[0] == 0 and mix_distance(a, b)[0] == 2 * 255 * 255
+    half = pack_mix(np.array([0]), np.array([2]), np.array([128]), np.array([127])).astype(np.int64)
+    assert mix_distance(a, half)[0] == 127 ** 2 + 127 ** 2
+
+
+@pytest.mark.parametrize("name", ["gravel-appearance", "gravel-color", "torus-color-k3"])
+@pytest.mark.parametrize("x, y", [(-20, 30), (FAR - 150, -FAR + 60)])
+def test_gl_matches_oracle_with_labels(analyses, gpu, name, x, y):
+    an = analyses[name]
+    controls = Controls(labels_exemplar=halves(an.size), labels_canvas=stripes(x - 30, y - 10, 90, 70))
+    params = SynthParams.default(an.L, seed=4)
+    gl = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(x, y, 40, 36))
+    assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 40, 36, controls=controls))
+
+
+@pytest.mark.parametrize("name", ["gravel-appearance", "torus-color-k3"])
+def test_gl_matches_oracle_with_labels_and_the_fidelity_stage(analyses, gpu, name):
+    an = analyses[name]
+    controls = Controls(labels_exemplar=halves(an.size), labels_canvas=stripes(-40, -20, 80, 60),
+                        label_strength=2.0)
+    params = structure_params(SynthParams.default(an.L, seed=2), 1)
+    gl = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(-20, -10, 32, 28))
+    assert np.array_equal(gl, oracle.synthesize(an, params, -20, -10, 32, 28, controls=controls))
+
+
+def test_the_synthesis_follows_the_labels(analyses, gpu):
+    """Exemplar texels of the painted label: about half without labels, all
+    of them (but a few at the bands' edges) with them, at Variety and Balanced."""
+    an = analyses["gravel-appearance"]
+    m = an.size
+    le = halves(m)
+    lc = stripes(0, 0, 192, 160, band=48)
+    want = (np.arange(192)[None, :].repeat(160, axis=0) // 48) % 2 * 2
+    for structure in (0, 2):
+        params = structure_params(SynthParams.default(an.L, seed=3), structure)
+        plain = Synthesizer(an, params, gpu=gpu, controls=Controls(labels_exemplar=le)).window(Rect.of(0, 0, 192, 160))
+        follow = Synthesizer(an, params, gpu=gpu, controls=Controls(labels_exemplar=le, labels_canvas=lc)).window(
+            Rect.of(0, 0, 192, 160))
+        assert abs(np.mean(le.values[plain[..., 1], plain[..., 0]] == want) - 0.5) < 0.2
+        assert np.mean(le.values[follow[..., 1], follow[..., 0]] == want) > 0.95, structure
+
+
+def test_windows_agree_and_toroidal_tiles_wrap_the_labels(analyses, gpu):
+    an = analyses["torus-appearance"]
+    controls = Controls(labels_exemplar=halves(an.size), labels_canvas=stripes(FAR - 300, 40, 400, 200))
+    params = SynthParams.default(an.L, seed=8)
+    synth = Synthesizer(an, params, gpu=gpu, controls=controls)
+    a = synth.window(Rect.of(FAR - 260, 60, 150, 120))
+    b = synth.window(Rect.of(FAR - 200, 100, 180, 130))
+    assert np.array_equal(a[40:, 60:], b[:80, :90])
+    # A toroidal tile reads the labels of [0, n)^2 modulo its period: it repeats and follows them.
+    n = 64
+    tile = replace(params, period=n)
+    le = halves(an.size)
+    one = Synthesizer(an, tile, gpu=gpu, controls=Controls(labels_exemplar=le, labels_canvas=stripes(0, 0, n, n, 16)))
+    t1 = one.window(Rect.of(0, 0, n, n))
+    assert np.array_equal(t1, one.window(Rect.of(n, 2 * n, n, n)))
+    assert np.array_equal(t1, one.toroidal(n))
+    want = (np.arange(n)[None, :].repeat(n, axis=0) // 16) % 2 * 2
+    assert np.mean(le.values[t1[..., 1], t1[..., 0]] == want) > 0.9
+
+
+def test_local_updates_after_label_strokes_equal_a_fresh_synthesis(analyses, gpu):
+    an = analyses["gravel-appearance"]
+    rng = np.random.default_rng(5)
+    le = halves(an.size)
+    for structure in (0, 1):
+        params = structure_params(SynthParams.default(an.L, seed=6), structure)
+        view = Rect.of(-FAR + 1000, 500, 160, 120)
+        vp = Synthesizer(an, params, gpu=gpu).viewport()
+        labels = CanvasLabels()
+        vp.set_params(params, Controls(labels_exemplar=le))
+        try:
+            for i in range(6):
+                vp.show(view)
+                old = labels
+                cx = view.x0 + float(rng.integers(-40, 200))
+                cy = view.y0 + float(rng.integers(-40, 160))
+                value = int(rng.choice([0, 1, 3]))
+                for d in range(3):
+                    labels, _ = labels.painted(cx + 9 * d, cy + 4 * d, float(rng.integers(6, 30)), value,
+                                               hardness=float(rng.uniform(0.2, 1)), seed=i)
+                controls = Controls(labels_exemplar=le, labels_canvas=labels)
+                vp.pyramid.update_controls(controls, [Rect(*r) for r in old.changed_rects(labels)])
+                after = vp.read(view)
+                fresh = Synthesizer(an, params, gpu=gpu, controls=controls).window(view)
+                assert np.array_equal(after, fresh), f"stroke {i}, structure {structure}"
+        finally:
+            vp.release()
+
+
+def test_bad_labels_are_refused_in_one_sentence(analyses):
+    an = analyses["gravel-appearance"]
+    m = an.size
+    with pytest.raises(ValueError, match="label 3, which the exemplar"):
+        Controls(labels_exemplar=ExemplarLabels(np.zeros((m, m), np.uint8)),
+                 labels_canvas=stripes(0, 0, 64, 64)).validate(m)
+    with pytest.raises(ValueError, match="32x32"):
+        Controls(labels_exemplar=ExemplarLabels(np.zeros((32, 32), np.uint8))).validate(m)
+    with pytest.raises(ValueError):
+        ExemplarLabels(np.full((m, m), 16, np.uint8))
+    with pytest.raises(ValueError):
+        CanvasLabels.from_image(np.full((8, 8), 17, np.uint8), 0, 0)
+    painted, rect = CanvasLabels().painted(10, 10, 6, 2)
+    assert painted.used == (1,) and rect[0] <= 4 and rect[2] >= 16
+    assert painted.painted(10, 10, 8, 0)[0].empty  # the eraser frees it again
