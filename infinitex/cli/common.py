@@ -202,6 +202,55 @@ def add_randomness_args(p: argparse.ArgumentParser) -> None:
                         '"radius": [inner, outer], "levels": [first, last] (optional)}')
 
 
+def add_label_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("texture by numbers (label maps: each distinct color is a label, pure black too; "
+                             "the same color means the same label in both maps)")
+    g.add_argument("--labels-exemplar", metavar="MAP", help="the exemplar's label map (its size, brought to the "
+                   "exemplar by its fit rule; at most 16 colors; an indexed PNG or flat colors)")
+    g.add_argument("--labels-canvas", metavar="MAP", help="where each label goes on the canvas (finest-level "
+                   "pixels), placed by --labels-origin; transparent pixels and everything around it are free")
+    g.add_argument("--labels-origin", nargs=2, type=integer, default=[0, 0], metavar=("X", "Y"),
+                   help="canvas position of the canvas label map's top-left pixel (default 0 0)")
+    g.add_argument("--label-strength", type=number, default=1.0, metavar="S",
+                   help="how strongly the synthesis follows the labels (0 to 8; default 1; more at coarse scales)")
+
+
+def label_maps(args, original: tuple[int, int], fit: str, m: int, base=None):
+    """The document's LabelMaps from the label arguments (``base``: the
+    project's, whose canvas labels, colors and names a new exemplar map keeps
+    when it has the same colors), or ``base``."""
+    from infinitex.engine.controls import CanvasLabels, ExemplarLabels
+    from infinitex.engine.controls.label_maps import (
+        canvas_labels_from_colors,
+        exemplar_labels_from_colors,
+        fit_label_map,
+        load_label_image,
+    )
+    from infinitex.project.document import LabelMaps
+    if not 0.0 <= args.label_strength <= 8.0:
+        raise CliError("--label-strength must be between 0 and 8.", EXIT_USAGE)
+    if args.labels_canvas and not (args.labels_exemplar or base is not None):
+        raise CliError("--labels-canvas needs --labels-exemplar (which colors are which labels).", EXIT_USAGE)
+    lab = base
+    if args.labels_exemplar:
+        ids, colors = exemplar_labels_from_colors(load_label_image(args.labels_exemplar, "exemplar label map"))
+        ids = fit_label_map(ids, fit, m, original, "exemplar label map")
+        keep = base is not None and list(base.colors) == colors
+        lab = LabelMaps(ExemplarLabels(ids), tuple(colors), base.names if keep else (),
+                        base.canvas if keep else CanvasLabels())
+    if lab is None:
+        return None
+    if args.labels_canvas:
+        values = canvas_labels_from_colors(load_label_image(args.labels_canvas, "canvas label map"), list(lab.colors))
+        x, y = args.labels_origin
+        if min(x, y) < -COORD_LIMIT or max(x + values.shape[1], y + values.shape[0]) > COORD_LIMIT:
+            raise CliError(f"The canvas label map must lie within +-{COORD_LIMIT}.", EXIT_USAGE)
+        lab = replace(lab, canvas=CanvasLabels.from_image(values, x, y))
+    if args.labels_exemplar or args.labels_canvas or args.label_strength != 1.0:
+        lab = replace(lab, strength=float(args.label_strength))
+    return lab
+
+
 def load_features(path: str):
     """Features from a JSON file (untrusted: size-limited, bounded parse); CliError if bad."""
     from infinitex.engine.controls import features_from_json

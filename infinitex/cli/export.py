@@ -20,6 +20,7 @@ from .common import (
     Parser,
     ProgressBar,
     add_lattice_args,
+    add_label_args,
     add_randomness_args,
     add_make_tileable_arg,
     add_structure_arg,
@@ -30,6 +31,7 @@ from .common import (
     check_window,
     guarded,
     integer,
+    label_maps,
     randomness_controls,
     resolve_lattice,
 )
@@ -80,6 +82,7 @@ def build_parser() -> Parser:
                         "installed), or, without ADDRESS, on a LocalCluster of --workers processes. Tiles of a "
                         "worker that dies are rendered again elsewhere")
     add_randomness_args(p)
+    add_label_args(p)
     add_lattice_args(p)
     add_structure_arg(p, None)
     add_make_tileable_arg(p)
@@ -156,7 +159,8 @@ def run_export(argv: list[str]) -> int:
         check_out(coords_path, (".png",), "coordinate map")
 
     # No output may replace a file this export reads (checked again once the maps' depths are known).
-    inputs = [args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar, args.features]
+    inputs = [args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar, args.features,
+              args.labels_exemplar, args.labels_canvas]
     size = (args.toroidal, args.toroidal) if args.toroidal is not None else (w, h)
     if is_project_file(args.project):
         try:
@@ -239,6 +243,13 @@ def run_export(argv: list[str]) -> int:
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features, avoid_exemplar=c.avoid)
+    if args.labels_exemplar or args.labels_canvas or args.label_strength != 1.0:
+        doc = replace(doc, labels=label_maps(args, ex.original_size, doc.fit, ex.size, doc.labels))
+        try:
+            doc.validate()
+            doc.controls(ex.size).validate(ex.size)
+        except ValueError as exc:
+            raise CliError(str(exc), EXIT_USAGE) from None
     if args.scheduler not in (None, "local"):
         from infinitex.export.workers import probe_scheduler
         probe_scheduler(args.scheduler)  # a cluster out of reach fails now, not after the analysis

@@ -26,6 +26,7 @@ from .common import (
     CliError,
     Parser,
     add_lattice_args,
+    add_label_args,
     add_randomness_args,
     add_make_tileable_arg,
     add_structure_arg,
@@ -35,6 +36,7 @@ from .common import (
     check_window,
     guarded,
     integer,
+    label_maps,
     jitter_arg,
     number,
     passes_arg,
@@ -78,6 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="does the exemplar tile? (auto: guessed from its wrap-around seam)")
     add_make_tileable_arg(p)
     add_randomness_args(p)
+    add_label_args(p)
     add_lattice_args(p)
     p.add_argument("--no-cache", action="store_true", help="do not read or write the analysis cache")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -113,6 +116,7 @@ def run_synth(argv: list[str]) -> int:
     try:  # no output may replace a file this run reads
         check_own_inputs(Writes(files=[p for p in (args.output, args.coords) if p]),
                          [args.exemplar, args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar,
+                          args.labels_exemplar, args.labels_canvas,
                           args.features])
     except OwnInputError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
@@ -156,6 +160,16 @@ def run_synth(argv: list[str]) -> int:
                        f"{ex.size}x{ex.size} exemplar), not {len(args.passes)}.", EXIT_USAGE)
     level_passes = tuple(args.passes) if len(args.passes) > 1 else None
     controls = randomness_controls(args, args.fit, ex.size)  # maps are read before the analysis
+    labels = label_maps(args, ex.original_size, args.fit, ex.size)
+    if labels is not None:
+        if lattice is not None or args.make_tileable:
+            raise CliError("Texture by numbers goes with neither --lattice nor --make-tileable.", EXIT_USAGE)
+        controls = replace(controls, labels_exemplar=labels.exemplar, labels_canvas=labels.canvas,
+                           label_strength=labels.strength)
+        try:
+            controls.validate(ex.size)
+        except ValueError as exc:
+            raise CliError(str(exc), EXIT_USAGE) from None
     grid = (0, 0)
     if lattice is not None:
         controls = replace(controls, lattice=lattice)

@@ -18,9 +18,12 @@ from dataclasses import dataclass, field, replace
 
 from infinitex.engine.analysis import MODELS
 from infinitex.engine.controls import (
+    MAX_LABELS,
     CanvasField,
+    CanvasLabels,
     Controls,
     ExemplarField,
+    ExemplarLabels,
     ExemplarMask,
     Feature,
     fit_features,
@@ -74,6 +77,36 @@ def _from_finest(stored: tuple, L: int, fill) -> list:
 
 
 @dataclass(frozen=True)
+class LabelMaps:
+    """Texture by numbers (engine/controls/labels.py): the exemplar's label map
+    (label ids over the exemplar as fitted), a display color (and a name) per
+    label, the labels painted on the canvas and how strongly synthesis follows them."""
+
+    exemplar: ExemplarLabels
+    colors: tuple[tuple[int, int, int], ...]
+    names: tuple[str, ...] = ()
+    canvas: CanvasLabels = field(default_factory=CanvasLabels)
+    strength: float = 1.0
+
+    def name(self, label: int) -> str:
+        return self.names[label] if label < len(self.names) and self.names[label] else f"Label {label + 1}"
+
+    def validate(self) -> None:
+        if not 1 <= len(self.colors) <= MAX_LABELS or len(self.names) > MAX_LABELS:
+            raise ProjectError(f"A label map has 1 to {MAX_LABELS} labels, each with a color.")
+        if any(len(c) != 3 or any(not (isinstance(v, int) and 0 <= v <= 255) for v in c) for c in self.colors):
+            raise ProjectError("Label colors are three integers from 0 to 255.")
+        if any(not isinstance(n, str) or len(n) > 64 for n in self.names):
+            raise ProjectError("Label names are texts of at most 64 characters.")
+        if max(self.exemplar.present) >= len(self.colors):
+            raise ProjectError("The exemplar's label map uses a label without a color.")
+        if self.canvas.used and max(self.canvas.used) >= len(self.colors):
+            raise ProjectError("The canvas labels use a label without a color.")
+        if not (is_number(self.strength) and 0.0 <= self.strength <= 8.0):
+            raise ProjectError("The label strength must be a number from 0 to 8.")
+
+
+@dataclass(frozen=True)
 class Document:
     """Everything that decides the texture. Immutable: edits make new ones."""
 
@@ -101,6 +134,7 @@ class Document:
     # A material: every map as (role, file), the first being ``exemplar``; () for a single image.
     maps: tuple[tuple[str, ExemplarSource], ...] = ()
     weights: tuple[tuple[str, float], ...] | None = None  # maps feeding the analysis; None: the default
+    labels: LabelMaps | None = None                    # texture by numbers
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on (a lattice's geometry: its
@@ -168,7 +202,10 @@ class Document:
             return cached[1]
         e = None if self.randomness_exemplar is None else self.randomness_exemplar.scaled(m)
         a = None if self.avoid_exemplar is None else self.avoid_exemplar.scaled(m)
-        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a).normalized()
+        lab = self.labels
+        controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a,
+                            None if lab is None else lab.exemplar.scaled(m), None if lab is None else lab.canvas,
+                            1.0 if lab is None else float(lab.strength)).normalized()
         object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
         return controls
 
@@ -228,6 +265,12 @@ class Document:
                 raise ProjectError("The material's first map must be its exemplar.")
             if self.lattice is not None:
                 raise ProjectError("A lattice works on a single image, not on a material.")
+        if self.labels is not None:
+            self.labels.validate()
+            if self.lattice is not None:
+                raise ProjectError("Texture by numbers does not work on a lattice; remove one of them.")
+            if self.make_tileable:
+                raise ProjectError("Texture by numbers does not work with Make tileable yet; turn one of them off.")
         if self.weights is not None:
             roles = {r for r, _ in self.sources()}
             if any(r not in roles or not (is_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \

@@ -41,6 +41,7 @@ from infinitex.engine.safeio import (
     read_limited,
 )
 
+from .labels_json import labels_from_json, labels_to_json
 from .document import (
     DISPLAY_MODES,
     GEOMETRIES,
@@ -56,7 +57,7 @@ from .document import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 7              # 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
+VERSION = 8              # 8: texture by numbers ("labels"); 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
@@ -154,7 +155,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+        "version": 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
             2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
@@ -178,6 +179,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         **({"avoid": avoid} if avoid else {}),
         **({"features": features_to_json(doc.features)} if doc.features else {}),
         **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
+        **({"labels": labels_to_json(doc.labels)} if doc.labels else {}),
         **({"material": material} if material else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
@@ -514,6 +516,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     make_tileable = bool(_get(e, "make_tileable", bool, "exemplar", optional=True))
     fields = _fields_from_json(d.get("randomness"))
     avoid = _avoid_from_json(d.get("avoid"))
+    labels = labels_from_json(d.get("labels"))
     try:
         features = features_from_json(d.get("features", []))
     except ValueError as exc:
@@ -537,6 +540,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         corrected=None if corrected is None else tuple(corrected),
         randomness_exemplar=fields[0],
         avoid_exemplar=avoid,
+        labels=labels,
         randomness_canvas=fields[1],
         features=features,
         lattice=_lattice_from_json(d.get("lattice")),

@@ -144,3 +144,92 @@ def test_bad_labels_are_refused_in_one_sentence(analyses):
     painted, rect = CanvasLabels().painted(10, 10, 6, 2)
     assert painted.used == (1,) and rect[0] <= 4 and rect[2] >= 16
     assert painted.painted(10, 10, 8, 0)[0].empty  # the eraser frees it again
+
+
+def _two_textures(tmp_path):
+    """A 128 px exemplar of two textures side by side, its label map (black |
+    green), and a canvas map: a black band across green, transparent corner."""
+    import os
+
+    from PIL import Image
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    g = np.asarray(Image.open(os.path.join(root, "infinitex", "assets", "gravel.png")).convert("RGB"))[:128, :128]
+    img = g // 2  # a dark texture on the left, a light one on the right
+    img[:, 64:] = 150 + (255 - g[:, 64:]) // 3
+    Image.fromarray(img).save(tmp_path / "two.png")
+    lab = np.zeros((128, 128, 3), np.uint8)
+    lab[:, 64:] = (40, 200, 40)
+    Image.fromarray(lab).save(tmp_path / "labels.png")
+    c = np.zeros((96, 160, 4), np.uint8)
+    c[..., :3], c[..., 3] = (40, 200, 40), 255
+    c[30:60, :, :3] = 0
+    c[:10, :10, 3] = 0
+    Image.fromarray(c).save(tmp_path / "canvas.png")
+    return tmp_path / "two.png", tmp_path / "labels.png", tmp_path / "canvas.png"
+
+
+def test_documents_and_projects_keep_the_labels(tmp_path):
+    import json
+
+    from infinitex.project import Document, ExemplarSource, Project, ProjectError, load_project, save_project
+    from infinitex.project.document import LabelMaps
+    ex, _, _ = _two_textures(tmp_path)
+    lab = LabelMaps(halves(128), ((0, 0, 0), (9, 9, 9), (40, 200, 40)), ("stones", "", "grass"),
+                    stripes(-30, 20, 100, 60), 2.5)
+    doc = Document(ExemplarSource.from_file(str(ex)), labels=lab)
+    c = doc.controls(128)
+    assert c.labels_active and c.label_strength == 2.5 and c.labels_canvas == lab.canvas
+    assert doc.controls(64).labels_exemplar.size == 64  # another fit: scaled, nearest
+    path = tmp_path / "p.itex"
+    save_project(str(path), Project(doc))
+    saved = json.loads(path.read_text())
+    assert saved["version"] == 8 and saved["labels"]["names"] == ["stones", "", "grass"]
+    back = load_project(str(path)).document
+    assert back.labels == lab and back.labels.name(1) == "Label 2" and back.controls(128) == c
+    for damage in (lambda d: d["labels"].update(strength=99), lambda d: d["labels"].update(colors=[[0, 0]]),
+                   lambda d: d["labels"].update(exemplar="AAAA"),
+                   lambda d: d["labels"]["canvas"]["tiles"][0].update(x=True),
+                   lambda d: d["labels"].update(colors=[[0, 0, 0]])):  # labels 1 and 2 lose their colors
+        bad = json.loads(path.read_text())
+        damage(bad)
+        path.write_text(json.dumps(bad))
+        with pytest.raises(ProjectError):
+            load_project(str(path))
+
+
+def test_both_commands_take_label_maps(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from PIL import Image
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    ex, labels, canvas = _two_textures(tmp_path)
+
+    def cli(*args):
+        return subprocess.run([sys.executable, os.path.join(root, "main.py"), *args], capture_output=True,
+                              text=True, timeout=300)
+    r = cli("synth", str(ex), "-o", str(tmp_path / "o.png"), "--size", "160", "96", "--coords",
+            str(tmp_path / "c.npy"), "--labels-exemplar", str(labels), "--labels-canvas", str(canvas), "-q")
+    assert r.returncode == 0, r.stderr
+    coords = np.load(tmp_path / "c.npy")
+    got = coords[..., 0] >= 64  # the right half of the exemplar: green
+    assert got[30:60].mean() < 0.1 and got[65:].mean() > 0.9
+    r = cli("export", str(ex), "-o", str(tmp_path / "e.png"), "--rect", "0", "0", "160", "96",
+            "--labels-exemplar", str(labels), "--labels-canvas", str(canvas), "--fidelity", "0", "-q")
+    assert r.returncode == 0, r.stderr
+    a = np.asarray(Image.open(tmp_path / "o.png").convert("L"), np.float64)
+    b = np.asarray(Image.open(tmp_path / "e.png").convert("L"), np.float64)
+    assert abs(a[30:60].mean() - b[30:60].mean()) < 15 and b[70:].mean() - b[35:55].mean() > 60
+    # Refused in one sentence: anti-aliased label maps, a color the exemplar's map lacks, a canvas map alone.
+    from PIL import ImageFilter
+    Image.open(labels).filter(ImageFilter.GaussianBlur(4)).save(tmp_path / "smooth.png")  # anti-aliased edges
+    odd = np.asarray(Image.open(canvas)).copy()
+    odd[50, 70, :3] = (1, 2, 3)
+    Image.fromarray(odd).save(tmp_path / "odd.png")
+    for args, code, words in (((("--labels-exemplar", str(tmp_path / "smooth.png"))), 3, "colors"),
+                              (("--labels-exemplar", str(labels), "--labels-canvas", str(tmp_path / "odd.png")),
+                               3, "#010203 at (70, 50)"),
+                              (("--labels-canvas", str(canvas)), 2, "needs --labels-exemplar")):
+        r = cli("synth", str(ex), "-o", str(tmp_path / "x.png"), "--size", "32", "32", "-q", *args)
+        assert r.returncode == code and words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
