@@ -12,12 +12,16 @@ same whatever the window, its order or the machine. One call::
     bricks = itx.synthesize("bricks.png", size=(512, 512), lattice="auto")  # rows kept
 
 ``synthesize(exemplar, size=(W, H), origin=(X, Y), *, seed=0, randomness=None,
-controls=NO_CONTROLS, lattice=None, geometry="original", structure="balanced")``
+controls=NO_CONTROLS, lattice=None, geometry="original", structure="balanced",
+labels=None, label_strength=1.0)``
     ``exemplar`` is an image path, a float array in [0, 1] or an ``Exemplar``.
     ``randomness``: r for every level, or one per level coarse to fine
     (default 0.6). ``controls``: painted randomness and placed features
     (``Controls``). ``lattice``: a ``Lattice``, ``"auto"`` or None.
     ``structure``: the Structure / Variety preset, 0-4 or "variety" ... "maximum".
+    ``labels``: texture by numbers, (exemplar label map, canvas label map[,
+    origin]): paths or color images (each distinct color a label,
+    transparent = free on the canvas) or arrays of label ids.
 ``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice=None, structure="balanced")``
     An n x n toroidal tile (n a power of two, 32 to 4096).
 
@@ -57,7 +61,9 @@ Controls (one engine input, ``Controls``): ``CanvasField`` and
 ``ExemplarField`` (painted randomness, uint16, 32768 = neutral; ``painted()``
 adds a dab), ``Feature`` (an exemplar spot placed on the canvas), ``Lattice``
 (``detect_lattice(image)``, ``rectified_exemplar(image, lattice)``; analyze
-with ``AnalysisSettings(lattice=(nx, ny))``). Projects: ``load_project``,
+with ``AnalysisSettings(lattice=(nx, ny))``), ``ExemplarLabels`` and
+``CanvasLabels`` (texture by numbers; ``label_controls(exemplar, maps...)``
+builds them from label images). Projects: ``load_project``,
 ``save_project``; the editor's exports: ``infinitex export``. Runnable
 examples of each capability are in ``examples/`` of the source tree.
 
@@ -74,7 +80,7 @@ ASSETS = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "assets")  
 # Names resolved on first use (PEP 562), so ``import infinitex`` and
 # ``infinitex --version`` stay fast and need no GL.
 _EXPORTS = {
-    "synthesize": "api", "tile": "api",
+    "synthesize": "api", "tile": "api", "label_controls": "api",
     "Exemplar": "engine.exemplar", "ExemplarError": "engine.exemplar", "load_exemplar": "engine.exemplar",
     "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.imagefile",
     "to_u8": "engine.imagefile",
@@ -84,6 +90,7 @@ _EXPORTS = {
     "Rect": "engine.pyramid",
     "Controls": "engine.controls", "NO_CONTROLS": "engine.controls", "CanvasField": "engine.controls",
     "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
+    "ExemplarLabels": "engine.controls", "CanvasLabels": "engine.controls",
     "Lattice": "engine.controls.lattice", "rectified_exemplar": "engine.controls.lattice", "render_original": "engine.controls.lattice",
     "original_geometry_box": "engine.controls.lattice",
     "TiledExport": "export.streamed",

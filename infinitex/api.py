@@ -50,10 +50,61 @@ def _exemplar(source, lattice: Lattice | str | None) -> tuple[Exemplar, Lattice 
     return rectified_exemplar(image, lattice), lattice
 
 
+def _label_map(source, what: str) -> tuple[np.ndarray, bool]:
+    """(array, colored): a path or a color image (H, W, 3|4) as RGBA uint8,
+    or a 2-D integer array of label ids as it is."""
+    from .engine.controls.label_maps import load_label_image
+    if isinstance(source, (str, os.PathLike)):
+        return load_label_image(os.fspath(source), what), True
+    a = np.asarray(source)
+    if a.ndim == 2:
+        return a.astype(np.int64), False
+    if a.ndim == 3 and a.shape[2] in (3, 4) and a.dtype == np.uint8:
+        return (a if a.shape[2] == 4 else np.concatenate([a, np.full(a.shape[:2] + (1,), 255, np.uint8)], 2)), True
+    raise ValueError(f"The {what} must be a path, an 8-bit color image (H, W, 3|4) or a 2-D array of label ids.")
+
+
+def label_controls(ex: Exemplar, exemplar_labels, canvas_labels, origin: tuple[int, int] = (0, 0),
+                   strength: float = 1.0, controls: Controls = NO_CONTROLS) -> Controls:
+    """``controls`` with texture by numbers for ``ex``: ``exemplar_labels``
+    over the exemplar image (a path, a color image where each distinct color
+    is a label, or label ids 0..15; brought to the exemplar by its fit rule),
+    ``canvas_labels`` placed at canvas ``origin`` (the same colors, transparent
+    = free; or ids, negative = free), followed with ``strength`` (0 to 8)."""
+    from dataclasses import replace
+
+    from .engine.controls import CanvasLabels, ExemplarLabels
+    from .engine.controls.label_maps import canvas_labels_from_colors, exemplar_labels_from_colors, fit_label_map
+    emap, colored = _label_map(exemplar_labels, "exemplar label map")
+    palette = None
+    if colored:
+        ids, palette = exemplar_labels_from_colors(emap)
+    else:
+        if emap.min(initial=0) < 0 or emap.max(initial=0) > 15:
+            raise ValueError("Exemplar label ids are 0 to 15.")
+        ids = emap.astype(np.uint8)
+    ids = fit_label_map(ids, ex.fit, ex.size, ex.original_size, "exemplar label map")
+    cmap, ccolored = _label_map(canvas_labels, "canvas label map")
+    if ccolored:
+        if palette is None:
+            raise ValueError("A colored canvas label map needs a colored exemplar label map (which color is which label).")
+        values = canvas_labels_from_colors(cmap, palette)
+    else:
+        if cmap.max(initial=0) > 15:
+            raise ValueError("Canvas label ids are 0 to 15 (negative: free).")
+        values = np.where(cmap < 0, 0, cmap + 1).astype(np.uint8)
+    out = replace(controls, labels_exemplar=ExemplarLabels(ids),
+                  labels_canvas=CanvasLabels.from_image(values, int(origin[0]), int(origin[1])),
+                  label_strength=float(strength))
+    out.validate(ex.size)
+    return out
+
+
 def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, int] = (0, 0), *,
                seed: int = 0, randomness: float | tuple[float, ...] | None = None,
                controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = None,
-               geometry: str = "original", structure: int | str = DEFAULT_STRUCTURE) -> np.ndarray:
+               geometry: str = "original", structure: int | str = DEFAULT_STRUCTURE,
+               labels: tuple | None = None, label_strength: float = 1.0) -> np.ndarray:
     """A ``size`` = (W, H) window of the exemplar's infinite texture at canvas
     position ``origin``, as uint8 (H, W, C).
 
@@ -66,9 +117,14 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
     input's geometry, origin and size in input pixels) or ``"rectified"``.
     ``structure``: the Structure / Variety preset, 0 to 4 or its name
     ("variety" ... "maximum"; default "balanced", as in the editor and the
-    command line). Windows of the same arguments agree bit for bit wherever
-    they overlap."""
+    command line). ``labels``: texture by numbers, (exemplar label map,
+    canvas label map) or (..., canvas origin) as for :func:`label_controls`,
+    followed with ``label_strength``. Windows of the same arguments agree bit
+    for bit wherever they overlap."""
     ex, lat = _exemplar(exemplar, lattice)
+    if labels is not None:
+        controls = label_controls(ex, labels[0], labels[1], tuple(labels[2]) if len(labels) > 2 else (0, 0),
+                                  label_strength, controls)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
     params = _params(an.L, seed, randomness, structure)
     if lat is not None:
