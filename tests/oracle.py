@@ -82,8 +82,9 @@ def canvas_mixes(controls: Controls, an: Analysis, params: SynthParams, level: i
     total = 16 * s * s
     painted = total - counts[..., 0]
     i1, i2, w1, w2 = top_two(counts[..., 1:])
-    packed = pack_mix(i1, i2, w1, w2, (255 * painted) // total).astype(np.int64)
-    return np.where(painted > 0, packed, 0)
+    share = (255 * painted) // total
+    packed = pack_mix(i1, i2, w1, w2, share).astype(np.int64)
+    return np.where(share >= 128, packed, 0)  # less than half painted: free
 
 
 def label_terms(controls: Controls, an: Analysis, params: SynthParams, level: int, xs, ys, origin, patch: bool):

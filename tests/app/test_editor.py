@@ -153,3 +153,11 @@ def test_bad_file_on_the_command_line_keeps_the_editor_running(tmp_path):
     # dialog stays up, so the run ends by the frame cap with a screenshot.
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert out.exists()
+
+
+def test_texture_by_numbers_driven_by_the_test_engine(tmp_path):
+    """The Labels tool: propose and import the exemplar's labels, a label stroke
+    (the canvas follows it, near it only, one undo step), a fill, the
+    exemplar's own labels painted; undo restores the canvas exactly
+    (tests/app/gui_labels.py)."""
+    _drive("gui_labels.py", tmp_path, 14)

@@ -97,3 +97,34 @@ class FieldOverlay:
         if self.tex is not None:
             self.tex.release()
             self.tex = None
+
+
+class LabelOverlay(FieldOverlay):
+    """Texture by numbers' labels in their colors: the exemplar's map (for the
+    Labels window) and the canvas labels over the canvas."""
+
+    def exemplar_labels(self, labels, colors) -> moderngl.Texture:
+        from infinitex.app.ui.tools.labels import label_rgba
+        return self._whole(("l", labels.key, tuple(colors)), lambda: label_rgba(labels.values, colors, None))
+
+    def canvas_labels(self, labels, colors, x0: float, y0: float, w_canvas: float, h_canvas: float):
+        """The canvas labels over a finest-level rectangle, sampled near the
+        screen's resolution (``placement`` says where), or None where none is painted."""
+        from infinitex.app.ui.tools.labels import label_rgba
+        if labels is None or labels.empty:
+            return None
+        big = max(w_canvas, h_canvas)
+        k = max(0, math.ceil(math.log2(big / MAX_OVERLAY))) if big > MAX_OVERLAY else 0
+        X0, Y0 = math.floor(x0) >> k, math.floor(y0) >> k
+        X1, Y1 = (math.ceil(x0 + w_canvas) >> k) + 1, (math.ceil(y0 + h_canvas) >> k) + 1
+        key = ("cl", labels.key, tuple(colors), k, X0, Y0, X1, Y1)
+        if key != self._key:
+            f = 1 << k
+            vals = labels.sample(np.arange(X0, X1) * f + f // 2, np.arange(Y0, Y1) * f + f // 2)
+            self._key = key
+            if not vals.any():
+                self.placement = None
+                return None
+            self._upload(label_rgba(vals, colors))
+            self.placement = (X0 << k, Y0 << k, (X1 - X0) << k, (Y1 - Y0) << k)
+        return self.tex if self.placement is not None else None

@@ -124,16 +124,22 @@ class CanvasInputMixin:
         dl.pop_clip_rect()
 
     def _field_overlay(self, dl, p0, w: int, h: int) -> None:
-        """The canvas randomness field as a translucent heat map over the canvas."""
+        """The canvas randomness field as a translucent heat map over the
+        canvas, and the canvas labels in their colors."""
         z = self.view.zoom
         x0, y0 = self.view.top_left(w, h)
-        tex = self.overlay_canvas.canvas(self.doc.randomness_canvas, x0, y0, w / z, h / z)
-        if tex is None:
-            return
-        fx, fy, fw, fh = self.overlay_canvas.placement
-        a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
+        lab = self.doc.labels
+        shown = [(self.overlay_canvas, self.overlay_canvas.canvas(self.doc.randomness_canvas, x0, y0, w / z, h / z))]
+        if lab is not None:
+            shown.append((self.overlay_canvas_labels, self.overlay_canvas_labels.canvas_labels(
+                lab.canvas, lab.colors, x0, y0, w / z, h / z)))
         dl.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
-        dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
+        for overlay, tex in shown:
+            if tex is None:
+                continue
+            fx, fy, fw, fh = overlay.placement
+            a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
+            dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
         dl.pop_clip_rect()
 
     # -- small helpers for panels -----------------------------------------
@@ -156,5 +162,5 @@ class CanvasInputMixin:
             if t.name == name and t is not self.tool:
                 self.tool.release()
                 self.tool = t
-                if name.startswith("paint"):
+                if name.startswith("paint") or name == "labels":
                     self.show_fields = True  # painting shows what is painted

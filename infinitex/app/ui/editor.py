@@ -35,7 +35,7 @@ from infinitex.export.window import ExportJob
 from infinitex.project import Autosave, Display, History, View
 
 from ..render.canvas import Canvas
-from ..render.overlays import FieldOverlay
+from ..render.overlays import FieldOverlay, LabelOverlay
 from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir, load_settings, save_settings
 from . import panels
@@ -129,6 +129,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self.overlay_canvas: FieldOverlay | None = None
         self.overlay_exemplar: FieldOverlay | None = None
         self.overlay_avoid: FieldOverlay | None = None
+        self.overlay_labels: LabelOverlay | None = None         # the Labels window's exemplar map
+        self.overlay_canvas_labels: LabelOverlay | None = None  # the canvas labels
         self._canvas_button = -1         # mouse button that went down on the canvas
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
@@ -209,6 +211,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.overlay_canvas = FieldOverlay(ctx)
             self.overlay_exemplar = FieldOverlay(ctx)
             self.overlay_avoid = FieldOverlay(ctx)
+            self.overlay_labels = LabelOverlay(ctx)
+            self.overlay_canvas_labels = LabelOverlay(ctx)
         except (GLUnavailable, Exception) as exc:
             self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
                           "on Linux install libgl1 and a Mesa driver.")
@@ -237,7 +241,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.session.release()
         if self.canvas is not None:
             self.canvas.release()
-        for o in (self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid):
+        for o in (self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid, self.overlay_labels,
+                  self.overlay_canvas_labels):
             if o is not None:
                 o.release()
 
@@ -286,7 +291,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self.dialogs.draw()
         self.panels.progress_modals()
         imgui.end()
-        if self.tool.name in ("paint-exemplar", "lattice") and self.doc is not None:
+        if self.tool.name in ("paint-exemplar", "lattice", "labels") and self.doc is not None:
             self.tool.window()
         self.shortcuts_window()
         self._after_frame()

@@ -19,7 +19,11 @@ most two labels with integer weights summing to 255, packed in one uint32:
   ``p 2^k + i 2^k/s + 2^k/(2s)``; every pixel for k <= 2), counted per label,
   blurred by the 3 x 3 binomial filter in level pixels (a transition as wide
   as a level pixel), then the two largest painted labels renormalized, and
-  the painted share of the footprint: ``t1 | t2 << 4 | w1 << 8 | w2 << 16 | share << 24``.
+  the painted share of the footprint: ``t1 | t2 << 4 | w1 << 8 | w2 << 16 | share << 24``;
+  a pixel less than half painted (share < SHARE_MIN) is free, as the painted
+  randomness acts only on the features that fit inside the painted area: a
+  thin stroke steers the fine scales along it, a large painted area the
+  coarse ones too, and no stroke re-rolls the large features around it.
 
 The label distance of two mixes is ``D = |a|^2 + |b|^2 - 2 a.b`` (in 255ths,
 at most 2 * 255^2), and a candidate u at pixel p costs, on top of its
@@ -50,6 +54,7 @@ SEED_COUNT = 64        # exemplar texels per label the seed candidate picks from
 SEED_SALT = 0x6C62272E
 STRENGTH_MAX = 8.0
 BINOMIAL = np.array([1, 2, 1], np.int64)
+SHARE_MIN = 128        # of 255: a canvas pixel less painted than this is free
 
 
 def pack_mix(i1, i2, w1, w2, share=None) -> np.ndarray:
@@ -137,6 +142,18 @@ class ExemplarLabels(ExemplarArray):
             i1, i2, w1, w2 = top_two(shares)
             cache[key] = pack_mix(ids[i1], ids[i2], w1, w2)
         return cache[key]
+
+    def painted(self, cx: float, cy: float, radius: float, label: int) -> ExemplarLabels:
+        """A hard round dab of ``label`` (exemplar pixels; clipped at its border)."""
+        m = self.size
+        x0, y0, x1, y1 = dab_rect(cx, cy, radius)
+        x0, y0, x1, y1 = max(0, x0), max(0, y0), min(m, x1), min(m, y1)
+        if x0 >= x1 or y0 >= y1:
+            return self
+        v = self.values.copy()
+        inside = dab_weights(cx, cy, radius, 0.999, x0, y0, x1 - x0, y1 - y0) > 0.5
+        v[y0:y1, x0:x1][inside] = label
+        return ExemplarLabels(v)
 
     def seed_table(self, level: int, toroidal: bool) -> np.ndarray:
         """int32 (MAX_LABELS, SEED_COUNT, 2): per label, exemplar texels (x, y)
@@ -281,6 +298,22 @@ class CanvasLabels:
                 tiles[(tx, ty)] = base
         return CanvasLabels(tiles), (x0, y0, x1, y1)
 
+    def replaced(self, values: np.ndarray, x: int, y: int) -> CanvasLabels:
+        """These labels with the block ``values`` (uint8, 0 free) written at canvas (x, y)."""
+        values = _canvas_u8(values)
+        h, w = values.shape
+        tiles = dict(self.tiles)
+        for ty in range(y // TILE, (y + h - 1) // TILE + 1):
+            for tx in range(x // TILE, (x + w - 1) // TILE + 1):
+                old = tiles.get((tx, ty))
+                t = old.copy() if old is not None else np.zeros((TILE, TILE), np.uint8)
+                x0, y0 = tx * TILE, ty * TILE
+                ix0, iy0 = max(x0, x), max(y0, y)
+                ix1, iy1 = min(x0 + TILE, x + w), min(y0 + TILE, y + h)
+                t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
+                tiles[(tx, ty)] = t
+        return CanvasLabels(tiles)
+
     def changed_rects(self, other: CanvasLabels) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two label maps."""
         out = []
@@ -323,7 +356,7 @@ class CanvasLabels:
             seen[np.unique(t)] = True
         return tuple(int(i) - 1 for i in np.flatnonzero(seen[1:]) + 1)
 
-    def _sampled(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    def sample(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """The canvas labels at the grid of finest pixels xs x ys (uint8 (len(ys), len(xs)))."""
         out = np.zeros((len(ys), len(xs)), np.uint8)
         if not self.tiles:
@@ -358,7 +391,7 @@ class CanvasLabels:
         ys = ((np.arange(y0 - 1, y0 + h + 1) * f)[:, None] + sub[None, :]).ravel()
         if period:
             xs, ys = xs & (period - 1), ys & (period - 1)
-        lab = self._sampled(xs, ys)
+        lab = self.sample(xs, ys)
         if not lab.any():
             return None
         return _mix_features(lab, s, h, w)
@@ -377,4 +410,30 @@ def _mix_features(lab: np.ndarray, s: int, h: int, w: int) -> np.ndarray:
     share = (255 * painted) // total
     i1, i2, w1, w2 = top_two(blur[:, :, 1:])
     packed = pack_mix(i1, i2, w1, w2, share)
-    return np.where(painted > 0, packed, np.uint32(0)).astype(np.uint32)
+    return np.where(share >= SHARE_MIN, packed, np.uint32(0)).astype(np.uint32)
+
+
+def propose_labels(an, n: int) -> np.ndarray:
+    """Labels (uint8 (m, m), 0..n-1) proposed for an analyzed exemplar: its
+    appearance vectors two levels above the finest (a region's look rather
+    than a pixel's) clustered by k-means (scipy, fixed seed), then smoothed by
+    a majority over a small window; ordered by mean brightness, darkest first."""
+    from scipy import ndimage
+    from scipy.cluster.vq import kmeans2, vq
+    m = an.size
+    level = max(0, an.L - 2)
+    feat = an.levels[level].feat.reshape(m * m, -1).astype(np.float32)
+    n = int(min(max(2, n), MAX_LABELS))
+    step = max(1, (m * m) // 16384)
+    centers, _ = kmeans2(feat[::step], n, seed=np.random.default_rng(7), minit="++")
+    ids = vq(feat, centers.astype(np.float32))[0].reshape(m, m)
+    sigma = max(1.0, m / 128.0)
+    votes = np.stack([ndimage.gaussian_filter((ids == i).astype(np.float32), sigma, mode="wrap" if an.toroidal
+                                              else "reflect") for i in range(n)], axis=2)
+    ids = np.argmax(votes, axis=2)
+    lum = an.levels[-1].stack.mean(axis=2)
+    used = [i for i in range(n) if (ids == i).any()]
+    order = sorted(used, key=lambda i: float(lum[ids == i].mean()))
+    remap = np.zeros(n, np.uint8)
+    remap[order] = np.arange(len(order), dtype=np.uint8)
+    return remap[ids]

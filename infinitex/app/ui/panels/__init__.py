@@ -61,7 +61,8 @@ class Panels:
             return
         flags = imgui.TreeNodeFlags_.default_open
         if ed.tool.name != "navigate" and imgui.collapsing_header(
-                {"feature": "Features", "lattice": "Lattice"}.get(ed.tool.name, "Brush") + "###tool-options", flags):
+                {"feature": "Features", "lattice": "Lattice", "labels": "Labels"}.get(ed.tool.name, "Brush")
+                + "###tool-options", flags):
             self.brush_panel()
         # Artists' controls first; the synthesis internals wait in Advanced (collapsed).
         # Which sections are open is kept between runs (the user's settings).

@@ -95,7 +95,7 @@ def draw(p: Panels) -> None:
         if imgui.menu_item_simple("Shortcuts", "F1"):
             ed.show_shortcuts = True
         imgui.separator()
-        _, ed.show_fields = imgui.menu_item("Show painted randomness", "H", ed.show_fields)
+        _, ed.show_fields = imgui.menu_item("Show painted maps", "H", ed.show_fields)
         _, ed.tile_mode = imgui.menu_item(f"Tile mode ({ed.tile_size} px)", "T", ed.tile_mode)
         imgui.end_menu()
     imgui.end_menu_bar()

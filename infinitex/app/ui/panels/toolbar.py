@@ -26,6 +26,7 @@ def draw(p: Panels) -> None:
         if imgui.is_item_hovered():
             imgui.set_tooltip(t.tooltip)
     imgui.same_line()
-    _, ed.show_fields = imgui.checkbox("Show painted randomness (H)", ed.show_fields)
+    _, ed.show_fields = imgui.checkbox("Show painted (H)", ed.show_fields)
     if imgui.is_item_hovered():
-        imgui.set_tooltip("Overlay the painted fields as heat maps: blue = calm, red = rough")
+        imgui.set_tooltip("Overlay what is painted: randomness as heat maps (blue = calm, red = rough), "
+                          "labels in their colors")
