@@ -40,6 +40,9 @@ def main(argv=None) -> int:
     ap.add_argument("--radius", type=float, default=24.0, help="brush radius in screen pixels (48 px brush)")
     ap.add_argument("--fidelity", type=int, default=None, metavar="PRESET",
                     help="Structure preset of the painted document (default: the documents' default)")
+    ap.add_argument("--labels", action="store_true",
+                    help="paint labels (texture by numbers: two labels proposed on the exemplar, strokes "
+                         "alternating between them) instead of randomness")
     args = ap.parse_args(argv)
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
@@ -56,7 +59,7 @@ def main(argv=None) -> int:
     def gui():
         stamps.append(time.perf_counter())
         orig_gui()
-        dabs_at.append(ed.tools[1].dabs)
+        dabs_at.append(ed.tools[4 if args.labels else 1].dabs)
         pixels_at.append(sum(updates))
         s = ed.session
         settled_at.append(bool(s is not None and s.pyramid is not None and s.pyramid.settled and ed.refined))
@@ -97,8 +100,15 @@ def main(argv=None) -> int:
             return done
         pyr.settle = counted
         ctx.set_ref("//Infinitex")
-        ctx.item_click("//**/Paint canvas (B)##tool-paint-canvas")
-        tool = ed.tool
+        if args.labels:
+            ctx.item_click("//**/Labels (G)##tool-labels")
+            tool = ed.tool
+            tool.propose_n = 2
+            tool.propose()
+            settle(ctx)
+        else:
+            ctx.item_click("//**/Paint canvas (B)##tool-paint-canvas")
+            tool = ed.tool
         tool.brush.radius, tool.brush.strength, tool.brush.hardness = args.radius, 1.0, 0.5
         r = ctx.item_info("//**/canvas").rect_full
         x0, x1 = r.min.x + 80, r.max.x - 80
@@ -109,7 +119,10 @@ def main(argv=None) -> int:
         d0 = tool.dabs
         row = 0
         while tool.dabs - d0 < args.dabs:
-            tool.brush.value = 0.0 if row % 2 == 0 else 2.0
+            if args.labels:
+                tool.active = row % 2
+            else:
+                tool.brush.value = 0.0 if row % 2 == 0 else 2.0
             y = cy - 120 + 80 * row
             ctx.mouse_move_to_pos((x0, y))
             ctx.mouse_down(0)
@@ -165,7 +178,7 @@ def main(argv=None) -> int:
     if not results:
         print("the benchmark did not run (see the test engine log)")
         return 1
-    print(f"Painting the canvas randomness (canvas {results['canvas'][0]}x{results['canvas'][1]}, "
+    print(f"Painting the canvas {'labels' if args.labels else 'randomness'} (canvas {results['canvas'][0]}x{results['canvas'][1]}, "
           f"{results['brush_px']:.0f} px brush, {results['renderer']})")
     print("| structure | dabs | dab shown median / p90 ms | frame median / p90 / max ms | fps | settles after "
           "the stroke s | pixels per dab | full view pixels | fewer than full |")

@@ -126,11 +126,10 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         # Randomness fields drawn as heat maps: off until a paint tool is chosen
         # (the texture itself is what an artist looks at first); H toggles it.
         self.show_fields = False
-        self.overlay_canvas: FieldOverlay | None = None
-        self.overlay_exemplar: FieldOverlay | None = None
-        self.overlay_avoid: FieldOverlay | None = None
-        self.overlay_labels: LabelOverlay | None = None         # the Labels window's exemplar map
-        self.overlay_canvas_labels: LabelOverlay | None = None  # the canvas labels
+        # Overlay textures: the canvas and exemplar randomness, the avoid mask, the
+        # exemplar's labels (Labels window) and the canvas labels.
+        self.overlay_canvas = self.overlay_exemplar = self.overlay_avoid = None
+        self.overlay_labels = self.overlay_canvas_labels = None
         self._canvas_button = -1         # mouse button that went down on the canvas
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
@@ -208,11 +207,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.renderer = self.gpu.renderer
             self.session = Session(self.gpu)
             self.canvas = Canvas(self.gpu)
-            self.overlay_canvas = FieldOverlay(ctx)
-            self.overlay_exemplar = FieldOverlay(ctx)
-            self.overlay_avoid = FieldOverlay(ctx)
-            self.overlay_labels = LabelOverlay(ctx)
-            self.overlay_canvas_labels = LabelOverlay(ctx)
+            self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid = (FieldOverlay(ctx) for _ in range(3))
+            self.overlay_labels, self.overlay_canvas_labels = LabelOverlay(ctx), LabelOverlay(ctx)
         except (GLUnavailable, Exception) as exc:
             self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
                           "on Linux install libgl1 and a Mesa driver.")

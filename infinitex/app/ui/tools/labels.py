@@ -21,7 +21,7 @@ from infinitex.engine.exemplar import ExemplarError
 from infinitex.project.document import LabelMaps
 
 from . import Tool, begin_tool_window
-from .paint import Brush, _dabs, brush_keys
+from .paint import Brush, brush_keys, dab_centers
 
 # Sasha Trubetskoy's 16 distinct colors: labels proposed or painted get them in order.
 PALETTE = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48), (145, 30, 180),
@@ -59,6 +59,7 @@ class LabelTool(Tool):
         self._group: object = None
         self._strength_group: object = None
         self.strokes = 0         # strokes painted (tests)
+        self.dabs = 0            # dabs painted on the canvas (benchmarks)
 
     # -- the document ------------------------------------------------------
 
@@ -204,13 +205,14 @@ class LabelTool(Tool):
         if self._group is None or lab is None:
             return
         r = self.radius_canvas()
-        dabs = _dabs(self._last, pos, 0.25 * r)
+        dabs = dab_centers(self._last, pos, 0.25 * r)
         if not dabs:
             return
         canvas = lab.canvas
         for cx, cy in dabs:
             canvas, _ = canvas.painted(cx, cy, r, self._value(), self.brush.hardness, seed=self.strokes)
         self._last = dabs[-1]
+        self.dabs += len(dabs)
         self._set(replace(lab, canvas=canvas), "Paint labels", self._group)
 
     def release(self) -> None:
@@ -268,7 +270,7 @@ class LabelTool(Tool):
 
     def _paint_exemplar(self, pos) -> None:
         lab = self.labels
-        dabs = _dabs(self._last, pos, 0.25 * self.brush.radius)
+        dabs = dab_centers(self._last, pos, 0.25 * self.brush.radius)
         if not dabs or lab is None or self.brush.eraser:
             return
         ex = lab.exemplar

@@ -65,7 +65,7 @@ def brush_keys(brush: Brush) -> None:
         brush.radius = min(400.0, brush.radius * 1.25)
 
 
-def _dabs(last: tuple[float, float] | None, pos: tuple[float, float], spacing: float) -> list[tuple[float, float]]:
+def dab_centers(last: tuple[float, float] | None, pos: tuple[float, float], spacing: float) -> list[tuple[float, float]]:
     """Dab centers from the last dab to pos, every ``spacing`` (the last one at pos)."""
     if last is None:
         return [pos]
@@ -110,7 +110,7 @@ class PaintCanvasTool(Tool):
         if self._group is None:
             return
         r = self.radius_canvas()
-        dabs = _dabs(self._last, pos, 0.25 * r)
+        dabs = dab_centers(self._last, pos, 0.25 * r)
         if not dabs:
             return
         ed = self.ed
@@ -195,7 +195,7 @@ class PaintExemplarTool(Tool):
     def _paint(self, pos) -> None:
         ed = self.ed
         m = ed.session.analysis.size
-        dabs = _dabs(self._last, pos, 0.25 * self.brush.radius)
+        dabs = dab_centers(self._last, pos, 0.25 * self.brush.radius)
         if not dabs:
             return
         doc = ed.doc
