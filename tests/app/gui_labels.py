@@ -115,6 +115,20 @@ def main(out: str) -> int:
         check("the filled canvas keeps the stroke", float((filled[by - 8:by + 8, bx0:bx1, 0] > 140).mean()) > 0.9,
               "stroke lost")
 
+        # A label image placed centered in the view: its transparent pixels leave the canvas as it is.
+        img = np.zeros((40, 60, 4), np.uint8)
+        img[10:30, 10:50] = (40, 200, 40, 255)
+        Image.fromarray(img).save(os.path.join(out, "place.png"))
+        ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
+        ctx.item_click("Place label image...")
+        ctx.set_ref("//Infinitex")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", os.path.join(out, "place.png"))
+        ctx.yield_(3)
+        vx, vy = int(ed.view.x), int(ed.view.y)
+        got = ed.doc.labels.canvas.sample(np.array([vx, vx - 25]), np.array([vy, vy - 15]))
+        check("a label image is placed in the view", got[0, 0] == 2 and got[1, 1] == 1, str(got.tolist()))
+
         # The exemplar's own labels, painted in the Labels window: the whole canvas may change.
         ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
         ctx.item_click("label-1/##active")
@@ -131,7 +145,7 @@ def main(out: str) -> int:
         new = ed.doc.labels.exemplar
         check("painting the exemplar's labels", new != old and new.values[25, 25] == 1
               and int((new.values != old.values).sum()) > 50, str(int((new.values != old.values).sum())))
-        for _ in range(4):  # exemplar paint, fill, stroke, import (Propose stays)
+        for _ in range(5):  # exemplar paint, placed image, fill, stroke, import (Propose stays)
             ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
         ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)  # Propose
         check("undo restores the canvas exactly", np.array_equal(canvas(ctx), before), "canvas differs")

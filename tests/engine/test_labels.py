@@ -233,3 +233,16 @@ def test_both_commands_take_label_maps(tmp_path):
                               (("--labels-canvas", str(canvas)), 2, "needs --labels-exemplar")):
         r = cli("synth", str(ex), "-o", str(tmp_path / "x.png"), "--size", "32", "32", "-q", *args)
         assert r.returncode == code and words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_a_label_image_placed_over_painted_labels_keeps_them_where_it_is_free():
+    base = stripes(0, 0, 100, 40)
+    block = np.zeros((30, 30), np.uint8)
+    block[10:20, 10:20] = 3
+    placed = base.replaced(block, 5, 5, keep_free=True)
+    over = base.replaced(block, 5, 5)
+    xs, ys = np.arange(0, 40), np.arange(0, 40)
+    a, b, c = base.sample(xs, ys), placed.sample(xs, ys), over.sample(xs, ys)
+    assert np.all(b[15:25, 15:25] == 3) and np.array_equal(b[:15], a[:15])       # free pixels keep what is there
+    assert np.all(c[5:15, 5:35] == 0) and np.all(c[15:25, 15:25] == 3)        # else they free it
+    assert CanvasLabels.from_image(block, -7, 3) == CanvasLabels().replaced(block, -7, 3)

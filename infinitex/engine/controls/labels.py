@@ -253,22 +253,32 @@ class CanvasLabels:
     def from_image(cls, values: np.ndarray, x: int, y: int) -> CanvasLabels:
         """A label map (uint8 H x W, 0 free) placed with its top-left at canvas (x, y).
         FieldTooLarge, before any tile is made, if it would cover more than MAX_FIELD_TILES tiles."""
+        return cls().replaced(values, x, y)
+
+    def replaced(self, values: np.ndarray, x: int, y: int, keep_free: bool = False) -> CanvasLabels:
+        """These labels with the block ``values`` (uint8, 0 free) written at
+        canvas (x, y); ``keep_free``: its free pixels leave what is there.
+        FieldTooLarge, before any tile is made, if the block would cover more
+        than MAX_FIELD_TILES tiles."""
         values = _canvas_u8(values)
         h, w = values.shape
         count = ((x + w - 1) // TILE - x // TILE + 1) * ((y + h - 1) // TILE - y // TILE + 1)
         if count > MAX_FIELD_TILES:
             raise FieldTooLarge(f"The canvas label map ({w}x{h} px) would cover {count} tiles of {TILE}x{TILE} "
                                 f"px; at most {MAX_FIELD_TILES} are allowed (about 16384 x 16384 px).")
-        tiles = {}
+        tiles = dict(self.tiles)
         for ty in range(y // TILE, (y + h - 1) // TILE + 1):
             for tx in range(x // TILE, (x + w - 1) // TILE + 1):
-                t = np.zeros((TILE, TILE), np.uint8)
+                old = tiles.get((tx, ty))
+                t = old.copy() if old is not None else np.zeros((TILE, TILE), np.uint8)
                 x0, y0 = tx * TILE, ty * TILE
                 ix0, iy0 = max(x0, x), max(y0, y)
                 ix1, iy1 = min(x0 + TILE, x + w), min(y0 + TILE, y + h)
-                t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
+                new = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
+                part = t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0]
+                part[...] = np.where(new == 0, part, new) if keep_free else new
                 tiles[(tx, ty)] = t
-        return cls(tiles)
+        return CanvasLabels(tiles)
 
     def painted(self, cx: float, cy: float, radius: float, value: int, hardness: float = 0.8,
                 seed: int = 0) -> tuple[CanvasLabels, tuple[int, int, int, int]]:
@@ -297,22 +307,6 @@ class CanvasLabels:
                 base[take] = value
                 tiles[(tx, ty)] = base
         return CanvasLabels(tiles), (x0, y0, x1, y1)
-
-    def replaced(self, values: np.ndarray, x: int, y: int) -> CanvasLabels:
-        """These labels with the block ``values`` (uint8, 0 free) written at canvas (x, y)."""
-        values = _canvas_u8(values)
-        h, w = values.shape
-        tiles = dict(self.tiles)
-        for ty in range(y // TILE, (y + h - 1) // TILE + 1):
-            for tx in range(x // TILE, (x + w - 1) // TILE + 1):
-                old = tiles.get((tx, ty))
-                t = old.copy() if old is not None else np.zeros((TILE, TILE), np.uint8)
-                x0, y0 = tx * TILE, ty * TILE
-                ix0, iy0 = max(x0, x), max(y0, y)
-                ix1, iy1 = min(x0 + TILE, x + w), min(y0 + TILE, y + h)
-                t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
-                tiles[(tx, ty)] = t
-        return CanvasLabels(tiles)
 
     def changed_rects(self, other: CanvasLabels) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two label maps."""

@@ -15,7 +15,12 @@ import numpy as np
 from imgui_bundle import imgui
 
 from infinitex.engine.controls import CanvasLabels, ExemplarLabels
-from infinitex.engine.controls.label_maps import exemplar_labels_from_colors, fit_label_map, load_label_image
+from infinitex.engine.controls.label_maps import (
+    canvas_labels_from_colors,
+    exemplar_labels_from_colors,
+    fit_label_map,
+    load_label_image,
+)
 from infinitex.engine.controls.labels import propose_labels
 from infinitex.engine.exemplar import ExemplarError
 from infinitex.project.document import LabelMaps
@@ -90,6 +95,20 @@ class LabelTool(Tool):
                   "Import label map")
         self.active = 0
 
+    def place_image(self, path: str) -> None:
+        """A label image (the exemplar map's colors, transparent = free) placed
+        centered in the view; its free pixels keep what is painted there."""
+        ed = self.ed
+        lab = self.labels
+        try:
+            values = canvas_labels_from_colors(load_label_image(path, "canvas label map"), list(lab.colors))
+            h, w = values.shape
+            canvas = lab.canvas.replaced(values, int(ed.view.x) - w // 2, int(ed.view.y) - h // 2, keep_free=True)
+        except (ExemplarError, ValueError) as exc:
+            ed.dialogs.message("Canvas label map", str(exc))
+            return
+        self._set(replace(lab, canvas=canvas), "Place label image")
+
     def propose(self) -> None:
         """Labels proposed by clustering the exemplar's appearance into ``propose_n`` regions."""
         ed = self.ed
@@ -154,6 +173,11 @@ class LabelTool(Tool):
         if imgui.is_item_deactivated_after_edit() and ed.history is not None:
             ed.history.end_group()
         _, self.brush.eraser = imgui.checkbox("Eraser (back to free)", self.brush.eraser)
+        if imgui.button("Place label image..."):
+            ed.dialogs.ask_path("Canvas label map", False, LABEL_FILTER, self.place_image)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("An image in the exemplar's label colors, placed centered in the view; its "
+                              "transparent pixels leave the canvas as it is")
         if not lab.canvas.empty and imgui.button("Clear canvas labels"):
             self._set(replace(lab, canvas=CanvasLabels()), "Clear canvas labels")
         imgui.same_line()
