@@ -32,7 +32,7 @@ from infinitex.engine.pyramid import SynthesisError
 from infinitex.engine.safeio import WriteError, printable
 from infinitex.export.jobs import ExportEstimate, StreamedExport
 from infinitex.export.window import ExportJob
-from infinitex.project import Autosave, Display, History, View
+from infinitex.project import Autosave, Display, Document, History, View
 
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay, LabelOverlay
@@ -387,10 +387,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.frame = frame_for(self.view, w, h, s.L, level, geom)
             if self.doc is not self._last_doc:
                 prev, self._last_doc = self._last_doc, self.doc
-                # Canvas paint and features are re-synthesized locally and exactly: no coarse preview.
-                local = replace(prev, randomness_canvas=self.doc.randomness_canvas,
-                                features=self.doc.features) if prev is not None else None
-                if local != self.doc:
+                if not local_edit(prev, self.doc):
                     self._last_edit = time.monotonic()
             interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
             t0 = time.perf_counter()
@@ -464,6 +461,16 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)
                                 or self.frame_count >= self.min_frames + 3000):
             self.params.app_shall_exit = True
+
+
+def local_edit(prev: Document | None, doc: Document) -> bool:
+    """Whether ``doc`` differs from ``prev`` only in what is re-synthesized
+    locally and exactly (canvas paint, canvas labels, features): no coarse
+    preview for those."""
+    if prev is None:
+        return False
+    labels = prev.labels if None in (prev.labels, doc.labels) else replace(prev.labels, canvas=doc.labels.canvas)
+    return replace(prev, randomness_canvas=doc.randomness_canvas, features=doc.features, labels=labels) == doc
 
 
 def probe_gl() -> str | None:

@@ -395,15 +395,23 @@ def _mix_features(lab: np.ndarray, s: int, h: int, w: int) -> np.ndarray:
     """Packed canvas mixes from (h + 2) s x (w + 2) s label samples (a border
     of one level pixel for the blur): counts per level pixel, the 3 x 3
     binomial blur, the two largest painted labels and the painted share."""
-    blocks = lab.reshape(h + 2, s, w + 2, s)
-    counts = np.stack([(blocks == v).sum(axis=(1, 3)) for v in range(MAX_LABELS + 1)], axis=2).astype(np.int64)
+    # Counts of the values present only (one bincount), free first.
+    values = np.union1d([FREE], np.unique(lab))
+    lut = np.zeros(MAX_LABELS + 1, np.int64)
+    lut[values] = np.arange(len(values))
+    cell = (np.arange(h + 2)[:, None, None, None] * (w + 2) + np.arange(w + 2)[None, None, :, None])
+    idx = (cell * len(values) + lut[lab.reshape(h + 2, s, w + 2, s)]).ravel()
+    counts = np.bincount(idx, minlength=(h + 2) * (w + 2) * len(values)).reshape(h + 2, w + 2, len(values))
     blur = counts[:-2] * BINOMIAL[0] + counts[1:-1] * BINOMIAL[1] + counts[2:] * BINOMIAL[2]
     blur = blur[:, :-2] * BINOMIAL[0] + blur[:, 1:-1] * BINOMIAL[1] + blur[:, 2:] * BINOMIAL[2]
     total = 16 * s * s
-    painted = total - blur[:, :, FREE]
+    painted = total - blur[:, :, 0]
     share = (255 * painted) // total
-    i1, i2, w1, w2 = top_two(blur[:, :, 1:])
-    packed = pack_mix(i1, i2, w1, w2, share)
+    if len(values) == 1:
+        return np.zeros((h, w), np.uint32)
+    i1, i2, w1, w2 = top_two(blur[:, :, 1:])  # the painted values, ascending: ties keep the lower label
+    ids = values[1:] - 1
+    packed = pack_mix(ids[i1], ids[i2], w1, w2, share)
     return np.where(share >= SHARE_MIN, packed, np.uint32(0)).astype(np.uint32)
 
 
