@@ -211,7 +211,7 @@ def add_label_args(p: argparse.ArgumentParser) -> None:
                    "pixels), placed by --labels-origin; transparent pixels and everything around it are free")
     g.add_argument("--labels-origin", nargs=2, type=integer, default=[0, 0], metavar=("X", "Y"),
                    help="canvas position of the canvas label map's top-left pixel (default 0 0)")
-    g.add_argument("--label-strength", type=number, default=1.0, metavar="S",
+    g.add_argument("--label-strength", type=number, default=None, metavar="S",
                    help="how strongly the synthesis follows the labels (0 to 8; default 1; more at coarse scales)")
 
 
@@ -227,7 +227,7 @@ def label_maps(args, original: tuple[int, int], fit: str, m: int, base=None):
         load_label_image,
     )
     from infinitex.project.document import LabelMaps
-    if not 0.0 <= args.label_strength <= 8.0:
+    if args.label_strength is not None and not 0.0 <= args.label_strength <= 8.0:
         raise CliError("--label-strength must be between 0 and 8.", EXIT_USAGE)
     if args.labels_canvas and not (args.labels_exemplar or base is not None):
         raise CliError("--labels-canvas needs --labels-exemplar (which colors are which labels).", EXIT_USAGE)
@@ -246,7 +246,7 @@ def label_maps(args, original: tuple[int, int], fit: str, m: int, base=None):
         if min(x, y) < -COORD_LIMIT or max(x + values.shape[1], y + values.shape[0]) > COORD_LIMIT:
             raise CliError(f"The canvas label map must lie within +-{COORD_LIMIT}.", EXIT_USAGE)
         lab = replace(lab, canvas=CanvasLabels.from_image(values, x, y))
-    if args.labels_exemplar or args.labels_canvas or args.label_strength != 1.0:
+    if args.label_strength is not None:
         lab = replace(lab, strength=float(args.label_strength))
     return lab
 

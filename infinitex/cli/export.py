@@ -243,13 +243,13 @@ def run_export(argv: list[str]) -> int:
         c = randomness_controls(args, doc.fit, ex.size, doc.controls(ex.size))
         doc = replace(doc, randomness_exemplar=c.randomness_exemplar, randomness_canvas=c.randomness_canvas,
                       features=c.features, avoid_exemplar=c.avoid)
-    if args.labels_exemplar or args.labels_canvas or args.label_strength != 1.0:
+    if args.labels_exemplar or args.labels_canvas or args.label_strength is not None:
         doc = replace(doc, labels=label_maps(args, ex.original_size, doc.fit, ex.size, doc.labels))
-        try:
-            doc.validate()
-            doc.controls(ex.size).validate(ex.size)
-        except ValueError as exc:
-            raise CliError(str(exc), EXIT_USAGE) from None
+    try:  # the project with every argument applied (--make-tileable, --lattice, labels...)
+        doc.validate()
+        doc.controls(ex.size).validate(ex.size)
+    except ValueError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
     if args.scheduler not in (None, "local"):
         from infinitex.export.workers import probe_scheduler
         probe_scheduler(args.scheduler)  # a cluster out of reach fails now, not after the analysis

@@ -102,6 +102,10 @@ class LabelMaps:
             raise ProjectError("The exemplar's label map uses a label without a color.")
         if self.canvas.used and max(self.canvas.used) >= len(self.colors):
             raise ProjectError("The canvas labels use a label without a color.")
+        missing = sorted(set(self.canvas.used) - set(self.exemplar.present))
+        if missing:
+            raise ProjectError(f"The canvas uses {self.name(missing[0])}, which the exemplar's labels do not have "
+                               "(any more); give the exemplar some of it, or erase it from the canvas.")
         if not (is_number(self.strength) and 0.0 <= self.strength <= 8.0):
             raise ProjectError("The label strength must be a number from 0 to 8.")
 

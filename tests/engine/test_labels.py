@@ -186,6 +186,8 @@ def test_documents_and_projects_keep_the_labels(tmp_path):
     assert saved["version"] == 8 and saved["labels"]["names"] == ["stones", "", "grass"]
     back = load_project(str(path)).document
     assert back.labels == lab and back.labels.name(1) == "Label 2" and back.controls(128) == c
+    with pytest.raises(ProjectError, match="uses grass, which the exemplar"):  # the canvas uses a label it lacks
+        replace(lab, exemplar=ExemplarLabels(np.zeros((128, 128), np.uint8))).validate()
     for damage in (lambda d: d["labels"].update(strength=99), lambda d: d["labels"].update(colors=[[0, 0]]),
                    lambda d: d["labels"].update(exemplar="AAAA"),
                    lambda d: d["labels"]["canvas"]["tiles"][0].update(x=True),
@@ -233,6 +235,23 @@ def test_both_commands_take_label_maps(tmp_path):
                               (("--labels-canvas", str(canvas)), 2, "needs --labels-exemplar")):
         r = cli("synth", str(ex), "-o", str(tmp_path / "x.png"), "--size", "32", "32", "-q", *args)
         assert r.returncode == code and words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    # A project keeps its label strength unless --label-strength is given; Make tileable is refused with labels.
+    from infinitex.project import Document, ExemplarSource, Project, save_project
+    from infinitex.project.document import LabelMaps
+    proj = tmp_path / "p.itex"
+    save_project(str(proj), Project(Document(ExemplarSource.from_file(str(ex)), structure=0, labels=LabelMaps(
+        halves(128), ((0, 0, 0), (9, 9, 9), (40, 200, 40)), (), stripes(0, 0, 64, 64), 2.5))))
+    from infinitex.cli.common import label_maps
+    from infinitex.project import load_project
+    import argparse
+    doc = load_project(str(proj)).document
+    args = argparse.Namespace(labels_exemplar=None, labels_canvas=str(canvas), labels_origin=[0, 0], label_strength=None)
+    got = label_maps(args, (128, 128), "resize", 128, doc.labels)  # a new canvas map in the project's colors
+    assert got.strength == 2.5 and got.canvas != doc.labels.canvas and got.colors == doc.labels.colors
+    assert label_maps(argparse.Namespace(labels_exemplar=None, labels_canvas=None, labels_origin=[0, 0],
+                                         label_strength=None), (128, 128), "resize", 128, doc.labels).strength == 2.5
+    r = cli("export", str(proj), "-o", str(tmp_path / "t.png"), "--toroidal", "64", "--make-tileable", "-q")
+    assert r.returncode == 2 and "Make tileable" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
 def test_a_label_image_placed_over_painted_labels_keeps_them_where_it_is_free():

@@ -5,8 +5,10 @@ with the same safeguards as exemplars.
 Each distinct color is a label (pure black too); the same color means the same
 label in both maps. The exemplar's map gives the labels (at most 16, ordered
 by color value); the canvas map may use only those colors, and its fully
-transparent pixels are free (no constraint). A map with in-between colors
-(anti-aliased or resized smoothly) is refused with a sentence that says so.
+transparent pixels are free (no constraint). An exemplar map with more than
+16 colors (anti-aliased or resized smoothly) is refused with a sentence that
+says why; a few stray in-between colors would become labels of their own
+(the editor lists them).
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ def load_label_image(path: str, what: str) -> np.ndarray:
         raise ExemplarError(f"The {what}: {exc}") from None
     with decoding(name), open_image(data, name) as img:
         w, h = img.size
-        cost = len(data) + w * h * 12 + (16 << 20)
+        cost = len(data) + w * h * 48 + (16 << 20)  # RGBA, the color keys, their sort and inverse
         if cost > IMPORT_BUDGET:
             raise ExemplarError(f"{name} ({w}x{h} px) would need about {cost // 2**20} MB to read, more than the "
                                 f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
@@ -44,7 +46,7 @@ def load_label_image(path: str, what: str) -> np.ndarray:
 
 
 def _keys(rgb: np.ndarray) -> np.ndarray:
-    return (rgb[..., 0].astype(np.int64) << 16) | (rgb[..., 1].astype(np.int64) << 8) | rgb[..., 2]
+    return (rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8) | rgb[..., 2]
 
 
 def _hex(key: int) -> str:
@@ -68,7 +70,7 @@ def canvas_labels_from_colors(rgba: np.ndarray, palette: list[Color], name: str 
     1 + the label of its color in ``palette``; a color the palette lacks is
     refused (the first one found, with its position)."""
     keys = _keys(rgba[..., :3])
-    known = np.array([(r << 16) | (g << 8) | b for r, g, b in palette], np.int64)
+    known = np.array([(r << 16) | (g << 8) | b for r, g, b in palette], np.uint32)
     order = np.argsort(known)
     pos = np.searchsorted(known[order], keys)
     pos = np.minimum(pos, len(known) - 1)

@@ -41,7 +41,7 @@ region and find its transitions.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -124,24 +124,9 @@ class ExemplarLabels(ExemplarArray):
         """The labels the map uses, ascending."""
         return tuple(int(i) for i in np.flatnonzero(np.bincount(self.values.ravel(), minlength=MAX_LABELS)))
 
-    def _levels(self, toroidal: bool) -> list[np.ndarray]:
-        cache = self.__dict__.setdefault("_stack", {})
-        if toroidal not in cache:
-            from ..neighborhoods import gaussian_stack
-            onehot = np.stack([(self.values == i).astype(np.float32) for i in self.present], axis=2)
-            cache[toroidal] = gaussian_stack(onehot, toroidal)
-        return cache[toroidal]
-
     def features(self, level: int, toroidal: bool) -> np.ndarray:
         """The packed mix of every exemplar texel at ``level`` (uint32 (m, m))."""
-        cache = self.__dict__.setdefault("_features", {})
-        key = (level, toroidal)
-        if key not in cache:
-            shares = np.clip(self._levels(toroidal)[level], 0.0, None)
-            ids = np.array(self.present, np.int64)
-            i1, i2, w1, w2 = top_two(shares)
-            cache[key] = pack_mix(ids[i1], ids[i2], w1, w2)
-        return cache[key]
+        return _exemplar_mixes(self, toroidal)[level]
 
     def painted(self, cx: float, cy: float, radius: float, label: int) -> ExemplarLabels:
         """A hard round dab of ``label`` (exemplar pixels; clipped at its border)."""
@@ -159,27 +144,42 @@ class ExemplarLabels(ExemplarArray):
         """int32 (MAX_LABELS, SEED_COUNT, 2): per label, exemplar texels (x, y)
         mostly of that label at ``level`` (its main label, weight >= 192 when
         any texel has it), spread by a fixed hash; a label the map lacks: zeros."""
-        cache = self.__dict__.setdefault("_seeds", {})
-        key = (level, toroidal)
-        if key not in cache:
-            f = self.features(level, toroidal).astype(np.int64)
-            m = self.size
-            table = np.zeros((MAX_LABELS, SEED_COUNT, 2), np.int32)
-            idx = np.arange(m * m, dtype=np.int64)
-            main, strong = f.ravel() & 15, ((f.ravel() >> 8) & 255) >= 192
-            for lab in self.present:
-                pick = idx[(main == lab) & strong]
-                if not len(pick):
-                    pick = idx[main == lab]
-                if not len(pick):
-                    pick = idx[self.values.ravel() == lab]
-                with np.errstate(over="ignore"):
-                    order = np.argsort(fixed.lowbias32(pick.astype(np.uint32) ^ np.uint32(SEED_SALT + lab)),
-                                       kind="stable")
-                chosen = pick[order[np.arange(SEED_COUNT) % len(pick)]]
-                table[lab, :, 0], table[lab, :, 1] = chosen % m, chosen // m
-            cache[key] = table
-        return cache[key]
+        return _seed_table(self, level, toroidal)
+
+
+@lru_cache(maxsize=2)
+def _exemplar_mixes(labels: ExemplarLabels, toroidal: bool) -> tuple[np.ndarray, ...]:
+    """Every level's packed exemplar mixes (a few label maps are kept: the
+    documents on the undo stack hold their maps, not these)."""
+    from ..neighborhoods import gaussian_stack
+    ids = np.array(labels.present, np.int64)
+    onehot = np.stack([(labels.values == i).astype(np.float32) for i in labels.present], axis=2)
+    out = []
+    for shares in gaussian_stack(onehot, toroidal):
+        i1, i2, w1, w2 = top_two(np.clip(shares, 0.0, None))
+        out.append(pack_mix(ids[i1], ids[i2], w1, w2))
+    return tuple(out)
+
+
+@lru_cache(maxsize=32)
+def _seed_table(labels: ExemplarLabels, level: int, toroidal: bool) -> np.ndarray:
+    f = labels.features(level, toroidal).astype(np.int64)
+    m = labels.size
+    table = np.zeros((MAX_LABELS, SEED_COUNT, 2), np.int32)
+    idx = np.arange(m * m, dtype=np.int64)
+    main, strong = f.ravel() & 15, ((f.ravel() >> 8) & 255) >= 192
+    for lab in labels.present:
+        pick = idx[(main == lab) & strong]
+        if not len(pick):
+            pick = idx[main == lab]
+        if not len(pick):
+            pick = idx[labels.values.ravel() == lab]
+        with np.errstate(over="ignore"):
+            order = np.argsort(fixed.lowbias32(pick.astype(np.uint32) ^ np.uint32(SEED_SALT + lab)),
+                               kind="stable")
+        chosen = pick[order[np.arange(SEED_COUNT) % len(pick)]]
+        table[lab, :, 0], table[lab, :, 1] = chosen % m, chosen // m
+    return table
 
 
 def typical_distance(nbhd: np.ndarray, samples: int = 4096) -> int:

@@ -104,8 +104,8 @@ uint label_cost(uint t, uint e) {
     }
     uint t1 = t & 15u, t2 = (t >> 4) & 15u, w1 = (t >> 8) & 255u, w2 = (t >> 16) & 255u;
     uint v1 = (e >> 8) & 255u, v2 = (e >> 16) & 255u;
-    uint dot = w1 * lab_weight_of(e, t1) + (t2 != t1 ? w2 * lab_weight_of(e, t2) : 0u);
-    uint D = w1 * w1 + w2 * w2 + v1 * v1 + v2 * v2 - 2u * dot;
+    uint te = w1 * lab_weight_of(e, t1) + (t2 != t1 ? w2 * lab_weight_of(e, t2) : 0u);
+    uint D = w1 * w1 + w2 * w2 + v1 * v1 + v2 * v2 - 2u * te;
     return (((D * share) >> 8) * uint(lab_weight)) >> 4;
 }
 #endif

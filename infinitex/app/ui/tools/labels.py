@@ -70,7 +70,10 @@ class LabelTool(Tool):
 
     @property
     def labels(self) -> LabelMaps | None:
-        return self.ed.doc.labels if self.ed.doc is not None else None
+        lab = self.ed.doc.labels if self.ed.doc is not None else None
+        if lab is not None and self.active >= len(lab.colors):
+            self.active = len(lab.colors) - 1  # an undo or another document has fewer labels
+        return lab
 
     def _set(self, labels: LabelMaps | None, what: str, group: object = None) -> None:
         self.ed.edit(replace(self.ed.doc, labels=labels), what, group=group)
@@ -214,12 +217,12 @@ class LabelTool(Tool):
         lab = self.labels
         if lab is None or self.mode == "exemplar":
             return
-        if self.mode == "fill":
-            self.fill(pos)
-            return
         if self.active not in lab.exemplar.present and not self.brush.eraser:
             self.ed.notice = (f"{lab.name(self.active)} is not on the exemplar: give the exemplar some of it "
                               "first (Exemplar mode).", time.monotonic())
+            return
+        if self.mode == "fill":
+            self.fill(pos)
             return
         self._group, self._last = object(), None
         self.drag(pos, screen)
@@ -297,7 +300,7 @@ class LabelTool(Tool):
         dabs = dab_centers(self._last, pos, 0.25 * self.brush.radius)
         if not dabs or lab is None or self.brush.eraser:
             return
-        ex = lab.exemplar
+        ex = lab.exemplar.scaled(self.ed.session.analysis.size)  # the window shows it at the exemplar's size
         for cx, cy in dabs:
             ex = ex.painted(cx, cy, self.brush.radius, self.active)
         self._last = dabs[-1]
