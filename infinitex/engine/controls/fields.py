@@ -70,6 +70,31 @@ def dab_rect(cx: float, cy: float, radius: float) -> tuple[int, int, int, int]:
             int(np.ceil(cx + radius)) + 1, int(np.ceil(cy + radius)) + 1)
 
 
+def tile_changes(a_tiles: dict, b_tiles: dict, blank: np.ndarray) -> list:
+    """(x0, y0, x1, y1) per TILE x TILE tile: the box of the pixels that differ
+    between two sparse tile maps (an absent tile is ``blank``)."""
+    out = []
+    for k in set(a_tiles) | set(b_tiles):
+        a, b = a_tiles.get(k), b_tiles.get(k)
+        if a is b:
+            continue
+        ys, xs = np.nonzero((a if a is not None else blank) != (b if b is not None else blank))
+        if len(xs):  # the bounding box of the pixels that differ
+            x0, y0 = k[0] * TILE, k[1] * TILE
+            out.append((x0 + int(xs.min()), y0 + int(ys.min()), x0 + int(xs.max()) + 1, y0 + int(ys.max()) + 1))
+    return out
+
+
+def tiles_key(tiles: dict, salt: bytes = b"") -> str:
+    """A content hash of sparse tiles (in tile order)."""
+    import hashlib
+    hsh = hashlib.sha256(salt)
+    for k in sorted(tiles):
+        hsh.update(repr(k).encode())
+        hsh.update(tiles[k].tobytes())
+    return hsh.hexdigest()
+
+
 class ExemplarArray:
     """An m x m array over the exemplar (``values``), compared by content:
     what ExemplarField and ExemplarMask share."""
@@ -204,27 +229,11 @@ class CanvasField:
 
     def changed_rects(self, other: CanvasField) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two fields."""
-        out = []
-        for k in set(self.tiles) | set(other.tiles):
-            a, b = self.tiles.get(k), other.tiles.get(k)
-            if a is b:
-                continue
-            a = a if a is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
-            b = b if b is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
-            ys, xs = np.nonzero(a != b)
-            if len(xs):  # the bounding box of the pixels that differ
-                x0, y0 = k[0] * TILE, k[1] * TILE
-                out.append((x0 + int(xs.min()), y0 + int(ys.min()), x0 + int(xs.max()) + 1, y0 + int(ys.max()) + 1))
-        return out
+        return tile_changes(self.tiles, other.tiles, np.full((TILE, TILE), NEUTRAL, np.uint16))
 
     @cached_property
     def key(self) -> str:
-        import hashlib
-        hsh = hashlib.sha256()
-        for k in sorted(self.tiles):
-            hsh.update(repr(k).encode())
-            hsh.update(self.tiles[k].tobytes())
-        return hsh.hexdigest()
+        return tiles_key(self.tiles)
 
     def __eq__(self, other):
         return isinstance(other, CanvasField) and self.key == other.key

@@ -46,7 +46,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from .. import fixed
-from .fields import MAX_FIELD_TILES, TILE, ExemplarArray, FieldTooLarge, dab_rect, dab_weights
+from .fields import MAX_FIELD_TILES, TILE, ExemplarArray, FieldTooLarge, dab_rect, dab_weights, tile_changes, tiles_key
 
 MAX_LABELS = 16
 FREE = 0               # a canvas pixel without a label
@@ -310,27 +310,11 @@ class CanvasLabels:
 
     def changed_rects(self, other: CanvasLabels) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two label maps."""
-        out = []
-        for k in set(self.tiles) | set(other.tiles):
-            a, b = self.tiles.get(k), other.tiles.get(k)
-            if a is b:
-                continue
-            a = a if a is not None else np.zeros((TILE, TILE), np.uint8)
-            b = b if b is not None else np.zeros((TILE, TILE), np.uint8)
-            ys, xs = np.nonzero(a != b)
-            if len(xs):
-                x0, y0 = k[0] * TILE, k[1] * TILE
-                out.append((x0 + int(xs.min()), y0 + int(ys.min()), x0 + int(xs.max()) + 1, y0 + int(ys.max()) + 1))
-        return out
+        return tile_changes(self.tiles, other.tiles, np.zeros((TILE, TILE), np.uint8))
 
     @cached_property
     def key(self) -> str:
-        import hashlib
-        hsh = hashlib.sha256(b"labels")
-        for k in sorted(self.tiles):
-            hsh.update(repr(k).encode())
-            hsh.update(self.tiles[k].tobytes())
-        return hsh.hexdigest()
+        return tiles_key(self.tiles, b"labels")
 
     def __eq__(self, other):
         return isinstance(other, CanvasLabels) and self.key == other.key
