@@ -12,14 +12,12 @@ says why; a few stray in-between colors would become labels of their own
 """
 from __future__ import annotations
 
-import os
-
 import numpy as np
 from PIL import Image
 
-from ..exemplar import IMPORT_BUDGET, MAX_FILE_BYTES, ExemplarError, crop_box, decoding, open_image
-from ..safeio import ReadError, printable, read_limited
+from ..exemplar import ExemplarError, crop_box
 from .labels import MAX_LABELS
+from .maps import opened_map
 
 Color = tuple[int, int, int]
 
@@ -27,18 +25,8 @@ Color = tuple[int, int, int]
 def load_label_image(path: str, what: str) -> np.ndarray:
     """An image file as RGBA uint8 (H, W, 4), read like an exemplar: regular
     files only, size and decoding cost checked before decoding."""
-    name = f"The {what} {printable(os.path.basename(path) or path)}"
-    try:
-        data = read_limited(path, MAX_FILE_BYTES, "image")
-    except ReadError as exc:
-        raise ExemplarError(f"The {what}: {exc}") from None
-    with decoding(name), open_image(data, name) as img:
-        w, h = img.size
-        cost = len(data) + w * h * 48 + (16 << 20)  # RGBA, the color keys, their sort and inverse
-        if cost > IMPORT_BUDGET:
-            raise ExemplarError(f"{name} ({w}x{h} px) would need about {cost // 2**20} MB to read, more than the "
-                                f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
-        img.load()
+    # RGBA, the color keys, their sort and inverse
+    with opened_map(path, what, lambda w, h, mode, file_bytes: file_bytes + w * h * 48 + (16 << 20)) as (name, img):
         if img.mode.startswith("I") or img.mode == "F":
             raise ExemplarError(f"{name} is a 16-bit or float image; a label map has 8-bit colors (an indexed "
                                 "PNG or distinct flat colors).")

@@ -4,6 +4,7 @@ arguments), with the same safeguards as exemplars."""
 from __future__ import annotations
 
 import os
+from contextlib import contextmanager
 
 import numpy as np
 from PIL import Image
@@ -19,12 +20,12 @@ def field_map_cost(w: int, h: int, mode: str, file_bytes: int) -> int:
     return file_bytes + w * h * (4 + 4 + 4 + 2) + (16 << 20)
 
 
-def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
-    """A grayscale randomness map as uint16 field values (1/32768ths): 8-bit
-    M = value / 128 (0 calm, 128 neutral, 255 almost 2), 16-bit M = value / 32768.
-    Color images are read as their luminance. Same safeguards as exemplars:
-    regular files only, the size and the decoder's tiles or strips checked from
-    the header, and the cost of reading it against IMPORT_BUDGET, before decoding."""
+@contextmanager
+def opened_map(path: str, what: str, cost):
+    """The decoded image of a map file (``with``: (name, image)), read like an
+    exemplar: regular files only, the size and the decoder's tiles or strips
+    checked from the header, and ``cost(w, h, mode, file_bytes)`` (the bytes
+    reading it needs at its peak) against IMPORT_BUDGET, before decoding."""
     name = f"The {what} {printable(os.path.basename(path) or path)}"
     try:
         data = read_limited(path, MAX_FILE_BYTES, "image")
@@ -32,11 +33,21 @@ def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
         raise ExemplarError(f"The {what}: {exc}") from None
     with decoding(name), open_image(data, name) as img:
         w, h = img.size
-        cost = field_map_cost(w, h, img.mode, len(data))
-        if cost > IMPORT_BUDGET:
-            raise ExemplarError(f"{name} ({w}x{h} px) would need about {cost // 2**20} MB to read, more than the "
+        need = cost(w, h, img.mode, len(data))
+        if need > IMPORT_BUDGET:
+            raise ExemplarError(f"{name} ({w}x{h} px) would need about {need // 2**20} MB to read, more than the "
                                 f"{IMPORT_BUDGET // 2**20} MB allowed; reduce it first.")
         img.load()
+        yield name, img
+
+
+def load_field_map(path: str, what: str = "randomness map") -> np.ndarray:
+    """A grayscale randomness map as uint16 field values (1/32768ths): 8-bit
+    M = value / 128 (0 calm, 128 neutral, 255 almost 2), 16-bit M = value / 32768.
+    Color images are read as their luminance. Same safeguards as exemplars:
+    regular files only, the size and the decoder's tiles or strips checked from
+    the header, and the cost of reading it against IMPORT_BUDGET, before decoding."""
+    with opened_map(path, what, field_map_cost) as (_, img):
         if img.mode.startswith("I;16") or img.mode == "I":
             a = np.asarray(img)
             if a.dtype.kind == "u" and a.dtype.itemsize == 2:
