@@ -41,7 +41,7 @@ from infinitex.engine.safeio import (
     read_limited,
 )
 
-from .labels_json import labels_from_json, labels_to_json
+from .labels_json import labels_from_json, labels_to_json, tiles_from_json
 from .document import (
     DISPLAY_MODES,
     GEOMETRIES,
@@ -259,7 +259,6 @@ def _fields_to_json(doc: Document) -> dict | None:
 
 
 MAX_FIELD_TILES = 65536
-_TILE_LIMIT = 2 ** 31 // TILE
 
 
 def _fields_from_json(r: object) -> tuple[ExemplarField | None, CanvasField | None]:
@@ -281,19 +280,9 @@ def _fields_from_json(r: object) -> tuple[ExemplarField | None, CanvasField | No
     c = r.get("canvas")
     cfield = None
     if c is not None:
-        if not isinstance(c, dict) or c.get("tile") != TILE or not isinstance(c.get("tiles"), list) \
-                or len(c["tiles"]) > MAX_FIELD_TILES:
-            raise ProjectError("The project's canvas randomness field is damaged.")
-        tiles = {}
-        for t in c["tiles"]:
-            if not isinstance(t, dict):
-                raise ProjectError("The project's canvas randomness field is damaged.")
-            tx, ty = t.get("x"), t.get("y")
-            if not all(isinstance(v, int) and not isinstance(v, bool) and -_TILE_LIMIT <= v < _TILE_LIMIT
-                       for v in (tx, ty)) or (tx, ty) in tiles:
-                raise ProjectError("The project's canvas randomness field is damaged.")
-            tiles[(tx, ty)] = _unpng16(t.get("png16"), (TILE, TILE), "canvas randomness field")
-        cfield = CanvasField(tiles)
+        cfield = CanvasField(tiles_from_json(c, "canvas randomness field", "png16",
+                                             lambda text: _unpng16(text, (TILE, TILE), "canvas randomness field"),
+                                             MAX_FIELD_TILES))
     return efield, cfield
 
 

@@ -44,6 +44,26 @@ def _unpng8(text: object, shape: tuple[int, int] | None, what: str, limit: int) 
     return a
 
 
+def tiles_from_json(c: object, what: str, entry: str, decode, limit: int) -> dict:
+    """Sparse TILE x TILE tiles from a project's {"tile", "tiles": [{"x", "y",
+    ``entry``}]} (the canvas randomness field, the canvas labels), each decoded
+    by ``decode(text)``; at most ``limit`` tiles, unique positions; all or nothing."""
+    bad = ProjectError(f"The project's {what} is damaged.")
+    if not isinstance(c, dict) or c.get("tile") != TILE or not isinstance(c.get("tiles"), list) \
+            or len(c["tiles"]) > limit:
+        raise bad
+    tiles = {}
+    for t in c["tiles"]:
+        if not isinstance(t, dict):
+            raise bad
+        tx, ty = t.get("x"), t.get("y")
+        if not all(isinstance(q, int) and not isinstance(q, bool) and -_TILE_LIMIT <= q < _TILE_LIMIT
+                   for q in (tx, ty)) or (tx, ty) in tiles:
+            raise bad
+        tiles[(tx, ty)] = decode(t.get(entry))
+    return tiles
+
+
 def labels_to_json(lab: LabelMaps) -> dict:
     return {
         "exemplar": _png8(lab.exemplar.values),
@@ -74,19 +94,8 @@ def labels_from_json(d: object) -> LabelMaps | None:
     if not (isinstance(names, list) and len(names) <= MAX_LABELS
             and all(isinstance(s, str) and len(s) <= 64 for s in names)) or not is_number(strength):
         raise bad
-    c = d.get("canvas")
-    if not isinstance(c, dict) or c.get("tile") != TILE or not isinstance(c.get("tiles"), list) \
-            or len(c["tiles"]) > MAX_LABEL_TILES:
-        raise ProjectError("The project's canvas labels are damaged.")
-    tiles = {}
-    for t in c["tiles"]:
-        if not isinstance(t, dict):
-            raise ProjectError("The project's canvas labels are damaged.")
-        tx, ty = t.get("x"), t.get("y")
-        if not all(isinstance(q, int) and not isinstance(q, bool) and -_TILE_LIMIT <= q < _TILE_LIMIT
-                   for q in (tx, ty)) or (tx, ty) in tiles:
-            raise ProjectError("The project's canvas labels are damaged.")
-        tiles[(tx, ty)] = _unpng8(t.get("png8"), (TILE, TILE), "canvas labels", MAX_LABELS)
+    tiles = tiles_from_json(d.get("canvas"), "canvas labels", "png8",
+                            lambda text: _unpng8(text, (TILE, TILE), "canvas labels", MAX_LABELS), MAX_LABEL_TILES)
     lab = LabelMaps(ExemplarLabels(v), tuple(tuple(x) for x in colors), tuple(names), CanvasLabels(tiles),
                     float(strength))
     lab.validate()
