@@ -63,7 +63,8 @@ adds a dab), ``Feature`` (an exemplar spot placed on the canvas), ``Lattice``
 (``detect_lattice(image)``, ``rectified_exemplar(image, lattice)``; analyze
 with ``AnalysisSettings(lattice=(nx, ny))``), ``ExemplarLabels`` and
 ``CanvasLabels`` (texture by numbers; ``label_controls(exemplar, maps...)``
-builds them from label images). Projects: ``load_project``,
+builds them from label images; ``palette(exemplars)`` packs several
+exemplars into one, one label each). Projects: ``load_project``,
 ``save_project``; the editor's exports: ``infinitex export``. Runnable
 examples of each capability are in ``examples/`` of the source tree.
 
@@ -80,7 +81,8 @@ ASSETS = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "assets")  
 # Names resolved on first use (PEP 562), so ``import infinitex`` and
 # ``infinitex --version`` stay fast and need no GL.
 _EXPORTS = {
-    "synthesize": "api", "tile": "api", "label_controls": "api",
+    "synthesize": "api", "tile": "api", "label_controls": "api", "palette": "api",
+    "PaletteLayout": "engine.palette",
     "Exemplar": "engine.exemplar", "ExemplarError": "engine.exemplar", "load_exemplar": "engine.exemplar",
     "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.imagefile",
     "to_u8": "engine.imagefile",

@@ -24,6 +24,7 @@ from .engine.controls.lattice import (
 from .engine.controls.lattice_detect import detect
 from .engine.exemplar import Exemplar, load_exemplar, load_full
 from .engine.imagefile import to_u8
+from .engine.palette import PaletteLayout
 from .engine.params import DEFAULT_STRUCTURE, SynthParams, structure_index, structure_params
 from .engine.pyramid import Rect
 from .engine.synth import Synthesizer
@@ -98,6 +99,21 @@ def label_controls(ex: Exemplar, exemplar_labels, canvas_labels, origin: tuple[i
                   label_strength=float(strength))
     out.validate(ex.size)
     return out
+
+
+def palette(exemplars, fit: str = "resize") -> tuple[Exemplar, PaletteLayout]:
+    """Several exemplars (paths, arrays in [0, 1] or Exemplars; 2 to 16) packed
+    into one exemplar, each a label (engine/palette.py): returns it and its
+    layout, whose ``labels()`` is the exemplar label map for :func:`synthesize`'s
+    ``labels`` (label i = exemplar i) and whose ``locate(coords)`` tells which
+    exemplar, and which of its pixels, each coordinate copies."""
+    from .engine.material import single
+    from .engine.palette import pack_palette
+    exs = [load_exemplar(e, fit=fit) if isinstance(e, (str, os.PathLike)) else _exemplar(e, None)[0] for e in exemplars]
+    names = [os.path.basename(os.fspath(e)) if isinstance(e, (str, os.PathLike)) else f"exemplar {i + 1}"
+             for i, e in enumerate(exemplars)]
+    mat, layout = pack_palette([single(ex) for ex in exs], names, fit)
+    return mat.maps[mat.primary].exemplar, layout
 
 
 def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, int] = (0, 0), *,

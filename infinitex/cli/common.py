@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import warnings
 from dataclasses import replace
@@ -213,6 +214,41 @@ def add_label_args(p: argparse.ArgumentParser) -> None:
                    help="canvas position of the canvas label map's top-left pixel (default 0 0)")
     g.add_argument("--label-strength", type=number, default=None, metavar="S",
                    help="how strongly the synthesis follows the labels (0 to 8; default 1; more at coarse scales)")
+    g.add_argument("--palette", type=palette_arg, default=None, metavar="B,C,...",
+                   help="more exemplars (or materials, by their first map) after the first, comma-separated: "
+                        "each is one label, in order (the first exemplar label 1, colored #e6194b; then #3cb44b, "
+                        "#ffe119, #0082c8, ...: docs/labels.md); a --labels-canvas map uses those colors")
+
+
+def palette_arg(text: str) -> list[str]:
+    paths = [p for p in text.split(",") if p.strip()]
+    if not 1 <= len(paths) <= 15:
+        raise argparse.ArgumentTypeError("a palette adds 1 to 15 exemplars, comma-separated")
+    return paths
+
+
+def palette_document(args, doc, quiet: bool = True):
+    """``doc`` (its exemplar or material first) with the --palette files as
+    more labels; a file named like a material's map brings its siblings."""
+    from infinitex.engine.material import IMAGE, MaterialError, assign_roles
+    from infinitex.engine.safeio import ReadError
+    from infinitex.project.document import ExemplarSource
+    if args.labels_exemplar:
+        raise CliError("--palette makes each exemplar a label; it does not go with --labels-exemplar.", EXIT_USAGE)
+    entries = [doc.sources()]
+    try:
+        for path in args.palette:
+            found = assign_roles([path])
+            if (IMAGE in found) != (doc.sources()[0][0] == IMAGE):
+                raise CliError(f"{printable(os.path.basename(path))} and the first exemplar are not both single "
+                               "images or both materials; a palette's exemplars have the same maps.", EXIT_USAGE)
+            entries.append(tuple((role, ExemplarSource.from_file(p)) for role, p in found.items()))
+    except (ReadError, MaterialError) as exc:
+        raise CliError(str(exc), EXIT_INPUT) from None
+    if not quiet:
+        sys.stderr.write("palette: " + ", ".join(f"label {i + 1} {printable(e[0][1].name)}"
+                                                 for i, e in enumerate(entries)) + "\n")
+    return doc.with_palette(entries)
 
 
 def label_maps(args, original: tuple[int, int], fit: str, m: int, base=None):

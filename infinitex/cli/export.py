@@ -32,6 +32,7 @@ from .common import (
     guarded,
     integer,
     label_maps,
+    palette_document,
     randomness_controls,
     resolve_lattice,
 )
@@ -186,6 +187,10 @@ def run_export(argv: list[str]) -> int:
             geometry = "original"
         except ReadError as exc:
             raise CliError(str(exc), EXIT_INPUT) from None
+    if args.palette:
+        doc = palette_document(args, doc, args.quiet)
+        inputs += doc.input_paths()
+        check_own_inputs(args, size, {role: src.name for role, src in doc.sources()}, inputs)
     if args.fidelity is not None:
         doc = replace(doc, structure=args.fidelity)
     if args.make_tileable:
@@ -219,7 +224,7 @@ def run_export(argv: list[str]) -> int:
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
-    material = material_for(doc) if doc.maps else None
+    material = material_for(doc) if doc.maps or doc.palette else None
     ex, settings = exemplar_for(doc, image, material)
     del image
     if material is not None:

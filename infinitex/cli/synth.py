@@ -18,10 +18,11 @@ import numpy as np
 
 from infinitex.engine.exemplar import FIT_MODES
 from infinitex.engine.params import DEFAULT_STRUCTURE, structure_params
-from infinitex.engine.safeio import atomic_write, printable
+from infinitex.engine.safeio import ReadError, atomic_write, printable
 from infinitex.engine.synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
 
 from .common import (
+    EXIT_INPUT,
     EXIT_USAGE,
     CliError,
     Parser,
@@ -39,6 +40,7 @@ from .common import (
     label_maps,
     jitter_arg,
     number,
+    palette_document,
     passes_arg,
     randomness_controls,
     resolve_lattice,
@@ -117,7 +119,7 @@ def run_synth(argv: list[str]) -> int:
         check_own_inputs(Writes(files=[p for p in (args.output, args.coords) if p]),
                          [args.exemplar, args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar,
                           args.labels_exemplar, args.labels_canvas,
-                          args.features])
+                          args.features, *(args.palette or [])])
     except OwnInputError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     check_lattice_args(args)
@@ -134,7 +136,20 @@ def run_synth(argv: list[str]) -> int:
         from infinitex.engine.exemplar import load_full
         image = load_full(args.exemplar)
         lattice = resolve_lattice(args.lattice, image, args.lattice_levels)
-    if lattice is not None:
+    palette = None
+    if args.palette:
+        if lattice is not None or args.make_tileable:
+            raise CliError("--palette goes with neither --lattice nor --make-tileable.", EXIT_USAGE)
+        from infinitex.project.document import Document, ExemplarSource
+        from infinitex.project.realize import exemplar_for
+        try:
+            first = Document(ExemplarSource.from_file(args.exemplar), fit=args.fit, toroidal=tor)
+        except ReadError as exc:
+            raise CliError(str(exc), EXIT_INPUT) from None
+        doc = palette_document(args, first, args.quiet)
+        ex = exemplar_for(doc)[0]
+        palette = replace(doc.labels, exemplar=doc.labels.exemplar.scaled(ex.size))
+    elif lattice is not None:
         ex = rectified_exemplar(image, lattice, source=args.exemplar)
     else:
         ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
@@ -160,7 +175,7 @@ def run_synth(argv: list[str]) -> int:
                        f"{ex.size}x{ex.size} exemplar), not {len(args.passes)}.", EXIT_USAGE)
     level_passes = tuple(args.passes) if len(args.passes) > 1 else None
     controls = randomness_controls(args, args.fit, ex.size)  # maps are read before the analysis
-    labels = label_maps(args, ex.original_size, args.fit, ex.size)
+    labels = label_maps(args, ex.original_size, args.fit, ex.size, palette)
     if labels is not None:
         if lattice is not None or args.make_tileable:
             raise CliError("Texture by numbers goes with neither --lattice nor --make-tileable.", EXIT_USAGE)

@@ -101,7 +101,7 @@ class LoadedDocument:
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
                 preview: bool = False) -> None:
         if material is None:
-            material = material_for(doc) if doc.maps else single(ex, [lv.stack for lv in an.levels])
+            material = material_for(doc) if doc.maps or doc.palette else single(ex, [lv.stack for lv in an.levels])
         self.release_synthesis()
         self.previewing = preview
         self.exemplar, self.analysis, self.material = ex, an, material

@@ -36,7 +36,7 @@ class ProjectSynthesizer:
 
     def __call__(self) -> Synthesizer:
         doc = project_from_json(parse_project_json(self.project_json.encode("utf-8"))).document
-        material = material_for(doc) if doc.maps else None
+        material = material_for(doc) if doc.maps or doc.palette else None
         ex, settings = exemplar_for(doc, material=material)
         an = analyze(ex, settings)  # the disk cache holds it: the parent analyzed it already
         params = doc.params(an.L)

@@ -17,6 +17,8 @@ import os
 from dataclasses import dataclass, field, replace
 
 from infinitex.engine.analysis import MODELS
+import numpy as np
+
 from infinitex.engine.controls import (
     MAX_LABELS,
     CanvasField,
@@ -28,6 +30,7 @@ from infinitex.engine.controls import (
     Feature,
     fit_features,
 )
+from infinitex.engine.controls.labels import LABEL_COLORS
 from infinitex.engine.controls.lattice import Lattice, LatticeError
 from infinitex.engine.exemplar import FIT_MODES, MAX_FILE_BYTES
 from infinitex.engine.material import IMAGE, ROLES
@@ -139,6 +142,10 @@ class Document:
     maps: tuple[tuple[str, ExemplarSource], ...] = ()
     weights: tuple[tuple[str, float], ...] | None = None  # maps feeding the analysis; None: the default
     labels: LabelMaps | None = None                    # texture by numbers
+    # A palette (engine/palette.py): the exemplars after the first (this
+    # document's exemplar or material), each as its maps [(role, file)], one
+    # label each; () for one exemplar.
+    palette: tuple[tuple[tuple[str, ExemplarSource], ...], ...] = ()
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on (a lattice's geometry: its
@@ -146,8 +153,9 @@ class Document:
         a material's maps and analysis weights)."""
         lat = None if self.lattice is None else replace(self.lattice, levels=None)
         mat = tuple((r, s.sha256) for r, s in self.maps)
+        pal = tuple(tuple((r, s.sha256) for r, s in entry) for entry in self.palette)
         return (self.exemplar.sha256, self.fit, self.toroidal, self.model, self.k, lat, mat, self.weights,
-                self.feature_weight, self.make_tileable)
+                self.feature_weight, self.make_tileable) + ((pal,) if pal else ())
 
     @property
     def is_material(self) -> bool:
@@ -161,7 +169,32 @@ class Document:
         """The files this document was read from (its exemplar, every map),
         where it knows them: what no export of it may replace. An embedded
         file has none (its bytes are in the project)."""
-        return [src.path for _, src in self.sources() if src.path]
+        return [src.path for entry in self.entries() for _, src in entry if src.path]
+
+    def entries(self) -> tuple[tuple[tuple[str, ExemplarSource], ...], ...]:
+        """Every exemplar of the palette as its maps [(role, file)] (one entry without a palette)."""
+        return (self.sources(),) + self.palette
+
+    def with_palette(self, entries) -> Document:
+        """This document synthesizing from a palette of ``entries`` (each its
+        maps [(role, file)], 2 to 16, the same roles): the first becomes the
+        exemplar, each one label named after its file (labels already painted
+        on the canvas are kept where their label remains). One entry: no palette."""
+        entries = [tuple(sorted(e, key=lambda rs: -1 if rs[0] == IMAGE else ROLES.index(rs[0]))) for e in entries]
+        first = self.with_maps(entries[0])
+        if len(entries) == 1:
+            return replace(first, palette=(), labels=None)
+        g = 1
+        while g * g < len(entries):
+            g *= 2
+        cells = (np.arange(g * g) % len(entries)).astype(np.uint8).reshape(g, g)  # engine/palette.py's layout
+        names = tuple(entry[0][1].name[:64] for entry in entries)
+        old = self.labels
+        canvas = old.canvas if old is not None and all(i < len(entries) for i in old.canvas.used) else CanvasLabels()
+        labels = LabelMaps(ExemplarLabels(cells), tuple(LABEL_COLORS[:len(entries)]), names, canvas,
+                           old.strength if old is not None else 1.0)
+        return replace(first, palette=tuple(tuple(e) for e in entries[1:]), labels=labels, lattice=None,
+                       make_tileable=False)
 
     def weight_dict(self) -> dict[str, float] | None:
         return None if self.weights is None else dict(self.weights)
@@ -275,6 +308,14 @@ class Document:
                 raise ProjectError("Texture by numbers does not work on a lattice; remove one of them.")
             if self.make_tileable:
                 raise ProjectError("Texture by numbers does not work with Make tileable yet; turn one of them off.")
+        if self.palette:
+            roles = [r for r, _ in self.sources()]
+            if len(self.palette) >= MAX_LABELS or any([r for r, _ in e] != roles for e in self.palette):
+                raise ProjectError(f"A palette has 2 to {MAX_LABELS} exemplars, each with the same maps.")
+            if self.lattice is not None or self.make_tileable:
+                raise ProjectError("A palette works without a lattice and without Make tileable.")
+            if self.labels is None:
+                raise ProjectError("A palette's exemplars are its labels; the project has no label map.")
         if self.weights is not None:
             roles = {r for r, _ in self.sources()}
             if any(r not in roles or not (is_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \

@@ -41,7 +41,7 @@ from infinitex.engine.safeio import (
     read_limited,
 )
 
-from .labels_json import labels_from_json, labels_to_json, tiles_from_json
+from .labels_json import labels_from_json, labels_to_json, palette_from_json, palette_to_json, tiles_from_json
 from .document import (
     DISPLAY_MODES,
     GEOMETRIES,
@@ -57,7 +57,7 @@ from .document import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 8              # 8: texture by numbers ("labels"); 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
+VERSION = 9              # 9: a palette of exemplars ("palette"); 8: texture by numbers ("labels"); 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
@@ -112,9 +112,9 @@ def fitted_project_json(project: Project, store) -> dict:
     ProjectError when even that does not fit."""
     limit = MAX_PROJECT_BYTES
     doc = project.document
-    sources = [doc.exemplar] + [src for _, src in doc.maps[1:]]
+    sources = [doc.exemplar] + [src for _, src in doc.maps[1:]] + [src for e in doc.palette for _, src in e]
     d = _to_json(project, None, lambda src: None)  # neither embedded nor referenced yet
-    entries = [d["exemplar"]] + (d["material"]["maps"] if doc.maps else [])
+    entries = [d["exemplar"]] + (d["material"]["maps"] if doc.maps else []) + [e for p in d.get("palette", ()) for e in p]
     for e, src in zip(entries, sources):
         if src.path:
             e["source"] = os.path.abspath(src.path)
@@ -142,12 +142,13 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
     doc = project.document
     ex = doc.exemplar
     embedded, ref_path = _reference(ex, embeds(ex), path)
+
+    def entry_json(src: ExemplarSource) -> dict:
+        data, ref = _reference(src, embeds(src), path)
+        return {"name": src.name, "sha256": src.sha256, "embedded": data, "path": ref}
     material = None
     if doc.maps:
-        entries = []
-        for role, src in doc.maps[1:]:
-            data, ref = _reference(src, embeds(src), path)
-            entries.append({"role": role, "name": src.name, "sha256": src.sha256, "embedded": data, "path": ref})
+        entries = [{"role": role, **entry_json(src)} for role, src in doc.maps[1:]]
         material = {"role": doc.maps[0][0], "maps": entries,
                     "weights": None if doc.weights is None else [[r, w] for r, w in doc.weights]}
     fields = _fields_to_json(doc)
@@ -155,7 +156,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+        "version": 9 if doc.palette else 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
             2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
@@ -181,6 +182,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
         **({"labels": labels_to_json(doc.labels)} if doc.labels else {}),
         **({"material": material} if material else {}),
+        **({"palette": palette_to_json(doc, entry_json)} if doc.palette else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
         **({"autosave_of": project.origin} if project.origin else {}),
@@ -322,7 +324,7 @@ def project_save_path(path: str, document: Document | None = None, current: str 
     if not (current and path == os.path.abspath(current)) and not path.lower().endswith(PROJECT_SUFFIX):
         path += PROJECT_SUFFIX
     if document is not None:
-        for role, src in document.sources():
+        for role, src in (rs for entry in document.entries() for rs in entry):
             if src.path and _same_file(path, src.path):
                 what = "exemplar" if src is document.exemplar else f"{role} map"
                 raise ProjectError(f"{printable(os.path.basename(path))} is the document's {what}, one of its "
@@ -482,6 +484,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
     e = _get(d, "exemplar", dict, "project")
     source = _source_from_json(e, "exemplar", path, name, allow_outside)
     maps, weights = _material_from_json(d.get("material"), source, path, name, allow_outside)
+    palette = palette_from_json(d.get("palette"), lambda e, where: _source_from_json(e, where, path, name, allow_outside))
     a = _get(d, "analysis", dict, "project")
     s = _get(d, "synthesis", dict, "project")
     jitter = _get(s, "jitter", list, "synthesis")
@@ -535,6 +538,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         lattice=_lattice_from_json(d.get("lattice")),
         maps=maps,
         weights=weights,
+        palette=palette,
     )
     doc.validate()
     view, display = View(), Display()

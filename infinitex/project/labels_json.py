@@ -11,6 +11,7 @@ import numpy as np
 
 from infinitex.engine.controls import MAX_LABELS, TILE, CanvasLabels, ExemplarLabels
 from infinitex.engine.exemplar import MAX_SIZE
+from infinitex.engine.material import IMAGE, ROLES
 
 from .document import LabelMaps, ProjectError, is_number
 
@@ -100,3 +101,28 @@ def labels_from_json(d: object) -> LabelMaps | None:
                     float(strength))
     lab.validate()
     return lab
+
+
+def palette_to_json(doc, entry_json) -> list:
+    """A palette's exemplars after the first: per exemplar, its maps as
+    {"role", "name", "sha256", "embedded", "path"} (``entry_json(source)``
+    gives all but the role)."""
+    return [[{"role": role, **entry_json(src)} for role, src in entry] for entry in doc.palette]
+
+
+def palette_from_json(p: object, read) -> tuple:
+    """The palette's exemplars after the first (none: ()); ``read(entry,
+    where)`` reads one file entry like the exemplar's (embedded or referenced,
+    hash-checked)."""
+    if p is None:
+        return ()
+    bad = ProjectError("The project's palette is damaged.")
+    if not isinstance(p, list) or not 1 <= len(p) < MAX_LABELS:
+        raise bad
+    out = []
+    for i, entry in enumerate(p):
+        if not isinstance(entry, list) or not 1 <= len(entry) <= len(ROLES) or any(
+                not isinstance(e, dict) or (e.get("role") != IMAGE and e.get("role") not in ROLES) for e in entry):
+            raise bad
+        out.append(tuple((e["role"], read(e, f"palette[{i}][{j}]")) for j, e in enumerate(entry)))
+    return tuple(out)

@@ -25,7 +25,8 @@ from infinitex.engine.exemplar import (
     decode_full,
     load_exemplar_bytes,
 )
-from infinitex.engine.material import Material, MaterialError, load_material, single
+from infinitex.engine.material import IMAGE, Material, MaterialError, load_material, single
+from infinitex.engine.palette import PaletteLayout, pack_palette
 from infinitex.engine.tileable import tileable_exemplar, tileable_material
 
 from .document import Document
@@ -33,10 +34,27 @@ from .document import Document
 
 def material_for(doc: Document) -> Material:
     """The maps of a material document, decoded and fitted (all or nothing),
-    made tileable together when the document says so."""
+    made tileable together when the document says so; a palette's entries
+    packed into one material (engine/palette.py)."""
+    if doc.palette:
+        return palette_for(doc)[0]
     material = load_material([(role, src.name, src.data) for role, src in doc.maps], fit=doc.fit,
                              toroidal=doc.toroidal)
     return tileable_material(material) if doc.make_tileable else material
+
+
+def palette_for(doc: Document) -> tuple[Material, PaletteLayout]:
+    """A palette document's entries, each decoded and fitted, packed into one
+    material (a single-image palette: the one map "image"), and the layout."""
+    entries = []
+    for entry in doc.entries():
+        if entry[0][0] == IMAGE:
+            src = entry[0][1]
+            entries.append(single(load_exemplar_bytes(src.data, name=src.name, fit=doc.fit, toroidal=doc.toroidal)))
+        else:
+            entries.append(load_material([(role, src.name, src.data) for role, src in entry], fit=doc.fit,
+                                         toroidal=doc.toroidal))
+    return pack_palette(entries, [entry[0][1].name for entry in doc.entries()], doc.fit)
 
 
 def exemplar_for(doc: Document, image: np.ndarray | None = None,
@@ -46,6 +64,10 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
     and the analysis settings for it. ``image``: the exemplar file already
     decoded whole (decode_full), if at hand; ``material``: the document's
     material, if already loaded."""
+    if doc.palette and not doc.maps:
+        material = material or material_for(doc)
+        return material.maps[IMAGE].exemplar, AnalysisSettings(model=doc.model, k=doc.k,
+                                                               feature_weight=doc.feature_weight)
     if doc.maps:
         material = material or material_for(doc)
         ex = material.guide(doc.weight_dict())
@@ -127,9 +149,9 @@ class AnalysisJob:
     def _run(self) -> None:
         d = self.doc
         try:
-            material = material_for(d) if d.maps else None
+            material = material_for(d) if d.maps or d.palette else None
             ex, settings = exemplar_for(d, material=material)
-            if self.want_preview and material is None and self._needs_preview(ex, settings):
+            if self.want_preview and (material is None or material.single) and self._needs_preview(ex, settings):
                 self._progress(0.0, "Quick preview (random-walk search)")
                 quick = analyze(ex, replace(settings, k=0), progress=self._progress)
                 self.preview = (ex, quick, single(ex, [lv.stack for lv in quick.levels]))

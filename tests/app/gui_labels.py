@@ -151,6 +151,32 @@ def main(out: str) -> int:
         check("undo restores the canvas exactly", np.array_equal(canvas(ctx), before), "canvas differs")
         check("undo removes the labels", ed.doc.labels is None, "labels left")
 
+        # A palette: another exemplar added in the Exemplar panel becomes label 2; removing it, then undo.
+        first = ed.doc
+        ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
+        ctx.item_click("Add to palette...")
+        ctx.set_ref("//Infinitex")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", os.path.join(HERE, "infinitex", "assets", "gravel.png"))
+        ctx.yield_(3)
+        settle(ctx)
+        doc = ed.doc
+        check("Add to palette makes each exemplar a label", len(doc.entries()) == 2 and doc.labels is not None
+              and doc.labels.names == ("two.png", "gravel.png") and ed.session.analysis.size == 256,
+              f"{len(doc.entries())} {None if doc.labels is None else doc.labels.names}")
+        ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
+        ctx.item_click("**/x##palette-remove-1")
+        ctx.set_ref("//Infinitex")
+        settle(ctx)
+        check("removing it leaves one exemplar", not ed.doc.palette and ed.doc.labels is None, str(ed.doc.palette))
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        settle(ctx)
+        check("undo brings the palette back", len(ed.doc.entries()) == 2, str(len(ed.doc.entries())))
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        settle(ctx)
+        check("undo once more: the document as it was", ed.doc == first and np.array_equal(canvas(ctx), before),
+              "differs")
+
     return h.run(test)
 
 

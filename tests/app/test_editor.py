@@ -160,4 +160,4 @@ def test_texture_by_numbers_driven_by_the_test_engine(tmp_path):
     (the canvas follows it, near it only, one undo step), a fill, the
     exemplar's own labels painted; undo restores the canvas exactly
     (tests/app/gui_labels.py)."""
-    _drive("gui_labels.py", tmp_path, 15)
+    _drive("gui_labels.py", tmp_path, 19)

@@ -13,6 +13,9 @@ import random
 import time
 from dataclasses import replace
 
+import numpy as np
+
+from infinitex.engine.controls import MAX_LABELS, CanvasLabels
 from infinitex.engine.material import MaterialError, assign_roles
 from infinitex.engine.safeio import ReadError, printable
 from infinitex.project import (
@@ -147,6 +150,43 @@ class FilesMixin:
             self._begin_load("exemplar", doc, None, path)
         else:
             self._begin_load("image", Document(maps[0][1]).with_maps(maps), None, path)
+
+    def add_to_palette(self, paths: list[str]) -> None:
+        """Add an image (or a material: one map brings its siblings) to the
+        document's palette as a new label; one undo step, made once the
+        palette is analyzed (a failure leaves the document as it was)."""
+        doc = self.doc
+        try:
+            found = assign_roles([os.path.expanduser(p) for p in paths])
+            entry = tuple((role, ExemplarSource.from_file(p)) for role, p in found.items())
+        except (MaterialError, ReadError) as exc:
+            self.dialogs.message("Could not add to the palette", str(exc))
+            return
+        except OSError as exc:
+            self.dialogs.message("Could not add to the palette", f"The image could not be read: {exc.strerror or exc}.")
+            return
+        entries = doc.entries()
+        if len(entries) >= MAX_LABELS:
+            self.dialogs.message("Could not add to the palette", f"A palette has at most {MAX_LABELS} exemplars.")
+        elif sorted(r for r, _ in entry) != sorted(r for r, _ in entries[0]):
+            self.dialogs.message("Could not add to the palette",
+                                 f"{printable(entry[0][1].name)} has the maps {', '.join(r for r, _ in entry)} "
+                                 f"but the palette's exemplars have {', '.join(r for r, _ in entries[0])}; "
+                                 "a palette's exemplars have the same maps.")
+        else:
+            self._begin_load("exemplar", doc.with_palette(entries + (entry,)), None, None, "Add to palette")
+
+    def remove_from_palette(self, index: int) -> None:
+        """Remove the palette's exemplar ``index`` (its label goes; canvas labels it had are erased)."""
+        doc = self.doc
+        if doc.labels is not None:  # the labels after it move down by one; its own become free
+            lut = np.arange(MAX_LABELS + 1, dtype=np.uint8)
+            lut[index + 1] = 0
+            lut[index + 2:] -= 1
+            canvas = CanvasLabels({k: lut[t] for k, t in doc.labels.canvas.tiles.items()})
+            doc = replace(doc, labels=replace(doc.labels, canvas=canvas))
+        doc = doc.with_palette([e for i, e in enumerate(doc.entries()) if i != index])
+        self._begin_load("exemplar", doc, None, None, "Remove from palette")
 
     def _open_failed(self, msg: str | None, first: bool) -> None:
         if msg:

@@ -54,6 +54,10 @@ SEED_COUNT = 64        # exemplar texels per label the seed candidate picks from
 SEED_SALT = 0x6C62272E
 STRENGTH_MAX = 8.0
 BINOMIAL = np.array([1, 2, 1], np.int64)
+# Sasha Trubetskoy's 16 distinct colors: new labels (proposed, painted, a palette's) get them in order.
+LABEL_COLORS = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48), (145, 30, 180),
+                (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212), (0, 128, 128), (220, 190, 255),
+                (170, 110, 40), (255, 250, 200), (128, 0, 0), (170, 255, 195))
 SHARE_MIN = 128        # of 255: a canvas pixel less painted than this is free
 
 

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
 
+from infinitex.engine.controls import MAX_LABELS
 from infinitex.engine.tileable import recommended
 
 from ..dialogs import IMAGE_FILTER
@@ -51,6 +52,8 @@ def draw(p: Panels) -> None:
     if imgui.is_item_hovered():
         imgui.set_tooltip("Use another image as the exemplar of this document, keeping its settings (undoable). "
                           "File > Open makes a new document.")
+    if not lattice:
+        _palette(ed, doc)
     if lattice:
         imgui.push_text_wrap_pos(0)
         imgui.text_disabled("The exemplar is the lattice's block of cells, rectified (it tiles); "
@@ -63,6 +66,29 @@ def draw(p: Panels) -> None:
         imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
         if imgui.button("Cancel analysis"):
             job.cancel()
+
+
+def _palette(ed, doc) -> None:
+    """The palette: the document's exemplars, one label each (texture by numbers)."""
+    entries = doc.entries()
+    if len(entries) > 1:
+        imgui.separator_text("Palette")
+        colors = doc.labels.colors if doc.labels is not None else ()
+        for i, entry in enumerate(entries):
+            c = colors[i] if i < len(colors) else (128, 128, 128)
+            imgui.color_button(f"##pal{i}", (c[0] / 255, c[1] / 255, c[2] / 255, 1.0), 0, (14, 14))
+            imgui.same_line()
+            imgui.text(f"{i + 1}  {entry[0][1].name}")
+            imgui.same_line()
+            if imgui.small_button(f"x##palette-remove-{i}"):
+                ed.remove_from_palette(i)
+            tip("Remove this exemplar from the palette (its label goes; the canvas where it was painted "
+                    "becomes free)")
+    if len(entries) < MAX_LABELS and imgui.button("Add to palette...", (-1, 0)):
+        ed.dialogs.ask_paths("Add an exemplar to the palette", IMAGE_FILTER, ed.add_to_palette)
+    tip("Texture by numbers across several images: each exemplar of the palette becomes a label (grass, gravel, "
+        "a dirt path...), named after its file. Paint on the canvas where each goes with the Labels tool (G); "
+        "transitions come from where the exemplars meet. A material adds a material with the same maps")
 
 
 def _fit_options(ed, doc, ex) -> None:
@@ -81,7 +107,7 @@ def _fit_options(ed, doc, ex) -> None:
         tip("Does the exemplar tile seamlessly? Then patches may cross its edges; Auto guesses from its border")
         if changed:
             ed.edit(replace(doc, toroidal=[None, True, False][i]), "Toroidal setting")
-    if doc.lattice is not None:
+    if doc.lattice is not None or doc.palette:
         return
     if not doc.make_tileable and not ex.toroidal and recommended(ex):
         imgui.push_text_wrap_pos(0)

@@ -21,17 +21,13 @@ from infinitex.engine.controls.label_maps import (
     fit_label_map,
     load_label_image,
 )
-from infinitex.engine.controls.labels import propose_labels
+from infinitex.engine.controls.labels import LABEL_COLORS, propose_labels
 from infinitex.engine.exemplar import ExemplarError
 from infinitex.project.document import LabelMaps
 
 from . import Tool, begin_tool_window
 from .paint import Brush, brush_keys, dab_centers
 
-# Sasha Trubetskoy's 16 distinct colors: labels proposed or painted get them in order.
-PALETTE = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48), (145, 30, 180),
-           (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212), (0, 128, 128), (220, 190, 255),
-           (170, 110, 40), (255, 250, 200), (128, 0, 0), (170, 255, 195))
 FILL_LIMIT = 4096  # a fill covers at most this many canvas pixels a side (the view, at most)
 LABEL_FILTER = ["Label maps", "*.png *.bmp *.tif *.tiff *.gif *.webp"]
 
@@ -118,7 +114,7 @@ class LabelTool(Tool):
         ids = propose_labels(ed.session.analysis, self.propose_n)
         n = int(ids.max()) + 1
         old = self.labels
-        self._set(LabelMaps(ExemplarLabels(ids), PALETTE[:n], (), CanvasLabels(), old.strength if old else 1.0),
+        self._set(LabelMaps(ExemplarLabels(ids), LABEL_COLORS[:n], (), CanvasLabels(), old.strength if old else 1.0),
                   f"Propose {n} labels")
         self.active = 0
 

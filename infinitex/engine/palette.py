@@ -1,0 +1,147 @@
+"""A palette of exemplars (texture by numbers across several images): each
+exemplar, or material with the same maps, becomes one label of a single
+combined exemplar the engine synthesizes from.
+
+Packing: the entries, each fitted by the document's fit rule, are brought to
+one cell size ``c`` (the smallest entry's side, halved until the grid fits the
+fit rule's largest exemplar; larger entries are resized to it, or center
+cropped under a "crop" rule) and laid out row by row on a ``g x g`` grid, g
+the smallest power of two with g*g >= the number of entries. Cells beyond the
+last entry repeat the entries from the first (cell j holds entry j mod n), so
+no cell is empty. The combined exemplar is toroidal: every cell borders others
+on all four sides, and the neighborhoods that straddle two cells are the
+transitions synthesis may use between labels. Its label map gives cell j the
+label j mod n.
+
+The coordinate map stays meaningful: exemplar pixel (x, y) lies in cell
+(x // c, y // c), whose entry and pixel within the entry (as fitted) are
+:meth:`PaletteLayout.locate`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from PIL import Image
+
+from .exemplar import MIN_SIZE, Exemplar, ExemplarError, fit_rule
+from .material import Material, MaterialMap, renormalize
+
+MAX_ENTRIES = 16  # one label each
+
+
+@dataclass(frozen=True)
+class PaletteLayout:
+    """Where each entry of a palette lies in the combined exemplar."""
+
+    names: tuple[str, ...]   # the entries' file names, in label order
+    grid: int                # g: the exemplar is g x g cells
+    cell: int                # c: a cell's side in exemplar pixels
+    sizes: tuple[int, ...]   # each entry's side as fitted, before it was brought to the cell
+    crop: bool = False       # entries larger than the cell were center-cropped (else resized)
+
+    @property
+    def size(self) -> int:
+        return self.grid * self.cell
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    def labels(self) -> np.ndarray:
+        """The combined exemplar's label map: uint8 (m, m), cell j -> label j mod n."""
+        g, c = self.grid, self.cell
+        cells = (np.arange(g * g) % self.count).astype(np.uint8).reshape(g, g)
+        return np.ascontiguousarray(np.kron(cells, np.ones((c, c), np.uint8)))
+
+    def locate(self, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(entry, x, y) of exemplar coordinates ``coords`` (..., 2): which
+        entry each pixel was copied from and where in that entry (its pixels as
+        fitted by the document's rule)."""
+        coords = np.asarray(coords, np.int64)
+        c = self.cell
+        x, y = coords[..., 0], coords[..., 1]
+        entry = ((y // c) * self.grid + x // c) % self.count
+        sizes = np.asarray(self.sizes, np.int64)[entry]
+        lx, ly = x % c, y % c
+        if self.crop:
+            off = (sizes - c) // 2
+            return entry, lx + off, ly + off
+        return entry, (lx * sizes) // c, (ly * sizes) // c
+
+
+def _channels(px: np.ndarray, want: int) -> np.ndarray:
+    """Pixels brought to ``want`` channels: gray replicated to RGB, an opaque alpha added."""
+    c = px.shape[2]
+    if c == want:
+        return px
+    gray = c <= 2
+    color = np.repeat(px[..., :1], 3, axis=2) if gray and want >= 3 else px[..., :min(c, 3) if not gray else 1]
+    alpha = px[..., c - 1:] if c in (2, 4) else np.ones(px.shape[:2] + (1,), np.float32)
+    parts = [color] + ([alpha] if want in (2, 4) else [])
+    return np.ascontiguousarray(np.concatenate(parts, axis=2), dtype=np.float32)
+
+
+def resized(px: np.ndarray, size: int) -> np.ndarray:
+    """Square float32 pixels (n, n, C) in [0, 1] resized to size x size (Lanczos, per channel)."""
+    planes = [np.asarray(Image.fromarray(np.ascontiguousarray(px[..., k], dtype=np.float32), mode="F")
+                         .resize((size, size), Image.LANCZOS)) for k in range(px.shape[2])]
+    return np.ascontiguousarray(np.clip(np.stack(planes, axis=2), 0.0, 1.0), dtype=np.float32)
+
+
+def _to_cell(px: np.ndarray, c: int, crop: bool, role: str) -> np.ndarray:
+    m = px.shape[0]
+    if m == c:
+        return px
+    if crop:
+        o = (m - c) // 2
+        return px[o:o + c, o:o + c]
+    out = resized(px, c)
+    return renormalize(out) if role == "normal" else out
+
+
+def layout_for(names: list[str], sizes: list[int], fit: str) -> PaletteLayout:
+    """The packing of entries of fitted sides ``sizes`` under ``fit``; ExemplarError if impossible."""
+    n = len(sizes)
+    if not 2 <= n <= MAX_ENTRIES:
+        raise ExemplarError(f"A palette has 2 to {MAX_ENTRIES} exemplars, not {n}.")
+    rule, limit = fit_rule(fit)
+    g = 1
+    while g * g < n:
+        g *= 2
+    c = min(sizes)
+    while g * c > limit:
+        c //= 2
+    if c < MIN_SIZE:
+        raise ExemplarError(f"{n} exemplars need cells of at least {MIN_SIZE} px; the smallest is {min(sizes)} px.")
+    return PaletteLayout(tuple(names), g, c, tuple(int(s) for s in sizes), crop=rule == "crop")
+
+
+def pack_palette(entries: list[Material], names: list[str], fit: str) -> tuple[Material, PaletteLayout]:
+    """One material holding every entry's maps on the palette's grid (the
+    entries have the same roles), and its layout."""
+    roles = entries[0].roles
+    for i, mat in enumerate(entries[1:], start=1):
+        if mat.roles != roles:
+            raise ExemplarError(f"{names[i]} has the maps {', '.join(mat.roles)} but {names[0]} has "
+                                f"{', '.join(roles)}; the exemplars of a palette have the same maps.")
+    layout = layout_for(names, [mat.size for mat in entries], fit)
+    g, c, n = layout.grid, layout.cell, layout.count
+    maps = {}
+    for role in roles:
+        exs = [mat.maps[role].exemplar for mat in entries]
+        if len({ex.value_range for ex in exs}) > 1:
+            raise ExemplarError(f"The {role} maps of the palette have different value ranges "
+                                "(float images scaled differently); they cannot share one exemplar.")
+        want = max(ex.channels for ex in exs)
+        cells = [_to_cell(_channels(ex.pixels, want), c, layout.crop, role) for ex in exs]
+        out = np.empty((g * c, g * c, want), np.float32)
+        for j in range(g * g):
+            y, x = divmod(j, g)
+            out[y * c:(y + 1) * c, x * c:(x + 1) * c] = cells[j % n]
+        first = exs[0]
+        ex = Exemplar(pixels=out, toroidal=True, toroidal_guess=True, source="palette: " + ", ".join(names),
+                      fit=first.fit, original_size=(g * c, g * c), hires=None,
+                      depth=max(e.depth for e in exs), value_range=first.value_range)
+        maps[role] = MaterialMap(role, ex)
+    return Material(maps, True), layout
