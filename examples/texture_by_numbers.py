@@ -7,7 +7,8 @@ the right), and its label map says which is which (label 0 and label 1). A
 label map on the canvas asks for a winding gravel path through brick; pixels
 outside the canvas map are free. Labels can also be images whose distinct
 colors are the labels (``--labels-exemplar`` / ``--labels-canvas`` on the
-command line).
+command line). Then a palette: three separate exemplars (grass, gravel, brick),
+each one label, packed into one exemplar by ``palette()``.
 """
 import os
 import sys
@@ -28,3 +29,11 @@ canvas = np.where(path, 0, 1)                                           # gravel
 img = itx.synthesize(both, size=(512, 256), seed=3, labels=(ids, canvas), label_strength=1.0)
 itx.write_png(os.path.join(out, "by_numbers.png"), img)
 print(f"wrote by_numbers.png {img.shape[1]}x{img.shape[0]}")
+
+# A palette: three separate exemplars, one label each (label i = exemplar i),
+# here a gravel path with grass on one side and brick on the other.
+ex, layout = itx.palette([os.path.join(itx.ASSETS, f) for f in ("grass.png", "gravel.png", "brick.png")])
+canvas = np.where(path, 1, np.where(ys < 128 + 70 * np.sin(xs / 60.0), 0, 2))
+img = itx.synthesize(ex, size=(512, 256), seed=3, labels=(layout.labels(), canvas))
+itx.write_png(os.path.join(out, "by_numbers_palette.png"), img)
+print(f"wrote by_numbers_palette.png {img.shape[1]}x{img.shape[0]} from {', '.join(layout.names)}")

@@ -217,7 +217,7 @@ def add_label_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--palette", type=palette_arg, default=None, metavar="B,C,...",
                    help="more exemplars (or materials, by their first map) after the first, comma-separated: "
                         "each is one label, in order (the first exemplar label 1, colored #e6194b; then #3cb44b, "
-                        "#ffe119, #0082c8, ...: docs/labels.md); a --labels-canvas map uses those colors")
+                        "#ffe119, #0082c8, ...: docs/controls.md); a --labels-canvas map uses those colors")
 
 
 def palette_arg(text: str) -> list[str]:
