@@ -16,6 +16,11 @@ Measured at Variety and Balanced, one run each:
   transitions as clean as the rest);
 - time of the window.
 
+With ``--k-coherence`` each case also runs with labeled pixels choosing among
+the k-coherence candidates only (the random walk off; the per-label seed
+candidate kept, without which no pixel could enter a label far from its
+neighbors' sources): TBN10's claim is that the walk finds better transitions.
+
 Prints a table, writes JSON.
 """
 from __future__ import annotations
@@ -113,21 +118,41 @@ def run_case(pair, name, target, structure, gpu) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--k-coherence", action="store_true",
+                    help="also run every case with the random walk off (k-coherence candidates only)")
     args = ap.parse_args(argv)
     from infinitex.engine.gpu import Gpu
     gpu = Gpu()
     rows = []
     print(f"{'exemplar':<14} {'target':<6} {'structure':>9} {'fidelity':>8} {'band':>6} {'trans.':>6} {'time':>7}")
+    from infinitex.engine import stages
+    walks = (("walk", stages.DEFAULT_WALK),) + ((("k-coherence", 0),) if args.k_coherence else ())
     for pair in PAIRS:
         for name, target in targets().items():
             for structure in (0, 2):
-                r = run_case(pair, name, target, structure, gpu)
-                rows.append(r)
-                print(f"{r['exemplar']:<14} {name:<6} {['Variety', '', 'Balanced'][structure]:>9} "
-                      f"{100 * r['fidelity']:7.1f}% {100 * r['band_fidelity']:5.1f}% {r['transition_energy']:6.2f} "
-                      f"{r['seconds']:6.2f}s", flush=True)
+                for search, steps in walks:
+                    stages.DEFAULT_WALK = steps  # the labeled pixels' walk (a #define of the passes)
+                    r = dict(run_case(pair, name, target, structure, gpu), search=search)
+                    rows.append(r)
+                    print(f"{r['exemplar']:<14} {name:<6} {['Variety', '', 'Balanced'][structure]:>9} "
+                          f"{100 * r['fidelity']:7.1f}% {100 * r['band_fidelity']:5.1f}% "
+                          f"{r['transition_energy']:6.2f} {r['seconds']:6.2f}s {search}", flush=True)
+    stages.DEFAULT_WALK = walks[0][1]
+    if args.k_coherence:
+        for structure in (0, 2):
+            pairs = [(a, b) for a, b in zip(rows[0::2], rows[1::2]) if a["structure"] == structure]
+            better = sum(a["transition_energy"] < b["transition_energy"] for a, b in pairs)
+            print(f"{['Variety', '', 'Balanced'][structure]}: transitions with the walk / k-coherence only, median "
+                  f"{float(np.median([a['transition_energy'] for a, _ in pairs])):.2f} / "
+                  f"{float(np.median([b['transition_energy'] for _, b in pairs])):.2f}, band fidelity "
+                  f"{100 * float(np.median([a['band_fidelity'] for a, _ in pairs])):.1f}% / "
+                  f"{100 * float(np.median([b['band_fidelity'] for _, b in pairs])):.1f}%; "
+                  f"the walk better in {better} of {len(pairs)} cases")
+        rows_walk = [r for r in rows if r["search"] == "walk"]
+    else:
+        rows_walk = rows
     for structure in (0, 2):
-        sel = [r for r in rows if r["structure"] == structure]
+        sel = [r for r in rows_walk if r["structure"] == structure]
         print(f"median {['Variety', '', 'Balanced'][structure]}: fidelity "
               f"{100 * float(np.median([r['fidelity'] for r in sel])):.1f}%, band "
               f"{100 * float(np.median([r['band_fidelity'] for r in sel])):.1f}%, transitions "
