@@ -203,3 +203,25 @@ def test_cli_maps(tmp_path):
     r = run("synth", GRAVEL, "-o", str(tmp_path / "x.png"), "--randomness-canvas", str(tmp_path / "bad.png"))
     assert r.returncode == 3 and len(r.stderr.strip().splitlines()) == 1 and "randomness map" in r.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+def test_the_canvas_label_overlay_rewrites_what_a_stroke_changed_exactly(gpu):
+    """The overlay of the canvas labels after a dab (only the texels it changed
+    rewritten) equals one made from scratch, at 1:1 and zoomed out."""
+    from infinitex.app.render.overlays import LabelOverlay
+    from infinitex.engine.controls import CanvasLabels
+    colors = ((10, 20, 30), (200, 100, 50), (0, 255, 0))
+    base = CanvasLabels.from_image(np.full((300, 500), 2, np.uint8), -120, -80)
+    for zoom_out, radius in ((1, 20.0), (3000, 700.0)):  # 3000: the overlay holds every 2nd canvas pixel
+        inc, fresh = LabelOverlay(gpu.ctx), LabelOverlay(gpu.ctx)
+        labels = base
+        w, h = 900 * zoom_out / 1000 + 400, 700 * zoom_out / 1000 + 300
+        inc.canvas_labels(labels, colors, -200, -150, w, h)
+        for i, (value, x) in enumerate(((3, 10.0), (0, 40.0), (1, 90.0))):
+            labels, _ = labels.painted(x, 20.0 + 7 * i, radius, value, hardness=0.5, seed=i)
+            tex = inc.canvas_labels(labels, colors, -200, -150, w, h)
+            ref = fresh.canvas_labels(labels, colors, -200, -150, w, h)
+            assert inc.placement == fresh.placement
+            assert tex.read() == ref.read(), (zoom_out, i)
+            fresh.release()
+        inc.release()

@@ -44,6 +44,7 @@ class FieldOverlay:
         self.ctx = ctx
         self.tex: moderngl.Texture | None = None
         self._key = None
+        self._shown = None  # canvas labels: (what the texture covers, the labels it shows)
         self.placement = None  # canvas: (finest x0, y0, finest width, height) the texture covers
 
     def _upload(self, rgba: np.ndarray) -> None:
@@ -94,6 +95,7 @@ class FieldOverlay:
         return self.tex if self.placement is not None else None
 
     def release(self) -> None:
+        self._key = self._shown = None
         if self.tex is not None:
             self.tex.release()
             self.tex = None
@@ -117,14 +119,28 @@ class LabelOverlay(FieldOverlay):
         k = max(0, math.ceil(math.log2(big / MAX_OVERLAY))) if big > MAX_OVERLAY else 0
         X0, Y0 = math.floor(x0) >> k, math.floor(y0) >> k
         X1, Y1 = (math.ceil(x0 + w_canvas) >> k) + 1, (math.ceil(y0 + h_canvas) >> k) + 1
-        key = ("cl", labels.key, tuple(colors), k, X0, Y0, X1, Y1)
-        if key != self._key:
-            f = 1 << k
-            vals = labels.sample(np.arange(X0, X1) * f + f // 2, np.arange(Y0, Y1) * f + f // 2)
-            self._key = key
-            if not vals.any():
-                self.placement = None
-                return None
-            self._upload(label_rgba(vals, colors))
-            self.placement = (X0 << k, Y0 << k, (X1 - X0) << k, (Y1 - Y0) << k)
-        return self.tex if self.placement is not None else None
+        geom = (tuple(colors), k, X0, Y0, X1, Y1)
+        key = ("cl", labels.key) + geom
+        if key == self._key:
+            return self.tex if self.placement is not None else None
+        f = 1 << k
+        shown = self._shown
+        if shown is not None and shown[0] == geom and self.placement is not None and self.tex is not None:
+            # A stroke on the same view: only the texels whose sample point changed are rewritten.
+            for rx0, ry0, rx1, ry1 in labels.changed_rects(shown[1]):
+                tx0, ty0 = max(X0, -((f // 2 - rx0) // f)), max(Y0, -((f // 2 - ry0) // f))
+                tx1, ty1 = min(X1, (rx1 - 1 - f // 2) // f + 1), min(Y1, (ry1 - 1 - f // 2) // f + 1)
+                if tx0 < tx1 and ty0 < ty1:
+                    vals = labels.sample(np.arange(tx0, tx1) * f + f // 2, np.arange(ty0, ty1) * f + f // 2)
+                    self.tex.write(np.ascontiguousarray(label_rgba(vals, colors)).tobytes(),
+                                   viewport=(tx0 - X0, ty0 - Y0, tx1 - tx0, ty1 - ty0))
+            self._key, self._shown = key, (geom, labels)
+            return self.tex
+        vals = labels.sample(np.arange(X0, X1) * f + f // 2, np.arange(Y0, Y1) * f + f // 2)
+        self._key, self._shown = key, (geom, labels)
+        if not vals.any():
+            self.placement = None
+            return None
+        self._upload(label_rgba(vals, colors))
+        self.placement = (X0 << k, Y0 << k, (X1 - X0) << k, (Y1 - Y0) << k)
+        return self.tex

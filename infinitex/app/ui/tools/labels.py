@@ -39,7 +39,7 @@ def label_rgba(values: np.ndarray, colors, free_value: int | None = 0, alpha: in
     offset = 0 if free_value is None else 1
     for i, c in enumerate(colors[:16]):
         lut[i + offset] = (*c, alpha)
-    return lut[np.clip(values, 0, 16)]
+    return np.take(lut, np.minimum(values, 16), axis=0)
 
 
 class LabelTool(Tool):
