@@ -15,7 +15,8 @@
 // p, exemplar mix at u).
 // Integer sums (at most 4 * 255^2 * 120 < 2^25), so the result is exact; skipping
 // a candidate already tried and stopping a sum once it reaches the best cannot
-// change it (costs only grow as taps are added, and ties keep the first).
+// change it (costs only grow as taps are added, and ties keep the first). The
+// sum is unrolled ring by ring from the centre (FID_TAPS, stages.patch_taps).
 
 uniform isampler2D src;       // current state, packed
 uniform usampler2D colors;    // E_l as engine/fixed.py quantized_colors (RGBA8UI), m x m
@@ -46,7 +47,11 @@ ivec2 fetch_s(ivec2 p) {
 }
 
 ivec2 exemplar_tap(ivec2 u) {
-    return border < 0 ? (u & (m - 1)) : clamp(u, ivec2(0), ivec2(m - 1));
+#ifdef FID_TOROIDAL
+    return u & (m - 1);
+#else
+    return clamp(u, ivec2(0), ivec2(m - 1));
+#endif
 }
 
 ivec2 keep_inside(ivec2 u) {
@@ -55,16 +60,16 @@ ivec2 keep_inside(ivec2 u) {
 
 uint nb[NT];  // N(p + d) packed RGBA8 (r in the low byte), row-major over the patch (the centre unused)
 
+#define TAP(dx, dy) { \
+    ivec4 e = ivec4((uvec4(nb[(dy + R) * SIDE + dx + R]) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu) \
+            - ivec4(texelFetch(colors, exemplar_tap(u + h * ivec2(dx, dy)), 0)); \
+    ivec4 sq = e * e; \
+    cost += uint(sq.x + sq.y + sq.z + sq.w); }
+#define STOP if (cost >= limit) return limit;
+
 uint patch_cost(ivec2 u, uint limit) {
     uint cost = 0u;
-    for (int t = 0; t < NT; ++t) {
-        if (t == NT / 2) continue;
-        ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
-        ivec4 e = ivec4((uvec4(nb[t]) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu) - ivec4(texelFetch(colors, exemplar_tap(u + h * d), 0));
-        ivec4 sq = e * e;
-        cost += uint(sq.x + sq.y + sq.z + sq.w);
-        if (cost >= limit) return limit;  // cannot win: stop early
-    }
+    FID_TAPS  // TAP(dx, dy) for every tap but the centre, nearest first, STOP after each ring (stages.py)
     return cost;
 }
 
