@@ -106,20 +106,6 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
     return draws
 
 
-def patch_taps(R: int) -> str:
-    """The fidelity stage's patch cost unrolled (shaders/fidelity.frag): a
-    TAP(dx, dy) per tap but the centre, ring by ring from the centre, and a
-    STOP (give up once the cost reaches the best) after each ring. Unrolled
-    with constant offsets and checked per ring it runs about 18% faster on
-    llvmpipe than a loop checking every tap; the sum, and so the result, is
-    the same."""
-    taps = sorted(((dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1) if dx or dy),
-                  key=lambda d: (max(abs(d[0]), abs(d[1])), d[1], d[0]))
-    ring = [max(abs(dx), abs(dy)) for dx, dy in taps]
-    return " ".join(f"TAP({dx},{dy})" + (" STOP" if i + 1 == len(taps) or ring[i + 1] > ring[i] else "")
-                    for i, (dx, dy) in enumerate(taps))
-
-
 def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
                    lattice: bool, scratch, avoid_tex, has_avoid: bool, labels: LabelDraws | None = None) -> list[Draw]:
     """The fidelity stage's iterations on level ``l``'s padded ``region`` (see
@@ -127,8 +113,7 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     ``labels``: texture by numbers over the region, if any."""
     an = gan.analysis
     prog, vao = gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius,
-                            FID_SEARCH=FIDELITY_SEARCH, FID_TAPS=patch_taps(p.fidelity_radius),
-                            **({"FID_TOROIDAL": True} if an.toroidal else {}), **(labels.defines if labels else {}))
+                            FID_SEARCH=FIDELITY_SEARCH, **(labels.defines if labels else {}))
     uniforms = dict(colors=1, avoid=5, has_avoid=int(has_avoid), dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
