@@ -146,7 +146,9 @@ class FilesMixin:
         base = self.doc if replace_exemplar and self.doc is not None else None
         if base is not None:
             # A lattice is marked in the old image's pixels: the new image starts without one.
-            doc = replace(base, toroidal=None, lattice=None, weights=None).with_maps(maps)
+            doc = replace(base, toroidal=None, lattice=None, weights=None)
+            # In a palette the first exemplar is replaced (its label keeps its place, renamed).
+            doc = doc.with_palette([tuple(maps), *doc.palette]) if doc.palette else doc.with_maps(maps)
             self._begin_load("exemplar", doc, None, path)
         else:
             self._begin_load("image", Document(maps[0][1]).with_maps(maps), None, path)
