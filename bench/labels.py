@@ -16,10 +16,11 @@ Measured at Variety and Balanced, one run each:
   transitions as clean as the rest);
 - time of the window.
 
-With ``--k-coherence`` each case also runs with labeled pixels choosing among
-the k-coherence candidates only (the random walk off; the per-label seed
-candidate kept, without which no pixel could enter a label far from its
-neighbors' sources): TBN10's claim is that the walk finds better transitions.
+With ``--walk`` each case also runs with labeled pixels walking TBN10's random
+walk after the k-coherence candidates (engine/controls/labels.py LABEL_WALK;
+off by default: the per-label seed candidate is tried either way, without
+which no pixel could enter a label far from its neighbors' sources): TBN10's
+claim is that the walk finds better transitions.
 
 Prints a table, writes JSON.
 """
@@ -118,37 +119,40 @@ def run_case(pair, name, target, structure, gpu) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", metavar="OUT.json")
-    ap.add_argument("--k-coherence", action="store_true",
-                    help="also run every case with the random walk off (k-coherence candidates only)")
+    ap.add_argument("--walk", action="store_true",
+                    help="also run every case with the labeled pixels' random walk on (k-coherence candidates only "
+                         "by default)")
     args = ap.parse_args(argv)
     from infinitex.engine.gpu import Gpu
     gpu = Gpu()
     rows = []
     print(f"{'exemplar':<14} {'target':<6} {'structure':>9} {'fidelity':>8} {'band':>6} {'trans.':>6} {'time':>7}")
-    from infinitex.engine import stages
-    walks = (("walk", stages.DEFAULT_WALK),) + ((("k-coherence", 0),) if args.k_coherence else ())
+    from infinitex.engine.controls import labels as labels_module
+    from infinitex.engine.params import DEFAULT_WALK
+    walks = (("walk", DEFAULT_WALK),) if args.walk else ()
+    walks = (("k-coherence", labels_module.LABEL_WALK),) + walks
     for pair in PAIRS:
         for name, target in targets().items():
             for structure in (0, 2):
                 for search, steps in walks:
-                    stages.DEFAULT_WALK = steps  # the labeled pixels' walk (a #define of the passes)
+                    labels_module.LABEL_WALK = steps  # the labeled pixels' walk (a #define of the passes)
                     r = dict(run_case(pair, name, target, structure, gpu), search=search)
                     rows.append(r)
                     print(f"{r['exemplar']:<14} {name:<6} {['Variety', '', 'Balanced'][structure]:>9} "
                           f"{100 * r['fidelity']:7.1f}% {100 * r['band_fidelity']:5.1f}% "
                           f"{r['transition_energy']:6.2f} {r['seconds']:6.2f}s {search}", flush=True)
-    stages.DEFAULT_WALK = walks[0][1]
-    if args.k_coherence:
+    labels_module.LABEL_WALK = walks[0][1]
+    if args.walk:
         for structure in (0, 2):
             pairs = [(a, b) for a, b in zip(rows[0::2], rows[1::2]) if a["structure"] == structure]
-            better = sum(a["transition_energy"] < b["transition_energy"] for a, b in pairs)
+            better = sum(b["transition_energy"] < a["transition_energy"] for a, b in pairs)
             print(f"{['Variety', '', 'Balanced'][structure]}: transitions with the walk / k-coherence only, median "
-                  f"{float(np.median([a['transition_energy'] for a, _ in pairs])):.2f} / "
-                  f"{float(np.median([b['transition_energy'] for _, b in pairs])):.2f}, band fidelity "
-                  f"{100 * float(np.median([a['band_fidelity'] for a, _ in pairs])):.1f}% / "
-                  f"{100 * float(np.median([b['band_fidelity'] for _, b in pairs])):.1f}%; "
+                  f"{float(np.median([b['transition_energy'] for _, b in pairs])):.2f} / "
+                  f"{float(np.median([a['transition_energy'] for a, _ in pairs])):.2f}, band fidelity "
+                  f"{100 * float(np.median([b['band_fidelity'] for _, b in pairs])):.1f}% / "
+                  f"{100 * float(np.median([a['band_fidelity'] for a, _ in pairs])):.1f}%; "
                   f"the walk better in {better} of {len(pairs)} cases")
-        rows_walk = [r for r in rows if r["search"] == "walk"]
+        rows_walk = [r for r in rows if r["search"] == "k-coherence"]
     else:
         rows_walk = rows
     for structure in (0, 2):

@@ -251,7 +251,7 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
         gx, gy = gx & (period - 1), gy & (period - 1)
     wseed = fixed.walk_seed(params.seed, subpass)
     border = None if an.toroidal else border_margin(m, h)
-    if labels is not None:  # a labeled pixel tries a texel of its main label, and walks
+    if labels is not None:  # a labeled pixel tries a texel of its main label (and walks LABEL_WALK steps)
         labeled = (labels[0] >> 24) != 0
         hx, _ = fixed.hash2(gx, gy, level, (wseed ^ SEED_SALT) & 0xFFFFFFFF)
         seeds = controls.labels_exemplar.seed_table(level, an.toroidal)
@@ -264,8 +264,8 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
         better = labeled & (cost < best)
         best = np.where(better, cost, best)
         best_u = np.where(better[:, None], u, best_u)
-        from infinitex.engine.params import DEFAULT_WALK
-        steps = np.where(labeled, np.maximum(steps, DEFAULT_WALK), steps)
+        from infinitex.engine.controls import labels as labels_module
+        steps = np.where(labeled, np.maximum(steps, labels_module.LABEL_WALK), steps)
     if steps.max(initial=0) and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
         R = m >> 1
         for t in range(int(steps.max())):

@@ -16,7 +16,7 @@ import moderngl
 
 from . import fixed
 from .gpu import Gpu, GpuAnalysis, set_uniforms
-from .params import DEFAULT_WALK, FIDELITY_SEARCH, SynthParams, subpass_order
+from .params import FIDELITY_SEARCH, SynthParams, subpass_order
 from .similarity import border_margin
 
 
@@ -147,7 +147,15 @@ def label_draws(gpu: Gpu, cache: dict, typical: dict, controls, an, p: SynthPara
     exemplar inputs), ``typical`` the level's typical distances."""
     import numpy as np
 
-    from .controls.labels import MAX_LABELS, SEED_COUNT, SEED_SALT, label_weight, typical_distance, typical_patch_cost
+    from .controls.labels import (
+        LABEL_WALK,
+        MAX_LABELS,
+        SEED_COUNT,
+        SEED_SALT,
+        label_weight,
+        typical_distance,
+        typical_patch_cost,
+    )
     if not controls.labels_active:
         return None
     mix = controls.labels_canvas.features(an.L - l, region.x0, region.y0, region.w, region.h, p.period)
@@ -171,5 +179,5 @@ def label_draws(gpu: Gpu, cache: dict, typical: dict, controls, an, p: SynthPara
         fid = dict(uni, lab_weight=label_weight(typical[key], strength, l, an.L))
     canvas = gpu.u32_texture(np.ascontiguousarray(mix))
     return LabelDraws({8: cache[("labels", l)], 9: canvas, 10: cache[("seeds", l)]},
-                      dict(LABELS=True, SEED_COUNT=SEED_COUNT, LAB_SEED_SALT=f"{SEED_SALT}u", LAB_WALK=DEFAULT_WALK),
+                      dict(LABELS=True, SEED_COUNT=SEED_COUNT, LAB_SEED_SALT=f"{SEED_SALT}u", LAB_WALK=LABEL_WALK),
                       dict(uni, lab_weight=label_weight(typical[("nbhd", l)], strength, l, an.L)), fid, canvas)

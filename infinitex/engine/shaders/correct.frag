@@ -168,7 +168,7 @@ void main() {
 #endif
     int steps = walk;
 #ifdef LABELS
-    if ((lab_t >> 24) != 0u) steps = max(steps, LAB_WALK);  // labeled pixels walk (to other labels' regions)
+    if ((lab_t >> 24) != 0u) steps = max(steps, LAB_WALK);  // labeled pixels' walk (labels.LABEL_WALK, off)
 #endif
     if (steps > 0) {
         ivec2 g = origin + p;
