@@ -83,11 +83,19 @@ def top_two(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     least one positive), the two largest labels (ties: the lower one first)
     and their weights renormalized to 255 (round half up; w2 = 255 - w1, or
     0 with i2 = i1 when only one label is present)."""
-    order = np.argsort(-weights, axis=-1, kind="stable")
-    i1, i2 = order[..., 0], order[..., 1] if weights.shape[-1] > 1 else order[..., 0]
-    a = np.take_along_axis(weights, i1[..., None], -1)[..., 0].astype(np.float64)
-    b = np.take_along_axis(weights, i2[..., None], -1)[..., 0].astype(np.float64) if weights.shape[-1] > 1 \
-        else np.zeros_like(a)
+    n = weights.shape[-1]
+    if n <= 2:  # one or two labels (the common case): no sort
+        w0 = weights[..., 0]
+        w1 = weights[..., 1] if n == 2 else np.zeros_like(w0)
+        i1 = (w1 > w0).astype(np.int64)  # ties keep the lower label first
+        i2 = 1 - i1 if n == 2 else i1
+        a = np.where(i1 == 1, w1, w0).astype(np.float64)
+        b = np.where(i1 == 1, w0, w1).astype(np.float64)
+    else:
+        order = np.argsort(-weights, axis=-1, kind="stable")
+        i1, i2 = order[..., 0], order[..., 1]
+        a = np.take_along_axis(weights, i1[..., None], -1)[..., 0].astype(np.float64)
+        b = np.take_along_axis(weights, i2[..., None], -1)[..., 0].astype(np.float64)
     two = b > 0
     w1 = np.where(two, np.floor((510.0 * a + (a + b)) / np.maximum(2.0 * (a + b), 1e-300)), 255).astype(np.int64)
     w1 = np.minimum(w1, 255)
