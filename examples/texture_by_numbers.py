@@ -36,4 +36,5 @@ ex, layout = itx.palette([os.path.join(itx.ASSETS, f) for f in ("grass.png", "gr
 canvas = np.where(path, 1, np.where(ys < 128 + 70 * np.sin(xs / 60.0), 0, 2))
 img = itx.synthesize(ex, size=(512, 256), seed=3, labels=(layout.labels(), canvas))
 itx.write_png(os.path.join(out, "by_numbers_palette.png"), img)
-print(f"wrote by_numbers_palette.png {img.shape[1]}x{img.shape[0]} from {', '.join(layout.names)}")
+print(f"wrote by_numbers_palette.png {img.shape[1]}x{img.shape[0]}")
+print(f"  labels 0, 1, 2: {', '.join(layout.names)}")
