@@ -213,7 +213,7 @@ def run_export(argv: list[str]) -> int:
     from infinitex.engine.material import IMAGE, parse_maps
     from infinitex.export.loaded import LoadedDocument
     from infinitex.export.window import ExportJob
-    from infinitex.project.realize import exemplar_for, material_for
+    from infinitex.project.realize import exemplar_for, material_or_none
     check_lattice_args(args)
     image = None
     if args.lattice and doc.maps:
@@ -224,7 +224,7 @@ def run_export(argv: list[str]) -> int:
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
-    material = material_for(doc) if doc.maps or doc.palette else None
+    material = material_or_none(doc)
     ex, settings = exemplar_for(doc, image, material)
     del image
     if material is not None:

@@ -30,6 +30,20 @@ from .material import Material, MaterialMap, renormalize
 MAX_ENTRIES = 16  # one label each
 
 
+def grid_side(n: int) -> int:
+    """g: the smallest power of two with g * g >= n (the grid of n entries)."""
+    g = 1
+    while g * g < n:
+        g *= 2
+    return g
+
+
+def cell_labels(n: int) -> np.ndarray:
+    """The label of each cell of the grid of n entries: uint8 (g, g), cell j -> j mod n."""
+    g = grid_side(n)
+    return (np.arange(g * g) % n).astype(np.uint8).reshape(g, g)
+
+
 @dataclass(frozen=True)
 class PaletteLayout:
     """Where each entry of a palette lies in the combined exemplar."""
@@ -50,9 +64,8 @@ class PaletteLayout:
 
     def labels(self) -> np.ndarray:
         """The combined exemplar's label map: uint8 (m, m), cell j -> label j mod n."""
-        g, c = self.grid, self.cell
-        cells = (np.arange(g * g) % self.count).astype(np.uint8).reshape(g, g)
-        return np.ascontiguousarray(np.kron(cells, np.ones((c, c), np.uint8)))
+        c = self.cell
+        return np.ascontiguousarray(np.kron(cell_labels(self.count), np.ones((c, c), np.uint8)))
 
     def locate(self, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(entry, x, y) of exemplar coordinates ``coords`` (..., 2): which
@@ -106,9 +119,7 @@ def layout_for(names: list[str], sizes: list[int], fit: str) -> PaletteLayout:
     if not 2 <= n <= MAX_ENTRIES:
         raise ExemplarError(f"A palette has 2 to {MAX_ENTRIES} exemplars, not {n}.")
     rule, limit = fit_rule(fit)
-    g = 1
-    while g * g < n:
-        g *= 2
+    g = grid_side(n)
     c = min(sizes)
     while g * c > limit:
         c //= 2

@@ -15,7 +15,7 @@ from infinitex.engine.material import IMAGE, Material, luma, single
 from infinitex.engine.params import SynthParams
 from infinitex.engine.synth import Synthesizer
 from infinitex.project import Document
-from infinitex.project.realize import AnalysisJob, material_for
+from infinitex.project.realize import AnalysisJob, material_or_none
 
 
 class LoadedDocument:
@@ -101,7 +101,7 @@ class LoadedDocument:
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
                 preview: bool = False) -> None:
         if material is None:
-            material = material_for(doc) if doc.maps or doc.palette else single(ex, [lv.stack for lv in an.levels])
+            material = material_or_none(doc) or single(ex, [lv.stack for lv in an.levels])
         self.release_synthesis()
         self.previewing = preview
         self.exemplar, self.analysis, self.material = ex, an, material

@@ -18,7 +18,7 @@ from infinitex.engine.pyramid import Rect
 from infinitex.engine.safeio import printable
 from infinitex.engine.synth import Synthesizer
 from infinitex.project import parse_project_json, project_from_json
-from infinitex.project.realize import exemplar_for, material_for
+from infinitex.project.realize import exemplar_for, material_or_none
 
 from .errors import ExportFailed
 from .formats import encode_tile
@@ -36,7 +36,7 @@ class ProjectSynthesizer:
 
     def __call__(self) -> Synthesizer:
         doc = project_from_json(parse_project_json(self.project_json.encode("utf-8"))).document
-        material = material_for(doc) if doc.maps or doc.palette else None
+        material = material_or_none(doc)
         ex, settings = exemplar_for(doc, material=material)
         an = analyze(ex, settings)  # the disk cache holds it: the parent analyzed it already
         params = doc.params(an.L)

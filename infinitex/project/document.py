@@ -17,8 +17,6 @@ import os
 from dataclasses import dataclass, field, replace
 
 from infinitex.engine.analysis import MODELS
-import numpy as np
-
 from infinitex.engine.controls import (
     MAX_LABELS,
     CanvasField,
@@ -34,6 +32,7 @@ from infinitex.engine.controls.labels import LABEL_COLORS
 from infinitex.engine.controls.lattice import Lattice, LatticeError
 from infinitex.engine.exemplar import FIT_MODES, MAX_FILE_BYTES
 from infinitex.engine.material import IMAGE, ROLES
+from infinitex.engine.palette import cell_labels
 from infinitex.engine.params import DEFAULT_JITTER, DEFAULT_STRUCTURE, STRUCTURE_LEVELS, SynthParams, structure_params
 from infinitex.engine.safeio import (
     read_limited,
@@ -180,21 +179,16 @@ class Document:
         maps [(role, file)], 2 to 16, the same roles): the first becomes the
         exemplar, each one label named after its file (labels already painted
         on the canvas are kept where their label remains). One entry: no palette."""
-        entries = [tuple(sorted(e, key=lambda rs: -1 if rs[0] == IMAGE else ROLES.index(rs[0]))) for e in entries]
+        entries = [canonical_maps(e) for e in entries]
         first = self.with_maps(entries[0])
         if len(entries) == 1:
             return replace(first, palette=(), labels=None)
-        g = 1
-        while g * g < len(entries):
-            g *= 2
-        cells = (np.arange(g * g) % len(entries)).astype(np.uint8).reshape(g, g)  # engine/palette.py's layout
         names = tuple(entry[0][1].name[:64] for entry in entries)
         old = self.labels
         canvas = old.canvas if old is not None and all(i < len(entries) for i in old.canvas.used) else CanvasLabels()
-        labels = LabelMaps(ExemplarLabels(cells), tuple(LABEL_COLORS[:len(entries)]), names, canvas,
-                           old.strength if old is not None else 1.0)
-        return replace(first, palette=tuple(tuple(e) for e in entries[1:]), labels=labels, lattice=None,
-                       make_tileable=False)
+        labels = LabelMaps(ExemplarLabels(cell_labels(len(entries))), tuple(LABEL_COLORS[:len(entries)]), names,
+                           canvas, old.strength if old is not None else 1.0)
+        return replace(first, palette=tuple(entries[1:]), labels=labels, lattice=None, make_tileable=False)
 
     def weight_dict(self) -> dict[str, float] | None:
         return None if self.weights is None else dict(self.weights)
@@ -202,7 +196,7 @@ class Document:
     def with_maps(self, maps) -> Document:
         """This document with another set of maps ([(role, source)]; one "image" map: a single image).
         The analysis weights of maps that remain are kept."""
-        maps = tuple(sorted(maps, key=lambda rs: -1 if rs[0] == IMAGE else ROLES.index(rs[0])))
+        maps = canonical_maps(maps)
         single = len(maps) == 1 and maps[0][0] == IMAGE
         w = self.weights
         if w is not None:
@@ -322,6 +316,11 @@ class Document:
                     or not any(v > 0 for _, v in self.weights):
                 raise ProjectError("Analysis weights are numbers from 0 to 4 for the material's own maps, "
                                    "at least one above 0.")
+
+
+def canonical_maps(maps) -> tuple:
+    """A document's maps [(role, file)] in role order (a single image's one map "image" first)."""
+    return tuple(sorted(maps, key=lambda rs: -1 if rs[0] == IMAGE else ROLES.index(rs[0])))
 
 
 def is_number(v: object) -> bool:

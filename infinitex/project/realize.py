@@ -43,6 +43,11 @@ def material_for(doc: Document) -> Material:
     return tileable_material(material) if doc.make_tileable else material
 
 
+def material_or_none(doc: Document) -> Material | None:
+    """The document's material (its maps, or its palette packed), or None for a single image."""
+    return material_for(doc) if doc.maps or doc.palette else None
+
+
 def palette_for(doc: Document) -> tuple[Material, PaletteLayout]:
     """A palette document's entries, each decoded and fitted, packed into one
     material (a single-image palette: the one map "image"), and the layout."""
@@ -149,7 +154,7 @@ class AnalysisJob:
     def _run(self) -> None:
         d = self.doc
         try:
-            material = material_for(d) if d.maps or d.palette else None
+            material = material_or_none(d)
             ex, settings = exemplar_for(d, material=material)
             if self.want_preview and (material is None or material.single) and self._needs_preview(ex, settings):
                 self._progress(0.0, "Quick preview (random-walk search)")

@@ -83,7 +83,7 @@ def _palette(ed, doc) -> None:
             if imgui.small_button(f"x##palette-remove-{i}"):
                 ed.remove_from_palette(i)
             tip("Remove this exemplar from the palette (its label goes; the canvas where it was painted "
-                    "becomes free)")
+                "becomes free)")
     if len(entries) < MAX_LABELS and imgui.button("Add to palette...", (-1, 0)):
         ed.dialogs.ask_paths("Add an exemplar to the palette", IMAGE_FILTER, ed.add_to_palette)
     tip("Texture by numbers across several images: each exemplar of the palette becomes a label (grass, gravel, "
