@@ -64,7 +64,10 @@ adds a dab), ``Feature`` (an exemplar spot placed on the canvas), ``Lattice``
 with ``AnalysisSettings(lattice=(nx, ny))``), ``ExemplarLabels`` and
 ``CanvasLabels`` (texture by numbers; ``label_controls(exemplar, maps...)``
 builds them from label images; ``palette(exemplars)`` packs several
-exemplars into one, one label each). Projects: ``load_project``,
+exemplars into one, one label each), ``DirectionField`` (the texture turns,
+grows and stretches over the canvas; ``direction_field(map)`` reads a flow or
+angle map, ``DirectionField.uniform`` / ``from_jacobians`` / ``painted`` build
+one, ``jacobian(degrees, scale, aspect)`` gives its values). Projects: ``load_project``,
 ``save_project``; the editor's exports: ``infinitex export``. Runnable
 examples of each capability are in ``examples/`` of the source tree.
 
@@ -93,6 +96,8 @@ _EXPORTS = {
     "Controls": "engine.controls", "NO_CONTROLS": "engine.controls", "CanvasField": "engine.controls",
     "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
     "ExemplarLabels": "engine.controls", "CanvasLabels": "engine.controls",
+    "DirectionField": "engine.controls.direction", "jacobian": "engine.controls.direction",
+    "direction_field": "api",
     "Lattice": "engine.controls.lattice", "rectified_exemplar": "engine.controls.lattice", "render_original": "engine.controls.lattice",
     "original_geometry_box": "engine.controls.lattice",
     "TiledExport": "export.streamed",

@@ -101,6 +101,22 @@ def label_controls(ex: Exemplar, exemplar_labels, canvas_labels, origin: tuple[i
     return out
 
 
+def direction_field(source, origin: tuple[int, int] = (0, 0), *, kind: str = "auto", y_up: bool = True,
+                    scale: float = 1.0, aspect: float = 1.0):
+    """A :class:`DirectionField` from a direction map placed with its top-left at
+    canvas ``origin``: a file path (a flow map, or a grayscale angle map; see
+    ``kind``, ``y_up`` for a flow map's green: up = OpenGL) or an array of
+    angles in degrees (H, W). ``scale`` and ``aspect`` apply where the map gives
+    a direction. Pass it as ``Controls(direction=...)``."""
+    from .engine.controls.direction import DirectionField, jacobian
+    from .engine.controls.maps import load_direction_map
+    if isinstance(source, (str, os.PathLike)):
+        values = load_direction_map(os.fspath(source), kind, y_up, scale, aspect)
+    else:
+        values = jacobian(np.asarray(source, np.float64), scale, aspect)
+    return DirectionField.from_jacobians(values, int(origin[0]), int(origin[1]))
+
+
 def palette(exemplars, fit: str = "resize") -> tuple[Exemplar, PaletteLayout]:
     """Several exemplars (paths, arrays in [0, 1] or Exemplars; 2 to 16) packed
     into one exemplar, each a label (engine/palette.py): returns it and its

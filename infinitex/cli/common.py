@@ -220,6 +220,42 @@ def add_label_args(p: argparse.ArgumentParser) -> None:
                         "#ffe119, #0082c8, ...: docs/controls.md); a --labels-canvas map uses those colors")
 
 
+def add_direction_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("direction field (the texture turns, grows and stretches where a map says; "
+                             "docs/controls.md#direction-fields)")
+    g.add_argument("--direction-map", metavar="MAP", help="a flow map (red, green in [0, 1], mid-gray = leave as "
+                   "is) or an angle map (grayscale, 0..1 = 0..360 degrees clockwise from +x) over the canvas "
+                   "(finest-level pixels), placed by --direction-origin; the exemplar's +x runs along it")
+    g.add_argument("--direction-origin", nargs=2, type=integer, default=[0, 0], metavar=("X", "Y"),
+                   help="canvas position of the direction map's top-left pixel (default 0 0)")
+    g.add_argument("--direction-kind", choices=("auto", "flow", "angle"), default="auto",
+                   help="how the map is read (default auto: grayscale = angle, color = flow)")
+    g.add_argument("--flow-y", choices=("up", "down"), default="up",
+                   help="where a flow map's green points: up (OpenGL, the default) or down (DirectX)")
+    g.add_argument("--direction-scale", type=number, default=1.0, metavar="S",
+                   help="how much larger the texture shows where the map gives a direction (0.25 to 4; default 1)")
+    g.add_argument("--direction-aspect", type=number, default=1.0, metavar="A",
+                   help="stretched A times along the direction and 1/A across (default 1)")
+
+
+def direction_field(args, base=None):
+    """The DirectionField of --direction-map (replacing ``base``), or ``base``."""
+    from infinitex.engine.controls.direction import DirectionField, jacobian
+    from infinitex.engine.controls.maps import load_direction_map
+    if not getattr(args, "direction_map", None):
+        return base
+    try:
+        jacobian(0.0, args.direction_scale, args.direction_aspect)
+    except ValueError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
+    values = load_direction_map(args.direction_map, args.direction_kind, args.flow_y == "up",
+                                args.direction_scale, args.direction_aspect)
+    x, y = args.direction_origin
+    if min(x, y) < -COORD_LIMIT or max(x + values.shape[1], y + values.shape[0]) > COORD_LIMIT:
+        raise CliError(f"The direction map must lie within +-{COORD_LIMIT}.", EXIT_USAGE)
+    return DirectionField.from_jacobians(values, x, y)
+
+
 def palette_arg(text: str) -> list[str]:
     paths = [p for p in text.split(",") if p.strip()]
     if not 1 <= len(paths) <= 15:

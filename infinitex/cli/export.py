@@ -20,6 +20,7 @@ from .common import (
     Parser,
     ProgressBar,
     add_lattice_args,
+    add_direction_args,
     add_label_args,
     add_randomness_args,
     add_make_tileable_arg,
@@ -29,6 +30,7 @@ from .common import (
     check_out,
     check_toroidal,
     check_window,
+    direction_field,
     guarded,
     integer,
     label_maps,
@@ -84,6 +86,7 @@ def build_parser() -> Parser:
                         "worker that dies are rendered again elsewhere")
     add_randomness_args(p)
     add_label_args(p)
+    add_direction_args(p)
     add_lattice_args(p)
     add_structure_arg(p, None)
     add_make_tileable_arg(p)
@@ -161,7 +164,7 @@ def run_export(argv: list[str]) -> int:
 
     # No output may replace a file this export reads (checked again once the maps' depths are known).
     inputs = [args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar, args.features,
-              args.labels_exemplar, args.labels_canvas]
+              args.labels_exemplar, args.labels_canvas, args.direction_map]
     size = (args.toroidal, args.toroidal) if args.toroidal is not None else (w, h)
     if is_project_file(args.project):
         try:
@@ -250,6 +253,8 @@ def run_export(argv: list[str]) -> int:
                       features=c.features, avoid_exemplar=c.avoid)
     if args.labels_exemplar or args.labels_canvas or args.label_strength is not None:
         doc = replace(doc, labels=label_maps(args, ex.original_size, doc.fit, ex.size, doc.labels))
+    if args.direction_map:  # replaces the project's
+        doc = replace(doc, direction=direction_field(args, doc.direction))
     try:  # the project with every argument applied (--make-tileable, --lattice, labels...)
         doc.validate()
         doc.controls(ex.size).validate(ex.size)

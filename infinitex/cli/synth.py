@@ -27,6 +27,7 @@ from .common import (
     CliError,
     Parser,
     add_lattice_args,
+    add_direction_args,
     add_label_args,
     add_randomness_args,
     add_make_tileable_arg,
@@ -35,6 +36,7 @@ from .common import (
     check_lattice_args,
     check_out,
     check_window,
+    direction_field,
     guarded,
     integer,
     label_maps,
@@ -83,6 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_make_tileable_arg(p)
     add_randomness_args(p)
     add_label_args(p)
+    add_direction_args(p)
     add_lattice_args(p)
     p.add_argument("--no-cache", action="store_true", help="do not read or write the analysis cache")
     p.add_argument("-q", "--quiet", action="store_true")
@@ -119,7 +122,7 @@ def run_synth(argv: list[str]) -> int:
         check_own_inputs(Writes(files=[p for p in (args.output, args.coords) if p]),
                          [args.exemplar, args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar,
                           args.labels_exemplar, args.labels_canvas,
-                          args.features, *(args.palette or [])])
+                          args.features, args.direction_map, *(args.palette or [])])
     except OwnInputError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     check_lattice_args(args)
@@ -185,6 +188,11 @@ def run_synth(argv: list[str]) -> int:
             controls.validate(ex.size)
         except ValueError as exc:
             raise CliError(str(exc), EXIT_USAGE) from None
+    direction = direction_field(args)
+    if direction is not None:
+        if lattice is not None:
+            raise CliError("--direction-map does not go with --lattice.", EXIT_USAGE)
+        controls = replace(controls, direction=direction)
     grid = (0, 0)
     if lattice is not None:
         controls = replace(controls, lattice=lattice)

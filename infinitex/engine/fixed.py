@@ -141,3 +141,63 @@ def jitter(gx: np.ndarray, gy: np.ndarray, level: int, seed: int, h: int, rq: in
 def child_offset(d: np.ndarray, h: int) -> np.ndarray:
     """floor(h * (D - 1/2)) for D in {0, 1} (LH05 stack upsampling)."""
     return d * h - ((h + 1) >> 1)
+
+
+# -- anisometric synthesis (engine/controls/direction.py) ---------------------
+# With a direction field a coordinate is F = 256 x + r in 1/256 exemplar px: a
+# state texel holds the nearest texel x (wrapped) and r in [-128, 128).
+FRAC_BITS = 8
+FRAC_ONE = 1 << FRAC_BITS
+
+
+def split_q8(F: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(nearest texel wrapped to [0, m), remainder in [-128, 128)) of coordinates F in 1/256 px."""
+    F = np.asarray(F, np.int64) & (FRAC_ONE * m - 1)
+    r = (F + FRAC_ONE // 2) >> FRAC_BITS
+    return r & (m - 1), F - (r << FRAC_BITS)
+
+
+def nearest_q8(F: np.ndarray, m: int) -> np.ndarray:
+    """The nearest exemplar texel (wrapped) of coordinates F in 1/256 px."""
+    return ((np.asarray(F, np.int64) + FRAC_ONE // 2) >> FRAC_BITS) & (m - 1)
+
+
+def jmul(J: np.ndarray, dx, dy, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """h (J d) in 1/256 px: floor(h (J d) / 16) for J in Q12 (..., 4) (shaders: jmul)."""
+    J = np.asarray(J, np.int64)
+    vx = h * (J[..., 0] * dx + J[..., 1] * dy)
+    vy = h * (J[..., 2] * dx + J[..., 3] * dy)
+    return vx >> 4, vy >> 4
+
+
+def child_offset_q8(J: np.ndarray, dx: np.ndarray, dy: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """LH06 anisometric upsampling: h J (D - 1/2) in 1/256 px for D in {0, 1}^2,
+    floor(J v / 32) with v = h (2D - 1), less half a pixel at h = 1 (so that
+    J = I gives child_offset exactly, in 1/256 px)."""
+    J = np.asarray(J, np.int64)
+    vx, vy = h * (2 * np.asarray(dx, np.int64) - 1), h * (2 * np.asarray(dy, np.int64) - 1)
+    ox = (J[..., 0] * vx + J[..., 1] * vy) >> 5
+    oy = (J[..., 2] * vx + J[..., 3] * vy) >> 5
+    half = FRAC_ONE // 2 if h == 1 else 0
+    return ox - half, oy - half
+
+
+def inverse_direction_signs(J: np.ndarray, dx: int, dy: int) -> tuple[np.ndarray, np.ndarray]:
+    """The signs (+-1, 0 counting as +1) of J^-1 d = adj(J) d / det J (det > 0):
+    which immediate neighbors the appearance correction reads for diagonal d."""
+    J = np.asarray(J, np.int64)
+    px = J[..., 3] * dx - J[..., 1] * dy
+    py = -J[..., 2] * dx + J[..., 0] * dy
+    return np.where(px >= 0, 1, -1), np.where(py >= 0, 1, -1)
+
+
+def inverse_direction_rounded(J: np.ndarray, dx: int, dy: int, lim: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """round(J^-1 d) clamped to [-lim, lim] (the color model's neighbor for tap d):
+    floor((2 * 4096 adj(J) d + det) / (2 det))."""
+    J = np.asarray(J, np.int64)
+    det = J[..., 0] * J[..., 3] - J[..., 1] * J[..., 2]
+    px = J[..., 3] * dx - J[..., 1] * dy
+    py = -J[..., 2] * dx + J[..., 0] * dy
+    rx = (2 * 4096 * px + det) // (2 * det)
+    ry = (2 * 4096 * py + det) // (2 * det)
+    return np.clip(rx, -lim, lim), np.clip(ry, -lim, lim)

@@ -47,6 +47,7 @@ from PIL import Image
 from .exemplar import HIRES_MAX, IMPORT_BUDGET, Exemplar, ExemplarError, crop_box, decoding, fit_rule
 from .exemplar import import_cost, load_exemplar_bytes, open_image
 from .safeio import ReadError, printable, read_limited
+from .subpixel import sample
 from .tiffinfo import is_tiff, loses_precision, page_tags
 
 IMAGE = "image"  # the one map of a single-image exemplar
@@ -385,10 +386,10 @@ class Material:
         return cached
 
     def lookup(self, role: str, coords: np.ndarray, level: int | None = None) -> np.ndarray:
-        """map_l[S]: float32 (H, W, C) of coordinates (H, W, 2) at ``level`` (default: finest)."""
+        """map_l[S]: float32 (H, W, C) of coordinates (H, W, 2) at ``level`` (default: finest);
+        (H, W, 4) with sub-pixel remainders: bilinear (engine/subpixel.py)."""
         st = self.stack(role)
-        lv = st[len(st) - 1 if level is None else level]
-        return lv[coords[..., 1], coords[..., 0]]
+        return sample(st[len(st) - 1 if level is None else level], coords, self.toroidal)
 
     def magnified(self, role: str, coords: np.ndarray, scale: int) -> np.ndarray:
         """Synthesis magnification (LH05 section 5) of finest-level coordinates:

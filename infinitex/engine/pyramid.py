@@ -26,16 +26,13 @@ from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
 from .requests import SpreadRequests
+from .state import StateAccess, SynthesisError
 from .params import SynthParams, correction_margins, subpass_order
 from .rect import Rect
 from .similarity import border_margin
 from .stages import Draw, Pacer, fidelity_draws, label_draws, subpass_draws
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
-
-
-class SynthesisError(ValueError):
-    """A request the synthesis cannot serve (e.g. coordinates out of range)."""
 
 
 def _next_pow2(n: int) -> int:
@@ -68,12 +65,13 @@ def feature_textures(gpu: Gpu, controls: Controls, an, l: int, region: Rect, per
 
 
 class _LevelBuffer:
-    def __init__(self, gpu: Gpu, size: tuple[int, int], scrolling: bool, anchor: tuple[int, int]):
+    def __init__(self, gpu: Gpu, size: tuple[int, int], scrolling: bool, anchor: tuple[int, int], channels: int = 2):
         self.size = size
         self.scrolling = scrolling
         self.anchor = (0, 0) if scrolling else anchor
         self.mask = (size[0] - 1, size[1] - 1) if scrolling else (-1, -1)
-        self.tex = gpu.int_texture(size, 2)
+        self.channels = channels  # 4 with a direction field: (nearest texel, remainder in 1/256 px)
+        self.tex = gpu.int_texture(size, channels)
         self.fbo = gpu.ctx.framebuffer(color_attachments=[self.tex])
         self.valid: Rect | None = None
 
@@ -90,7 +88,7 @@ class _LevelBuffer:
         self.tex.release()
 
 
-class Pyramid(LocalUpdates, SpreadRequests):
+class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
     """Per-level exact coordinate buffers for one analysis and parameter set.
 
     ``scrolling=True`` keeps power-of-two wrap-around buffers with a prefetch
@@ -136,6 +134,8 @@ class Pyramid(LocalUpdates, SpreadRequests):
             controls.validate(self.an.size, self.an.settings.lattice)
             if controls.exemplar_inputs() != self.controls.exemplar_inputs():
                 self._release_efield()
+            if controls.directed != self.controls.directed:
+                self._release_state()  # the state's format changes (sub-pixel parts)
             self.controls = controls
         old = getattr(self, "_signatures", None)
         self.params = params
@@ -150,14 +150,6 @@ class Pyramid(LocalUpdates, SpreadRequests):
         first = next((l for l in range(self.an.L + 1) if old[l] != self._signatures[l]), None)
         if first is not None:
             self.invalidate(first)
-
-    def _read_rect(self, buf: _LevelBuffer, r: Rect) -> np.ndarray:
-        """The held coordinates of ``r`` (H, W, 2) int16, read back piece by piece."""
-        out = np.empty((r.h, r.w, 2), dtype=np.int16)
-        for (gx, gy), (tx, ty), w, h in self._texel_pieces(buf, r):
-            data = buf.fbo.read(viewport=(tx, ty, w, h), components=2, dtype="i2", alignment=1)
-            out[gy - r.y0:gy - r.y0 + h, gx - r.x0:gx - r.x0 + w] = np.frombuffer(data, np.int16).reshape(h, w, 2)
-        return out
 
     def _level_signatures(self) -> list[tuple]:
         """What each level depends on: its parameters and the controls."""
@@ -264,7 +256,7 @@ class Pyramid(LocalUpdates, SpreadRequests):
                 size = (max(size[0], buf.size[0]), max(size[1], buf.size[1]))
         else:
             size = (target.w, target.h)
-        new = _LevelBuffer(self.gpu, size, self.scrolling, (target.x0, target.y0))
+        new = _LevelBuffer(self.gpu, size, self.scrolling, (target.x0, target.y0), self.channels)
         if buf is not None:
             keep = buf.valid.intersect(target) if buf.valid is not None else None
             if keep is not None and not keep.empty and new.fits(keep):
@@ -308,8 +300,8 @@ class Pyramid(LocalUpdates, SpreadRequests):
 
     def _new_scratch(self, w: int, h: int):
         """Two w x h state textures and their framebuffers: (a, fa, b, fb)."""
-        a = self.gpu.int_texture((w, h), 2)
-        b = self.gpu.int_texture((w, h), 2)
+        a = self.gpu.int_texture((w, h), self.channels)
+        b = self.gpu.int_texture((w, h), self.channels)
         return a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b])
 
     def _synthesize_strip(self, l: int, strip: Rect, buf: _LevelBuffer) -> int:
@@ -339,12 +331,16 @@ class Pyramid(LocalUpdates, SpreadRequests):
             cvals = self.controls.randomness_canvas.region(an.L - l, region.x0, region.y0, region.w, region.h,
                                                            p.level_period(l))
         ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
+        dtex = self._direction_texture(l, region)
+        ddef = dict(DIRECTION=True) if dtex is not None else {}
         labels = None
         try:
             # Upsample + jitter into scratch a (modulated by the randomness fields), at once.
-            prog, vao = self.gpu.program("upsample.frag", SUB_S=s)
+            prog, vao = self.gpu.program("upsample.frag", SUB_S=s, **ddef)
             efield = self._efield_texture(l)
             textures = {1: efield or self._dummy, 2: ctex or self._dummy}
+            if dtex is not None:
+                textures[11] = dtex
             uni: dict = {}
             if l > 0:
                 parent = self.buffers[l - 1]
@@ -355,7 +351,8 @@ class Pyramid(LocalUpdates, SpreadRequests):
             uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
                        m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
                        period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
-                       cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi)
+                       cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi,
+                       **(dict(dfield=11) if dtex is not None else {}))
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
             yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni).steps(pace)
@@ -368,7 +365,7 @@ class Pyramid(LocalUpdates, SpreadRequests):
             if l in self.corrected:
                 lt = self.gan.level(l)
                 prog, vao = self.gpu.program("correct.frag", SUB_S=s, **self.gan.correction_defines(),
-                                             **(labels.defines if labels else {}))
+                                             **(labels.defines if labels else {}), **ddef)
                 sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
                 # Lattice levels keep their lattice candidates only.
                 walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
@@ -382,11 +379,14 @@ class Pyramid(LocalUpdates, SpreadRequests):
                 if labels is not None:
                     textures.update(labels.textures)
                     uni.update(labels.correction)
+                if dtex is not None:
+                    textures[11] = dtex
+                    uni["dfield"] = 11
                 draws += subpass_draws(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch,
                                        textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
             if p.fidelity_at(l):
                 draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
-                                        avoid or self._dummy, avoid is not None, labels)
+                                        avoid or self._dummy, avoid is not None, labels, dtex)
             for d in draws:
                 yield from d.steps(pace)
 
@@ -399,7 +399,7 @@ class Pyramid(LocalUpdates, SpreadRequests):
                 if strip.empty:
                     return None
                 before = self._read_rect(buf, strip)
-            prog, vao = self.gpu.program("writeback.frag", SUB_S=s)
+            prog, vao = self.gpu.program("writeback.frag", SUB_S=s, **ddef)
             uni = dict(src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
                        h=h, m=an.size, period=p.level_period(l), **funi)
             textures = {0: a, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
@@ -422,6 +422,8 @@ class Pyramid(LocalUpdates, SpreadRequests):
                 tex.release()
             if ctex is not None:
                 ctex.release()
+            if dtex is not None:
+                dtex.release()
             if labels is not None:
                 labels.canvas.release()
 
@@ -462,17 +464,6 @@ class Pyramid(LocalUpdates, SpreadRequests):
         return [((gx, gy), (tx, ty), nx, ny) for gx, tx, nx in xs for gy, ty, ny in ys]
 
     # -- reading ------------------------------------------------------------
-
-    def read(self, level: int, rect: Rect) -> np.ndarray:
-        """Exemplar coordinates (H, W, 2) int32 as (x, y) over ``rect``; must be valid."""
-        buf = self.buffers[level]
-        if buf is None or buf.valid is None or not buf.valid.contains(rect):
-            raise SynthesisError(f"Level {level} does not hold {rect}; request it first.")
-        self.gpu.activate()
-        data = np.frombuffer(buf.tex.read(alignment=1), dtype=np.int16).reshape(buf.size[1], buf.size[0], 2)
-        tx = (np.arange(rect.x0, rect.x1) - buf.anchor[0]) & buf.mask[0]
-        ty = (np.arange(rect.y0, rect.y1) - buf.anchor[1]) & buf.mask[1]
-        return data[ty[:, None], tx[None, :]].astype(np.int32)
 
     def release(self) -> None:
         self.gpu.activate()

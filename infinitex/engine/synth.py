@@ -20,6 +20,7 @@ from .controls import NO_CONTROLS, Controls
 from .gpu import Gpu, GpuAnalysis
 from .params import SynthParams
 from .pyramid import Pyramid, Rect, SynthesisError
+from .subpixel import sample
 
 # Largest image assembled in memory (synth command, exports): 64 Mpixels of
 # int32 coordinates is 512 MB. Streamed exports will lift this.
@@ -62,13 +63,16 @@ class Synthesizer:
             self.controls = controls
         self.params = params
 
-    def window(self, rect: Rect, level: int | None = None) -> np.ndarray:
-        """Exact coordinates of ``rect`` at ``level`` (default: finest), (H, W, 2) int32."""
+    def window(self, rect: Rect, level: int | None = None, remainder: bool | None = None) -> np.ndarray:
+        """Exact coordinates of ``rect`` at ``level`` (default: finest), (H, W, 2) int32;
+        with ``remainder`` (by default: when a direction field is painted) (H, W, 4),
+        the sub-pixel remainders (1/256 px) after them (engine/subpixel.py)."""
         level = self.L if level is None else level
+        remainder = self.controls.directed if remainder is None else remainder
         pyr = Pyramid(self.gpu, self.gan, self.params, scrolling=False, controls=self.controls)
         try:
             pyr.request(level, rect)
-            return pyr.read(level, rect)
+            return pyr.read(level, rect, remainder)
         finally:
             pyr.release()
 
@@ -87,10 +91,11 @@ class Synthesizer:
         return Viewport(self, prefetch=prefetch)
 
     def colors(self, coords: np.ndarray, level: int | None = None) -> np.ndarray:
-        """E_l[S]: float32 (H, W, C) colors of coordinates at ``level``."""
+        """E_l[S]: float32 (H, W, C) colors of coordinates at ``level`` (bilinear
+        between texels where they carry sub-pixel remainders)."""
         level = self.L if level is None else level
         stack = self.palette[level] if self.palette is not None else self.analysis.levels[level].stack
-        return stack[coords[..., 1], coords[..., 0]]
+        return sample(stack, coords, self.analysis.toroidal)
 
     def release(self) -> None:
         self.gpu.activate()

@@ -20,6 +20,7 @@ from infinitex.engine.material import MaterialError, export_depths, output_paths
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import printable
 from infinitex.engine.synth import MAX_WINDOW_PIXELS as MAX_EXPORT_PIXELS
+from infinitex.engine.subpixel import sample, turn_normals
 from infinitex.engine.synth import MAX_WINDOW_SIDE as MAX_EXPORT_SIDE
 
 from .formats import encode_coords
@@ -28,9 +29,10 @@ from .loaded import LoadedDocument
 MAGNIFY_FACTORS = (1, 2, 4, 8)  # exports: output pixels per synthesized texel (synthesis magnification)
 
 
-def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
-    """uint8 (H, W, C) colors of exemplar coordinates (H, W, 2) at ``level``."""
-    return stack[level][coords[..., 1], coords[..., 0]]
+def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int, wrap: bool = True) -> np.ndarray:
+    """uint8 (H, W, C) colors of exemplar coordinates (H, W, 2) at ``level``
+    ((H, W, 4) with sub-pixel remainders: bilinear, wrapped or clamped)."""
+    return sample(stack[level], coords, wrap)
 
 
 class ExportJob:
@@ -60,6 +62,8 @@ class ExportJob:
         if magnify > 1:
             if coords_path:
                 raise SynthesisError("The coordinate map is exported at 1:1 (without magnification).")
+            if session.controls.directed:
+                raise SynthesisError("Magnified exports do not follow a direction field yet; export at 1:1.")
             if rect.w * magnify > MAX_EXPORT_SIDE or rect.h * magnify > MAX_EXPORT_SIDE \
                     or rect.w * rect.h * magnify * magnify > MAX_EXPORT_PIXELS:
                 raise SynthesisError(f"Magnified {magnify}x, {rect.w}x{rect.h} is {rect.w * magnify}x{rect.h * magnify}, "
@@ -99,6 +103,7 @@ class ExportJob:
                 if toroidal % cx or toroidal % cy:
                     raise SynthesisError(f"A toroidal tile of whole cells needs a size that the lattice cell "
                                          f"({cx}x{cy} px) divides: {max(cx, cy, 32)} px or more.")
+        self.period = params.period  # the toroidal tile's, or 0
         self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
                                controls=session.controls)
         # What the files are made from, fixed now (the editor may install another analysis meanwhile).
@@ -106,7 +111,8 @@ class ExportJob:
         self.stacks = {role: session.display_stack(role) for role, _, depth in self.outputs
                        if depth == 8 and self.lattice is None and magnify == 1}
         self.L = an.L
-        self.coords = np.zeros((rect.h, rect.w, 2), dtype=np.int32)
+        self.directed = session.controls.directed
+        self.coords = np.zeros((rect.h, rect.w, 4 if self.directed else 2), dtype=np.int32)
         self.tiles = [Rect(x, y, min(x + tile, rect.x1), min(y + tile, rect.y1))
                       for y in range(rect.y0, rect.y1, tile) for x in range(rect.x0, rect.x1, tile)]
         self.index = 0
@@ -132,7 +138,7 @@ class ExportJob:
             while self.index < len(self.tiles):
                 t = self.tiles[self.index]
                 self.pyramid.request(self.L, t)
-                c = self.pyramid.read(self.L, t)
+                c = self.pyramid.read(self.L, t, self.directed)
                 self.coords[t.y0 - self.rect.y0:t.y1 - self.rect.y0, t.x0 - self.rect.x0:t.x1 - self.rect.x0] = c
                 self.index += 1
                 if time.perf_counter() - t0 > budget_s:
@@ -163,12 +169,18 @@ class ExportJob:
             return render_original(self.coords, box, self.lattice, ex.size, source, r.x0, r.y0, r.w, r.h)
         if self.magnify > 1:
             return self.material.magnified(role, self.coords, self.magnify)
-        return self.material.lookup(role, self.coords)
+        out = self.material.lookup(role, self.coords)
+        if role == "normal" and self.directed:  # normals turn with the texture
+            r = self.rect
+            jac = self.session.controls.direction.region(0, r.x0, r.y0, r.w, r.h, self.period)
+            out = out if jac is None else turn_normals(out, jac)
+        return out
 
     def _write(self) -> None:
         for role, path, depth in self.outputs:
-            if role in self.stacks:  # 8 bits at 1:1: looked up in the uint8 stack (a quarter of the memory)
-                write_png(path, colors_u8(self.stacks[role], self.coords, self.L))
+            if role in self.stacks and not (role == "normal" and self.directed):
+                # 8 bits at 1:1: looked up in the uint8 stack (a quarter of the memory)
+                write_png(path, colors_u8(self.stacks[role], self.coords, self.L, self.material.toroidal))
             else:
                 write_image(path, self.pixels(role), depth, self.material.maps[role].exemplar.value_range)
         if self.coords_path:

@@ -21,6 +21,7 @@ from infinitex.engine.controls import (
     MAX_LABELS,
     CanvasField,
     CanvasLabels,
+    DirectionField,
     Controls,
     ExemplarField,
     ExemplarLabels,
@@ -145,6 +146,7 @@ class Document:
     # document's exemplar or material), each as its maps [(role, file)], one
     # label each; () for one exemplar.
     palette: tuple[tuple[tuple[str, ExemplarSource], ...], ...] = ()
+    direction: DirectionField | None = None            # direction and scale over the canvas (sparse tiles)
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on (a lattice's geometry: its
@@ -236,7 +238,7 @@ class Document:
         lab = self.labels
         controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a,
                             None if lab is None else lab.exemplar.scaled(m), None if lab is None else lab.canvas,
-                            1.0 if lab is None else float(lab.strength)).normalized()
+                            1.0 if lab is None else float(lab.strength), self.direction).normalized()
         object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
         return controls
 
@@ -287,6 +289,8 @@ class Document:
                 self.lattice.check_shape()
             except LatticeError as exc:
                 raise ProjectError(f"The project's lattice: {exc}") from None
+            if self.direction is not None and not self.direction.identity:
+                raise ProjectError("A direction field does not work on a lattice; turn one of them off.")
         if self.maps:
             roles = [r for r, _ in self.maps]
             if any(r not in ROLES for r in roles) or len(set(roles)) != len(roles):

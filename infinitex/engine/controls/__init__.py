@@ -65,11 +65,13 @@ from .fields import (
     modulated_rq,
     reduce_toward_neutral,
 )
+from .direction import DirectionField
 from .labels import MAX_LABELS, CanvasLabels, ExemplarLabels
 from .lattice import Lattice
 
 __all__ = [
-    "Controls", "NO_CONTROLS", "NEUTRAL", "TILE", "CanvasField", "CanvasLabels", "ExemplarArray", "ExemplarField",
+    "Controls", "NO_CONTROLS", "NEUTRAL", "TILE", "CanvasField", "CanvasLabels", "DirectionField", "ExemplarArray",
+    "ExemplarField",
     "ExemplarLabels", "ExemplarMask", "MAX_LABELS",
     "Feature", "FEATURE_CELL", "MAX_FEATURE_RADIUS", "MAX_FEATURES", "Lattice", "apply_dab", "dab_rect",
     "dab_weights", "feature_arrays", "feature_bins", "features_from_json", "features_to_json", "fit_features",
@@ -91,6 +93,8 @@ class Controls:
     labels_exemplar: ExemplarLabels | None = None
     labels_canvas: CanvasLabels | None = None
     label_strength: float = 1.0
+    # Direction and scale over the canvas (engine/controls/direction.py, LH06 5).
+    direction: DirectionField | None = None
 
     def normalized(self) -> Controls:
         """Neutral fields, empty masks and labels that constrain nothing dropped
@@ -99,11 +103,13 @@ class Controls:
         c = self.randomness_canvas
         a = self.avoid
         lc = self.labels_canvas
+        d = self.direction
         out = (None if e is None or e.neutral else e, None if c is None or c.neutral else c,
                tuple(self.features), self.lattice, None if a is None or a.empty else a,
-               self.labels_exemplar, None if lc is None or lc.empty else lc, float(self.label_strength))
-        before = (e, c, self.features, self.lattice, a, self.labels_exemplar, lc, self.label_strength)
-        if all(x is y for x, y in zip(out[:7], before[:7])) and out[7] == before[7]:
+               self.labels_exemplar, None if lc is None or lc.empty else lc, float(self.label_strength),
+               None if d is None or d.identity else d)
+        before = (e, c, self.features, self.lattice, a, self.labels_exemplar, lc, self.label_strength, d)
+        if all(x is y for i, (x, y) in enumerate(zip(out, before)) if i != 7) and out[7] == before[7]:
             return self  # already normalized: keep what is cached (the features' arrays)
         return Controls(*out)
 
@@ -145,6 +151,8 @@ class Controls:
             raise ValueError("The label strength must be from 0 to 8.")
         if self.labels_active and self.lattice is not None:
             raise ValueError("Texture by numbers does not work on a lattice; turn one of them off.")
+        if self.direction is not None and not self.direction.identity and self.lattice is not None:
+            raise ValueError("A direction field does not work on a lattice; turn one of them off.")
         if self.labels_active:
             missing = sorted(set(self.labels_canvas.used) - set(le.present))
             if missing:
@@ -177,7 +185,13 @@ class Controls:
         return (None if e is None else e.key, None if c is None else c.key,
                 self.features_key if self.features else None,
                 None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)),
-                None if self.avoid is None else self.avoid.key, labels)
+                None if self.avoid is None else self.avoid.key, labels,
+                None if self.direction is None else self.direction.key)
+
+    @property
+    def directed(self) -> bool:
+        """A direction field other than the identity is painted: coordinates carry sub-pixel parts."""
+        return self.direction is not None and not self.direction.identity
 
     def _meeting(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """Indices (ascending) of the features whose reach (Feature.bbox) meets a finest-level rectangle."""
@@ -238,6 +252,9 @@ class Controls:
         after = other.randomness_canvas or CanvasField()
         out = before.changed_rects(after)
         out += (self.labels_canvas or CanvasLabels()).changed_rects(other.labels_canvas or CanvasLabels())
+        if self.directed != other.directed:
+            return None  # the state's format changes (sub-pixel parts): everything again
+        out += (self.direction or DirectionField()).changed_rects(other.direction or DirectionField())
         if self.features != other.features:
             old, new = set(self.features), set(other.features)
             out += [f.bbox() for f in old ^ new]  # added, removed, moved or resized

@@ -72,3 +72,33 @@ def fit_field_map(values: np.ndarray, fit: str, m: int) -> np.ndarray:
     if side != m:
         sq = np.asarray(Image.fromarray(sq, mode="F").resize((m, m), Image.BILINEAR))
     return np.clip(np.rint(sq), 0, 65535).astype(np.uint16)
+
+
+def direction_map_cost(w: int, h: int, mode: str, file_bytes: int) -> int:
+    """Peak bytes reading a w x h direction map needs: the file, the decoded image,
+    float64 vectors and angles, and the int16 Jacobians (plus a margin)."""
+    return file_bytes + w * h * (8 + 4 * 8 + 8) + (16 << 20)
+
+
+def load_direction_map(path: str, kind: str = "auto", y_up: bool = True, scale: float = 1.0,
+                       aspect: float = 1.0) -> np.ndarray:
+    """A direction map as Q12 Jacobians (H, W, 4) int16 (engine/controls/direction.py):
+    ``flow`` (R, G in [0, 1], 0.5 = none; ``y_up``: green points up, OpenGL, else
+    down, DirectX), ``angle`` (gray 0..1 = 0..360 degrees, clockwise on screen
+    from +x), or ``auto`` (grayscale files are angle maps, color ones flow maps).
+    ``scale`` and ``aspect`` apply where a direction is given. Same safeguards as exemplars."""
+    from .direction import angle_to_jacobians, flow_to_jacobians
+    with opened_map(path, "direction map", direction_map_cost) as (name, img):
+        gray = img.mode in ("L", "LA", "I", "F") or img.mode.startswith("I;16")
+        if kind == "auto":
+            kind = "angle" if gray else "flow"
+        if kind == "angle":
+            if img.mode.startswith("I;16") or img.mode == "I":
+                a = np.asarray(img).astype(np.float64) / 65535.0
+            else:
+                a = np.asarray(img.convert("L")).astype(np.float64) / 255.0
+            return angle_to_jacobians(a, scale, aspect)
+        if gray:
+            raise ExemplarError(f"{name} is grayscale; a flow map has its direction in red and green.")
+        rgb = np.asarray(img.convert("RGB")).astype(np.float64) / 255.0
+        return flow_to_jacobians(rgb, y_up, scale, aspect)

@@ -58,7 +58,7 @@ uniform ivec2 fcell_origin;
 uniform ivec2 fcell_dims;
 uniform int fcell_shift;
 
-ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
+ivec2 apply_features_hit(ivec2 g, ivec2 s, int h, int m, int period, inout bool hit) {
     if (nfeat == 0) {
         return s;
     }
@@ -79,10 +79,50 @@ ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
         ivec2 d16 = d * 16 + 8 - ivec2(a.z & 15, a.z >> 4);
         if (d16.x * d16.x + d16.y * d16.y <= a.w * a.w) {
             s = (texelFetch(features, row + ivec2(1, 0), 0).xy + h * d) & (m - 1);
+            hit = true;
         }
     }
     return s;
 }
+
+ivec2 apply_features(ivec2 g, ivec2 s, int h, int m, int period) {
+    bool hit = false;
+    return apply_features_hit(g, s, h, m, period, hit);
+}
+
+#ifdef DIRECTION
+// Anisometric synthesis (engine/controls/direction.py; engine/fixed.py has the
+// same functions for the oracle). A coordinate F is in 1/256 exemplar px; a
+// state texel holds its nearest texel (.xy, wrapped) and the remainder (.zw,
+// in [-128, 128)). J is Q12 (j00, j01, j10, j11), one per region pixel.
+uniform isampler2D dfield;    // J_l over this scratch region (row-major local pixels)
+
+ivec2 full_q8(ivec4 v) {
+    return v.xy * 256 + v.zw;
+}
+
+// (nearest texel wrapped to [0, m), remainder) of F.
+ivec4 split_q8(ivec2 F, int m) {
+    F &= 256 * m - 1;
+    ivec2 r = (F + 128) >> 8;  // F >= 0 here
+    return ivec4(r & (m - 1), F - (r << 8));
+}
+
+// The nearest texel of F, not wrapped (|F| < 2^29).
+ivec2 nearest_q8(ivec2 F) {
+    return floor_shift(ivec4(F + 128, 0, 0), 8).xy;
+}
+
+// h (J d) in 1/256 px: floor(h (J d) / 16).
+ivec2 jmul(ivec4 J, ivec2 d, int h) {
+    return floor_shift(ivec4(h * (J.x * d.x + J.y * d.y), h * (J.z * d.x + J.w * d.y), 0, 0), 4).xy;
+}
+
+// floor(a / b) for b > 0.
+int floor_div(int a, int b) {
+    return a >= 0 ? a / b : -((b - 1 - a) / b);
+}
+#endif
 
 #ifdef LABELS
 // Texture by numbers (engine/controls/labels.py): two-label mixes packed as

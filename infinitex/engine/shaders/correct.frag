@@ -12,6 +12,13 @@
 //   also has label_cost(canvas mix at p, exemplar mix at u), and a pixel with a
 //   painted share tries one texel of its main label (lab_seeds, picked by hash)
 //   after the k-coherence candidates, psi-weighted like the walk's.
+// DIRECTION (anisometric, LH06 5; engine/controls/direction.py), coordinates F
+//   in 1/256 px, J = J_l(p): diagonal d's three samples come from the immediate
+//   neighbors d' in {s, (s.x,0), (0,s.y)}, s the signs of J^-1 d (0 as +1), at
+//   F[p+d'] + 256 h d - jmul(J, d', h); the color model's tap d from the neighbor
+//   d' = round(J^-1 d) (clamped to [-2, 2]), the same way; a sample reads its
+//   nearest texel. Candidates: C^i(nearest texel of F[p+d] - jmul(J, d, h)), with
+//   that coordinate's remainder; the label seed keeps none, the walk the best's.
 // All arithmetic is integer (engine/fixed.py), so results are exact.
 
 uniform isampler2D src;       // current state, packed
@@ -53,6 +60,12 @@ ivec2 fetch_s(ivec2 p) {
     return texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0).xy;
 }
 
+#ifdef DIRECTION
+ivec2 fetch_f(ivec2 p) {
+    return full_q8(texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0));
+}
+#endif
+
 // Unpack gpu.pack8: dims 0-3 (lo) and 4-7 (hi) of an 8-dim int16 vector.
 void unpack8(uvec4 v, out ivec4 lo, out ivec4 hi) {
     lo = ivec4(v & 0xffffu) - 32768;
@@ -83,7 +96,46 @@ void main() {
 
     ivec4 lo = ivec4(0);
     ivec4 hi = ivec4(0);
+#ifdef DIRECTION
+    ivec4 Jp = texelFetch(dfield, p, 0);
+    ivec2 F9[9];
+    for (int j = 0; j < 9; ++j) {
+        F9[j] = j == 4 ? full_q8(here) : fetch_f(p + ivec2(j % 3 - 1, j / 3 - 1));
+    }
 #ifdef MODEL_APPEARANCE
+    for (int t = 0; t < 4; ++t) {
+        ivec2 d = ivec2((t & 1) * 2 - 1, (t >> 1) * 2 - 1);
+        ivec2 phi = ivec2(Jp.w * d.x - Jp.y * d.y, Jp.x * d.y - Jp.z * d.x);
+        ivec2 sg = ivec2(phi.x >= 0 ? 1 : -1, phi.y >= 0 ? 1 : -1);
+        ivec4 a0 = ivec4(0), a1 = ivec4(0);
+        for (int i = 0; i < 3; ++i) {
+            ivec2 dp = i == 0 ? sg : (i == 1 ? ivec2(sg.x, 0) : ivec2(0, sg.y));
+            ivec2 u = nearest_q8(F9[(dp.y + 1) * 3 + dp.x + 1] + 256 * h * d - jmul(Jp, dp, h)) & wrap;
+            ivec4 b0, b1;
+            unpack8(texelFetch(feat, u, 0), b0, b1);
+            a0 += b0;
+            a1 += b1;
+        }
+        for (int c = 0; c < 4; ++c) {
+            add_tap(t * 8 + c, a0[c], lo, hi);
+            add_tap(t * 8 + 4 + c, a1[c], lo, hi);
+        }
+    }
+#else
+    int det = Jp.x * Jp.w - Jp.y * Jp.z;
+    for (int t = 0; t < 25; ++t) {
+        ivec2 d = ivec2(t % 5 - 2, t / 5 - 2);
+        ivec2 num = 8192 * ivec2(Jp.w * d.x - Jp.y * d.y, Jp.x * d.y - Jp.z * d.x) + det;
+        ivec2 dp = clamp(ivec2(floor_div(num.x, 2 * det), floor_div(num.y, 2 * det)), ivec2(-2), ivec2(2));
+        ivec2 F = all(lessThanEqual(abs(dp), ivec2(1))) ? F9[(dp.y + 1) * 3 + dp.x + 1] : fetch_f(p + dp);
+        ivec2 u = nearest_q8(F + 256 * h * d - jmul(Jp, dp, h)) & wrap;
+        ivec4 col = texelFetch(feat, u, 0);
+        for (int c = 0; c < NCH; ++c) {
+            add_tap(t * NCH + c, col[c], lo, hi);
+        }
+    }
+#endif
+#elif defined(MODEL_APPEARANCE)
     for (int t = 0; t < 4; ++t) {
         ivec2 d = ivec2((t & 1) * 2 - 1, (t >> 1) * 2 - 1);     // DIAGONALS order
         ivec2 u1 = S[(d.y + 1) * 3 + d.x + 1] & wrap;            // d' = d
@@ -115,12 +167,18 @@ void main() {
 
     uint best = 0xffffffffu;
     ivec2 best_u = here.xy;
+    ivec2 best_r = ivec2(0);  // DIRECTION: the remainder of the best
 #ifdef LABELS
     uint lab_t = texelFetch(lab_canvas, p, 0).r;
 #endif
     for (int j = 0; j < 9; ++j) {
         ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
+#ifdef DIRECTION
+        ivec4 bq = split_q8(F9[j] - jmul(Jp, d, h), m);
+        ivec2 base = bq.xy;
+#else
         ivec2 base = (S[j] - h * d) & wrap;
+#endif
         ivec4 s01 = k > 0 ? texelFetch(sim01, base, 0) : ivec4(0);
         ivec4 s23 = k > 2 ? texelFetch(sim23, base, 0) : ivec4(0);
         for (int i = 0; i < max(k, 1); ++i) {
@@ -142,6 +200,9 @@ void main() {
             if (cost < best) {
                 best = cost;
                 best_u = u;
+#ifdef DIRECTION
+                best_r = bq.zw;
+#endif
             }
         }
     }
@@ -163,6 +224,7 @@ void main() {
         if (cost < best) {
             best = cost;
             best_u = u;
+            best_r = ivec2(0);
         }
     }
 #endif
@@ -196,5 +258,5 @@ void main() {
             R >>= 1;
         }
     }
-    result = ivec4(best_u, 0, 0);
+    result = ivec4(best_u, best_r);
 }

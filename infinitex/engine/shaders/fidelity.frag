@@ -13,6 +13,12 @@
 // lattice levels (no_search = 1) only the predictions are tried.
 // LABELS (engine/controls/labels.py): cost(u) also has label_cost(canvas mix at
 // p, exemplar mix at u).
+// DIRECTION (anisometric; engine/controls/direction.py): coordinates F in 1/256
+// px and J = J_l(p): the patch of u reads the nearest texels of
+// u + jmul(J, d, h), predictions are F[p + d] - jmul(J, d, h), random samples move
+// the best by whole pixels, and candidates are kept inside (wrapped, or clamped
+// to [256 border, 256 (m-1-border)]) in 1/256 px; tried, avoid and labels as
+// without, at the candidate's nearest texel.
 // Integer sums (at most 4 * 255^2 * 120 < 2^25), so the result is exact; skipping
 // a candidate already tried and stopping a sum once it reaches the best cannot
 // change it (costs only grow as taps are added, and ties keep the first). The
@@ -55,6 +61,52 @@ ivec2 keep_inside(ivec2 u) {
     return border < 0 ? (u & (m - 1)) : clamp(u, ivec2(border), ivec2(m - 1 - border));
 }
 
+#ifdef DIRECTION
+ivec4 Jp;            // J_l(p)
+ivec2 col0, col1;    // h J (1, 0) and h J (0, 1), Q12
+
+ivec2 tap_of(ivec2 F, int dx, int dy) {
+    return exemplar_tap(nearest_q8(F + floor_shift(ivec4(dx * col0 + dy * col1, 0, 0), 4).xy));
+}
+
+ivec2 texel_of(ivec2 F) {
+    return nearest_q8(F) & (m - 1);
+}
+
+ivec2 keep_c(ivec2 F) {
+    return border < 0 ? (F & (256 * m - 1)) : clamp(F, ivec2(256 * border), ivec2(256 * (m - 1 - border)));
+}
+
+ivec2 predict(ivec2 p, ivec2 d) {
+    return keep_c(full_q8(texelFetch(src, packed_texel(clamp(p + d, ivec2(0), dims - 1), qdims), 0))
+                  - jmul(Jp, d, h));
+}
+
+ivec2 step_of(ivec2 off) {
+    return off * 256;
+}
+#else
+ivec2 tap_of(ivec2 u, int dx, int dy) {
+    return exemplar_tap(u + h * ivec2(dx, dy));
+}
+
+ivec2 texel_of(ivec2 u) {
+    return u;
+}
+
+ivec2 keep_c(ivec2 u) {
+    return keep_inside(u);
+}
+
+ivec2 predict(ivec2 p, ivec2 d) {
+    return keep_inside(fetch_s(p + d) - h * d);
+}
+
+ivec2 step_of(ivec2 off) {
+    return off;
+}
+#endif
+
 uint nb[NT];  // N(p + d) packed RGBA8 (r in the low byte), row-major over the patch (the centre unused)
 
 // The patch cost row by row, giving up once a row brings it to the best (the centre adds 0).
@@ -64,7 +116,7 @@ uint patch_cost(ivec2 u, uint limit) {
         for (int dx = -R; dx <= R; ++dx) {
             int t = (dy + R) * SIDE + dx + R;
             ivec4 e = ivec4((uvec4(nb[t]) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu)
-                    - ivec4(texelFetch(colors, exemplar_tap(u + h * ivec2(dx, dy)), 0));
+                    - ivec4(texelFetch(colors, tap_of(u, dx, dy), 0));
             ivec4 sq = e * e;
             cost += t == NT / 2 ? 0u : uint(sq.x + sq.y + sq.z + sq.w);
         }
@@ -89,21 +141,28 @@ void main() {
     }
     ivec2 tried[NCAND];
     int ntried = 0;
+#ifdef DIRECTION
+    Jp = texelFetch(dfield, p, 0);
+    col0 = h * Jp.xz;
+    col1 = h * Jp.yw;
+    ivec2 best_u = full_q8(here);  // a coordinate in 1/256 px
+#else
     ivec2 best_u = here.xy;
+#endif
+    ivec2 bt = texel_of(best_u);
 #ifdef LABELS
     uint lab_t = texelFetch(lab_canvas, p, 0).r;
-    uint best = (has_avoid != 0 && texelFetch(avoid, best_u, 0).r != 0u) ? AVOIDED
-              : label_cost(lab_t, texelFetch(lab_exemplar, best_u, 0).r) + patch_cost(best_u, 0xffffffffu);
+    uint best = (has_avoid != 0 && texelFetch(avoid, bt, 0).r != 0u) ? AVOIDED
+              : label_cost(lab_t, texelFetch(lab_exemplar, bt, 0).r) + patch_cost(best_u, 0xffffffffu);
 #else
-    uint best = (has_avoid != 0 && texelFetch(avoid, best_u, 0).r != 0u) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
+    uint best = (has_avoid != 0 && texelFetch(avoid, bt, 0).r != 0u) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
 #endif
     tried[ntried++] = best_u;
     for (int j = 0; j < NCAND; ++j) {
         ivec2 u;
         if (j < 9) {
             if (j == 4) continue;
-            ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
-            u = keep_inside(fetch_s(p + d) - h * d);
+            u = predict(p, ivec2(j % 3 - 1, j / 3 - 1));
         } else {
             if (no_search != 0) break;
             int Rs = (m >> 2) >> (j - 9);
@@ -111,7 +170,7 @@ void main() {
             ivec2 g = origin + p;
             if (period > 0) g &= period - 1;
             ivec2 H = hash2(g, level, search_seed + uint(j - 9) * 0x9E3779B9u);  // in [-1024, 1024)
-            u = keep_inside(best_u + floor_shift(ivec4(H * Rs, 0, 0), 10).xy);  // offset in [-Rs, Rs)
+            u = keep_c(best_u + step_of(floor_shift(ivec4(H * Rs, 0, 0), 10).xy));  // offset in [-Rs, Rs)
         }
         bool seen = false;
         for (int i = 0; i < ntried; ++i) {
@@ -119,9 +178,10 @@ void main() {
         }
         if (seen) continue;  // the same cost again: it cannot be better
         tried[ntried++] = u;
-        if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) continue;
+        ivec2 ut = texel_of(u);
+        if (has_avoid != 0 && texelFetch(avoid, ut, 0).r != 0u) continue;
 #ifdef LABELS
-        uint lc = label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
+        uint lc = label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r);
         if (lc >= best) continue;  // cannot win
         uint c = lc + patch_cost(u, best - lc);
 #else
@@ -132,5 +192,9 @@ void main() {
             best_u = u;
         }
     }
+#ifdef DIRECTION
+    result = split_q8(best_u, m);
+#else
     result = ivec4(best_u, 0, 0);
+#endif
 }

@@ -8,6 +8,11 @@
 // Level 0 starts from the exemplar centre m/2 (the upsampled S_{-1} = 0).
 // With a period n_l (toroidal output), jitter and child offsets use p mod n_l.
 // On lattice levels (near-regular exemplars) J is quantized to whole cells.
+// DIRECTION (anisometric, LH06 5; engine/controls/direction.py): in 1/256 px,
+//   F_l[p] = F_{l-1}[floor(p/2)] + child_offset_q8(J_l(p), D, h) + 256 Jit_l(p),
+// the child offset floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1 (with J = I
+// exactly the integer rule); the randomness over the exemplar is read at the
+// nearest texel of the upsampled coordinate; a placed feature sets a whole texel.
 
 uniform isampler2D parent;      // level l-1, persistent buffer (toroidal addressing)
 uniform ivec2 parent_anchor;    // texel = (g - anchor) & mask
@@ -37,6 +42,20 @@ void main() {
     ivec2 g = origin + local;
     ivec2 gm = period > 0 ? (g & (period - 1)) : g;
     ivec2 u;
+#ifdef DIRECTION
+    ivec2 F;
+    if (has_parent != 0) {
+        ivec2 gp = (g - (g & 1)) / 2;
+        ivec2 t = (gp - parent_anchor) & parent_mask;
+        ivec4 Jp = texelFetch(dfield, local, 0);
+        ivec2 v = h * (2 * (gm & 1) - 1);
+        ivec2 off = floor_shift(ivec4(Jp.x * v.x + Jp.y * v.y, Jp.z * v.x + Jp.w * v.y, 0, 0), 5).xy - (h == 1 ? 128 : 0);
+        F = full_q8(texelFetch(parent, t, 0)) + off;
+    } else {
+        F = ivec2(m / 2 * 256);
+    }
+    u = split_q8(F, m).xy;
+#else
     if (has_parent != 0) {
         ivec2 gp = (g - (g & 1)) / 2;  // exact division: floor(g / 2) for any sign
         ivec2 t = (gp - parent_anchor) & parent_mask;
@@ -44,6 +63,7 @@ void main() {
     } else {
         u = ivec2(m / 2);
     }
+#endif
     int r = rq;
     if (has_efield != 0 || has_cfield != 0) {
         uint E = has_efield != 0 ? texelFetch(efield, (u & (m - 1)) >> eshift, 0).r : 32768u;
@@ -56,5 +76,12 @@ void main() {
         ivec2 half_cell = (ivec2(1) << lattice_shift) >> 1;
         J = (((J + half_cell + SHIFT_BIAS) >> lattice_shift) - (ivec2(SHIFT_BIAS) >> lattice_shift)) << lattice_shift;
     }
+#ifdef DIRECTION
+    ivec4 q = split_q8(F + J * 256, m);
+    bool hit = false;
+    ivec2 s = apply_features_hit(g, q.xy, h, m, period, hit);
+    result = ivec4(s, hit ? ivec2(0) : q.zw);
+#else
     result = ivec4(apply_features(g, (u + J) & (m - 1), h, m, period), 0, 0);
+#endif
 }

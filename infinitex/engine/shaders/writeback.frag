@@ -18,5 +18,11 @@ void main() {
     ivec2 T = ivec2(gl_FragCoord.xy);
     ivec2 g = region_g0 + ((T - region_t0) & dest_mask);
     ivec4 v = texelFetch(src, packed_texel(g - src_origin, qdims), 0);
+#ifdef DIRECTION
+    bool hit = false;
+    ivec2 s = apply_features_hit(g, v.xy, h, m, period, hit);
+    result = ivec4(s, hit ? ivec2(0) : v.zw);  // a feature sets a whole texel
+#else
     result = ivec4(apply_features(g, v.xy, h, m, period), 0, 0);  // features hold through correction
+#endif
 }

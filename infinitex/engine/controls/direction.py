@@ -1,0 +1,275 @@
+"""Direction and scale fields (LH06 section 5, anisometric synthesis): the
+texture turns, grows and stretches locally, following a field painted over the
+infinite canvas.
+
+**The field** is a 2x2 Jacobian per finest-level canvas pixel, ``J``, mapping an
+offset on the canvas to the exemplar offset that shows there (``J = I``: the
+exemplar as it is). It is built from what an artist sets: the direction
+``theta`` (degrees, from +x towards +y, so clockwise on screen) along which the
+exemplar's +x axis runs, a scale ``s`` (the texture shows ``s`` times larger)
+and an aspect ``a`` (stretched ``a`` times along the direction, ``1/a`` across):
+``A = R(theta) diag(s a, s / a)`` maps exemplar offsets to canvas offsets and
+``J = A^-1``. Stored in Q12 (4096 = 1) as int16 (j00, j01, j10, j11), in sparse
+TILE x TILE tiles (absent: identity). Stretches ``s a`` and ``s / a`` are kept
+within [MIN_STRETCH, MAX_STRETCH], so every entry fits int16 and det J > 0.
+
+**Levels**: a level-l pixel covers 2^k x 2^k canvas pixels (k = L - l) and takes
+the mean of its four children, each entry ``floor(sum / 4)``, repeated k times
+(a box mipmap with the floor at every step: exact integers, the same in numpy
+and in the oracle); where the mean's determinant falls below MIN_DET (opposite
+directions cancel), it takes its top-left child instead. With a toroidal period n the field is read at p mod n_l.
+
+**Coordinates with a field** carry a sub-pixel part (engine/fixed.py
+``FRAC_ONE``): a state texel holds the nearest exemplar texel (x, y) and the
+signed remainder in 1/256 px in [-128, 128). Without a field the remainder is
+always 0 and every pass is the one without fields (identity field = no field,
+bit for bit). The passes' formulas are in the shaders' headers.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from .fields import MAX_FIELD_TILES, TILE, FieldTooLarge, dab_rect, dab_weights, tile_changes, tiles_key
+
+J_ONE = 4096  # Q12
+IDENTITY = np.array([J_ONE, 0, 0, J_ONE], np.int16)
+MIN_STRETCH = 0.25
+MAX_STRETCH = 4.0
+
+
+def _identity_tile() -> np.ndarray:
+    return np.broadcast_to(IDENTITY, (TILE, TILE, 4)).copy()
+
+
+def jacobian(theta_deg, scale=1.0, aspect=1.0) -> np.ndarray:
+    """J in Q12 (..., 4) int16 for directions (degrees), scales and aspects (arrays broadcast).
+    ValueError when a stretch leaves [MIN_STRETCH, MAX_STRETCH]."""
+    th = np.radians(np.asarray(theta_deg, np.float64))
+    s = np.asarray(scale, np.float64)
+    a = np.asarray(aspect, np.float64)
+    sx, sy = s * a, s / a
+    if np.any(~np.isfinite(sx)) or np.any(sx < MIN_STRETCH - 1e-9) or np.any(sx > MAX_STRETCH + 1e-9) \
+            or np.any(sy < MIN_STRETCH - 1e-9) or np.any(sy > MAX_STRETCH + 1e-9):
+        raise ValueError(f"A direction field's scale times aspect and scale over aspect must stay within "
+                         f"{MIN_STRETCH:g} and {MAX_STRETCH:g}.")
+    c, n = np.cos(th), np.sin(th)
+    # J = diag(1/sx, 1/sy) R(-theta), R(-theta) = [[c, n], [-n, c]]
+    j = np.stack(np.broadcast_arrays(c / sx, n / sx, -n / sy, c / sy), axis=-1)
+    return np.rint(j * J_ONE).astype(np.int16)
+
+
+def decompose(j: np.ndarray):
+    """(theta degrees, scale, aspect) of Q12 Jacobians (..., 4), for overlays and tools:
+    the inverse of :func:`jacobian` up to rounding."""
+    j = np.asarray(j, np.float64) / J_ONE
+    j00, j01, j10, j11 = j[..., 0], j[..., 1], j[..., 2], j[..., 3]
+    det = j00 * j11 - j01 * j10
+    # A = J^-1; its first column is sx (cos, sin), its second sy (-sin, cos).
+    a00, a10 = j11 / det, -j10 / det
+    a01, a11 = -j01 / det, j00 / det
+    sx = np.hypot(a00, a10)
+    sy = np.hypot(a01, a11)
+    theta = np.degrees(np.arctan2(a10, a00))
+    s = np.sqrt(sx * sy)
+    return theta, s, np.sqrt(sx / np.maximum(sy, 1e-12))
+
+
+def _i16x4(t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t)
+    if t.dtype != np.int16 or t.shape != (TILE, TILE, 4):
+        raise ValueError(f"direction field tiles are int16 {TILE}x{TILE}x4, not {t.dtype} {t.shape}")
+    return np.ascontiguousarray(t)
+
+
+ENTRY_LIMIT = int(J_ONE / MIN_STRETCH)  # |J entries| <= 16384
+MIN_DET = int(J_ONE * J_ONE / (MAX_STRETCH * MAX_STRETCH)) // 2  # det J (Q24) >= half of 1 / MAX_STRETCH^2
+
+
+def _dets(v: np.ndarray) -> np.ndarray:
+    v = v.astype(np.int64)
+    return v[..., 0] * v[..., 3] - v[..., 1] * v[..., 2]
+
+
+def valid_jacobians(t: np.ndarray) -> bool:
+    """Every J in Q12 with entries within what MIN_STRETCH allows and det J >= MIN_DET (no mirror)."""
+    return bool(np.all(np.abs(t.astype(np.int64)) <= ENTRY_LIMIT) and np.all(_dets(t) >= MIN_DET))
+
+
+@dataclass(frozen=True, eq=False)
+class DirectionField:
+    """The direction field over the canvas: sparse TILE x TILE x 4 int16 tiles
+    of J in Q12 keyed by tile index; absent tiles are the identity."""
+
+    tiles: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        clean = {}
+        for (tx, ty), t in self.tiles.items():
+            t = _i16x4(t)
+            if not valid_jacobians(t):
+                raise ValueError("A direction field holds a mirrored or too strongly stretched Jacobian.")
+            if not np.all(t == IDENTITY):
+                clean[(int(tx), int(ty))] = t
+        object.__setattr__(self, "tiles", clean)
+
+    @classmethod
+    def from_jacobians(cls, values: np.ndarray, x: int, y: int) -> DirectionField:
+        """A Q12 (H, W, 4) int16 map of J placed with its top-left at canvas (x, y).
+        FieldTooLarge, before any tile is made, if it would cover more than MAX_FIELD_TILES tiles."""
+        values = np.asarray(values)
+        if values.ndim != 3 or values.shape[2] != 4 or values.dtype != np.int16:
+            raise ValueError("a direction map is an (H, W, 4) int16 array of Q12 Jacobians")
+        h, w = values.shape[:2]
+        count = ((x + w - 1) // TILE - x // TILE + 1) * ((y + h - 1) // TILE - y // TILE + 1)
+        if count > MAX_FIELD_TILES:
+            raise FieldTooLarge(f"The direction map ({w}x{h} px) would cover {count} tiles of {TILE}x{TILE} "
+                                f"px; at most {MAX_FIELD_TILES} are allowed (about 16384 x 16384 px).")
+        tiles = {}
+        for ty in range(y // TILE, (y + h - 1) // TILE + 1):
+            for tx in range(x // TILE, (x + w - 1) // TILE + 1):
+                t = _identity_tile()
+                x0, y0 = tx * TILE, ty * TILE
+                ix0, iy0 = max(x0, x), max(y0, y)
+                ix1, iy1 = min(x0 + TILE, x + w), min(y0 + TILE, y + h)
+                t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
+                tiles[(tx, ty)] = t
+        return cls(tiles)
+
+    @classmethod
+    def uniform(cls, theta: float, scale: float, aspect: float, x0: int, y0: int, x1: int, y1: int) -> DirectionField:
+        """One direction, scale and aspect over the rectangle [x0, x1) x [y0, y1)."""
+        j = jacobian(theta, scale, aspect)
+        return cls.from_jacobians(np.broadcast_to(j, (y1 - y0, x1 - x0, 4)).copy(), x0, y0)
+
+    def painted(self, cx: float, cy: float, radius: float, target: np.ndarray, strength: float = 1.0,
+                hardness: float = 0.5) -> tuple[DirectionField, tuple[int, int, int, int]]:
+        """A dab towards the Q12 Jacobian ``target`` (4,) (or one per pixel of the
+        dab's rectangle, (h, w, 4)): each J moves towards it by the brush weight,
+        rounded. Returns the new field and the rectangle the dab can change."""
+        x0, y0, x1, y1 = dab_rect(cx, cy, radius)
+        target = np.asarray(target, np.float64)
+        tiles = dict(self.tiles)
+        for ty in range(y0 // TILE, (y1 - 1) // TILE + 1):
+            for tx in range(x0 // TILE, (x1 - 1) // TILE + 1):
+                wts = dab_weights(cx, cy, radius, hardness, tx * TILE, ty * TILE, TILE, TILE)
+                if not wts.any():
+                    continue
+                old = tiles.get((tx, ty))
+                base = old if old is not None else _identity_tile()
+                tgt = target
+                if tgt.ndim == 3:  # per pixel of the dab rectangle: the part inside this tile
+                    tgt = np.broadcast_to(IDENTITY, (TILE, TILE, 4)).astype(np.float64)
+                    ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
+                    ix1, iy1 = min((tx + 1) * TILE, x1), min((ty + 1) * TILE, y1)
+                    tgt[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE] = \
+                        target[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0]
+                a = (np.clip(strength, 0.0, 1.0) * wts)[..., None]
+                new = np.rint(base + (tgt - base) * a).astype(np.int16)
+                if not valid_jacobians(new):
+                    new = np.where(a > 0, np.rint(tgt).astype(np.int16), base) if valid_jacobians(
+                        np.rint(tgt).astype(np.int16)) else base
+                tiles[(tx, ty)] = new
+        return DirectionField(tiles), (x0, y0, x1, y1)
+
+    def dense(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        """J (h, w, 4) int16 over a finest-level rectangle (identity where unpainted)."""
+        out = self.region(0, x0, y0, w, h)
+        return out if out is not None else np.broadcast_to(IDENTITY, (h, w, 4)).copy()
+
+    def changed_rects(self, other: DirectionField) -> list:
+        """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two fields."""
+        return tile_changes(self.tiles, other.tiles, _identity_tile())
+
+    @cached_property
+    def key(self) -> str:
+        return tiles_key(self.tiles, b"direction")
+
+    def __eq__(self, other):
+        return isinstance(other, DirectionField) and self.key == other.key
+
+    def __hash__(self):
+        return hash(self.key)
+
+    @property
+    def identity(self) -> bool:
+        return not self.tiles
+
+    def _mip_tiles(self, k: int) -> dict:
+        """Tiles of the field reduced k times (2 x 2 means, floor at each step), same tile size."""
+        cache = self.__dict__.setdefault("_mips", {0: self.tiles})
+        if k in cache:
+            return cache[k]
+        finer = self._mip_tiles(k - 1)
+        out: dict = {}
+        for px, py in {(tx >> 1, ty >> 1) for tx, ty in finer}:
+            big = np.empty((2 * TILE, 2 * TILE, 4), np.int32)
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    t = finer.get((2 * px + dx, 2 * py + dy))
+                    big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = IDENTITY if t is None else t
+            s = big[0::2, 0::2] + big[1::2, 0::2] + big[0::2, 1::2] + big[1::2, 1::2]
+            red = s >> 2  # floor(sum / 4): >> is a floor on numpy ints
+            # Directions that cancel out (a mean too close to singular): the top-left child.
+            red = np.where((_dets(red) < MIN_DET)[..., None], big[0::2, 0::2], red).astype(np.int16)
+            if not np.all(red == IDENTITY):
+                out[(px, py)] = red
+        cache[k] = out
+        return out
+
+    def region(self, k: int, x0: int, y0: int, w: int, h: int, period: int = 0) -> np.ndarray | None:
+        """J reduced k times over [x0, x0+w) x [y0, y0+h) (level pixels), int16
+        (h, w, 4); None when no painted tile touches it. With ``period`` n (a
+        level period), pixel p reads the field at p mod n."""
+        tiles = self._mip_tiles(k) if self.tiles else {}
+        if not tiles:
+            return None
+        if period:
+            ys = np.arange(y0, y0 + h) & (period - 1)
+            xs = np.arange(x0, x0 + w) & (period - 1)
+            base = self.region(k, 0, 0, period, period)
+            return None if base is None else np.ascontiguousarray(base[ys[:, None], xs[None, :]])
+        out = None
+        for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
+            for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
+                t = tiles.get((tx, ty))
+                if t is None:
+                    continue
+                if out is None:
+                    out = np.empty((h, w, 4), np.int16)
+                    out[:] = IDENTITY
+                ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
+                ix1, iy1 = min((tx + 1) * TILE, x0 + w), min((ty + 1) * TILE, y0 + h)
+                out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = t[iy0 - ty * TILE:iy1 - ty * TILE,
+                                                            ix0 - tx * TILE:ix1 - tx * TILE]
+        return out
+
+
+def flow_to_jacobians(rgb: np.ndarray, y_up: bool = True, scale: float = 1.0, aspect: float = 1.0) -> np.ndarray:
+    """A flow map (H, W, >=2) with R, G in [0, 1] (0.5 = no flow) to Q12 Jacobians:
+    the texture's +x runs along the flow vector; pixels whose vector is shorter
+    than 1/8 keep the identity. ``y_up``: green points up (OpenGL), else down (DirectX)."""
+    vx = 2.0 * rgb[..., 0] - 1.0
+    vy = 2.0 * rgb[..., 1] - 1.0
+    if y_up:
+        vy = -vy  # canvas y runs down
+    theta = np.degrees(np.arctan2(vy, vx))
+    j = jacobian(theta, scale, aspect)
+    return np.where((np.hypot(vx, vy) >= 0.125)[..., None], j, IDENTITY).astype(np.int16)
+
+
+def angle_to_jacobians(gray: np.ndarray, scale: float = 1.0, aspect: float = 1.0) -> np.ndarray:
+    """An angle map (H, W) in [0, 1] (0 and 1 = along +x, 0.25 = +y, down on screen) to Q12 Jacobians."""
+    return jacobian(360.0 * np.asarray(gray, np.float64), scale, aspect)
+
+
+def max_stretch_ratio(j: np.ndarray) -> float:
+    """The largest exemplar step per canvas pixel in a Q12 J array (1 = isometric)."""
+    v = np.abs(np.asarray(j, np.float64)) / J_ONE
+    return float(max(np.hypot(v[..., 0], v[..., 2]).max(initial=1.0), np.hypot(v[..., 1], v[..., 3]).max(initial=1.0)))
+
+
+__all__ = ["DirectionField", "IDENTITY", "J_ONE", "MAX_STRETCH", "MIN_STRETCH", "angle_to_jacobians", "decompose",
+           "flow_to_jacobians", "jacobian", "max_stretch_ratio", "valid_jacobians"]

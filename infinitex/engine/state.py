@@ -1,0 +1,75 @@
+"""How the pyramid's state textures are laid out and read back
+(:class:`StateAccess`, a part of :class:`~infinitex.engine.pyramid.Pyramid`):
+2 components per texel (the exemplar coordinate), or 4 with a direction field
+(the nearest texel and the sub-pixel remainder in 1/256 px,
+engine/controls/direction.py); the J textures of a region; reading coordinates back.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .controls.direction import IDENTITY
+from .rect import Rect
+
+
+class SynthesisError(ValueError):
+    """A request the synthesis cannot serve (e.g. coordinates out of range)."""
+
+
+class StateAccess:
+    """The pyramid's state format and read-back (uses its GPU, controls, buffers and params)."""
+
+    @property
+    def channels(self) -> int:
+        """Components of a state texel: 4 with a direction field (nearest texel, remainder), else 2."""
+        return 4 if self.controls.directed else 2
+
+    def _direction_texture(self, l: int, region: Rect):
+        """J_l over a padded region (RGBA16I, row-major local pixels), or None without a direction field."""
+        if not self.controls.directed:
+            return None
+        vals = self.controls.direction.region(self.an.L - l, region.x0, region.y0, region.w, region.h,
+                                              self.params.level_period(l))
+        if vals is None:
+            vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
+        return self.gpu.int_texture((region.w, region.h), 4, vals)
+
+    def _release_state(self) -> None:
+        """Drop every level buffer and scratch texture (their format changes)."""
+        self.invalidate(0)
+        self._end_job()
+        for i, buf in enumerate(self.buffers):
+            if buf is not None:
+                buf.release()
+            self.buffers[i] = None
+        for a, fa, b, fb in self._scratch.values():
+            for o in (fa, fb, a, b):
+                o.release()
+        self._scratch.clear()
+
+    def _read_rect(self, buf, r: Rect) -> np.ndarray:
+        """The held state of ``r`` (H, W, channels) int16, read back piece by piece."""
+        c = buf.channels
+        out = np.empty((r.h, r.w, c), dtype=np.int16)
+        for (gx, gy), (tx, ty), w, h in self._texel_pieces(buf, r):
+            data = buf.fbo.read(viewport=(tx, ty, w, h), components=c, dtype="i2", alignment=1)
+            out[gy - r.y0:gy - r.y0 + h, gx - r.x0:gx - r.x0 + w] = np.frombuffer(data, np.int16).reshape(h, w, c)
+        return out
+
+    def read(self, level: int, rect: Rect, remainder: bool = False) -> np.ndarray:
+        """Exemplar coordinates (H, W, 2) int32 as (x, y) over ``rect`` (the nearest
+        texels); must be valid. ``remainder``: (H, W, 4), the sub-pixel remainders
+        in 1/256 px after them (0 without a direction field)."""
+        buf = self.buffers[level]
+        if buf is None or buf.valid is None or not buf.valid.contains(rect):
+            raise SynthesisError(f"Level {level} does not hold {rect}; request it first.")
+        self.gpu.activate()
+        c = buf.channels
+        data = np.frombuffer(buf.tex.read(alignment=1), dtype=np.int16).reshape(buf.size[1], buf.size[0], c)
+        tx = (np.arange(rect.x0, rect.x1) - buf.anchor[0]) & buf.mask[0]
+        ty = (np.arange(rect.y0, rect.y1) - buf.anchor[1]) & buf.mask[1]
+        out = data[ty[:, None], tx[None, :]].astype(np.int32)
+        if remainder:
+            return out if c == 4 else np.concatenate([out, np.zeros_like(out)], axis=-1)
+        return out[..., :2] if c == 4 else out
+
