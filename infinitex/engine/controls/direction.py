@@ -248,11 +248,15 @@ class DirectionField:
 
 
 def flow_to_jacobians(rgb: np.ndarray, y_up: bool = True, scale: float = 1.0, aspect: float = 1.0) -> np.ndarray:
-    """A flow map (H, W, >=2) with R, G in [0, 1] (0.5 = no flow) to Q12 Jacobians:
+    """A flow map (H, W, >=2) with R, G in [0, 1] (0.5 = no flow; within 1.5/255
+    of it counts as 0.5, so 8-bit 127 and 128 both do) to Q12 Jacobians:
     the texture's +x runs along the flow vector; pixels whose vector is shorter
     than 1/8 keep the identity. ``y_up``: green points up (OpenGL), else down (DirectX)."""
     vx = 2.0 * rgb[..., 0] - 1.0
     vy = 2.0 * rgb[..., 1] - 1.0
+    # 8-bit maps cannot hold 0.5: 127 and 128 both mean "none" along that axis.
+    vx = np.where(np.abs(vx) < 1.5 / 255.0, 0.0, vx)
+    vy = np.where(np.abs(vy) < 1.5 / 255.0, 0.0, vy)
     if y_up:
         vy = -vy  # canvas y runs down
     theta = np.degrees(np.arctan2(vy, vx))
