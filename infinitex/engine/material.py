@@ -47,7 +47,7 @@ from PIL import Image
 from .exemplar import HIRES_MAX, IMPORT_BUDGET, Exemplar, ExemplarError, crop_box, decoding, fit_rule
 from .exemplar import import_cost, load_exemplar_bytes, open_image
 from .safeio import ReadError, printable, read_limited
-from .subpixel import sample
+from .subpixel import bilinear, sample, shear_pull
 from .tiffinfo import is_tiff, loses_precision, page_tags
 
 IMAGE = "image"  # the one map of a single-image exemplar
@@ -391,13 +391,15 @@ class Material:
         st = self.stack(role)
         return sample(st[len(st) - 1 if level is None else level], coords, self.toroidal)
 
-    def magnified(self, role: str, coords: np.ndarray, scale: int) -> np.ndarray:
+    def magnified(self, role: str, coords: np.ndarray, scale: int, jac: np.ndarray | None = None) -> np.ndarray:
         """Synthesis magnification (LH05 section 5) of finest-level coordinates:
         ``coords`` covers the output's texels plus one on every side ((H+2, W+2, 2));
         the result is (H*scale, W*scale, C). Each output pixel blends, bilinearly,
         the map sampled at its 4 nearest texels' coordinates extrapolated to it
         (from the full-resolution map when the import kept one). Normals are
-        renormalized after the blend."""
+        renormalized after the blend. With a direction field, ``coords`` carry
+        sub-pixel remainders ((H+2, W+2, 4)) and ``jac`` (H+2, W+2, 4) is J per
+        texel (Q12): each texel's coordinate is extrapolated through its J."""
         mp = self.maps[role]
         m = mp.exemplar.size
         src = mp.exemplar.hires if mp.exemplar.hires is not None else mp.pixels
@@ -421,49 +423,21 @@ class Material:
         corners = [(i, j) for j in (0, 1) for i in (0, 1)]
         pred, wgt = [], []
         for i, j in corners:
-            u = coords[(by + j + 1)[:, None], (bx + i + 1)[None, :]].astype(np.float64)  # (h, w, 2)
-            pred.append(np.stack([u[..., 0] + 0.5 + (tx - i), u[..., 1] + 0.5 + (ty - j)], axis=-1))
+            rows, cols = (by + j + 1)[:, None], (bx + i + 1)[None, :]
+            u = coords[rows, cols].astype(np.float64)  # (h, w, 2 or 4)
+            ox, oy = np.broadcast_to(tx - i, u.shape[:2]), np.broadcast_to(ty - j, u.shape[:2])
+            if u.shape[-1] == 4:  # a direction field: the remainder, and the offset through J
+                u = u[..., :2] + u[..., 2:] / 256.0
+            if jac is not None:
+                J = jac[rows, cols].astype(np.float64) / 4096.0
+                ox, oy = J[..., 0] * ox + J[..., 1] * oy, J[..., 2] * ox + J[..., 3] * oy
+            pred.append(np.stack([u[..., 0] + 0.5 + ox, u[..., 1] + 0.5 + oy], axis=-1))
             wgt.append((tx if i else 1.0 - tx) * (ty if j else 1.0 - ty))
         for c in range(4):
             P = pred[c] + shear_pull(pred, wgt, c, m, self.toroidal, 1)
-            out += wgt[c][..., None] * _bilinear(src, P[..., 0] * ratio - 0.5, P[..., 1] * ratio - 0.5, self.toroidal)
+            out += wgt[c][..., None] * bilinear(src, P[..., 0] * ratio - 0.5, P[..., 1] * ratio - 0.5, self.toroidal)
         out = np.clip(out, 0.0, 1.0).astype(np.float32)
         return renormalize(out) if role == "normal" else out
-
-
-def shear_pull(pred: list[np.ndarray], wgt: list[np.ndarray], c: int, m: int, toroidal: bool, h: int) -> np.ndarray:
-    """How far corner c's extrapolated position moves towards the others that
-    nearly agree with it (at most one texel, h exemplar pixels, apart): the
-    weighted sum of their differences. Where two patches meet with a 1 px shear
-    (fine-level jitter), the magnified image then warps smoothly from one to the
-    other instead of blending two copies 1 px apart (the comb or zipper lines
-    along edges at 800%); coherent corners (no difference) and real seams (far
-    apart) are drawn as LH05 section 5 does. Continuous across texels; exact at
-    texel centers. The canvas shader does the same (canvas.frag)."""
-    pull = np.zeros_like(pred[c])
-    for o in range(4):
-        if o == c:
-            continue
-        d = pred[o] - pred[c]  # an integer per corner pair: (u_o - u_c) - h (o - c)
-        if toroidal:
-            d -= m * np.floor(d / m + 0.5)
-        near = (np.abs(d).max(axis=-1) <= h)[..., None]
-        pull += wgt[o][..., None] * np.where(near, d, 0.0)
-    return pull
-
-
-def _bilinear(src: np.ndarray, x: np.ndarray, y: np.ndarray, wrap: bool) -> np.ndarray:
-    """Bilinear samples of src (n, n, C) at pixel positions (x, y) (centers at
-    integers): wrapped (toroidal) or clamped to the edge, as the canvas' texture."""
-    n = src.shape[0]
-    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-
-    def idx(v):
-        return np.mod(v, n) if wrap else np.clip(v, 0, n - 1)
-    xa, xb, ya, yb = idx(x0), idx(x0 + 1), idx(y0), idx(y0 + 1)
-    return ((1 - fx) * (1 - fy) * src[ya, xa] + fx * (1 - fy) * src[ya, xb]
-            + (1 - fx) * fy * src[yb, xa] + fx * fy * src[yb, xb])
 
 
 def load_material(files: list[tuple[str, str, bytes]], fit: str = "resize", toroidal: bool | None = None) -> Material:

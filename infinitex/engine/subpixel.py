@@ -61,3 +61,38 @@ def turn_normals(normals: np.ndarray, jac: np.ndarray) -> np.ndarray:
     out[..., 1] = (1.0 - ty / length) * 0.5
     out[..., 2] = (nz / length + 1.0) * 0.5
     return np.clip(out, 0.0, 1.0).astype(normals.dtype)
+
+
+def shear_pull(pred: list[np.ndarray], wgt: list[np.ndarray], c: int, m: int, toroidal: bool, h: int) -> np.ndarray:
+    """How far corner c's extrapolated position moves towards the others that
+    nearly agree with it (at most one texel, h exemplar pixels, apart): the
+    weighted sum of their differences. Where two patches meet with a 1 px shear
+    (fine-level jitter), the magnified image then warps smoothly from one to the
+    other instead of blending two copies 1 px apart (the comb or zipper lines
+    along edges at 800%); coherent corners (no difference) and real seams (far
+    apart) are drawn as LH05 section 5 does. Continuous across texels; exact at
+    texel centers. The canvas shader does the same (canvas.frag)."""
+    pull = np.zeros_like(pred[c])
+    for o in range(4):
+        if o == c:
+            continue
+        d = pred[o] - pred[c]  # an integer per corner pair: (u_o - u_c) - h (o - c)
+        if toroidal:
+            d -= m * np.floor(d / m + 0.5)
+        near = (np.abs(d).max(axis=-1) <= h)[..., None]
+        pull += wgt[o][..., None] * np.where(near, d, 0.0)
+    return pull
+
+
+def bilinear(src: np.ndarray, x: np.ndarray, y: np.ndarray, wrap: bool) -> np.ndarray:
+    """Bilinear samples of src (n, n, C) at pixel positions (x, y) (centers at
+    integers): wrapped (toroidal) or clamped to the edge, as the canvas' texture."""
+    n = src.shape[0]
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+
+    def idx(v):
+        return np.mod(v, n) if wrap else np.clip(v, 0, n - 1)
+    xa, xb, ya, yb = idx(x0), idx(x0 + 1), idx(y0), idx(y0 + 1)
+    return ((1 - fx) * (1 - fy) * src[ya, xa] + fx * (1 - fy) * src[ya, xb]
+            + (1 - fx) * fy * src[yb, xa] + fx * fy * src[yb, xb])

@@ -62,8 +62,6 @@ class ExportJob:
         if magnify > 1:
             if coords_path:
                 raise SynthesisError("The coordinate map is exported at 1:1 (without magnification).")
-            if session.controls.directed:
-                raise SynthesisError("Magnified exports do not follow a direction field yet; export at 1:1.")
             if rect.w * magnify > MAX_EXPORT_SIDE or rect.h * magnify > MAX_EXPORT_SIDE \
                     or rect.w * rect.h * magnify * magnify > MAX_EXPORT_PIXELS:
                 raise SynthesisError(f"Magnified {magnify}x, {rect.w}x{rect.h} is {rect.w * magnify}x{rect.h * magnify}, "
@@ -167,18 +165,23 @@ class ExportJob:
             source = ex.hires if ex.hires is not None else ex.pixels
             box = (self.rect.x0, self.rect.y0, self.rect.x1, self.rect.y1)
             return render_original(self.coords, box, self.lattice, ex.size, source, r.x0, r.y0, r.w, r.h)
-        if self.magnify > 1:
-            return self.material.magnified(role, self.coords, self.magnify)
-        out = self.material.lookup(role, self.coords)
-        if role == "normal" and self.directed:  # normals turn with the texture
+        jac = None
+        if self.directed:  # J per synthesized texel
             r = self.rect
             jac = self.session.controls.direction.region(0, r.x0, r.y0, r.w, r.h, self.period)
-            out = out if jac is None else turn_normals(out, jac)
+        if self.magnify > 1:
+            out = self.material.magnified(role, self.coords, self.magnify, jac)
+            if jac is not None:
+                jac = np.repeat(np.repeat(jac[1:-1, 1:-1], self.magnify, axis=0), self.magnify, axis=1)
+        else:
+            out = self.material.lookup(role, self.coords)
+        if role == "normal" and jac is not None:  # normals turn with the texture
+            out = turn_normals(out, jac)
         return out
 
     def _write(self) -> None:
         for role, path, depth in self.outputs:
-            if role in self.stacks and not (role == "normal" and self.directed):
+            if role in self.stacks and not (role == "normal" and self.directed):  # pixels() turns normals
                 # 8 bits at 1:1: looked up in the uint8 stack (a quarter of the memory)
                 write_png(path, colors_u8(self.stacks[role], self.coords, self.L, self.material.toroidal))
             else:

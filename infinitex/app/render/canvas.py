@@ -97,12 +97,12 @@ class Canvas:
         self.shape_kind = SHAPE_KINDS[kind]
         self.shape_key = key
 
-    def _program(self, mode: int, mag: int, alpha: int, shape_kind: int):
+    def _program(self, mode: int, mag: int, alpha: int, shape_kind: int, direction: bool = False):
         """The canvas program compiled for one kind of draw (see canvas.frag)."""
-        key = (mode, mag, alpha, shape_kind)
+        key = (mode, mag, alpha, shape_kind, direction)
         if key not in self._programs:
             head = (f"#version 330 core\n#define MODE {mode}\n#define MAG {mag}\n#define ALPHA {alpha}\n"
-                    f"#define SHAPE_KIND {shape_kind}\n")
+                    f"#define SHAPE_KIND {shape_kind}\n" + ("#define DIRECTION\n" if direction else ""))
             ctx = self.gpu.ctx
             prog = ctx.program(vertex_shader="#version 330 core\n" + read_shader("fullscreen.vert"),
                                fragment_shader=head + self._frag)
@@ -212,8 +212,12 @@ class Canvas:
             magnify = display.magnify != "nearest" and texel_px > 1.0 and not exact
             use_hires = (self.hires_tex is not None and display.magnify == "hires" and frame.level == L and magnify)
             mag = 0 if not magnify or mode in (1, 2, 3, 4) else (2 if use_hires else 1)
+            directed = buf.channels == 4
             prog, vao = self._program(mode, mag, alpha if mode in (0, 3, 5) else 0,
-                                      self.shape_kind if mode == 5 else 0)
+                                      self.shape_kind if mode == 5 else 0, directed)
+            if directed:
+                self._jacobians(pyramid, l, k, buf.valid).use(4)
+                set_uniforms(prog, jfield=4, jorigin=(buf.valid.x0, buf.valid.y0), jdims=(buf.valid.w, buf.valid.h))
             scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, M)
             if box is not None:
                 scissor = box if scissor is None else _intersect(scissor, box)
@@ -227,6 +231,23 @@ class Canvas:
                          light=light, relief=float(display.relief) * self.m / 8.0)
             vao.render(moderngl.TRIANGLES)
         return levels[-1]
+
+    def _jacobians(self, pyramid: Pyramid, l: int, k: int, r: Rect):
+        """Level l's J over ``r`` as an RGBA16I texture (kept while the field and ``r`` stay)."""
+        from infinitex.engine.controls.direction import IDENTITY
+        field = pyramid.controls.direction
+        period = pyramid.params.level_period(l)
+        key = (field.key, r, period)
+        cache = self.__dict__.setdefault("_jtex", {})  # level -> (key, texture)
+        held = cache.get(l)
+        if held is None or held[0] != key:
+            if held is not None:
+                held[1].release()
+            vals = field.region(k, r.x0, r.y0, r.w, r.h, period)
+            if vals is None:
+                vals = np.broadcast_to(IDENTITY, (r.h, r.w, 4))
+            cache[l] = held = (key, self.gpu.int_texture((r.w, r.h), 4, vals))
+        return held[1]
 
     def _origin(self, view: View, geom: np.ndarray | None) -> tuple[float, float, np.ndarray]:
         """The canvas's top-left corner in finest-level pixels (through the
@@ -289,6 +310,8 @@ class Canvas:
             self.fbo.release()
             self.tex.release()
             self.tex = self.fbo = None
+        for _, tex in self.__dict__.pop("_jtex", {}).values():
+            tex.release()
 
 
 def to_rgba(a: np.ndarray) -> np.ndarray:

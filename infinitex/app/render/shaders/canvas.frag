@@ -9,7 +9,9 @@
 // Compiled per draw kind (canvas.py): MODE (0 color, 1 coords, 2 patches,
 // 3 level, 4 relief, 5 lit), MAG (0 texel fetch, 1 synthesis magnification
 // from the stack, 2 from the hi-res exemplar), ALPHA (draw on a checkerboard)
-// and SHAPE_KIND (lit: 0 normal map, 1 height). llvmpipe runs the branches
+// and SHAPE_KIND (lit: 0 normal map, 1 height); DIRECTION (a direction field:
+// coordinates carry 1/256 px remainders, drawn bilinearly, and magnification
+// extrapolates through each texel's Jacobian J, engine/controls/direction.py). llvmpipe runs the branches
 // of a uniform condition anyway: one program for all cost 9x for exact texels.
 
 uniform isampler2D coords;    // level buffer: texel of position g is (g - anchor) & cmask
@@ -41,6 +43,24 @@ ivec2 S(ivec2 g) {
     g = clamp(g, vlo, vhi - 1);
     return texelFetch(coords, (g - anchor) & cmask, 0).xy;
 }
+
+#ifdef DIRECTION
+uniform isampler2D jfield;    // J of this level over [jorigin, jorigin + jdims), Q12
+uniform ivec2 jorigin;
+uniform ivec2 jdims;
+
+// The coordinate with its sub-pixel remainder.
+vec2 Sf(ivec2 g) {
+    g = clamp(g, vlo, vhi - 1);
+    ivec4 v = texelFetch(coords, (g - anchor) & cmask, 0);
+    return vec2(v.xy) + vec2(v.zw) / 256.0;
+}
+
+mat2 Jm(ivec2 g) {
+    ivec4 j = texelFetch(jfield, clamp(g - jorigin, ivec2(0), jdims - 1), 0);
+    return mat2(float(j.x), float(j.z), float(j.y), float(j.w)) / 4096.0;  // columns J e_x, J e_y
+}
+#endif
 
 vec4 fetch(ivec2 u) {
     return texelFetch(stack, ivec3(u, layer), 0);
@@ -79,7 +99,12 @@ vec4 magnified_from(ivec2 base, vec2 frac, int source) {
     float W[4];
     for (int c = 0; c < 4; c++) {
         ivec2 o = ivec2(c & 1, c >> 1);
+#ifdef DIRECTION
+        ivec2 gc = base + ivec2(fb) + o;
+        P[c] = Sf(gc) + 0.5 + h * (Jm(gc) * (t - vec2(o)));
+#else
         P[c] = vec2(S(base + ivec2(fb) + o)) + 0.5 + h * (t - vec2(o));
+#endif
         W[c] = (o.x == 0 ? 1.0 - t.x : t.x) * (o.y == 0 ? 1.0 - t.y : t.y);
     }
     vec4 acc = vec4(0.0);
@@ -131,6 +156,8 @@ void main() {
     vec3 n = normalize(vec3(-hx * st, -hy * st, 1.0));
     float shade = 0.2 + 0.8 * max(dot(n, normalize(vec3(-0.6, -0.6, 0.55))), 0.0);
     c = vec4(vec3(shade), 1.0);
+#elif MAG == 0 && defined(DIRECTION)
+    c = texture(stack, vec3((Sf(g) + 0.5) / float(m), float(layer)));
 #elif MAG == 0
     c = fetch(u);
 #else
