@@ -49,6 +49,8 @@ class LocalUpdates:
             self.pixels_synthesized = 0
             return 0
         b = 1 if controls.labels_active or self.controls.labels_active else 0  # the labels' blur: a level pixel
+        if controls.directed and not self.controls.directed:
+            self._widen_state()  # a first direction dab: the same state, with remainders of 0
         self.controls = controls
         self._signatures = self._level_signatures()
         L = self.an.L

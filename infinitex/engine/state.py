@@ -47,6 +47,35 @@ class StateAccess:
                 o.release()
         self._scratch.clear()
 
+    def _widen_state(self) -> None:
+        """From 2 to 4 components per texel (a direction field painted for the
+        first time): every held texel keeps its coordinate, with a remainder of
+        0, which is the same state, so only what the field changes is
+        synthesized again. A request or a local update in progress is dropped
+        (its level's held rectangle is marked to be done again)."""
+        self.end_request()
+        if self._job is not None:
+            l = self._job[0]
+            self._end_job()
+            buf = self.buffers[l]
+            if buf is not None and buf.valid is not None:
+                self.dirty[l].append(buf.valid)
+        for buf in self.buffers:
+            if buf is None or buf.channels == 4:
+                continue
+            data = np.frombuffer(buf.tex.read(alignment=1), np.int16).reshape(buf.size[1], buf.size[0], 2)
+            wide = np.zeros((buf.size[1], buf.size[0], 4), np.int16)
+            wide[..., :2] = data
+            buf.fbo.release()
+            buf.tex.release()
+            buf.tex = self.gpu.int_texture(buf.size, 4, wide)
+            buf.fbo = self.gpu.ctx.framebuffer(color_attachments=[buf.tex])
+            buf.channels = 4
+        for a, fa, b, fb in self._scratch.values():
+            for o in (fa, fb, a, b):
+                o.release()
+        self._scratch.clear()
+
     def _read_rect(self, buf, r: Rect) -> np.ndarray:
         """The held state of ``r`` (H, W, channels) int16, read back piece by piece."""
         c = buf.channels

@@ -252,8 +252,8 @@ class Controls:
         after = other.randomness_canvas or CanvasField()
         out = before.changed_rects(after)
         out += (self.labels_canvas or CanvasLabels()).changed_rects(other.labels_canvas or CanvasLabels())
-        if self.directed != other.directed:
-            return None  # the state's format changes (sub-pixel parts): everything again
+        if self.directed and not other.directed:
+            return None  # the state drops its sub-pixel parts: everything again (a first field widens it in place)
         out += (self.direction or DirectionField()).changed_rects(other.direction or DirectionField())
         if self.features != other.features:
             old, new = set(self.features), set(other.features)

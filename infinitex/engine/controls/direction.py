@@ -181,7 +181,11 @@ class DirectionField:
 
     def changed_rects(self, other: DirectionField) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two fields."""
-        return tile_changes(self.tiles, other.tiles, _identity_tile())
+        keys = {k for k in set(self.tiles) | set(other.tiles) if self.tiles.get(k) is not other.tiles.get(k)}
+
+        def flat(tiles):  # one int64 a pixel, for the tiles that may differ
+            return {k: tiles[k].view(np.int64).reshape(TILE, TILE) for k in keys if k in tiles}
+        return tile_changes(flat(self.tiles), flat(other.tiles), _identity_tile().view(np.int64).reshape(TILE, TILE))
 
     @cached_property
     def key(self) -> str:
