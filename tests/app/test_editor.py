@@ -161,3 +161,11 @@ def test_texture_by_numbers_driven_by_the_test_engine(tmp_path):
     exemplar's own labels painted; undo restores the canvas exactly
     (tests/app/gui_labels.py)."""
     _drive("gui_labels.py", tmp_path, 19)
+
+
+def test_direction_tool_driven_by_the_test_engine(tmp_path):
+    """The Direction tool: a comb stroke (one undo step, the field and the
+    bricks turn along it, the canvas changes near it only), Grow, a guide, a
+    placed flow map, the overlay; undo restores the canvas exactly
+    (tests/app/gui_direction.py)."""
+    _drive("gui_direction.py", tmp_path, 12)

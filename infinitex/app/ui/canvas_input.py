@@ -16,6 +16,7 @@ import numpy as np
 from imgui_bundle import imgui
 
 from .tools import CANVAS_SPACE_TOOLS
+from .tools.direction import draw_field
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 
 
@@ -140,6 +141,8 @@ class CanvasInputMixin:
             fx, fy, fw, fh = overlay.placement
             a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
             dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
+        tool = next((t for t in self.tools if t.name == "direction"), None)
+        draw_field(dl, self.doc.direction, self.view, p0, w, h, tool.axis if tool is not None else 0)
         dl.pop_clip_rect()
 
     # -- small helpers for panels -----------------------------------------
@@ -162,5 +165,5 @@ class CanvasInputMixin:
             if t.name == name and t is not self.tool:
                 self.tool.release()
                 self.tool = t
-                if name.startswith("paint") or name == "labels":
+                if name.startswith("paint") or name in ("labels", "direction"):
                     self.show_fields = True  # painting shows what is painted

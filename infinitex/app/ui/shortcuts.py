@@ -18,7 +18,7 @@ SHORTCUTS = [
     ("0", "Fit one exemplar across the canvas"), ("Right or middle drag", "Pan (any tool)"),
     ("Ctrl+Z / Ctrl+Shift+Z", "Undo / redo"), ("Ctrl+O", "Open an image or a project"),
     ("Ctrl+S / Ctrl+Shift+S", "Save / save as"), ("Ctrl+Q", "Quit"),
-    ("H", "Show or hide what is painted (randomness, labels)"),
+    ("H", "Show or hide what is painted (randomness, labels, directions)"),
     ("T", "Tile mode: the periodic texture of the export tile size"),
     ("M", "Show the next map of a material"),
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),

@@ -138,6 +138,24 @@ class DirectionField:
                 tiles[(tx, ty)] = t
         return cls(tiles)
 
+    def replaced(self, values: np.ndarray, x: int, y: int) -> DirectionField:
+        """This field with the rectangle of a Q12 (H, W, 4) map placed at (x, y)
+        replaced by it (the rest of the tiles it touches kept)."""
+        placed = DirectionField.from_jacobians(values, x, y)
+        h, w = values.shape[:2]
+        tiles = dict(self.tiles)
+        for ty in range(y // TILE, (y + h - 1) // TILE + 1):
+            for tx in range(x // TILE, (x + w - 1) // TILE + 1):
+                old = tiles.get((tx, ty))
+                t = _identity_tile() if old is None else old.copy()
+                ix0, iy0 = max(tx * TILE, x), max(ty * TILE, y)
+                ix1, iy1 = min((tx + 1) * TILE, x + w), min((ty + 1) * TILE, y + h)
+                new = placed.tiles.get((tx, ty))
+                part = IDENTITY if new is None else new[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE]
+                t[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE] = part
+                tiles[(tx, ty)] = t
+        return DirectionField(tiles)
+
     @classmethod
     def uniform(cls, theta: float, scale: float, aspect: float, x0: int, y0: int, x1: int, y1: int) -> DirectionField:
         """One direction, scale and aspect over the rectangle [x0, x1) x [y0, y1)."""
@@ -173,6 +191,37 @@ class DirectionField:
                         np.rint(tgt).astype(np.int16)) else base
                 tiles[(tx, ty)] = new
         return DirectionField(tiles), (x0, y0, x1, y1)
+
+    def edited(self, x0: int, y0: int, weights: np.ndarray, op) -> tuple[DirectionField, tuple[int, int, int, int]]:
+        """The field with the pixels of [x0, x0+w) x [y0, y0+h) changed by
+        ``op(theta, scale, aspect, J, weights) -> (theta, scale, aspect)`` where
+        ``weights`` (h, w) > 0 (the others are kept; arrays in degrees, J the
+        current Q12 values). New values are clamped to the stretch limits.
+        Returns the new field and the rectangle it may change."""
+        h, w = weights.shape
+        if not np.any(weights > 0):
+            return self, (x0, y0, x0, y0)
+        cur = self.dense(x0, y0, w, h)
+        th, sc, asp = decompose(cur)
+        th, sc, asp = op(th, sc, asp, cur, weights)
+        sx = np.clip(sc * asp, MIN_STRETCH, MAX_STRETCH)
+        sy = np.clip(sc / asp, MIN_STRETCH, MAX_STRETCH)
+        new = jacobian(th, np.sqrt(sx * sy), np.sqrt(sx / sy))
+        new = np.where((weights > 0)[..., None], new, cur).astype(np.int16)
+        tiles = dict(self.tiles)
+        for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
+            for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
+                ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
+                ix1, iy1 = min((tx + 1) * TILE, x0 + w), min((ty + 1) * TILE, y0 + h)
+                part = weights[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0]
+                if not np.any(part > 0):
+                    continue
+                old = tiles.get((tx, ty))
+                t = _identity_tile() if old is None else old.copy()
+                t[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE] = \
+                    new[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0]
+                tiles[(tx, ty)] = t
+        return DirectionField(tiles), (x0, y0, x0 + w, y0 + h)
 
     def dense(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """J (h, w, 4) int16 over a finest-level rectangle (identity where unpainted)."""
@@ -251,6 +300,85 @@ class DirectionField:
         return out
 
 
+def turn_towards(theta: np.ndarray, target, weight: np.ndarray) -> np.ndarray:
+    """Angles moved a share ``weight`` of the way to ``target`` along the shorter arc (degrees)."""
+    d = (np.asarray(target, np.float64) - theta + 180.0) % 360.0 - 180.0
+    return theta + weight * d
+
+
+def comb(target_deg):
+    """An edit (DirectionField.edited) turning the texture towards a direction (array or scalar)."""
+    def op(th, sc, asp, J, w):
+        return turn_towards(th, target_deg, w), sc, asp
+    return op
+
+
+def grow(factor: float):
+    """An edit making the texture ``factor`` times larger where fully weighted (smaller below 1)."""
+    def op(th, sc, asp, J, w):
+        return th, sc * np.power(float(factor), w), asp
+    return op
+
+
+def erase():
+    """An edit back towards the exemplar as it is (direction 0, scale 1, aspect 1)."""
+    def op(th, sc, asp, J, w):
+        return turn_towards(th, 0.0, w), np.exp(np.log(sc) * (1 - w)), np.exp(np.log(asp) * (1 - w))
+    return op
+
+
+def smooth(size: int):
+    """An edit blending each pixel towards the mean direction, scale and aspect
+    around it (a box of ``size`` px): combed strokes flow into each other."""
+    from scipy import ndimage
+
+    def op(th, sc, asp, J, w):
+        r = np.radians(th)
+        c = ndimage.uniform_filter(np.cos(r), size, mode="nearest")
+        s = ndimage.uniform_filter(np.sin(r), size, mode="nearest")
+        mean_th = np.degrees(np.arctan2(s, c))
+        ls = ndimage.uniform_filter(np.log(sc), size, mode="nearest")
+        la = ndimage.uniform_filter(np.log(asp), size, mode="nearest")
+        agree = np.hypot(c, s)  # where directions cancel out, leave them
+        w2 = w * np.clip(agree * 2.0 - 0.2, 0.0, 1.0)
+        return (turn_towards(th, mean_th, w2), np.exp(np.log(sc) + w * (ls - np.log(sc))),
+                np.exp(np.log(asp) + w * (la - np.log(asp))))
+    return op
+
+
+def polyline_frame(points: np.ndarray, x0: int, y0: int, w: int, h: int):
+    """(distance to the polyline, its direction in degrees at the nearest point)
+    for the pixel centers of [x0, x0+w) x [y0, y0+h); the polyline is first
+    resampled as a Catmull-Rom spline through ``points`` (N, 2), so the
+    direction turns smoothly at its vertices."""
+    p = np.asarray(points, np.float64)
+    if len(p) > 2:
+        ext = np.vstack([2 * p[0] - p[1], p, 2 * p[-1] - p[-2]])
+        fine = []
+        for i in range(1, len(ext) - 2):
+            a, b, c, d = ext[i - 1], ext[i], ext[i + 1], ext[i + 2]
+            n = max(2, int(np.hypot(*(c - b)) // 3))
+            t = np.linspace(0.0, 1.0, n, endpoint=False)[:, None]
+            fine.append(0.5 * (2 * b + (c - a) * t + (2 * a - 5 * b + 4 * c - d) * t ** 2
+                               + (3 * b - a - 3 * c + d) * t ** 3))
+        fine.append(p[-1:])
+        p = np.vstack(fine)
+    ys, xs = np.mgrid[y0:y0 + h, x0:x0 + w] + 0.5
+    best = np.full((h, w), np.inf)
+    ang = np.zeros((h, w))
+    for a, b in zip(p[:-1], p[1:]):
+        d = b - a
+        L2 = float(d @ d)
+        if L2 == 0:
+            continue
+        t = np.clip(((xs - a[0]) * d[0] + (ys - a[1]) * d[1]) / L2, 0.0, 1.0)
+        dist = np.hypot(xs - a[0] - t * d[0], ys - a[1] - t * d[1])
+        closer = dist < best
+        best = np.where(closer, dist, best)
+        ang = np.where(closer, np.degrees(np.arctan2(d[1], d[0])), ang)
+    return best, ang
+
+
 def flow_to_jacobians(rgb: np.ndarray, y_up: bool = True, scale: float = 1.0, aspect: float = 1.0) -> np.ndarray:
     """A flow map (H, W, >=2) with R, G in [0, 1] (0.5 = no flow; within 1.5/255
     of it counts as 0.5, so 8-bit 127 and 128 both do) to Q12 Jacobians:
@@ -279,5 +407,6 @@ def max_stretch_ratio(j: np.ndarray) -> float:
     return float(max(np.hypot(v[..., 0], v[..., 2]).max(initial=1.0), np.hypot(v[..., 1], v[..., 3]).max(initial=1.0)))
 
 
-__all__ = ["DirectionField", "IDENTITY", "J_ONE", "MAX_STRETCH", "MIN_STRETCH", "angle_to_jacobians", "decompose",
-           "flow_to_jacobians", "jacobian", "max_stretch_ratio", "valid_jacobians"]
+__all__ = ["DirectionField", "IDENTITY", "J_ONE", "MAX_STRETCH", "MIN_STRETCH", "angle_to_jacobians", "comb",
+           "decompose", "erase", "flow_to_jacobians", "grow", "jacobian", "max_stretch_ratio", "polyline_frame",
+           "smooth", "turn_towards", "valid_jacobians"]

@@ -29,4 +29,4 @@ def draw(p: Panels) -> None:
     _, ed.show_fields = imgui.checkbox("Show painted (H)", ed.show_fields)
     if imgui.is_item_hovered():
         imgui.set_tooltip("Overlay what is painted: randomness as heat maps (blue = calm, red = rough), "
-                          "labels in their colors")
+                          "labels in their colors, directions as short strokes")

@@ -62,14 +62,15 @@ def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tu
     return opened
 
 
-CANVAS_SPACE_TOOLS = ("paint-canvas", "feature", "labels")  # tools that work on the synthesized (rectified) canvas
+CANVAS_SPACE_TOOLS = ("paint-canvas", "feature", "labels", "direction")  # tools that work on the synthesized (rectified) canvas
 
 
 def make_tools(ed) -> list[Tool]:
+    from .direction import DirectionTool
     from .feature import FeatureTool
     from .labels import LabelTool
     from .lattice import LatticeTool
     from .navigate import NavigateTool
     from .paint import PaintCanvasTool, PaintExemplarTool
     return [NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed), LabelTool(ed),
-            LatticeTool(ed)]
+            DirectionTool(ed), LatticeTool(ed)]
