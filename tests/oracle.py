@@ -113,6 +113,108 @@ def _dense_canvas(c, x0: int, y0: int, w: int, h: int) -> np.ndarray:
     return out
 
 
+# -- direction fields (anisometric synthesis, LH06 5) --------------------------
+# Written from engine/controls/direction.py's docstring and the shaders' DIRECTION
+# headers, with Python integers and floor divisions (no shared helpers): a
+# coordinate F is in 1/256 exemplar px, a state texel (nearest texel wrapped,
+# remainder in [-128, 128)), J in Q12 (j00, j01, j10, j11).
+
+Q8 = 256
+J_IDENTITY = (4096, 0, 0, 4096)
+
+
+def directed(controls: Controls) -> bool:
+    d = controls.direction
+    return d is not None and bool(d.tiles)
+
+
+def _dense_direction(d, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+    """The finest direction field (h, w, 4) int64 over a rectangle (identity where unpainted)."""
+    from infinitex.engine.controls import TILE
+    out = np.empty((h, w, 4), np.int64)
+    out[:] = J_IDENTITY
+    for (tx, ty), t in d.tiles.items():
+        ax0, ay0 = max(x0, tx * TILE), max(y0, ty * TILE)
+        ax1, ay1 = min(x0 + w, (tx + 1) * TILE), min(y0 + h, (ty + 1) * TILE)
+        if ax0 < ax1 and ay0 < ay1:
+            out[ay0 - y0:ay1 - y0, ax0 - x0:ax1 - x0] = t[ay0 - ty * TILE:ay1 - ty * TILE,
+                                                          ax0 - tx * TILE:ax1 - tx * TILE]
+    return out
+
+
+def _direction_mean(a: np.ndarray) -> np.ndarray:
+    """One mipmap step: each entry floor(sum of the 2 x 2 children / 4); where that
+    mean's determinant is below MIN_DET, the top-left child."""
+    from infinitex.engine.controls.direction import MIN_DET
+    tl = a[0::2, 0::2]
+    mean = np.floor_divide(tl + a[0::2, 1::2] + a[1::2, 0::2] + a[1::2, 1::2], 4)
+    det = mean[..., 0] * mean[..., 3] - mean[..., 1] * mean[..., 2]
+    return np.where((det < MIN_DET)[..., None], tl, mean)
+
+
+def direction_values(controls: Controls, an: Analysis, params: SynthParams, level: int,
+                     gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """J_l (..., 4) int64 at the level pixels (gx, gy): the finest field over each
+    pixel's 2^k x 2^k footprint reduced k times. With a period n (a toroidal
+    tile), the finest field inside [0, n)^2 repeated with period n: the tile
+    reduced min(k, log2 n) times (further steps reduce equal values), read at
+    p mod n_l. Only the level pixels whose footprint meets a painted tile are
+    reduced (the reduction of identities is the identity)."""
+    from infinitex.engine.controls import TILE
+    d = controls.direction
+    k = an.L - level
+    n = params.level_period(level)
+    px, py = (gx & (n - 1), gy & (n - 1)) if n else (gx, gy)
+    out = np.empty(px.shape + (4,), np.int64)
+    out[:] = J_IDENTITY
+    if not directed(controls) or px.size == 0:
+        return out
+    if n:
+        tile = params.period
+        red = _dense_direction(d, 0, 0, tile, tile)
+        for _ in range(min(k, tile.bit_length() - 1)):
+            red = _direction_mean(red)
+        return red[py, px].astype(np.int64)
+    txs = [t[0] for t in d.tiles]
+    tys = [t[1] for t in d.tiles]
+    # Level pixels whose footprints meet the painted tiles' bounding box, within this window.
+    lx0 = max(int(px.min()), (min(txs) * TILE) >> k)
+    ly0 = max(int(py.min()), (min(tys) * TILE) >> k)
+    lx1 = min(int(px.max()) + 1, (((max(txs) + 1) * TILE - 1) >> k) + 1)
+    ly1 = min(int(py.max()) + 1, (((max(tys) + 1) * TILE - 1) >> k) + 1)
+    if lx0 >= lx1 or ly0 >= ly1:
+        return out
+    red = _dense_direction(d, lx0 << k, ly0 << k, (lx1 - lx0) << k, (ly1 - ly0) << k)
+    for _ in range(k):
+        red = _direction_mean(red)
+    sel = (px >= lx0) & (px < lx1) & (py >= ly0) & (py < ly1)
+    out[sel] = red[py[sel] - ly0, px[sel] - lx0]
+    return out
+
+
+def _q8_split(F: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(nearest texel wrapped to [0, m), remainder in [-128, 128)) of F in 1/256 px."""
+    F = np.mod(F, Q8 * m)
+    t = np.floor_divide(F + Q8 // 2, Q8)
+    return np.mod(t, m), F - Q8 * t
+
+
+def _q8_nearest(F: np.ndarray) -> np.ndarray:
+    """The nearest texel of F (1/256 px), not wrapped: floor(F / 256 + 1/2)."""
+    return np.floor_divide(F + Q8 // 2, Q8)
+
+
+def _jd(J: np.ndarray, dx, dy, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """h J d in 1/256 px, floored: floor(h (J d) 256 / 4096)."""
+    return (np.floor_divide(h * (J[..., 0] * dx + J[..., 1] * dy), 16),
+            np.floor_divide(h * (J[..., 2] * dx + J[..., 3] * dy), 16))
+
+
+def _full(S: np.ndarray) -> np.ndarray:
+    """F (..., 2) in 1/256 px of state texels (..., 4)."""
+    return S[..., :2].astype(np.int64) * Q8 + S[..., 2:4]
+
+
 def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: tuple[int, int],
              shape: tuple[int, int], an: Analysis, params: SynthParams, level: int,
              controls: Controls = NO_CONTROLS) -> np.ndarray:
@@ -121,14 +223,26 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
     gy, gx = np.mgrid[origin[1]:origin[1] + H, origin[0]:origin[0] + W].astype(np.int64)
     n = params.level_period(level)
     gmx, gmy = (gx & (n - 1), gy & (n - 1)) if n else (gx, gy)
+    direct = directed(controls)
     if parent is None:
         ux = np.full(gx.shape, m // 2, dtype=np.int64)
         uy = ux.copy()
+        if direct:
+            Fx, Fy = ux * Q8, uy * Q8
     else:
         px, py = (gx >> 1) - parent_origin[0], (gy >> 1) - parent_origin[1]
         assert px.min() >= 0 and py.min() >= 0 and px.max() < parent.shape[1] and py.max() < parent.shape[0]
-        ux = parent[py, px, 0] + fixed.child_offset(gmx & 1, h)
-        uy = parent[py, px, 1] + fixed.child_offset(gmy & 1, h)
+        if direct:  # F_{l-1}[floor(p/2)] + floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1
+            J = direction_values(controls, an, params, level, gx, gy)
+            vx, vy = h * (2 * (gmx & 1) - 1), h * (2 * (gmy & 1) - 1)
+            half = Q8 // 2 if h == 1 else 0
+            Fp = _full(parent[py, px].astype(np.int64))
+            Fx = Fp[..., 0] + np.floor_divide(J[..., 0] * vx + J[..., 1] * vy, 32) - half
+            Fy = Fp[..., 1] + np.floor_divide(J[..., 2] * vx + J[..., 3] * vy, 32) - half
+            ux, uy = np.mod(_q8_nearest(Fx), m), np.mod(_q8_nearest(Fy), m)
+        else:
+            ux = parent[py, px, 0] + fixed.child_offset(gmx & 1, h)
+            uy = parent[py, px, 1] + fixed.child_offset(gmy & 1, h)
     rq = fixed.jitter_q(params.jitter[level])
     if controls.randomness_exemplar is not None or controls.randomness_canvas is not None:
         E, C = field_values(controls, an, params, level, ux, uy, gx, gy)
@@ -139,16 +253,33 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         cx, cy = 1 << shift[0], 1 << shift[1]
         jx = np.vectorize(lambda j: cx * ((2 * j + cx) // (2 * cx)))(jx) if cx > 1 else jx
         jy = np.vectorize(lambda j: cy * ((2 * j + cy) // (2 * cy)))(jy) if cy > 1 else jy
-    S = np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
+    if direct:  # + 256 Jit_l(p), then (nearest texel, remainder)
+        tx, rx = _q8_split(Fx + Q8 * jx, m)
+        ty, ry = _q8_split(Fy + Q8 * jy, m)
+        S = np.stack([tx, ty, rx, ry], axis=-1)
+    else:
+        S = np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
     return apply_features(S, origin, an, params, level, controls)
 
 
 def apply_features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,
                    controls: Controls) -> np.ndarray:
     """Override the coordinates inside placed features (written from the
-    definition: every feature tested at every pixel, exact rationals)."""
+    definition: every feature tested at every pixel, exact rationals). With a
+    direction field (4 channels) a feature sets a whole texel: remainder 0."""
     if not controls.features:
         return S
+    if S.shape[-1] == 4:
+        out = S.copy()
+        hit = np.zeros(S.shape[:2], bool)
+        out[..., :2] = _features(S[..., :2], origin, an, params, level, controls, hit)
+        out[hit, 2:] = 0
+        return out
+    return _features(S, origin, an, params, level, controls, None)
+
+
+def _features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,
+              controls: Controls, hit: np.ndarray | None) -> np.ndarray:
     from fractions import Fraction
     L, m, h = an.L, an.size, an.h(level)
     k = L - level
@@ -174,12 +305,15 @@ def apply_features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params:
                     ex, ey = ex - (gx - pfx - dx), ey - (gy - pfy - dy)
                 if ex * ex + ey * ey <= r * r:
                     out[yy, xx] = ((f.exemplar[0] + h * dx) % m, (f.exemplar[1] + h * dy) % m)
+                    if hit is not None:
+                        hit[yy, xx] = True
     return out
 
 
 def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis,
-                             level: int) -> np.ndarray:
-    """Projected N_S(p) for the pixels (ys, xs) of S (reads clamped to S)."""
+                             level: int, J: np.ndarray | None = None) -> np.ndarray:
+    """Projected N_S(p) for the pixels (ys, xs) of S (reads clamped to S); with
+    ``J`` (N, 4), the Jacobians at those pixels, the anisometric neighborhood."""
     lv = an.levels[level]
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
@@ -189,6 +323,8 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
 
     feat = lv.feat
     parts = []
+    if J is not None:
+        return fixed.project(np.concatenate(_directed_taps(S, ys, xs, an, level, J), axis=1), lv.proj, lv.shift)
     if an.model == "appearance":
         for dx, dy in fixed.DIAGONALS:
             acc = 0
@@ -205,6 +341,42 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
     return fixed.project(np.concatenate(parts, axis=1), lv.proj, lv.shift)
 
 
+def _directed_taps(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis, level: int,
+                   J: np.ndarray) -> list:
+    """The raw neighborhood parts of N_S(p) with a direction field (correct.frag's
+    DIRECTION header): a sample for exemplar offset d comes from an immediate
+    neighbor d' of p as the nearest texel of F[p + d'] - h J d' + 256 h d."""
+    h, m = an.h(level), an.size
+    H, W = S.shape[:2]
+    feat = an.levels[level].feat
+    j00, j01, j10, j11 = (J[:, i] for i in range(4))
+
+    def sample(dpx, dpy, dx, dy):  # dpx, dpy: per pixel arrays
+        F = _full(S[np.clip(ys + dpy, 0, H - 1), np.clip(xs + dpx, 0, W - 1)].astype(np.int64))
+        ox, oy = _jd(J, dpx, dpy, h)
+        ux = np.mod(_q8_nearest(F[:, 0] + Q8 * h * dx - ox), m)
+        uy = np.mod(_q8_nearest(F[:, 1] + Q8 * h * dy - oy), m)
+        return feat[uy, ux].astype(np.int64)
+
+    parts = []
+    if an.model == "appearance":
+        for dx, dy in fixed.DIAGONALS:
+            # The signs of J^-1 d = adj(J) d / det J (det > 0), 0 counting as +1.
+            sx = np.where(j11 * dx - j01 * dy >= 0, 1, -1)
+            sy = np.where(j00 * dy - j10 * dx >= 0, 1, -1)
+            zero = np.zeros_like(sx)
+            parts.append(sample(sx, sy, dx, dy) + sample(sx, zero, dx, dy) + sample(zero, sy, dx, dy))
+    else:
+        det = j00 * j11 - j01 * j10
+        for dx, dy in fixed.COLOR_TAPS:
+            # d' = round(J^-1 d) = floor(J^-1 d + 1/2), clamped to [-2, 2].
+            npx, npy = 4096 * (j11 * dx - j01 * dy), 4096 * (j00 * dy - j10 * dx)
+            dpx = np.clip(np.floor_divide(2 * npx + det, 2 * det), -2, 2)
+            dpy = np.clip(np.floor_divide(2 * npy + det, 2 * det), -2, 2)
+            parts.append(sample(dpx, dpy, dx, dy))
+    return parts
+
+
 def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
                     params: SynthParams, level: int, controls: Controls = NO_CONTROLS, subpass: int = 0) -> np.ndarray:
     s = params.subgrid
@@ -214,10 +386,13 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     ys, xs = np.mgrid[0:H, 0:W]
     sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
     ys, xs = ys[sel], xs[sel]
-    ns = synthesized_neighborhood(S, ys, xs, an, level)
+    direct = directed(controls)
+    J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
+    ns = synthesized_neighborhood(S, ys, xs, an, level, J)
     nbhd = lv.nbhd
     best = np.full(len(ys), np.iinfo(np.int64).max)
-    best_u = S[ys, xs].astype(np.int64)
+    best_u = S[ys, xs, :2].astype(np.int64)
+    best_r = np.zeros_like(best_u)  # with a direction field: the remainder of the best
     psi = fixed.psi_q(params.kappa)
     avoid = None if controls.avoid is None else controls.avoid.values
     from infinitex.engine.controls.labels import SEED_SALT, label_cost
@@ -227,7 +402,15 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
         return 0 if labels is None else label_cost(labels[0], labels[1][u[:, 1], u[:, 0]], labels[2])
     for dx, dy in fixed.CANDIDATE_OFFSETS:
         nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
-        bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
+        if direct:  # F[p + d] - h J d: its nearest texel, and its remainder for every candidate
+            F = _full(nb)
+            ox, oy = _jd(J, dx, dy, h)
+            bx, rx = _q8_split(F[:, 0] - ox, m)
+            by, ry = _q8_split(F[:, 1] - oy, m)
+            rem = np.stack([rx, ry], axis=1)
+        else:
+            bx, by = (nb[:, 0] - h * dx) & (m - 1), (nb[:, 1] - h * dy) & (m - 1)
+            rem = 0
         for i in range(max(an.k, 1)):
             if an.k == 0:  # no similarity sets: the coherent candidate, off the border band
                 u = np.stack([bx, by], axis=1)
@@ -244,6 +427,7 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
             better = cost < best
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
+            best_r = np.where(better[:, None], rem, best_r)
     steps = np.full(len(ys), params.walk_steps(an.k, avoid is not None))
     gx, gy = xs + origin[0], ys + origin[1]
     period = params.level_period(level)
@@ -264,6 +448,7 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
         better = labeled & (cost < best)
         best = np.where(better, cost, best)
         best_u = np.where(better[:, None], u, best_u)
+        best_r = np.where(better[:, None], 0, best_r)  # a seed texel: whole
         from infinitex.engine.controls import labels as labels_module
         steps = np.where(labeled, np.maximum(steps, labels_module.LABEL_WALK), steps)
     if steps.max(initial=0) and controls.lattice_shift(m, level) is None:  # TBN10 random walk around the best
@@ -281,9 +466,9 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
             better = (cost < best) & (t < steps)
             best = np.where(better, cost, best)
             best_u = np.where(better[:, None], u, best_u)
-            R >>= 1
+            R >>= 1  # (the walk keeps the best's remainder)
     out = S.copy()
-    out[ys, xs] = best_u
+    out[ys, xs] = np.concatenate([best_u, best_r], axis=1) if direct else best_u
     return out
 
 
@@ -291,7 +476,11 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
                      params: SynthParams, level: int, controls: Controls = NO_CONTROLS,
                      subpass: int = 0) -> np.ndarray:
     """One subpass of the fidelity stage, from its definition (fidelity.frag's
-    header): every candidate's whole patch cost, no early exit, no deduplication."""
+    header): every candidate's whole patch cost, no early exit, no deduplication.
+    With a direction field, candidates are coordinates F in 1/256 px: u's patch
+    reads the nearest texels of F + h J d, predictions are F[p + d] - h J d,
+    random samples move the best by whole pixels, candidates are kept inside in
+    1/256 px, and avoid and labels are read at the nearest texel."""
     s, R = params.subgrid, params.fidelity_radius
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
@@ -299,6 +488,8 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
     ys, xs = np.mgrid[0:H, 0:W]
     sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
     ys, xs = ys[sel], xs[sel]
+    direct = directed(controls)
+    J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
 
     def s_at(dx, dy):
         return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
@@ -309,27 +500,40 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
         u = s_at(*d)
         nb[d] = E[u[:, 1], u[:, 0]]
     border = -1 if an.toroidal else border_margin(m, h)
+    one = Q8 if direct else 1  # a whole exemplar pixel in the candidates' unit
 
     def inside(u):
-        return (u & (m - 1)) if border < 0 else np.clip(u, border, m - 1 - border)
+        return np.mod(u, one * m) if border < 0 else np.clip(u, one * border, one * (m - 1 - border))
+
+    def texel(u):
+        return np.mod(_q8_nearest(u), m) if direct else u
+
+    def offset(dx, dy):  # h d, or h J d in 1/256 px (floored)
+        if direct:
+            return np.stack(_jd(J, dx, dy, h), axis=1)
+        return h * np.array([dx, dy])
 
     labels = label_terms(controls, an, params, level, xs, ys, origin, True)
 
     def cost(u):
         from infinitex.engine.controls.labels import label_cost
         c = np.zeros(len(u), np.int64)
+        ut = texel(u)
         if labels is not None:
-            c += label_cost(labels[0], labels[1][u[:, 1], u[:, 0]], labels[2])
+            c += label_cost(labels[0], labels[1][ut[:, 1], ut[:, 0]], labels[2])
         for dx, dy in patch:
-            t = u + h * np.array([dx, dy])
+            t = u + offset(dx, dy)
+            if direct:
+                t = _q8_nearest(t)
             t = (t & (m - 1)) if border < 0 else np.clip(t, 0, m - 1)
             e = nb[(dx, dy)] - E[t[:, 1], t[:, 0]]
             c += (e * e).sum(axis=1)
         if controls.avoid is not None:
-            c = np.where(controls.avoid.values[u[:, 1], u[:, 0]] != 0, fixed.AVOIDED, c)
+            c = np.where(controls.avoid.values[ut[:, 1], ut[:, 0]] != 0, fixed.AVOIDED, c)
         return c
 
-    best_u = S[ys, xs].astype(np.int64)
+    here = S[ys, xs].astype(np.int64)
+    best_u = _full(here) if direct else here
     best = cost(best_u)
 
     def consider(u):
@@ -341,7 +545,8 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
 
     for dx, dy in fixed.CANDIDATE_OFFSETS:
         if (dx, dy) != (0, 0):
-            consider(inside(s_at(dx, dy) - h * np.array([dx, dy])))
+            nbr = s_at(dx, dy)
+            consider(inside((_full(nbr) if direct else nbr) - offset(dx, dy)))
     if controls.lattice_shift(m, level) is None:
         gx, gy = xs + origin[0], ys + origin[1]
         period = params.level_period(level)
@@ -353,16 +558,22 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
             if radius < 2:
                 break
             ox, oy = fixed.walk_offsets(gx, gy, level, fseed, t, radius)
-            consider(inside(best_u + np.stack([ox, oy], axis=1)))
+            consider(inside(best_u + one * np.stack([ox, oy], axis=1)))
     out = S.copy()
-    out[ys, xs] = best_u
+    if direct:
+        tx, rx = _q8_split(best_u[:, 0], m)
+        ty, ry = _q8_split(best_u[:, 1], m)
+        out[ys, xs] = np.stack([tx, ty, rx, ry], axis=1)
+    else:
+        out[ys, xs] = best_u
     return out
 
 
 def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int,
                level: int | None = None, uncorrected_level: int | None = None,
                controls: Controls = NO_CONTROLS) -> np.ndarray:
-    """Exact coordinates (h, w, 2) of the window at ``level`` (default finest).
+    """Exact coordinates (h, w, 2) of the window at ``level`` (default finest);
+    with a direction field (h, w, 4): the nearest texels and their remainders in 1/256 px.
 
     ``uncorrected_level`` skips correction on that one level (to measure what
     correction does there)."""

@@ -29,7 +29,7 @@ class StateAccess:
         if not self.controls.directed:
             return None
         vals = self.controls.direction.region(self.an.L - l, region.x0, region.y0, region.w, region.h,
-                                              self.params.level_period(l))
+                                              self.params.period)
         if vals is None:
             vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
         return self.gpu.int_texture((region.w, region.h), 4, vals)

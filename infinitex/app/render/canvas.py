@@ -236,7 +236,7 @@ class Canvas:
         """Level l's J over ``r`` as an RGBA16I texture (kept while the field and ``r`` stay)."""
         from infinitex.engine.controls.direction import IDENTITY
         field = pyramid.controls.direction
-        period = pyramid.params.level_period(l)
+        period = pyramid.params.period
         key = (field.key, r, period)
         cache = self.__dict__.setdefault("_jtex", {})  # level -> (key, texture)
         held = cache.get(l)

@@ -17,7 +17,8 @@ within [MIN_STRETCH, MAX_STRETCH], so every entry fits int16 and det J > 0.
 the mean of its four children, each entry ``floor(sum / 4)``, repeated k times
 (a box mipmap with the floor at every step: exact integers, the same in numpy
 and in the oracle); where the mean's determinant falls below MIN_DET (opposite
-directions cancel), it takes its top-left child instead. With a toroidal period n the field is read at p mod n_l.
+directions cancel), it takes its top-left child instead. A toroidal tile of n
+px sees the field inside [0, n)^2 repeated with period n.
 
 **Coordinates with a field** carry a sub-pixel part (engine/fixed.py
 ``FRAC_ONE``): a state texel holds the nearest exemplar texel (x, y) and the
@@ -263,27 +264,46 @@ class DirectionField:
                 for dx in (0, 1):
                     t = finer.get((2 * px + dx, 2 * py + dy))
                     big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = IDENTITY if t is None else t
-            s = big[0::2, 0::2] + big[1::2, 0::2] + big[0::2, 1::2] + big[1::2, 1::2]
-            red = s >> 2  # floor(sum / 4): >> is a floor on numpy ints
-            # Directions that cancel out (a mean too close to singular): the top-left child.
-            red = np.where((_dets(red) < MIN_DET)[..., None], big[0::2, 0::2], red).astype(np.int16)
+            red = reduce_once(big)
             if not np.all(red == IDENTITY):
                 out[(px, py)] = red
         cache[k] = out
         return out
 
+    def _periodic(self, n: int, k: int) -> np.ndarray | None:
+        """The field repeated with period n, reduced k <= log2 n times: (n >> k)^2 x 4, or None (identity)."""
+        cache = self.__dict__.setdefault("_periodic_levels", {})
+        if (n, k) not in cache:
+            if n >= TILE:  # the tiles inside [0, n)^2 reduced as a field of their own: exact up to k = log2 n
+                inside = DirectionField({t: v for t, v in self.tiles.items()
+                                         if 0 <= t[0] < n // TILE and 0 <= t[1] < n // TILE})
+                cache[(n, k)] = inside.region(k, 0, 0, n >> k, n >> k)
+            else:
+                a = self.region(0, 0, 0, n, n)
+                for _ in range(k):
+                    a = None if a is None else reduce_once(a)
+                cache[(n, k)] = a
+        return cache[(n, k)]
+
     def region(self, k: int, x0: int, y0: int, w: int, h: int, period: int = 0) -> np.ndarray | None:
         """J reduced k times over [x0, x0+w) x [y0, y0+h) (level pixels), int16
         (h, w, 4); None when no painted tile touches it. With ``period`` n (a
-        level period), pixel p reads the field at p mod n."""
+        toroidal tile's size, finest pixels): the field inside [0, n)^2 repeated
+        with period n, then reduced (a level pixel larger than the tile takes the
+        whole tile's reduction), so what is painted outside the tile never counts."""
+        if period:
+            n = period
+            kk = min(k, n.bit_length() - 1)
+            base = self._periodic(n, kk) if self.tiles else None
+            if base is None:
+                return None
+            nl = n >> kk
+            ys = np.arange(y0, y0 + h) & (nl - 1)
+            xs = np.arange(x0, x0 + w) & (nl - 1)
+            return np.ascontiguousarray(base[ys[:, None], xs[None, :]])
         tiles = self._mip_tiles(k) if self.tiles else {}
         if not tiles:
             return None
-        if period:
-            ys = np.arange(y0, y0 + h) & (period - 1)
-            xs = np.arange(x0, x0 + w) & (period - 1)
-            base = self.region(k, 0, 0, period, period)
-            return None if base is None else np.ascontiguousarray(base[ys[:, None], xs[None, :]])
         out = None
         for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
             for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
@@ -298,6 +318,16 @@ class DirectionField:
                 out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = t[iy0 - ty * TILE:iy1 - ty * TILE,
                                                             ix0 - tx * TILE:ix1 - tx * TILE]
         return out
+
+
+def reduce_once(a: np.ndarray) -> np.ndarray:
+    """One mipmap step of Q12 Jacobians (2h, 2w, 4) -> (h, w, 4): each entry
+    floor(sum of the 2 x 2 children / 4); where that mean's determinant falls
+    below MIN_DET (directions cancel out), the top-left child."""
+    a = a.astype(np.int32)
+    s = a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]
+    red = s >> 2  # floor(sum / 4): >> is a floor on numpy ints
+    return np.where((_dets(red) < MIN_DET)[..., None], a[0::2, 0::2], red).astype(np.int16)
 
 
 def turn_towards(theta: np.ndarray, target, weight: np.ndarray) -> np.ndarray:
