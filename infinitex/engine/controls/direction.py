@@ -224,6 +224,28 @@ class DirectionField:
                 tiles[(tx, ty)] = t
         return DirectionField(tiles), (x0, y0, x0 + w, y0 + h)
 
+    def guided(self, points, width: float, blend: float = 0.0, strength: float = 1.0, axis_offset: float = 0.0,
+               max_area: int = 4096 * 4096) -> DirectionField:
+        """The texture follows a curve (a Catmull-Rom spline through ``points``,
+        canvas pixels): fully within ``width``, then fading into what is there
+        over ``blend`` px (so between two guides closer than that the direction
+        turns smoothly from one to the other). The exemplar's x runs along the
+        curve (``axis_offset`` 90: its y). ValueError when the curve's box
+        exceeds ``max_area`` pixels."""
+        pts = np.asarray(points, np.float64)
+        if len(pts) < 2:
+            return self
+        core = width / 2.0
+        half = core + max(0.0, blend)
+        x0, y0 = int(np.floor(pts[:, 0].min() - half)) - 1, int(np.floor(pts[:, 1].min() - half)) - 1
+        x1, y1 = int(np.ceil(pts[:, 0].max() + half)) + 2, int(np.ceil(pts[:, 1].max() + half)) + 2
+        if (x1 - x0) * (y1 - y0) > max_area:
+            raise ValueError("This guide covers too large an area; draw it in pieces.")
+        dist, ang = polyline_frame(pts, x0, y0, x1 - x0, y1 - y0)
+        t = np.clip((dist - core) / max(half - core, 1e-6), 0.0, 1.0)
+        w = np.where(dist >= half, 0.0, 1.0 - t * t * (3.0 - 2.0 * t)) * np.clip(strength, 0.0, 1.0)
+        return self.edited(x0, y0, w, comb(ang - axis_offset))[0]
+
     def dense(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """J (h, w, 4) int16 over a finest-level rectangle (identity where unpainted)."""
         out = self.region(0, x0, y0, w, h)

@@ -22,7 +22,6 @@ from infinitex.engine.controls.direction import (
     decompose,
     erase,
     grow,
-    polyline_frame,
     smooth,
 )
 from infinitex.engine.controls.fields import FieldTooLarge, dab_rect, dab_weights
@@ -55,6 +54,7 @@ class DirectionTool(Tool):
         self.axis = 0          # 0: the exemplar's x runs along strokes, 1: its y
         self.rate = 1.5        # grow / shrink per full-strength dab
         self.guide_width = 64.0
+        self.guide_blend = 64.0  # px beyond the width over which a guide fades into what is there
         self.guide: list[tuple[float, float]] = []
         self.map_kind = "auto"
         self.map_y_up = True
@@ -136,22 +136,19 @@ class DirectionTool(Tool):
         self._group, self._last = None, None
 
     def apply_guide(self) -> None:
-        """The texture follows the guide's curve within its width (soft edges by the hardness)."""
+        """The texture follows the guide's curve within its width, then fades into
+        what is there over the blend distance: between two guides closer than that,
+        the direction turns smoothly from one to the other."""
         pts = np.array(self.guide, np.float64)
         self.guide = []
         if len(pts) < 2:
             return
-        half = self.guide_width / 2.0
-        x0, y0 = math.floor(pts[:, 0].min() - half) - 1, math.floor(pts[:, 1].min() - half) - 1
-        x1, y1 = math.ceil(pts[:, 0].max() + half) + 2, math.ceil(pts[:, 1].max() + half) + 2
-        if (x1 - x0) * (y1 - y0) > MAX_GUIDE_AREA:
-            self.ed.notice = ("This guide covers too large an area; draw it in pieces.", time.monotonic())
+        try:
+            field = self.field.guided(pts, self.guide_width, self.guide_blend, self.brush.strength,
+                                      self._axis_offset(), MAX_GUIDE_AREA)
+        except ValueError as exc:
+            self.ed.notice = (str(exc), time.monotonic())
             return
-        dist, ang = polyline_frame(pts, x0, y0, x1 - x0, y1 - y0)
-        inner = min(max(self.brush.hardness, 0.0), 0.999) * half
-        t = np.clip((dist - inner) / max(half - inner, 1e-6), 0.0, 1.0)
-        w = np.where(dist >= half, 0.0, 1.0 - t * t * (3.0 - 2.0 * t)) * np.clip(self.brush.strength, 0.0, 1.0)
-        field, _ = self.field.edited(x0, y0, w, comb(ang - self._axis_offset()))
         self._set(field, "Direction guide")
 
     def place_map(self, path: str) -> None:
@@ -194,8 +191,14 @@ class DirectionTool(Tool):
         if self.mode == "guide":
             _, self.guide_width = imgui.slider_float("Guide width", self.guide_width, 4.0, 1024.0, "%.0f px",
                                                      imgui.SliderFlags_.logarithmic)
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Within this width the texture follows the guide fully")
+            _, self.guide_blend = imgui.slider_float("Blend", self.guide_blend, 0.0, 1024.0, "%.0f px",
+                                                     imgui.SliderFlags_.logarithmic)
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Beyond the width, the guide fades into what is there over this distance: "
+                                  "between two guides, the texture turns smoothly from one to the other")
             _, self.brush.strength = imgui.slider_float("Strength", self.brush.strength, 0.0, 1.0, "%.2f")
-            _, self.brush.hardness = imgui.slider_float("Hardness", self.brush.hardness, 0.0, 1.0, "%.2f")
             imgui.pop_item_width()
             imgui.text_disabled(f"{len(self.guide)} points: click to add, Backspace removes, Enter applies")
             if imgui.button("Apply guide") and len(self.guide) >= 2:
@@ -261,6 +264,8 @@ class DirectionTool(Tool):
         io = imgui.get_io()
         c = (io.mouse_pos.x, io.mouse_pos.y)
         r = self.guide_width * z / 2 if self.mode == "guide" else self.radius_canvas() * z
+        if self.mode == "guide" and self.guide_blend > 0:
+            draw_list.add_circle(c, r + self.guide_blend * z, imgui.get_color_u32((1, 0.8, 0.2, 0.4)), 0, 1.0)
         draw_list.add_circle(c, r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
         draw_list.add_circle(c, r, imgui.get_color_u32((1, 0.8, 0.2, 0.9)), 0, 1.5)
 
