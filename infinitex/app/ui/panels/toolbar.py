@@ -13,9 +13,17 @@ if TYPE_CHECKING:
 def draw(p: Panels) -> None:
     """The tool bar over the canvas: one button per tool, the field overlay toggle."""
     ed = p.ed
+    style = imgui.get_style()
+
+    def next_item(label: str, extra: float = 0.0) -> None:
+        """On the same row while it fits, else on the next (a narrow window wraps the bar)."""
+        w = imgui.calc_text_size(label).x + 2 * style.frame_padding.x + extra
+        imgui.same_line()
+        if imgui.get_content_region_avail().x < w:
+            imgui.new_line()
     for i, t in enumerate(ed.tools):
         if i:
-            imgui.same_line()
+            next_item(f"{t.label} ({t.key})")
         active = t is ed.tool
         if active:
             imgui.push_style_color(imgui.Col_.button, imgui.get_style_color_vec4(imgui.Col_.button_active))
@@ -25,7 +33,7 @@ def draw(p: Panels) -> None:
             imgui.pop_style_color()
         if imgui.is_item_hovered():
             imgui.set_tooltip(t.tooltip)
-    imgui.same_line()
+    next_item("Show painted (H)", imgui.get_frame_height() + style.item_inner_spacing.x)
     _, ed.show_fields = imgui.checkbox("Show painted (H)", ed.show_fields)
     if imgui.is_item_hovered():
         imgui.set_tooltip("Overlay what is painted: randomness as heat maps (blue = calm, red = rough), "
