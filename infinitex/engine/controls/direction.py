@@ -33,7 +33,17 @@ from functools import cached_property
 
 import numpy as np
 
-from .fields import MAX_FIELD_TILES, TILE, FieldTooLarge, dab_rect, dab_weights, tile_changes, tiles_key
+from .fields import (
+    MAX_FIELD_TILES,
+    TILE,
+    FieldTooLarge,
+    dab_rect,
+    dab_weights,
+    mip_parents,
+    tile_changes,
+    tiles_key,
+    tiles_region,
+)
 
 J_ONE = 4096  # Q12
 IDENTITY = np.array([J_ONE, 0, 0, J_ONE], np.int16)
@@ -278,19 +288,9 @@ class DirectionField:
         cache = self.__dict__.setdefault("_mips", {0: self.tiles})
         if k in cache:
             return cache[k]
-        finer = self._mip_tiles(k - 1)
-        out: dict = {}
-        for px, py in {(tx >> 1, ty >> 1) for tx, ty in finer}:
-            big = np.empty((2 * TILE, 2 * TILE, 4), np.int32)
-            for dy in (0, 1):
-                for dx in (0, 1):
-                    t = finer.get((2 * px + dx, 2 * py + dy))
-                    big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = IDENTITY if t is None else t
-            red = reduce_once(big)
-            if not np.all(red == IDENTITY):
-                out[(px, py)] = red
-        cache[k] = out
-        return out
+        out = mip_parents(self._mip_tiles(k - 1), IDENTITY, reduce_once)
+        cache[k] = {p: t for p, t in out.items() if not np.all(t == IDENTITY)}
+        return cache[k]
 
     def _periodic(self, n: int, k: int) -> np.ndarray | None:
         """The field repeated with period n, reduced k <= log2 n times: (n >> k)^2 x 4, or None (identity)."""
@@ -324,22 +324,7 @@ class DirectionField:
             xs = np.arange(x0, x0 + w) & (nl - 1)
             return np.ascontiguousarray(base[ys[:, None], xs[None, :]])
         tiles = self._mip_tiles(k) if self.tiles else {}
-        if not tiles:
-            return None
-        out = None
-        for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
-            for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
-                t = tiles.get((tx, ty))
-                if t is None:
-                    continue
-                if out is None:
-                    out = np.empty((h, w, 4), np.int16)
-                    out[:] = IDENTITY
-                ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
-                ix1, iy1 = min((tx + 1) * TILE, x0 + w), min((ty + 1) * TILE, y0 + h)
-                out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = t[iy0 - ty * TILE:iy1 - ty * TILE,
-                                                            ix0 - tx * TILE:ix1 - tx * TILE]
-        return out
+        return tiles_region(tiles, x0, y0, w, h, IDENTITY) if tiles else None
 
 
 def reduce_once(a: np.ndarray) -> np.ndarray:

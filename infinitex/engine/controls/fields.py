@@ -85,6 +85,40 @@ def tile_changes(a_tiles: dict, b_tiles: dict, blank: np.ndarray) -> list:
     return out
 
 
+def tiles_region(tiles: dict, x0: int, y0: int, w: int, h: int, blank) -> np.ndarray | None:
+    """The pixels of [x0, x0+w) x [y0, y0+h) from sparse TILE x TILE tiles
+    (absent tiles are ``blank``: a value, or one pixel's channels); None when
+    no tile touches the rectangle."""
+    out = None
+    for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
+        for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
+            t = tiles.get((tx, ty))
+            if t is None:
+                continue
+            if out is None:
+                out = np.empty((h, w) + t.shape[2:], t.dtype)
+                out[:] = blank
+            ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
+            ix1, iy1 = min((tx + 1) * TILE, x0 + w), min((ty + 1) * TILE, y0 + h)
+            out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = t[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE]
+    return out
+
+
+def mip_parents(finer: dict, blank, reduce) -> dict:
+    """One mipmap step of sparse tiles: each parent tile is ``reduce`` of its
+    four children put together (2 TILE x 2 TILE; absent ones ``blank``)."""
+    out: dict = {}
+    for px, py in {(tx >> 1, ty >> 1) for tx, ty in finer}:
+        some = next(iter(finer.values()))
+        big = np.empty((2 * TILE, 2 * TILE) + some.shape[2:], some.dtype)
+        for dy in (0, 1):
+            for dx in (0, 1):
+                t = finer.get((2 * px + dx, 2 * py + dy))
+                big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = blank if t is None else t
+        out[(px, py)] = reduce(big)
+    return out
+
+
 def tiles_key(tiles: dict, salt: bytes = b"") -> str:
     """A content hash of sparse tiles (in tile order)."""
     import hashlib
@@ -250,19 +284,8 @@ class CanvasField:
         cache = self.__dict__.setdefault("_mips", {0: self.tiles})
         if k in cache:
             return cache[k]
-        finer = self._mip_tiles(k - 1)
-        out: dict = {}
-        parents = {(tx >> 1, ty >> 1) for tx, ty in finer}
-        for px, py in parents:
-            big = np.full((2 * TILE, 2 * TILE), NEUTRAL, np.uint16)
-            for dy in (0, 1):
-                for dx in (0, 1):
-                    t = finer.get((2 * px + dx, 2 * py + dy))
-                    if t is not None:
-                        big[dy * TILE:(dy + 1) * TILE, dx * TILE:(dx + 1) * TILE] = t
-            out[(px, py)] = reduce_toward_neutral(big)
-        cache[k] = out
-        return out
+        cache[k] = mip_parents(self._mip_tiles(k - 1), NEUTRAL, reduce_toward_neutral)
+        return cache[k]
 
     def region(self, k: int, x0: int, y0: int, w: int, h: int, period: int = 0) -> np.ndarray | None:
         """The field reduced k times over [x0, x0+w) x [y0, y0+h) (level pixels),
@@ -276,16 +299,4 @@ class CanvasField:
             xs = np.arange(x0, x0 + w) & (period - 1)
             base = self.region(k, 0, 0, period, period)
             return None if base is None else np.ascontiguousarray(base[ys[:, None], xs[None, :]])
-        out = None
-        for ty in range(y0 // TILE, (y0 + h - 1) // TILE + 1):
-            for tx in range(x0 // TILE, (x0 + w - 1) // TILE + 1):
-                t = tiles.get((tx, ty))
-                if t is None:
-                    continue
-                if out is None:
-                    out = np.full((h, w), NEUTRAL, np.uint16)
-                ix0, iy0 = max(tx * TILE, x0), max(ty * TILE, y0)
-                ix1, iy1 = min((tx + 1) * TILE, x0 + w), min((ty + 1) * TILE, y0 + h)
-                out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = t[iy0 - ty * TILE:iy1 - ty * TILE,
-                                                            ix0 - tx * TILE:ix1 - tx * TILE]
-        return out
+        return tiles_region(tiles, x0, y0, w, h, NEUTRAL)
