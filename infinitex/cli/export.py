@@ -351,6 +351,7 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
         synth.set_params(replace(session.params, period=tor))
     if role:  # one map of a material: NAME_ROLE.tif, NAME_ROLE.1001.png..., NAME_ROLE.zarr
         synth.palette = session.material.stack(role)
+        synth.normals = role == "normal"  # turned with a direction field
     out = map_path(args.output, role) if role else args.output
     job = TiledExport(synth, rect, out, args.format, args.tile, key=export_key(doc, synth.params, role),
                       coords=args.coords, L=session.analysis.L)

@@ -51,15 +51,11 @@ class StateAccess:
         """From 2 to 4 components per texel (a direction field painted for the
         first time): every held texel keeps its coordinate, with a remainder of
         0, which is the same state, so only what the field changes is
-        synthesized again. A request or a local update in progress is dropped
-        (its level's held rectangle is marked to be done again)."""
+        synthesized again. A request in progress is dropped (the next frame asks
+        again); a local update in progress is finished first."""
         self.end_request()
-        if self._job is not None:
-            l = self._job[0]
-            self._end_job()
-            buf = self.buffers[l]
-            if buf is not None and buf.valid is not None:
-                self.dirty[l].append(buf.valid)
+        if self._job is not None:  # finished first (with what it began with), so what it changed reaches the next level
+            self.settle(None, regions=1)
         for buf in self.buffers:
             if buf is None or buf.channels == 4:
                 continue

@@ -45,6 +45,7 @@ class Synthesizer:
         # What ``colors`` looks up: the analyzed exemplar's Gaussian stack, or
         # another map aligned with it (a material's, ``engine.material``).
         self.palette: list[np.ndarray] | None = None
+        self.normals = False  # the palette is a normal map: exports turn it with a direction field
 
     @property
     def L(self) -> int:

@@ -77,7 +77,13 @@ def encode_tile(synth, fmt: str, tile: int, r: Rect, coords: bool = False, level
     finest): the bytes of its texture file (and coordinate map); for zarr the
     raw (H, W, C) uint8 pixels, which this process writes into the store."""
     c = synth.window(r, level)
-    maps = [to_u8(synth.colors(c, level))]
+    colors = synth.colors(c, level)
+    if getattr(synth, "normals", False) and synth.controls.directed:  # a normal map turns with the texture
+        from infinitex.engine.subpixel import turn_normals
+        lv = synth.L if level is None else level
+        jac = synth.controls.direction.region(synth.L - lv, r.x0, r.y0, r.w, r.h, synth.params.period)
+        colors = colors if jac is None else turn_normals(colors, jac)
+    maps = [to_u8(colors)]
     if coords:
         maps.append(encode_coords(c))
     if fmt == "zarr":

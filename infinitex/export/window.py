@@ -110,6 +110,7 @@ class ExportJob:
                        if depth == 8 and self.lattice is None and magnify == 1}
         self.L = an.L
         self.directed = session.controls.directed
+        self.direction = session.controls.direction  # fixed now, like the material (the editor may change it)
         self.coords = np.zeros((rect.h, rect.w, 4 if self.directed else 2), dtype=np.int32)
         self.tiles = [Rect(x, y, min(x + tile, rect.x1), min(y + tile, rect.y1))
                       for y in range(rect.y0, rect.y1, tile) for x in range(rect.x0, rect.x1, tile)]
@@ -168,7 +169,7 @@ class ExportJob:
         jac = None
         if self.directed:  # J per synthesized texel
             r = self.rect
-            jac = self.session.controls.direction.region(0, r.x0, r.y0, r.w, r.h, self.period)
+            jac = self.direction.region(0, r.x0, r.y0, r.w, r.h, self.period)
         if self.magnify > 1:
             out = self.material.magnified(role, self.coords, self.magnify, jac)
             if jac is not None:

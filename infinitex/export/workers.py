@@ -45,6 +45,7 @@ class ProjectSynthesizer:
         synth = Synthesizer(an, params, controls=doc.controls(an.size))
         if material is not None:
             synth.palette = material.stack(self.role or material.primary)
+            synth.normals = (self.role or material.primary) == "normal"  # turned with a direction field
         return synth
 
 

@@ -11,12 +11,11 @@ import zlib
 import numpy as np
 
 from infinitex.engine.controls import TILE
-from infinitex.engine.controls.direction import DirectionField, valid_jacobians
+from infinitex.engine.controls.direction import MAX_DIRECTION_TILES, DirectionField, valid_jacobians
 
 from .document import ProjectError
 from .labels_json import tiles_from_json
 
-MAX_DIRECTION_TILES = 65536
 _TILE_BYTES = TILE * TILE * 4 * 2
 
 

@@ -157,7 +157,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 10 if doc.direction is not None else 9 if doc.palette else 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+        "version": 10 if doc.direction is not None and not doc.direction.identity else 9 if doc.palette else 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
             2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
@@ -184,7 +184,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         **({"labels": labels_to_json(doc.labels)} if doc.labels else {}),
         **({"material": material} if material else {}),
         **({"palette": palette_to_json(doc, entry_json)} if doc.palette else {}),
-        **({"direction": direction_to_json(doc.direction)} if doc.direction is not None else {}),
+        **({"direction": direction_to_json(doc.direction)} if doc.direction and not doc.direction.identity else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
         **({"autosave_of": project.origin} if project.origin else {}),

@@ -64,3 +64,26 @@ def test_magnification_follows_j():
         big = mat.magnified("image", c, 8, J)[..., 0]
         return np.abs(np.diff(big, axis=0)).mean() + np.abs(np.diff(big, axis=1)).mean()
     assert sharpness(jac) > 1.25 * sharpness(None)
+
+
+def test_streamed_tiles_of_a_normal_map_turn_with_the_field():
+    """Tiles, BigTIFF and Zarr exports render through encode_tile: a material's
+    normal map there turns with the texture too (as in whole exports)."""
+    import io
+
+    from PIL import Image
+
+    from infinitex.export.formats import encode_tile
+    ex = load_exemplar(BRICK)
+    an = analyze(ex)
+    f = DirectionField.uniform(90.0, 1.0, 1.0, 0, 0, 32, 32)
+    tilted = np.zeros((an.size, an.size, 3), np.float32)
+    tilted[...] = ((0.8 + 1) / 2, 0.5, (0.6 + 1) / 2)  # every normal tilted towards +x
+    with Synthesizer(an, structure_params(SynthParams.default(an.L), 0), controls=Controls(direction=f)) as s:
+        s.palette = [tilted] * (an.L + 1)
+        plain = np.asarray(Image.open(io.BytesIO(encode_tile(s, "tiles", 32, Rect(0, 0, 32, 32))[0])))
+        s.normals = True
+        turned = np.asarray(Image.open(io.BytesIO(encode_tile(s, "tiles", 32, Rect(0, 0, 32, 32))[0])))
+    assert np.all(np.abs(plain[..., 1].astype(int) - 128) <= 1)  # as sampled: no Y
+    # Turned 90 degrees clockwise on screen: the tilt points down the image, -Y in an OpenGL map.
+    assert np.all(turned[..., 1] < 40) and np.all(np.abs(turned[..., 0].astype(int) - 128) <= 2)

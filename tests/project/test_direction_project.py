@@ -52,14 +52,15 @@ def _pack(t):
     return base64.b64encode(zlib.compress(np.ascontiguousarray(t, dtype="<i2").tobytes())).decode()
 
 
-@pytest.mark.parametrize("case", ["not base64", "short", "mirror", "stretch", "bomb", "number"])
+@pytest.mark.parametrize("case", ["not base64", "short", "mirror", "stretch", "singular", "bomb", "number"])
 def test_damaged_or_hostile_direction_data_is_one_sentence(tmp_path, case):
     good = np.broadcast_to(IDENTITY, (TILE, TILE, 4)).copy()
     text = {
         "not base64": "%%%",
         "short": _pack(good[:10]),
         "mirror": _pack(np.where(np.arange(4) == 0, -good, good)),  # det < 0
-        "stretch": _pack(good * 8),  # 1/32 of the exemplar per pixel: beyond the limits
+        "stretch": _pack(good * 5),  # the texture shown 5 times smaller: beyond the limits (entries 20480)
+        "singular": _pack(np.broadcast_to(np.array([4096, 4096, 4096, 4096], np.int16), (TILE, TILE, 4))),
         "bomb": base64.b64encode(zlib.compress(b"\0" * (1 << 24))).decode(),
         "number": 12,
     }[case]

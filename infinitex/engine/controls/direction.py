@@ -28,13 +28,13 @@ bit for bit). The passes' formulas are in the shaders' headers.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from .fields import (
-    MAX_FIELD_TILES,
     TILE,
     FieldTooLarge,
     dab_rect,
@@ -46,6 +46,7 @@ from .fields import (
 )
 
 J_ONE = 4096  # Q12
+MAX_DIRECTION_TILES = 16384  # a field covers at most this many tiles (an 8192 x 8192 px area; 512 MB of J)
 IDENTITY = np.array([J_ONE, 0, 0, J_ONE], np.int16)
 MIN_STRETCH = 0.25
 MAX_STRETCH = 4.0
@@ -95,6 +96,10 @@ def _i16x4(t: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(t)
 
 
+# Tiles already checked, by id (weak: an entry goes with its tile, so an id is
+# never mistaken for a freed tile's): a new field made from another's tiles
+# checks only the tiles that changed.
+_CHECKED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
 ENTRY_LIMIT = int(J_ONE / MIN_STRETCH)  # |J entries| <= 16384
 MIN_DET = int(J_ONE * J_ONE / (MAX_STRETCH * MAX_STRETCH)) // 2  # det J (Q24) >= half of 1 / MAX_STRETCH^2
 
@@ -119,25 +124,32 @@ class DirectionField:
     def __post_init__(self):
         clean = {}
         for (tx, ty), t in self.tiles.items():
-            t = _i16x4(t)
-            if not valid_jacobians(t):
-                raise ValueError("A direction field holds a mirrored or too strongly stretched Jacobian.")
-            if not np.all(t == IDENTITY):
-                clean[(int(tx), int(ty))] = t
+            if id(t) not in _CHECKED:  # tiles shared with a field already made were checked then
+                t = _i16x4(t)
+                if not valid_jacobians(t):
+                    raise ValueError("A direction field holds a mirrored or too strongly stretched Jacobian.")
+                if np.all(t == IDENTITY):
+                    continue
+            clean[(int(tx), int(ty))] = t
+        if len(clean) > MAX_DIRECTION_TILES:
+            raise FieldTooLarge(f"A direction field may cover at most {MAX_DIRECTION_TILES} tiles of {TILE}x{TILE} px "
+                                "(about 8192 x 8192 px); clear some of it first.")
+        for t in clean.values():
+            _CHECKED[id(t)] = t
         object.__setattr__(self, "tiles", clean)
 
     @classmethod
     def from_jacobians(cls, values: np.ndarray, x: int, y: int) -> DirectionField:
         """A Q12 (H, W, 4) int16 map of J placed with its top-left at canvas (x, y).
-        FieldTooLarge, before any tile is made, if it would cover more than MAX_FIELD_TILES tiles."""
+        FieldTooLarge, before any tile is made, if it would cover more than MAX_DIRECTION_TILES tiles."""
         values = np.asarray(values)
         if values.ndim != 3 or values.shape[2] != 4 or values.dtype != np.int16:
             raise ValueError("a direction map is an (H, W, 4) int16 array of Q12 Jacobians")
         h, w = values.shape[:2]
         count = ((x + w - 1) // TILE - x // TILE + 1) * ((y + h - 1) // TILE - y // TILE + 1)
-        if count > MAX_FIELD_TILES:
+        if count > MAX_DIRECTION_TILES:
             raise FieldTooLarge(f"The direction map ({w}x{h} px) would cover {count} tiles of {TILE}x{TILE} "
-                                f"px; at most {MAX_FIELD_TILES} are allowed (about 16384 x 16384 px).")
+                                f"px; at most {MAX_DIRECTION_TILES} are allowed (about 8192 x 8192 px).")
         tiles = {}
         for ty in range(y // TILE, (y + h - 1) // TILE + 1):
             for tx in range(x // TILE, (x + w - 1) // TILE + 1):
@@ -251,7 +263,7 @@ class DirectionField:
         x1, y1 = int(np.ceil(pts[:, 0].max() + half)) + 2, int(np.ceil(pts[:, 1].max() + half)) + 2
         if (x1 - x0) * (y1 - y0) > max_area:
             raise ValueError("This guide covers too large an area; draw it in pieces.")
-        dist, ang = polyline_frame(pts, x0, y0, x1 - x0, y1 - y0)
+        dist, ang = polyline_frame(pts, x0, y0, x1 - x0, y1 - y0, half + 1.0)
         t = np.clip((dist - core) / max(half - core, 1e-6), 0.0, 1.0)
         w = np.where(dist >= half, 0.0, 1.0 - t * t * (3.0 - 2.0 * t)) * np.clip(strength, 0.0, 1.0)
         return self.edited(x0, y0, w, comb(ang - axis_offset))[0]
@@ -383,11 +395,12 @@ def smooth(size: int):
     return op
 
 
-def polyline_frame(points: np.ndarray, x0: int, y0: int, w: int, h: int):
+def polyline_frame(points: np.ndarray, x0: int, y0: int, w: int, h: int, reach: float = np.inf):
     """(distance to the polyline, its direction in degrees at the nearest point)
-    for the pixel centers of [x0, x0+w) x [y0, y0+h); the polyline is first
-    resampled as a Catmull-Rom spline through ``points`` (N, 2), so the
-    direction turns smoothly at its vertices."""
+    for the pixel centers of [x0, x0+w) x [y0, y0+h), exact within ``reach``
+    of it (farther: inf); the polyline is first resampled as a Catmull-Rom
+    spline through ``points`` (N, 2), so the direction turns smoothly at its
+    vertices."""
     p = np.asarray(points, np.float64)
     if len(p) > 2:
         ext = np.vstack([2 * p[0] - p[1], p, 2 * p[-1] - p[-2]])
@@ -400,7 +413,6 @@ def polyline_frame(points: np.ndarray, x0: int, y0: int, w: int, h: int):
                                + (3 * b - a - 3 * c + d) * t ** 3))
         fine.append(p[-1:])
         p = np.vstack(fine)
-    ys, xs = np.mgrid[y0:y0 + h, x0:x0 + w] + 0.5
     best = np.full((h, w), np.inf)
     ang = np.zeros((h, w))
     for a, b in zip(p[:-1], p[1:]):
@@ -408,11 +420,20 @@ def polyline_frame(points: np.ndarray, x0: int, y0: int, w: int, h: int):
         L2 = float(d @ d)
         if L2 == 0:
             continue
+        # Only the pixels within ``reach`` of the segment can be closer to it than that.
+        bx0 = max(x0, int(np.floor(min(a[0], b[0]) - reach)))
+        by0 = max(y0, int(np.floor(min(a[1], b[1]) - reach)))
+        bx1 = min(x0 + w, int(np.ceil(max(a[0], b[0]) + reach)) + 1)
+        by1 = min(y0 + h, int(np.ceil(max(a[1], b[1]) + reach)) + 1)
+        if bx0 >= bx1 or by0 >= by1:
+            continue
+        ys, xs = np.mgrid[by0:by1, bx0:bx1] + 0.5
         t = np.clip(((xs - a[0]) * d[0] + (ys - a[1]) * d[1]) / L2, 0.0, 1.0)
         dist = np.hypot(xs - a[0] - t * d[0], ys - a[1] - t * d[1])
-        closer = dist < best
-        best = np.where(closer, dist, best)
-        ang = np.where(closer, np.degrees(np.arctan2(d[1], d[0])), ang)
+        win = (slice(by0 - y0, by1 - y0), slice(bx0 - x0, bx1 - x0))
+        closer = dist < best[win]
+        best[win] = np.where(closer, dist, best[win])
+        ang[win] = np.where(closer, np.degrees(np.arctan2(d[1], d[0])), ang[win])
     return best, ang
 
 

@@ -36,8 +36,9 @@ MODES = (("comb", "Comb", "Drag the way the texture should run"),
          ("shrink", "Shrink", "Make the texture smaller under the brush"),
          ("erase", "Eraser", "Back to the exemplar's own direction and size"),
          ("guide", "Guide", "Click the points of a curve; Enter (or Apply guide) makes the texture follow it"))
-MAP_FILTER = ["Direction maps", "*.png *.tif *.tiff *.webp *.exr *.bmp"]
-MAX_GUIDE_AREA = 4096 * 4096  # canvas pixels a guide's box may cover
+MAP_FILTER = ["Direction maps", "*.png *.tif *.tiff *.webp *.bmp"]
+MAX_GUIDE_AREA = 2048 * 2048  # canvas pixels a guide's box may cover (about a second of work)
+MAX_BRUSH = 512.0  # canvas pixels: a brush zoomed far out still edits a bounded area
 
 
 class DirectionTool(Tool):
@@ -74,7 +75,15 @@ class DirectionTool(Tool):
 
     def radius_canvas(self) -> float:
         b = self.brush
-        return b.radius / self.ed.view.zoom if b.screen_units else b.radius
+        return min(MAX_BRUSH, b.radius / self.ed.view.zoom if b.screen_units else b.radius)
+
+    def _refused(self) -> bool:
+        """A lattice and a direction field do not go together: say so, once per gesture."""
+        if self.ed.doc.lattice is None:
+            return False
+        self.ed.notice = ("A direction field does not work on a lattice; turn the lattice off first.",
+                          time.monotonic())
+        return True
 
     def _axis_offset(self) -> float:
         return 90.0 * self.axis
@@ -99,6 +108,8 @@ class DirectionTool(Tool):
     # -- strokes -----------------------------------------------------------
 
     def press(self, pos, screen) -> None:
+        if self._refused():
+            return
         if self.mode == "guide":
             if not self.guide or math.hypot(pos[0] - self.guide[-1][0], pos[1] - self.guide[-1][1]) > 1.0:
                 self.guide.append((float(pos[0]), float(pos[1])))
@@ -118,12 +129,17 @@ class DirectionTool(Tool):
             return
         field = self.field
         prev = self._last
-        for cx, cy in dabs:
-            heading = None
-            if prev is not None and (cx, cy) != prev:
-                heading = math.degrees(math.atan2(cy - prev[1], cx - prev[0]))
-            field = self._dab(field, cx, cy, heading)
-            prev = (cx, cy)
+        try:
+            for cx, cy in dabs:
+                heading = None
+                if prev is not None and (cx, cy) != prev:
+                    heading = math.degrees(math.atan2(cy - prev[1], cx - prev[0]))
+                field = self._dab(field, cx, cy, heading)
+                prev = (cx, cy)
+        except FieldTooLarge as exc:
+            self.ed.notice = (str(exc), time.monotonic())
+            self.release()
+            return
         self._last = dabs[-1]
         self.dabs += len(dabs)
         if field is not self.field:
@@ -141,12 +157,12 @@ class DirectionTool(Tool):
         the direction turns smoothly from one to the other."""
         pts = np.array(self.guide, np.float64)
         self.guide = []
-        if len(pts) < 2:
+        if len(pts) < 2 or self._refused():
             return
         try:
             field = self.field.guided(pts, self.guide_width, self.guide_blend, self.brush.strength,
                                       self._axis_offset(), MAX_GUIDE_AREA)
-        except ValueError as exc:
+        except (ValueError, FieldTooLarge) as exc:
             self.ed.notice = (str(exc), time.monotonic())
             return
         self._set(field, "Direction guide")
@@ -155,6 +171,8 @@ class DirectionTool(Tool):
         """A flow or angle map placed centered in the view (replacing the field there)."""
         from infinitex.engine.controls.maps import load_direction_map
         ed = self.ed
+        if self._refused():
+            return
         try:
             values = load_direction_map(path, self.map_kind, self.map_y_up)
             h, w = values.shape[:2]
