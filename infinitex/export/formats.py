@@ -78,7 +78,7 @@ def encode_tile(synth, fmt: str, tile: int, r: Rect, coords: bool = False, level
     raw (H, W, C) uint8 pixels, which this process writes into the store."""
     c = synth.window(r, level)
     colors = synth.colors(c, level)
-    if getattr(synth, "normals", False) and synth.controls.directed:  # a normal map turns with the texture
+    if synth.normals and synth.controls.directed:  # a normal map turns with the texture
         from infinitex.engine.subpixel import turn_normals
         lv = synth.L if level is None else level
         jac = synth.controls.direction.region(synth.L - lv, r.x0, r.y0, r.w, r.h, synth.params.period)

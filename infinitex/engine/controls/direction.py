@@ -142,6 +142,13 @@ class DirectionField:
     def from_jacobians(cls, values: np.ndarray, x: int, y: int) -> DirectionField:
         """A Q12 (H, W, 4) int16 map of J placed with its top-left at canvas (x, y).
         FieldTooLarge, before any tile is made, if it would cover more than MAX_DIRECTION_TILES tiles."""
+        return cls().replaced(values, x, y)
+
+    def replaced(self, values: np.ndarray, x: int, y: int) -> DirectionField:
+        """This field with the rectangle of a Q12 (H, W, 4) int16 map placed at
+        (x, y) replaced by it (the rest of the tiles it touches kept).
+        FieldTooLarge, before any tile is made, if the map would cover more
+        than MAX_DIRECTION_TILES tiles."""
         values = np.asarray(values)
         if values.ndim != 3 or values.shape[2] != 4 or values.dtype != np.int16:
             raise ValueError("a direction map is an (H, W, 4) int16 array of Q12 Jacobians")
@@ -150,22 +157,6 @@ class DirectionField:
         if count > MAX_DIRECTION_TILES:
             raise FieldTooLarge(f"The direction map ({w}x{h} px) would cover {count} tiles of {TILE}x{TILE} "
                                 f"px; at most {MAX_DIRECTION_TILES} are allowed (about 8192 x 8192 px).")
-        tiles = {}
-        for ty in range(y // TILE, (y + h - 1) // TILE + 1):
-            for tx in range(x // TILE, (x + w - 1) // TILE + 1):
-                t = _identity_tile()
-                x0, y0 = tx * TILE, ty * TILE
-                ix0, iy0 = max(x0, x), max(y0, y)
-                ix1, iy1 = min(x0 + TILE, x + w), min(y0 + TILE, y + h)
-                t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
-                tiles[(tx, ty)] = t
-        return cls(tiles)
-
-    def replaced(self, values: np.ndarray, x: int, y: int) -> DirectionField:
-        """This field with the rectangle of a Q12 (H, W, 4) map placed at (x, y)
-        replaced by it (the rest of the tiles it touches kept)."""
-        placed = DirectionField.from_jacobians(values, x, y)
-        h, w = values.shape[:2]
         tiles = dict(self.tiles)
         for ty in range(y // TILE, (y + h - 1) // TILE + 1):
             for tx in range(x // TILE, (x + w - 1) // TILE + 1):
@@ -173,9 +164,8 @@ class DirectionField:
                 t = _identity_tile() if old is None else old.copy()
                 ix0, iy0 = max(tx * TILE, x), max(ty * TILE, y)
                 ix1, iy1 = min((tx + 1) * TILE, x + w), min((ty + 1) * TILE, y + h)
-                new = placed.tiles.get((tx, ty))
-                part = IDENTITY if new is None else new[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE]
-                t[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE] = part
+                t[iy0 - ty * TILE:iy1 - ty * TILE, ix0 - tx * TILE:ix1 - tx * TILE] = \
+                    values[iy0 - y:iy1 - y, ix0 - x:ix1 - x]
                 tiles[(tx, ty)] = t
         return DirectionField(tiles)
 
