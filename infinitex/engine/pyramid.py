@@ -332,7 +332,11 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                                                            p.level_period(l))
         ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
         dtex = self._direction_texture(l, region)
+        ltex = self._links_texture(l, region)  # a mesh's atlas: its indirection maps (this level's, the parent's)
+        ptex = self._links_texture(l - 1, region.half()) if ltex is not None and l > 0 else None
         ddef = dict(DIRECTION=True) if dtex is not None else {}
+        if ltex is not None:
+            ddef["ATLAS"] = True
         labels = None
         try:
             # Upsample + jitter into scratch a (modulated by the randomness fields), at once.
@@ -341,6 +345,9 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             textures = {1: efield or self._dummy, 2: ctex or self._dummy}
             if dtex is not None:
                 textures[11] = dtex
+            if ltex is not None:
+                textures[12] = ltex
+                textures[13] = ptex or ltex
             uni: dict = {}
             if l > 0:
                 parent = self.buffers[l - 1]
@@ -352,7 +359,8 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                        m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
                        period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
                        cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi,
-                       **(dict(dfield=11) if dtex is not None else {}))
+                       **(dict(dfield=11) if dtex is not None else {}),
+                       **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0)) if ltex is not None else {}))
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
             yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni).steps(pace)
@@ -382,11 +390,14 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 if dtex is not None:
                     textures[11] = dtex
                     uni["dfield"] = 11
+                if ltex is not None:
+                    textures[12] = ltex
+                    uni["links"] = 12
                 draws += subpass_draws(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch,
                                        textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
             if p.fidelity_at(l):
                 draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
-                                        avoid or self._dummy, avoid is not None, labels, dtex)
+                                        avoid or self._dummy, avoid is not None, labels, dtex, ltex)
             for d in draws:
                 yield from d.steps(pace)
 
@@ -422,8 +433,9 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 tex.release()
             if ctex is not None:
                 ctex.release()
-            if dtex is not None:
-                dtex.release()
+            for tex in (dtex, ltex, ptex):
+                if tex is not None:
+                    tex.release()
             if labels is not None:
                 labels.canvas.release()
 

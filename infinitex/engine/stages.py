@@ -108,15 +108,17 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
 
 def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
                    lattice: bool, scratch, avoid_tex, has_avoid: bool, labels: LabelDraws | None = None,
-                   direction=None) -> list[Draw]:
+                   direction=None, links=None) -> list[Draw]:
     """The fidelity stage's iterations on level ``l``'s padded ``region`` (see
     shaders/fidelity.frag); ``lattice``: a lattice level (no random search);
     ``labels``: texture by numbers over the region, if any; ``direction``: the
-    region's J texture (anisometric synthesis), if any."""
+    region's J texture (anisometric synthesis), if any; ``links``: its
+    indirection map (synthesis in a mesh's atlas), if any."""
     an = gan.analysis
     prog, vao = gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius,
                             FID_SEARCH=FIDELITY_SEARCH, **(labels.defines if labels else {}),
-                            **(dict(DIRECTION=True) if direction is not None else {}))
+                            **(dict(DIRECTION=True) if direction is not None else {}),
+                            **(dict(ATLAS=True) if links is not None else {}))
     uniforms = dict(colors=1, avoid=5, has_avoid=int(has_avoid), dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
@@ -127,6 +129,9 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     if direction is not None:
         textures[11] = direction
         uniforms["dfield"] = 11
+    if links is not None:
+        textures[12] = links
+        uniforms["links"] = 12
     return subpass_draws(gpu, prog, vao, p.subgrid, subpass_order(p.subgrid, p.fidelity_at(l)), qdims, scratch,
                          textures, uniforms,
                          lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})

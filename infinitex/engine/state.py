@@ -1,6 +1,7 @@
 """How the pyramid's state textures are laid out and read back
 (:class:`StateAccess`, a part of :class:`~infinitex.engine.pyramid.Pyramid`):
 2 components per texel (the exemplar coordinate), or 4 with a direction field
+or in a mesh's atlas
 (the nearest texel and the sub-pixel remainder in 1/256 px,
 engine/controls/direction.py); the J textures of a region; reading coordinates back.
 """
@@ -28,11 +29,25 @@ class StateAccess:
         """J_l over a padded region (RGBA16I, row-major local pixels), or None without a direction field."""
         if not self.controls.directed:
             return None
-        vals = self.controls.direction.region(self.an.L - l, region.x0, region.y0, region.w, region.h,
-                                              self.params.period)
+        surface = self.controls.surface
+        if surface is not None:
+            vals = surface.jacobians(self.an.L - l, region.x0, region.y0, region.w, region.h)
+        else:
+            vals = self.controls.direction.region(self.an.L - l, region.x0, region.y0, region.w, region.h,
+                                                  self.params.period)
         if vals is None:
             vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
         return self.gpu.int_texture((region.w, region.h), 4, vals)
+
+    def _links_texture(self, l: int, region: Rect):
+        """The indirection map of a mesh's atlas over a region of level l
+        (RGBA16I: own chart, the chart its link serves, the link's target), or
+        None when not synthesizing in an atlas (engine/surface/atlas.py)."""
+        surface = self.controls.surface
+        if surface is None:
+            return None
+        return self.gpu.int_texture((region.w, region.h), 4, surface.links(self.an.L - l, region.x0, region.y0,
+                                                                           region.w, region.h))
 
     def _release_state(self) -> None:
         """Drop every level buffer and scratch texture (their format changes)."""

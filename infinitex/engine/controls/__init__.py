@@ -95,6 +95,9 @@ class Controls:
     label_strength: float = 1.0
     # Direction and scale over the canvas (engine/controls/direction.py, LH06 5).
     direction: DirectionField | None = None
+    # Synthesis in a mesh's texture atlas (engine/surface/atlas.py, LH06 6): the
+    # atlas domain gives J per texel and the indirection maps across chart seams.
+    surface: object | None = None
 
     def normalized(self) -> Controls:
         """Neutral fields, empty masks and labels that constrain nothing dropped
@@ -107,8 +110,9 @@ class Controls:
         out = (None if e is None or e.neutral else e, None if c is None or c.neutral else c,
                tuple(self.features), self.lattice, None if a is None or a.empty else a,
                self.labels_exemplar, None if lc is None or lc.empty else lc, float(self.label_strength),
-               None if d is None or d.identity else d)
-        before = (e, c, self.features, self.lattice, a, self.labels_exemplar, lc, self.label_strength, d)
+               None if d is None or d.identity else d, self.surface)
+        before = (e, c, self.features, self.lattice, a, self.labels_exemplar, lc, self.label_strength, d,
+                  self.surface)
         if all(x is y for i, (x, y) in enumerate(zip(out, before)) if i != 7) and out[7] == before[7]:
             return self  # already normalized: keep what is cached (the features' arrays)
         return Controls(*out)
@@ -153,6 +157,9 @@ class Controls:
             raise ValueError("Texture by numbers does not work on a lattice; turn one of them off.")
         if self.direction is not None and not self.direction.identity and self.lattice is not None:
             raise ValueError("A direction field does not work on a lattice; turn one of them off.")
+        if self.surface is not None and (self.lattice is not None or self.directed_field):
+            raise ValueError("Synthesis on a model takes its directions from the model; it does not work with "
+                             "a lattice or a painted direction field.")
         if self.labels_active:
             missing = sorted(set(self.labels_canvas.used) - set(le.present))
             if missing:
@@ -186,12 +193,19 @@ class Controls:
                 self.features_key if self.features else None,
                 None if self.lattice is None else (self.lattice.nx, self.lattice.ny, self.lattice_shift(m, level)),
                 None if self.avoid is None else self.avoid.key, labels,
-                None if self.direction is None else self.direction.key)
+                None if self.direction is None else self.direction.key,
+                None if self.surface is None else self.surface.key)
+
+    @property
+    def directed_field(self) -> bool:
+        """A direction field other than the identity is painted."""
+        return self.direction is not None and not self.direction.identity
 
     @property
     def directed(self) -> bool:
-        """A direction field other than the identity is painted: coordinates carry sub-pixel parts."""
-        return self.direction is not None and not self.direction.identity
+        """Coordinates carry sub-pixel parts: a direction field is painted, or
+        synthesis runs in a mesh's atlas (J per texel)."""
+        return self.directed_field or self.surface is not None
 
     def _meeting(self, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
         """Indices (ascending) of the features whose reach (Feature.bbox) meets a finest-level rectangle."""
@@ -246,7 +260,8 @@ class Controls:
     def changed_rects(self, other: Controls) -> list | None:
         """Finest-level rectangles outside which ``other`` reads the same as this
         one; None when the change reaches everywhere (the exemplar field, the avoid mask)."""
-        if self.exemplar_inputs() != other.exemplar_inputs() or self.lattice != other.lattice:
+        if self.exemplar_inputs() != other.exemplar_inputs() or self.lattice != other.lattice \
+                or self.surface is not other.surface:
             return None
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()

@@ -124,6 +124,26 @@ int floor_div(int a, int b) {
 }
 #endif
 
+#ifdef ATLAS
+// Synthesis in a mesh's texture atlas (LH06 6; engine/surface/atlas.py). Per
+// texel of the region: (its own chart or -1, the chart its link serves or -1,
+// the link's target texel, level-global). A pixel of chart c reading texel q
+// reads q itself when q is c's, else q's link when that serves c (the texel of
+// the adjacent chart across c's border: the same surface point), else q. So a
+// neighborhood near a chart's border reads across the seam (the indirection map).
+uniform isampler2D links;     // over this scratch region (row-major local pixels)
+int reader = -1;              // the chart of the pixel being computed (set by main)
+
+ivec2 atlas_texel(ivec2 q, ivec2 dims, ivec2 origin) {
+    ivec2 c = clamp(q, ivec2(0), dims - 1);
+    ivec4 L = texelFetch(links, c, 0);
+    return (reader >= 0 && L.x != reader && L.y == reader) ? clamp(L.zw - origin, ivec2(0), dims - 1) : c;
+}
+#define STATE_TEXEL(q) atlas_texel(q, dims, origin)
+#else
+#define STATE_TEXEL(q) clamp(q, ivec2(0), dims - 1)
+#endif
+
 #ifdef LABELS
 // Texture by numbers (engine/controls/labels.py): two-label mixes packed as
 // i1 | i2 << 4 | w1 << 8 | w2 << 16 (| painted share << 24 on the canvas side).

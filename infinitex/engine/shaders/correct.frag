@@ -19,6 +19,8 @@
 //   d' = round(J^-1 d) (clamped to [-2, 2]), the same way; a sample reads its
 //   nearest texel. Candidates: C^i(nearest texel of F[p+d] - jmul(J, d, h)), with
 //   that coordinate's remainder; the label seed keeps none, the walk the best's.
+// ATLAS (a mesh's texture atlas, LH06 6): every neighbor read goes through the
+//   region's indirection map (common.glsl atlas_texel), so it crosses chart seams.
 // All arithmetic is integer (engine/fixed.py), so results are exact.
 
 uniform isampler2D src;       // current state, packed
@@ -57,12 +59,12 @@ const uint AVOIDED = 0xfffffffeu;
 out ivec4 result;
 
 ivec2 fetch_s(ivec2 p) {
-    return texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0).xy;
+    return texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0).xy;
 }
 
 #ifdef DIRECTION
 ivec2 fetch_f(ivec2 p) {
-    return full_q8(texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0));
+    return full_q8(texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0));
 }
 #endif
 
@@ -87,6 +89,9 @@ void main() {
     }
     ivec2 p = (X - phase * qdims) * SUB_S + phase;
     int wrap = m - 1;
+#ifdef ATLAS
+    reader = texelFetch(links, p, 0).x;
+#endif
 
     ivec2 S[9];  // 3x3 neighbors, row-major, S[4] = here
     for (int j = 0; j < 9; ++j) {

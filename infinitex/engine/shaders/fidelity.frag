@@ -50,7 +50,7 @@ const uint AVOIDED = 0xfffffffeu;
 out ivec4 result;
 
 ivec2 fetch_s(ivec2 p) {
-    return texelFetch(src, packed_texel(clamp(p, ivec2(0), dims - 1), qdims), 0).xy;
+    return texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0).xy;
 }
 
 ivec2 exemplar_tap(ivec2 u) {
@@ -78,7 +78,7 @@ ivec2 keep_c(ivec2 F) {
 }
 
 ivec2 predict(ivec2 p, ivec2 d) {
-    return keep_c(full_q8(texelFetch(src, packed_texel(clamp(p + d, ivec2(0), dims - 1), qdims), 0))
+    return keep_c(full_q8(texelFetch(src, packed_texel(STATE_TEXEL(p + d), qdims), 0))
                   - jmul(Jp, d, h));
 }
 
@@ -134,6 +134,9 @@ void main() {
         return;
     }
     ivec2 p = (X - phase * qdims) * SUB_S + phase;
+#ifdef ATLAS
+    reader = texelFetch(links, p, 0).x;  // reads cross chart seams (common.glsl atlas_texel)
+#endif
     for (int t = 0; t < NT; ++t) {
         ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
         uvec4 c = t == NT / 2 ? uvec4(0u) : texelFetch(colors, fetch_s(p + d), 0);

@@ -13,6 +13,8 @@
 // the child offset floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1 (with J = I
 // exactly the integer rule); the randomness over the exemplar is read at the
 // nearest texel of the upsampled coordinate; a placed feature sets a whole texel.
+// ATLAS (a mesh's texture atlas, LH06 6): the parent texel floor(p/2) is read
+// through the parent level's indirection map for the pixel's chart (common.glsl).
 
 uniform isampler2D parent;      // level l-1, persistent buffer (toroidal addressing)
 uniform ivec2 parent_anchor;    // texel = (g - anchor) & mask
@@ -31,7 +33,20 @@ uniform usampler2D efield;      // R_E,l: (m >> eshift)^2, uint16
 uniform int eshift;             // L - l
 uniform int has_cfield;         // randomness over the canvas
 uniform usampler2D cfield;      // R_S,l over this scratch region (row-major local pixels), uint16
-uniform ivec2 lattice_shift;    // lattice level (LH05 4.5): log2 of the cell (cx, cy); else (-1, -1)
+uniform ivec2 lattice_shift;
+#ifdef ATLAS
+uniform isampler2D plinks;      // the parent level's indirection map over region.half()
+uniform ivec2 plink_origin;     // its level-(l-1) position of texel (0, 0)
+
+ivec2 parent_texel(ivec2 gp) {
+    ivec4 L = texelFetch(plinks, gp - plink_origin, 0);
+    return (reader >= 0 && L.x != reader && L.y == reader) ? L.zw : gp;
+}
+#else
+ivec2 parent_texel(ivec2 gp) {
+    return gp;
+}
+#endif    // lattice level (LH05 4.5): log2 of the cell (cx, cy); else (-1, -1)
 
 out ivec4 result;
 
@@ -41,12 +56,15 @@ void main() {
     ivec2 local = (X - phase * qdims) * SUB_S + phase;
     ivec2 g = origin + local;
     ivec2 gm = period > 0 ? (g & (period - 1)) : g;
+#ifdef ATLAS
+    reader = texelFetch(links, local, 0).x;
+#endif
     ivec2 u;
 #ifdef DIRECTION
     ivec2 F;
     if (has_parent != 0) {
         ivec2 gp = (g - (g & 1)) / 2;
-        ivec2 t = (gp - parent_anchor) & parent_mask;
+        ivec2 t = (parent_texel(gp) - parent_anchor) & parent_mask;
         ivec4 Jp = texelFetch(dfield, local, 0);
         ivec2 v = h * (2 * (gm & 1) - 1);
         ivec2 off = floor_shift(ivec4(Jp.x * v.x + Jp.y * v.y, Jp.z * v.x + Jp.w * v.y, 0, 0), 5).xy - (h == 1 ? 128 : 0);
@@ -58,7 +76,7 @@ void main() {
 #else
     if (has_parent != 0) {
         ivec2 gp = (g - (g & 1)) / 2;  // exact division: floor(g / 2) for any sign
-        ivec2 t = (gp - parent_anchor) & parent_mask;
+        ivec2 t = (parent_texel(gp) - parent_anchor) & parent_mask;
         u = texelFetch(parent, t, 0).xy + (gm & 1) * h - ((h + 1) >> 1);
     } else {
         u = ivec2(m / 2);

@@ -1,0 +1,411 @@
+"""The atlas domain (LH06 section 6): synthesis directly in a mesh's texture
+atlas, continuous across its UV seams.
+
+The pyramid synthesizes the whole atlas as one window per level: level l holds
+the atlas at ``size >> k`` texels (k = L - l). This class gives the passes,
+per level and region (:class:`~infinitex.engine.controls.Controls` ``surface``):
+
+**J per texel** (Q12, as engine/controls/direction.py): the map from an atlas
+offset (finest texels) to the exemplar offset that shows there. On a triangle
+with parameterization derivatives ``Pu = dP/du``, ``Pv = dP/dv`` and a
+tangent frame (R, U) (the exemplar's +x along R, its up along U):
+``J = sigma / size * [[R.Pu, -R.Pv], [-U.Pu, U.Pv]]`` (atlas and exemplar y
+point down), sigma = exemplar px per world unit. The frame comes from
+``frame``: "up" (U is the world's up projected on the surface: bricks stay
+level on walls; near horizontal faces a second axis takes over) or "uv" (R
+along the model's u direction). A chart mirrored against its frame mirrors the
+texture (det J > 0 always); stretches are clamped to direction.py's range.
+J is constant per triangle; a texel takes its covering triangle's J.
+
+**The indirection map**: per texel (own chart or -1, the chart its link serves
+or -1, the link's target texel). A texel within GUTTER + 1 of a chart's border
+edge, outside that chart, links to the texel of the same surface point in the
+chart across the edge: the triangle across the edge (welded by position) is
+unfolded into the chart's plane and the affine map between the two charts'
+coordinates sends the texel's centre over. The correction's, fidelity stage's
+and upsampling's reads go through it (shaders/common.glsl ``atlas_texel``), so
+neighborhoods continue across seams. A texel near two charts serves the nearer
+one. Along open borders (no triangle across), a link goes to the chart's own
+nearest texel.
+
+**Coverage**: a texel belongs to the triangle whose interior holds its centre
+(exact integer edge functions, positions in 1/256 finest texels, a top-left
+rule on shared edges; overlapping triangles: the lowest index wins). All of it
+is computed on the CPU from the model's arrays only (float64 geometry, then
+integers), so the same model and settings give the same maps on any machine.
+"""
+from __future__ import annotations
+
+import hashlib
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH
+from .mesh import Model
+
+GUTTER = 4  # texels, at every level, that a chart's pixels may read beyond its border (the passes read <= 3)
+SUB = 8  # bits below a finest texel of rasterized positions
+MIN_SIZE, MAX_SIZE = 64, 4096
+CHUNK = 1 << 21  # candidate texels rasterized at once
+FRAMES = ("up", "uv")
+MAX_CHARTS = 32000  # chart ids fit the int16 indirection texture
+
+
+class AtlasError(ValueError):
+    """An atlas that cannot be synthesized (one line)."""
+
+
+def _edges(faces: np.ndarray):
+    """Half-edges (F*3): (triangle, corner i -> i+1)."""
+    t = np.repeat(np.arange(len(faces)), 3)
+    i = np.tile(np.arange(3), len(faces))
+    return t, faces[t, i], faces[t, (i + 1) % 3], faces[t, (i + 2) % 3]
+
+
+def _match(key_a: np.ndarray, key_b: np.ndarray) -> np.ndarray:
+    """For each half-edge with unordered key (a, b), another half-edge with the
+    same key (the next one of its group, in index order, cyclically), or -1."""
+    lo, hi = np.minimum(key_a, key_b), np.maximum(key_a, key_b)
+    order = np.lexsort((np.arange(len(lo)), hi, lo))
+    ls, hs = lo[order], hi[order]
+    start = np.r_[True, (ls[1:] != ls[:-1]) | (hs[1:] != hs[:-1])]
+    gid = np.cumsum(start) - 1
+    gstart = np.flatnonzero(start)
+    gsize = np.diff(np.r_[gstart, len(order)])
+    pos = np.arange(len(order)) - gstart[gid]
+    nxt = gstart[gid] + (pos + 1) % gsize[gid]
+    res = np.empty(len(lo), np.int64)
+    res[order] = np.where(gsize[gid] > 1, order[nxt], -1)
+    return res
+
+
+class AtlasDomain:
+    """A model's atlas at ``size`` finest texels, textured at ``sigma`` exemplar
+    px per world unit with tangent frames from ``frame``; ``seams=False`` gives
+    every chart no links (the naive per-chart synthesis, for comparison)."""
+
+    def __init__(self, model: Model, size: int, sigma: float, frame: str = "up", up=(0.0, 1.0, 0.0),
+                 seams: bool = True):
+        if size & (size - 1) or not MIN_SIZE <= size <= MAX_SIZE:
+            raise AtlasError(f"The atlas size must be a power of two from {MIN_SIZE} to {MAX_SIZE}.")
+        if frame not in FRAMES:
+            raise AtlasError(f"The tangent frame must be one of {', '.join(FRAMES)}.")
+        if not (np.isfinite(sigma) and sigma > 0):
+            raise AtlasError("The texture scale must be a positive number.")
+        up = np.asarray(up, np.float64)
+        if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) == 0:
+            raise AtlasError("The up direction must be three numbers, not all zero.")
+        self.model = model
+        self.size = int(size)
+        self.sigma = float(sigma)
+        self.frame = frame
+        self.up = up / np.linalg.norm(up)
+        self.seams = bool(seams)
+        self._levels: dict[int, dict] = {}
+        self._topology()
+        self.key = hashlib.sha256(repr((model.key, self.size, self.sigma, frame, self.up.tolist(),
+                                        self.seams)).encode()).hexdigest()
+
+    # -- topology, frames and maps across edges (once) -------------------------
+
+    def _topology(self) -> None:
+        m = self.model
+        f = m.faces
+        self.uvpx = np.stack([m.uvs[:, 0] * self.size, (1.0 - m.uvs[:, 1]) * self.size], axis=-1)  # finest px, y down
+        # Welded by position (to 2^-24 of the model's size: exporters may round split vertices differently).
+        _, pid = np.unique(np.round(m.positions / (m.extent * 2.0 ** -24)), axis=0, return_inverse=True)
+        pid = pid.reshape(-1)
+        _, uvid = np.unique(np.c_[pid, np.round(m.uvs * 2 ** 30)], axis=0, return_inverse=True)
+        uvid = uvid.reshape(-1)
+        t, a, b, c = _edges(f)
+        across_uv = _match(uvid[a], uvid[b])  # the same edge in the same chart
+        across_3d = _match(pid[a], pid[b])  # the same edge on the surface
+        same = across_uv >= 0
+        g = coo_matrix((np.ones(int(same.sum())), (t[same], t[across_uv[same]])), shape=(len(f), len(f)))
+        n, chart = connected_components(g, directed=False)
+        if n > MAX_CHARTS:
+            raise AtlasError(f"{m.name} has {n:,} UV charts; at most {MAX_CHARTS:,} are supported.")
+        self.charts = n
+        self.chart = chart.astype(np.int32)
+        # Border half-edges: no neighbor in the same chart.
+        border = ~same
+        self.b_tri = t[border]
+        self.b_a, self.b_b, self.b_c = a[border], b[border], c[border]
+        other = across_3d[border]
+        self.b_other = np.where(other >= 0, t[np.maximum(other, 0)], -1)
+        self.b_map = self._maps(other, t, a, b, c, border)
+        self.jac = self._triangle_jacobians()
+
+    def _maps(self, other, t, a, b, c, border) -> np.ndarray:
+        """Per border half-edge, the affine map (2 x 3) from this chart's finest
+        px to those of the triangle across it (unfolded into this triangle's plane)."""
+        P, X = self.model.positions, self.uvpx
+        n = int(border.sum())
+        maps = np.zeros((n, 2, 3))
+        ok = other >= 0
+        if not ok.any():
+            return maps
+        o = np.maximum(other, 0)
+        oa, ob, oc = a[o], b[o], c[o]  # the other half-edge runs the shared edge the other way (or not)
+        pa, pb, pc = self.b_a, self.b_b, self.b_c
+        # The other triangle's vertices matching this edge's ends, by position.
+        pos = P
+        same_dir = np.all(pos[oa] == pos[pa], axis=-1)
+        q0 = np.where(same_dir, oa, ob)
+        q1 = np.where(same_dir, ob, oa)
+        q2 = oc
+        P0, P1, P2, Q2 = pos[pa], pos[pb], pos[pc], pos[q2]
+        e = P1 - P0
+        el = np.linalg.norm(e, axis=-1, keepdims=True)
+        eh = e / np.maximum(el, 1e-300)
+        inner = (P2 - P0) - ((P2 - P0) * eh).sum(-1, keepdims=True) * eh
+        inn = inner / np.maximum(np.linalg.norm(inner, axis=-1, keepdims=True), 1e-300)
+        rel = Q2 - P0
+        along = (rel * eh).sum(-1, keepdims=True)
+        height = np.linalg.norm(rel - along * eh, axis=-1, keepdims=True)
+        unfolded = P0 + along * eh - height * inn  # Q2 turned about the edge into this triangle's plane
+        # Its coordinates in this triangle's parameterization (finest px, affine on the plane).
+        E1, E2, R = P1 - P0, P2 - P0, unfolded - P0
+        g11, g12, g22 = (E1 * E1).sum(-1), (E1 * E2).sum(-1), (E2 * E2).sum(-1)
+        r1, r2 = (R * E1).sum(-1), (R * E2).sum(-1)
+        det = g11 * g22 - g12 * g12
+        good = ok & (np.abs(det) > 1e-300)
+        det = np.where(good, det, 1.0)
+        al, be = (g22 * r1 - g12 * r2) / det, (g11 * r2 - g12 * r1) / det
+        A0, A1, A2 = X[pa], X[pb], X[pc]
+        A2u = A0 + al[:, None] * (A1 - A0) + be[:, None] * (A2 - A0)
+        B0, B1, B2 = X[q0], X[q1], X[q2]
+        src = np.stack([np.c_[A0, np.ones(n)], np.c_[A1, np.ones(n)], np.c_[A2u, np.ones(n)]], axis=1)  # (n,3,3)
+        dst = np.stack([B0, B1, B2], axis=1)  # (n, 3, 2)
+        dets = np.linalg.det(src)
+        good &= np.abs(dets) > 1e-12
+        src[~good] = np.eye(3)
+        maps = np.linalg.solve(src, dst).transpose(0, 2, 1)  # (n, 2, 3): dst = M @ [x, y, 1]
+        maps[~good] = 0
+        self.b_other = np.where(good, self.b_other, -1)
+        return maps
+
+    def _triangle_jacobians(self) -> np.ndarray:
+        """J (Q12 int16, 4) per triangle (module docstring)."""
+        P, X, f = self.model.positions, self.uvpx, self.model.faces
+        e1, e2 = P[f[:, 1]] - P[f[:, 0]], P[f[:, 2]] - P[f[:, 0]]
+        d1, d2 = X[f[:, 1]] - X[f[:, 0]], X[f[:, 2]] - X[f[:, 0]]
+        D = np.stack([d1, d2], axis=-1)  # (F, 2, 2): columns are the pixel edges
+        dd = np.linalg.det(D)
+        ok = np.abs(dd) > 1e-12
+        D[~ok] = np.eye(2)
+        G = np.stack([e1, e2], axis=-1) @ np.linalg.inv(D)  # (F, 3, 2): dP per finest px (x, y down)
+        nrm = np.cross(e1, e2)
+        nl = np.linalg.norm(nrm, axis=-1, keepdims=True)
+        ok &= nl[:, 0] > 0
+        N = nrm / np.maximum(nl, 1e-300)
+        if self.frame == "up":
+            Rr = np.cross(self.up, N)
+            weak = np.linalg.norm(Rr, axis=-1) < 0.2
+            alt = np.cross(self.up, [1.0, 0.0, 0.0]) if abs(self.up[0]) < 0.9 else np.cross(self.up, [0.0, 0.0, 1.0])
+            alt = -alt * np.sign((N * self.up).sum(-1, keepdims=True) + 1e-300)  # a second up, facing away
+            Rr = np.where(weak[:, None], np.cross(alt, N), Rr)
+        else:
+            Rr = G[:, :, 0] - (G[:, :, 0] * N).sum(-1, keepdims=True) * N
+        Rr = Rr / np.maximum(np.linalg.norm(Rr, axis=-1, keepdims=True), 1e-300)
+        U = np.cross(N, Rr)
+        s = self.sigma
+        J = np.stack([s * (Rr[:, :, None] * G).sum(1), -s * (U[:, :, None] * G).sum(1)], axis=1)  # (F, 2, 2)
+        sv0 = np.linalg.svd(J, compute_uv=False)
+        # Share of the triangles whose texture had to be held within the stretch range (reported by the CLI).
+        self.stretch_clamped = float(np.mean(((sv0 < 1.0 / MAX_STRETCH) | (sv0 > 1.0 / MIN_STRETCH)).any(-1) & ok))
+        flip = np.linalg.det(J) < 0  # mirrored against the frame: mirror the texture
+        J[flip, 0] *= -1  # mirrored left-right (upside down would show more)
+        u, sv, vt = np.linalg.svd(J)
+        sv = np.clip(sv, 1.0 / MAX_STRETCH, 1.0 / MIN_STRETCH)
+        J = u @ (sv[:, :, None] * vt)
+        q = np.round(J.reshape(-1, 4) * J_ONE).astype(np.int64)
+        det = q[:, 0] * q[:, 3] - q[:, 1] * q[:, 2]
+        q[(det < MIN_DET) | ~ok] = [J_ONE, 0, 0, J_ONE]
+        return q.astype(np.int16)
+
+    # -- per level ------------------------------------------------------------
+
+    def level_size(self, k: int) -> int:
+        return max(1, self.size >> k)
+
+    def _level(self, k: int) -> dict:
+        if k not in self._levels:
+            self._levels[k] = self._build_level(k)
+        return self._levels[k]
+
+    def _rasterize(self, k: int) -> np.ndarray:
+        """(n, n) int32: the triangle covering each texel centre of level k, or -1."""
+        n = self.level_size(k)
+        f = self.model.faces
+        Xq = np.round(self.uvpx * (1 << SUB)).astype(np.int64)
+        A, B, C = Xq[f[:, 0]], Xq[f[:, 1]], Xq[f[:, 2]]
+        area = (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
+        swap = area < 0
+        B, C = np.where(swap[:, None], C, B), np.where(swap[:, None], B, C)
+        tris = np.flatnonzero(area != 0)
+        step = 1 << (k + SUB)
+        half = step >> 1
+        V = np.stack([A, B, C], axis=1)[tris]  # (T, 3, 2)
+        lo = V.min(axis=1)
+        hi = V.max(axis=1)
+        x0 = np.clip(-((half - lo) // step), 0, n)  # ceil((lo - half) / step)
+        x1 = np.clip((hi - half) // step + 1, 0, n)
+        cnt = np.maximum(x1[:, 0] - x0[:, 0], 0) * np.maximum(x1[:, 1] - x0[:, 1], 0)
+        best = np.full(n * n, np.iinfo(np.int32).max, np.int64)
+        ends = np.cumsum(cnt)
+        start = 0
+        while start < len(tris):
+            base = ends[start - 1] if start else 0
+            stop = max(start + 1, int(np.searchsorted(ends, base + CHUNK, side="right")))
+            sel = np.arange(start, stop)
+            c = cnt[sel]
+            ti = np.repeat(sel, c)
+            off = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+            bw = np.repeat(np.maximum(x1[sel, 0] - x0[sel, 0], 1), c)
+            tx = np.repeat(x0[sel, 0], c) + off % bw
+            ty = np.repeat(x0[sel, 1], c) + off // bw
+            px, py = tx * step + half, ty * step + half
+            inside = np.ones(len(ti), bool)
+            for i in range(3):
+                P0, P1 = V[ti, i], V[ti, (i + 1) % 3]
+                ex, ey = P1[:, 0] - P0[:, 0], P1[:, 1] - P0[:, 1]
+                E = ex * (py - P0[:, 1]) - ey * (px - P0[:, 0])
+                topleft = (ey < 0) | ((ey == 0) & (ex > 0))
+                inside &= (E > 0) | ((E == 0) & topleft)
+            idx = ty[inside] * n + tx[inside]
+            np.minimum.at(best, idx, tris[ti[inside]])
+            start = stop
+        out = np.where(best == np.iinfo(np.int32).max, -1, best).astype(np.int32)
+        return out.reshape(n, n)
+
+    def _build_level(self, k: int) -> dict:
+        n = self.level_size(k)
+        tri = self._rasterize(k)
+        covered = tri >= 0
+        own = np.where(covered, self.chart[np.maximum(tri, 0)], -1).astype(np.int32)
+        # The nearest covered texel of every texel (fills J off the charts; open borders; landings).
+        if covered.any():
+            near = ndimage.distance_transform_edt(~covered, return_distances=False, return_indices=True)
+        else:
+            near = np.indices((n, n))
+        jac = self.jac[np.maximum(tri[near[0], near[1]], 0)] if covered.any() else \
+            np.broadcast_to(np.array([J_ONE, 0, 0, J_ONE], np.int16), (n, n, 4)).copy()
+        link_chart = np.full((n, n), -1, np.int32)
+        link_to = np.zeros((n, n, 2), np.int32)
+        if self.seams and len(self.b_tri):
+            self._links(k, n, own, near, link_chart, link_to)
+        return dict(own=own, jac=np.ascontiguousarray(jac, np.int16), link_chart=link_chart, link_to=link_to)
+
+    def _links(self, k: int, n: int, own, near, link_chart, link_to) -> None:
+        """Fill the level's indirection map (module docstring)."""
+        scale = float(1 << k)
+        X = self.uvpx / scale  # level-k px
+        a, b = X[self.b_a], X[self.b_b]
+        reach = GUTTER + 1.0
+        lo = np.floor(np.minimum(a, b) - reach - 0.5).astype(np.int64)
+        hi = np.ceil(np.maximum(a, b) + reach - 0.5).astype(np.int64)
+        lo, hi = np.clip(lo, 0, n), np.clip(hi + 1, 0, n)
+        cnt = np.maximum(hi[:, 0] - lo[:, 0], 0) * np.maximum(hi[:, 1] - lo[:, 1], 0)
+        e_chart = self.chart[self.b_tri]
+        best_d = np.full(n * n, np.inf)
+        best_e = np.full(n * n, -1, np.int64)
+        ends = np.cumsum(cnt)
+        start = 0
+        while start < len(cnt):
+            base = ends[start - 1] if start else 0
+            stop = max(start + 1, int(np.searchsorted(ends, base + CHUNK, side="right")))
+            sel = np.arange(start, stop)
+            c = cnt[sel]
+            ei = np.repeat(sel, c)
+            off = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+            bw = np.repeat(np.maximum(hi[sel, 0] - lo[sel, 0], 1), c)
+            tx = np.repeat(lo[sel, 0], c) + off % bw
+            ty = np.repeat(lo[sel, 1], c) + off // bw
+            keep = own[ty, tx] != e_chart[ei]
+            ei, tx, ty = ei[keep], tx[keep], ty[keep]
+            pa, pb = a[ei], b[ei]
+            d = pb - pa
+            pc = np.stack([tx + 0.5, ty + 0.5], axis=-1)
+            tt = np.clip(((pc - pa) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300), 0.0, 1.0)
+            dist = np.linalg.norm(pc - (pa + tt[:, None] * d), axis=-1)
+            near_enough = dist <= reach
+            ei, tx, ty, dist = ei[near_enough], tx[near_enough], ty[near_enough], dist[near_enough]
+            idx = ty * n + tx
+            # Per texel, the nearest edge (ties: the lower edge index): sort, take firsts, merge.
+            order = np.lexsort((ei, dist, idx))
+            idx, ei, dist = idx[order], ei[order], dist[order]
+            first = np.r_[True, idx[1:] != idx[:-1]]
+            idx, ei, dist = idx[first], ei[first], dist[first]
+            better = (dist < best_d[idx]) | ((dist == best_d[idx]) & (ei < best_e[idx]))
+            best_d[idx[better]] = dist[better]
+            best_e[idx[better]] = ei[better]
+            start = stop
+        hit = np.flatnonzero(best_e >= 0)
+        if not len(hit):
+            return
+        e = best_e[hit]
+        ty, tx = hit // n, hit % n
+        chart_a = e_chart[e]
+        other = self.b_other[e]
+        # Across the edge: the texel centre through the edge's map (finest px), then to level k.
+        cx, cy = (tx + 0.5) * scale, (ty + 0.5) * scale
+        M = self.b_map[e]
+        gx = M[:, 0, 0] * cx + M[:, 0, 1] * cy + M[:, 0, 2]
+        gy = M[:, 1, 0] * cx + M[:, 1, 1] * cy + M[:, 1, 2]
+        ux = np.clip(np.floor(gx / scale).astype(np.int64), 0, n - 1)
+        uy = np.clip(np.floor(gy / scale).astype(np.int64), 0, n - 1)
+        want = np.where(other >= 0, self.chart[np.maximum(other, 0)], chart_a)
+        open_edge = other < 0
+        # Open borders: the chart's own nearest texel.
+        ux = np.where(open_edge, near[1][ty, tx], ux)
+        uy = np.where(open_edge, near[0][ty, tx], uy)
+        # A landing off the wanted chart (a border texel whose centre it does not cover): its nearest covered texel.
+        miss = own[uy, ux] != want
+        nx, ny = near[1][uy, ux], near[0][uy, ux]
+        fix = miss & (own[ny, nx] == want)
+        ux, uy = np.where(fix, nx, ux), np.where(fix, ny, uy)
+        good = own[uy, ux] == want
+        link_chart[ty[good], tx[good]] = chart_a[good]
+        link_to[ty[good], tx[good]] = np.stack([ux[good], uy[good]], axis=-1)
+
+    # -- what the passes read -------------------------------------------------------
+
+    @staticmethod
+    def _crop(arr: np.ndarray, fill, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        n = arr.shape[0]
+        out = np.empty((h, w) + arr.shape[2:], arr.dtype)
+        out[...] = fill
+        ax0, ay0, ax1, ay1 = max(x0, 0), max(y0, 0), min(x0 + w, n), min(y0 + h, n)
+        if ax0 < ax1 and ay0 < ay1:
+            out[ay0 - y0:ay1 - y0, ax0 - x0:ax1 - x0] = arr[ay0:ay1, ax0:ax1]
+        return out
+
+    def jacobians(self, k: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        """J (Q12 int16, (h, w, 4)) over a region of level k (outside the atlas: its nearest edge's)."""
+        L = self._level(k)
+        n = self.level_size(k)
+        ys = np.clip(np.arange(y0, y0 + h), 0, n - 1)
+        xs = np.clip(np.arange(x0, x0 + w), 0, n - 1)
+        return np.ascontiguousarray(L["jac"][ys[:, None], xs[None, :]])
+
+    def links(self, k: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
+        """The indirection map over a region of level k: (h, w, 4) int16 (own
+        chart, the chart its link serves, target x, target y); -1 where none."""
+        L = self._level(k)
+        packed = np.concatenate([L["own"][..., None], L["link_chart"][..., None], L["link_to"]], axis=-1)
+        return self._crop(packed.astype(np.int16), np.array([-1, -1, 0, 0], np.int16), x0, y0, w, h)
+
+    def mask(self, k: int = 0) -> np.ndarray:
+        """(n, n) bool: texels covered by a chart at level k (0: finest)."""
+        return self._level(k)["own"] >= 0
+
+    def owner(self, k: int = 0) -> np.ndarray:
+        return self._level(k)["own"]
+
+    def link_map(self, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(chart served, target (n, n, 2)) of level k's links."""
+        L = self._level(k)
+        return L["link_chart"], L["link_to"]

@@ -1,0 +1,122 @@
+"""Models to texture: triangle meshes with texture coordinates, read from OBJ
+and glTF/GLB files by trimesh (the well-kept library that reads both, scenes
+included; docs/install.md), checked like every untrusted input.
+
+A :class:`Model` is plain arrays: positions (V, 3), faces (F, 3), texture
+coordinates (V, 2) in OBJ's convention (v = 0 at the image's bottom; trimesh
+converts glTF's on import and back on export). Vertices are split wherever a
+texture coordinate changes (a UV seam): the atlas finds the seams by welding
+equal positions (engine/surface/atlas.py).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+MAX_MODEL_BYTES = 512 * 1024 * 1024
+MAX_FACES = 2_000_000
+MAX_VERTICES = 3_000_000
+MODEL_SUFFIXES = (".obj", ".glb", ".gltf")
+
+
+class ModelError(ValueError):
+    """A model file that cannot be textured (one line, for the CLI and the editor)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """A triangle mesh with texture coordinates (float64 / int64 arrays)."""
+
+    positions: np.ndarray  # (V, 3)
+    faces: np.ndarray  # (F, 3) vertex indices
+    uvs: np.ndarray  # (V, 2), v up (OBJ)
+    name: str = "model"
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        p = np.ascontiguousarray(self.positions, dtype=np.float64)
+        f = np.ascontiguousarray(self.faces, dtype=np.int64)
+        uv = np.ascontiguousarray(self.uvs, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or uv.shape != (len(p), 2):
+            raise ModelError(f"{self.name}: the mesh's arrays do not fit together (positions {p.shape}, "
+                             f"faces {f.shape}, texture coordinates {uv.shape}).")
+        if not len(f):
+            raise ModelError(f"{self.name} has no triangles.")
+        if len(f) > MAX_FACES or len(p) > MAX_VERTICES:
+            raise ModelError(f"{self.name} has {len(f):,} triangles and {len(p):,} vertices; the limit is "
+                             f"{MAX_FACES:,} and {MAX_VERTICES:,}.")
+        if f.min() < 0 or f.max() >= len(p):
+            raise ModelError(f"{self.name}: a triangle refers to a vertex that does not exist.")
+        if not (np.isfinite(p).all() and np.isfinite(uv).all()):
+            raise ModelError(f"{self.name} has positions or texture coordinates that are not finite numbers.")
+        if np.abs(uv).max() > 1e4 or np.abs(p).max() > 1e12:
+            raise ModelError(f"{self.name} has texture coordinates or positions far out of range.")
+        object.__setattr__(self, "positions", p)
+        object.__setattr__(self, "faces", f)
+        object.__setattr__(self, "uvs", uv)
+        for a in (p, f, uv):
+            a.setflags(write=False)
+
+    @cached_property
+    def key(self) -> str:
+        h = hashlib.sha256()
+        for a in (self.positions, self.faces, self.uvs):
+            h.update(repr(a.shape).encode())
+            h.update(a.tobytes())
+        return h.hexdigest()
+
+    @property
+    def extent(self) -> float:
+        """The largest side of the bounding box (world units)."""
+        e = self.positions.max(axis=0) - self.positions.min(axis=0)
+        return float(max(e.max(), 1e-12))
+
+
+def _from_trimesh(mesh, name: str) -> Model:
+    uv = getattr(getattr(mesh, "visual", None), "uv", None)
+    if uv is None or len(uv) != len(mesh.vertices):
+        raise ModelError(f"{name} has no texture coordinates (UVs): unwrap it first (e.g. Blender's Smart UV "
+                         f"Project), or pass --unwrap to generate them with xatlas.")
+    return Model(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(uv), name=name)
+
+
+def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model") -> Model:
+    """New texture coordinates for a mesh (xatlas, the library made for it):
+    charts cut and packed into [0, 1]^2 with room between them."""
+    import xatlas
+    vmap, idx, uv = xatlas.parametrize(np.asarray(model_positions, np.float32), np.asarray(faces, np.uint32))
+    return Model(np.asarray(model_positions)[vmap], idx.astype(np.int64), uv.astype(np.float64), name=name,
+                 meta={"unwrapped": True})
+
+
+def load_model(path, unwrap_missing: bool = False) -> Model:
+    """Read OBJ, glTF or GLB (all meshes of a scene, joined, in world space).
+    ``unwrap_missing``: generate texture coordinates when the model has none.
+    Raises ModelError with one line for anything it cannot use."""
+    name = os.path.basename(str(path))
+    if not str(path).lower().endswith(MODEL_SUFFIXES):
+        raise ModelError(f"{name}: models are read from OBJ, glTF or GLB files.")
+    try:
+        size = os.path.getsize(path)
+    except OSError as exc:
+        raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
+    if size > MAX_MODEL_BYTES:
+        raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
+    import trimesh
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many kinds on damaged files
+        msg = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+        raise ModelError(f"{name} is not a model trimesh can read ({msg}).") from None
+    if not hasattr(loaded, "faces") or loaded.faces is None or len(loaded.faces) == 0:
+        raise ModelError(f"{name} holds no triangle mesh.")
+    if len(loaded.faces) > MAX_FACES:
+        raise ModelError(f"{name} has {len(loaded.faces):,} triangles; the limit is {MAX_FACES:,}.")
+    uv = getattr(getattr(loaded, "visual", None), "uv", None)
+    if uv is None and unwrap_missing:
+        return unwrap(np.asarray(loaded.vertices), np.asarray(loaded.faces), name)
+    return _from_trimesh(loaded, name)
