@@ -1,0 +1,241 @@
+"""Drawing a textured model (the editor's 3D view, figures and benchmarks):
+an orbit camera with Blender-like conventions and a lit, textured mesh on
+any moderngl context (the editor's window, or a headless EGL one).
+
+The camera orbits a target: yaw about the model's up, pitch, distance;
+:meth:`OrbitCamera.ray` gives the world ray under a pixel, and
+:meth:`ModelView.pick` the atlas texel it hits (a picking pass writes each
+pixel's texture coordinates), so the tools paint on the model in the atlas.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import moderngl
+import numpy as np
+
+VERT = """
+#version 330 core
+uniform mat4 mvp;
+in vec3 in_pos;
+in vec3 in_normal;
+in vec2 in_uv;
+out vec3 v_normal;
+out vec2 v_uv;
+void main() {
+    gl_Position = mvp * vec4(in_pos, 1.0);
+    v_normal = in_normal;
+    v_uv = in_uv;
+}
+"""
+
+FRAG = """
+#version 330 core
+uniform sampler2D tex;
+uniform vec3 light;      // towards the light, world space
+uniform vec3 eye_dir;    // towards the eye, world space
+uniform int mode;        // 0 lit texture, 1 texture coordinates (picking), 2 chart seams overlay
+uniform sampler2D seams; // 1 where a texel is a chart border texel (mode 2)
+in vec3 v_normal;
+in vec2 v_uv;
+out vec4 color;
+void main() {
+    if (mode == 1) {
+        color = vec4(v_uv, 1.0, 1.0);
+        return;
+    }
+    vec3 n = normalize(v_normal);
+    if (!gl_FrontFacing) n = -n;
+    vec3 c = texture(tex, vec2(v_uv.x, 1.0 - v_uv.y)).rgb;
+    float diff = max(dot(n, normalize(light)), 0.0);
+    vec3 h = normalize(normalize(light) + normalize(eye_dir));
+    float spec = pow(max(dot(n, h), 0.0), 40.0) * 0.12;
+    vec3 lit = c * (0.28 + 0.8 * diff) + spec;
+    if (mode == 2 && texture(seams, vec2(v_uv.x, 1.0 - v_uv.y)).r > 0.5) lit = mix(lit, vec3(1.0, 0.15, 0.1), 0.75);
+    color = vec4(lit, 1.0);
+}
+"""
+
+
+def _normalize(v):
+    v = np.asarray(v, np.float64)
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+def look_at(eye, target, up) -> np.ndarray:
+    f = _normalize(np.asarray(target) - eye)
+    s = _normalize(np.cross(f, up))
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def perspective(fovy_deg: float, aspect: float, near: float, far: float) -> np.ndarray:
+    f = 1.0 / math.tan(math.radians(fovy_deg) / 2)
+    m = np.zeros((4, 4))
+    m[0, 0], m[1, 1] = f / aspect, f
+    m[2, 2], m[2, 3] = (far + near) / (near - far), 2 * far * near / (near - far)
+    m[3, 2] = -1.0
+    return m
+
+
+@dataclass(frozen=True)
+class OrbitCamera:
+    """Yaw and pitch (degrees) about ``target``, at ``distance``; +y is up."""
+
+    target: tuple = (0.0, 0.0, 0.0)
+    yaw: float = 30.0
+    pitch: float = 20.0
+    distance: float = 4.0
+    fovy: float = 40.0
+
+    @classmethod
+    def framing(cls, positions: np.ndarray, **kw) -> "OrbitCamera":
+        lo, hi = positions.min(axis=0), positions.max(axis=0)
+        radius = float(np.linalg.norm(hi - lo)) / 2 or 1.0
+        return cls(target=tuple((lo + hi) / 2), distance=radius / math.sin(math.radians(20.0)) * 0.8, **kw)
+
+    @property
+    def eye(self) -> np.ndarray:
+        y, p = math.radians(self.yaw), math.radians(self.pitch)
+        d = np.array([math.cos(p) * math.sin(y), math.sin(p), math.cos(p) * math.cos(y)])
+        return np.asarray(self.target) + self.distance * d
+
+    def matrices(self, aspect: float) -> tuple[np.ndarray, np.ndarray]:
+        view = look_at(self.eye, np.asarray(self.target, np.float64), np.array([0.0, 1.0, 0.0]))
+        proj = perspective(self.fovy, aspect, self.distance * 0.02, self.distance * 10)
+        return view, proj
+
+    def orbit(self, dyaw: float, dpitch: float) -> "OrbitCamera":
+        return replace(self, yaw=(self.yaw + dyaw) % 360.0, pitch=max(-89.0, min(89.0, self.pitch + dpitch)))
+
+    def zoom(self, factor: float) -> "OrbitCamera":
+        return replace(self, distance=max(1e-6, self.distance * factor))
+
+    def pan(self, dx: float, dy: float, aspect: float) -> "OrbitCamera":
+        """Move the target by a fraction of the view (dx right, dy up)."""
+        view, _ = self.matrices(aspect)
+        h = 2 * self.distance * math.tan(math.radians(self.fovy) / 2)
+        move = view[0, :3] * dx * h * aspect + view[1, :3] * dy * h
+        return replace(self, target=tuple(np.asarray(self.target) - move))
+
+
+class ModelView:
+    """A model's mesh on a moderngl context, drawn lit with a texture."""
+
+    def __init__(self, ctx: moderngl.Context, positions: np.ndarray, faces: np.ndarray, uvs: np.ndarray):
+        self.ctx = ctx
+        self.prog = ctx.program(vertex_shader=VERT, fragment_shader=FRAG)
+        P = np.asarray(positions, np.float64)[np.asarray(faces).reshape(-1)]
+        tri = P.reshape(-1, 3, 3)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+        normals = self._smooth_normals(positions, faces, n)
+        uv = np.asarray(uvs, np.float64)[np.asarray(faces).reshape(-1)]
+        data = np.concatenate([P, normals, uv], axis=1).astype("f4")
+        self.vbo = ctx.buffer(data.tobytes())
+        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "3f 3f 2f", "in_pos", "in_normal", "in_uv")])
+        self.positions = np.asarray(positions)
+        self.texture = None
+        self.seam_texture = None
+        self._fbo = None
+
+    @staticmethod
+    def _smooth_normals(positions, faces, face_n) -> np.ndarray:
+        """Per corner: the area-weighted mean of the face normals at the corner's
+        position where they bend less than 40 degrees from its own face's (hard edges stay hard)."""
+        _, pid = np.unique(np.asarray(positions), axis=0, return_inverse=True)
+        pid = pid.reshape(-1)[np.asarray(faces).reshape(-1)]
+        acc = np.zeros((pid.max() + 1, 3))
+        np.add.at(acc, pid, np.repeat(face_n, 3, axis=0))
+        smooth = acc[pid]
+        smooth /= np.maximum(np.linalg.norm(smooth, axis=-1, keepdims=True), 1e-30)
+        own = np.repeat(face_n, 3, axis=0)
+        soft = (smooth * own).sum(-1) > math.cos(math.radians(40.0))
+        return np.where(soft[:, None], smooth, own)
+
+    def set_texture(self, rgb: np.ndarray) -> None:
+        """The texture shown (uint8 (N, N, 1..4)), mipmapped."""
+        a = np.asarray(rgb)
+        if a.ndim == 2:
+            a = a[..., None]
+        if a.shape[2] == 1:
+            a = np.repeat(a, 3, axis=2)
+        elif a.shape[2] == 2:
+            a = np.repeat(a[..., :1], 3, axis=2)
+        a = np.ascontiguousarray(a[..., :3], np.uint8)
+        if self.texture is None or self.texture.size != (a.shape[1], a.shape[0]):
+            if self.texture is not None:
+                self.texture.release()
+            self.texture = self.ctx.texture((a.shape[1], a.shape[0]), 3, a.tobytes())
+        else:
+            self.texture.write(a.tobytes())
+        self.texture.build_mipmaps()
+        self.texture.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self.texture.anisotropy = 8.0
+
+    def set_seams(self, mask: np.ndarray | None) -> None:
+        """Texels to mark (bool (N, N)), e.g. the charts' border texels; None: none."""
+        if self.seam_texture is not None:
+            self.seam_texture.release()
+            self.seam_texture = None
+        if mask is not None:
+            m = np.ascontiguousarray(mask.astype(np.uint8) * 255)
+            self.seam_texture = self.ctx.texture((m.shape[1], m.shape[0]), 1, m.tobytes())
+            self.seam_texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+
+    def draw(self, camera: OrbitCamera, viewport: tuple[int, int, int, int], mode: int = 0) -> None:
+        x, y, w, h = viewport
+        view, proj = camera.matrices(w / max(1, h))
+        mvp = (proj @ view).astype("f4")
+        self.prog["mvp"].write(mvp.T.tobytes())
+        eye = camera.eye
+        self.prog["eye_dir"].value = tuple(_normalize(eye - np.asarray(camera.target)))
+        light = view[:3, :3].T @ _normalize(np.array([0.5, 0.8, 0.6]))  # from above the camera's right
+        self.prog["light"].value = tuple(light)
+        self.prog["mode"].value = mode if (mode != 2 or self.seam_texture is not None) else 0
+        if self.texture is not None:
+            self.texture.use(0)
+            self.prog["tex"].value = 0
+        if self.seam_texture is not None:
+            self.seam_texture.use(1)
+            self.prog["seams"].value = 1
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
+        self.vao.render(moderngl.TRIANGLES)
+        self.ctx.disable(moderngl.DEPTH_TEST)
+
+    def render(self, camera: OrbitCamera, size: tuple[int, int], mode: int = 0,
+               background=(0.16, 0.17, 0.19)) -> np.ndarray:
+        """An offscreen picture (uint8 (H, W, 3), top row first); mode 1: the
+        texture coordinates under each pixel (float32 (H, W, 3): u, v, hit)."""
+        w, h = size
+        if self._fbo is None or self._fbo.size != (w, h):
+            if self._fbo is not None:
+                self._fbo.release()
+            self._fbo = self.ctx.framebuffer(color_attachments=[self.ctx.texture((w, h), 4, dtype="f4")],
+                                             depth_attachment=self.ctx.depth_renderbuffer((w, h)))
+        self._fbo.use()
+        self._fbo.clear(*background, 0.0, depth=1.0)
+        self.draw(camera, (0, 0, w, h), mode)
+        data = np.frombuffer(self._fbo.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+        if mode == 1:
+            return data[..., :3].copy()
+        return (np.clip(data[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8)
+
+    def pick(self, camera: OrbitCamera, size: tuple[int, int], x: int, y: int, atlas_size: int):
+        """The atlas texel (x, y; top row 0) under pixel (x, y) of a view of ``size``, or None."""
+        uvh = self.render(camera, size, mode=1, background=(0, 0, 0))
+        if not (0 <= x < size[0] and 0 <= y < size[1]) or uvh[y, x, 2] < 0.5:
+            return None
+        u, v = float(uvh[y, x, 0]), float(uvh[y, x, 1])
+        return (min(atlas_size - 1, max(0, int(u * atlas_size))), min(atlas_size - 1, max(0, int((1 - v) * atlas_size))))
+
+    def release(self) -> None:
+        for o in (self.vao, self.vbo, self.prog, self.texture, self.seam_texture, self._fbo):
+            if o is not None:
+                o.release()

@@ -1,0 +1,183 @@
+"""Texture a model: synthesize in its atlas (engine/surface) and write every
+map of the document's material at the atlas' size, plus a GLB of the model with
+the maps attached (PBR: base color, normal, metallic-roughness, occlusion),
+which opens as is in Blender and any glTF viewer.
+
+Synthesis runs at up to 4096 texels; larger outputs (to 8192) are synthesis
+magnification of it (LH05 5 / LH06 6): each output texel blends its 4 nearest
+synthesized texels' coordinates, extrapolated through their J. Off the charts,
+a texel takes the colour across its seam (a linked gutter texel) or its
+nearest chart texel's, so filtering and mipmaps do not bleed background in.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from infinitex.engine.controls import Controls
+from infinitex.engine.imagefile import encode_image, to_u8
+from infinitex.engine.material import IMAGE, Material
+from infinitex.engine.safeio import atomic_write
+from infinitex.engine.surface.atlas import MAX_SIZE, AtlasDomain
+from infinitex.engine.surface.bake import atlas_coords, fill_off_charts
+from infinitex.engine.surface.mesh import Model
+
+MAX_OUTPUT = 8192
+MAG_BAND = 128  # synthesized rows magnified at once
+
+
+def texel_density(model: Model, size: int) -> float:
+    """Atlas texels per world unit at ``size``: the area-weighted median over triangles."""
+    P, f = model.positions, model.faces
+    uv = model.uvs * size
+    a3 = 0.5 * np.linalg.norm(np.cross(P[f[:, 1]] - P[f[:, 0]], P[f[:, 2]] - P[f[:, 0]]), axis=-1)
+    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
+    a2 = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    ok = (a3 > 0) & (a2 > 0)
+    if not ok.any():
+        raise ValueError(f"{model.name}: every triangle is degenerate in space or in its texture coordinates.")
+    rho = np.sqrt(a2[ok] / a3[ok])
+    order = np.argsort(rho)
+    w = np.cumsum(a3[ok][order])
+    return float(rho[order][np.searchsorted(w, 0.5 * w[-1])])
+
+
+@dataclass(frozen=True)
+class SurfacePlan:
+    """What a surface bake makes: the output size, the synthesized size, and the texture's scale."""
+
+    size: int  # output texels a side
+    synth_size: int  # synthesized texels a side (size, or 4096 magnified)
+    sigma: float  # exemplar px per world unit
+
+    @property
+    def magnify(self) -> int:
+        return self.size // self.synth_size
+
+
+def plan(model: Model, size: int, exemplar_size: int, repeats: float | None = None,
+         texel_ratio: float | None = None) -> SurfacePlan:
+    """Sizes and scale: ``repeats``: the exemplar's width fits this many times
+    across the model's largest side; else ``texel_ratio`` (default 1) exemplar
+    px per synthesized texel, typically."""
+    if size & (size - 1) or not exemplar_size <= size <= MAX_OUTPUT or size < 64:
+        raise ValueError(f"The texture size must be a power of two from {max(64, exemplar_size)} "
+                         f"(the exemplar's size) to {MAX_OUTPUT}.")
+    synth = min(size, MAX_SIZE)
+    if repeats is not None:
+        if not (np.isfinite(repeats) and 0.01 <= repeats <= 10000):
+            raise ValueError("--repeats must be from 0.01 to 10000.")
+        sigma = exemplar_size * repeats / model.extent
+    else:
+        t = 1.0 if texel_ratio is None else texel_ratio
+        if not (np.isfinite(t) and 0.25 <= t <= 4.0):
+            raise ValueError("--texel-ratio must be from 0.25 to 4.")
+        sigma = t * texel_density(model, synth)
+    return SurfacePlan(size, synth, sigma)
+
+
+def surface_controls(controls: Controls) -> tuple[Controls, list[str]]:
+    """The document's controls that make sense on a model (what is painted or
+    set on the exemplar), and the names of those left out (placed on the plane)."""
+    dropped = [name for name, v in (("canvas randomness", controls.randomness_canvas),
+                                    ("features", controls.features), ("canvas labels", controls.labels_canvas),
+                                    ("direction field", controls.direction), ("lattice", controls.lattice)) if v]
+    kept = replace(controls, randomness_canvas=None, features=(), labels_canvas=None, direction=None,
+                   lattice=None)
+    return kept, dropped
+
+
+def bake_maps(synth, atlas: AtlasDomain, material: Material, roles: list[str], plan_: SurfacePlan,
+              controls: Controls, progress=None) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """{role: float32 (size, size, C)} and the synthesized coordinates."""
+    coords = atlas_coords(synth, atlas, controls)
+    if progress:
+        progress("synthesized")
+    out = {}
+    if plan_.magnify == 1:
+        from infinitex.engine.subpixel import turn_normals
+        jac = None
+        for role in roles:
+            img = material.lookup(role, coords)
+            if role == "normal":
+                jac = atlas.jacobians(0, 0, 0, atlas.size, atlas.size) if jac is None else jac
+                img = turn_normals(img, jac)
+            out[role] = fill_off_charts(img, atlas)
+            if progress:
+                progress(role)
+        return out, coords
+    filled = fill_off_charts(coords.copy(), atlas)
+    n, s = atlas.size, plan_.magnify
+    jac = atlas.jacobians(0, -1, -1, n + 2, n + 2)
+    padded = np.pad(filled, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    for role in roles:
+        bands = []
+        for y0 in range(0, n, MAG_BAND):
+            y1 = min(n, y0 + MAG_BAND)
+            bands.append(material.magnified(role, padded[y0:y1 + 2], s, jac[y0:y1 + 2]))
+        out[role] = np.concatenate(bands, axis=0)
+        if progress:
+            progress(role)
+    return out, coords
+
+
+def glb_bytes(model: Model, maps: dict[str, np.ndarray]) -> bytes:
+    """The model with a PBR material made of ``maps`` (8-bit PNG textures), as GLB."""
+    import trimesh
+    from PIL import Image
+
+    def img(a, mode=None):
+        u8 = to_u8(a)
+        if u8.shape[2] == 1:
+            u8 = u8[..., 0]
+        elif u8.shape[2] == 2:
+            u8 = u8[..., :1].repeat(3, axis=2)
+        return Image.fromarray(np.ascontiguousarray(u8)).convert(mode) if mode else Image.fromarray(np.ascontiguousarray(u8))
+
+    kw = {}
+    base = maps.get("basecolor", maps.get(IMAGE))
+    if base is not None:
+        kw["baseColorTexture"] = img(base, "RGBA" if base.shape[2] in (2, 4) else "RGB")
+    if "normal" in maps:
+        kw["normalTexture"] = img(maps["normal"][..., :3], "RGB")
+    rough, metal = maps.get("roughness"), maps.get("metallic")
+    if rough is not None or metal is not None:
+        shape = (rough if rough is not None else metal).shape[:2]
+        mr = np.zeros(shape + (3,), np.float32)
+        mr[..., 1] = rough[..., 0] if rough is not None else 1.0
+        mr[..., 2] = metal[..., 0] if metal is not None else 0.0
+        kw["metallicRoughnessTexture"] = img(mr, "RGB")
+        kw["roughnessFactor"] = 1.0
+        kw["metallicFactor"] = 1.0 if metal is not None else 0.0
+    elif base is not None:
+        kw["roughnessFactor"], kw["metallicFactor"] = 0.8, 0.0
+    if "ao" in maps:
+        kw["occlusionTexture"] = img(maps["ao"][..., :1], "RGB")
+    material = trimesh.visual.material.PBRMaterial(name="infinitex", **kw)
+    visual = trimesh.visual.TextureVisuals(uv=np.asarray(model.uvs), material=material)
+    mesh = trimesh.Trimesh(vertices=np.asarray(model.positions), faces=np.asarray(model.faces), visual=visual,
+                           process=False)
+    return mesh.export(file_type="glb")
+
+
+def map_files(out: str, roles: list[str], depths: dict[str, int], single: bool) -> list[tuple[str, str, int]]:
+    """[(role, path, depth)] of the maps written beside ``out`` (OUT_basecolor.png, OUT_height.tif...)."""
+    from infinitex.engine.imagefile import depth_extension
+    base = os.path.splitext(out)[0]
+    return [(r, f"{base}{'' if single else '_' + ('basecolor' if r == IMAGE else r)}{depth_extension(depths[r])}",
+             depths[r]) for r in roles]
+
+
+def write_outputs(out: str, model: Model, maps: dict[str, np.ndarray], files, material: Material) -> list[str]:
+    """Write each map (atomically, at its depth) and, for a .glb ``out``, the model with them."""
+    written = []
+    for role, path, depth in files:
+        vr = material.maps[role].exemplar.value_range if role in material.maps else (0.0, 1.0)
+        atomic_write(path, encode_image(maps[role], depth, vr))
+        written.append(path)
+    if out.lower().endswith(".glb"):
+        atomic_write(out, glb_bytes(model, maps))
+        written.append(out)
+    return written
