@@ -1,0 +1,121 @@
+"""``infinitex surface``: a model textured from an exemplar or a material, the
+GLB that carries the maps, exactness against the engine, one-line errors."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from infinitex.engine.analysis import analyze
+from infinitex.engine.exemplar import load_exemplar
+from infinitex.engine.params import SynthParams, structure_params
+from infinitex.engine.surface import AtlasDomain
+from infinitex.engine.surface.bake import atlas_coords
+from infinitex.engine.surface.shapes import cube
+from infinitex.engine.synth import Synthesizer
+from infinitex.export.surface import plan
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BRICK = os.path.join(ROOT, "infinitex", "assets", "brick.png")
+COBBLES = os.path.join(ROOT, "infinitex", "assets", "cobbles", "cobbles_basecolor.png")
+
+
+def run(*args):
+    return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), "surface", *args],
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def cube_obj(tmp_path_factory):
+    m = cube(n=3)
+    path = str(tmp_path_factory.mktemp("models") / "cube.obj")
+    trimesh.Trimesh(m.positions, m.faces, visual=trimesh.visual.TextureVisuals(uv=m.uvs), process=False).export(path)
+    return path
+
+
+def test_an_exemplar_on_a_model_gives_a_glb_and_the_engines_atlas(tmp_path, cube_obj):
+    out, coords = str(tmp_path / "cube_brick.glb"), str(tmp_path / "c.npy")
+    r = run(cube_obj, BRICK, "-o", out, "--size", "256", "--fidelity", "variety", "--coords", coords, "-q")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    tex = np.asarray(Image.open(str(tmp_path / "cube_brick_basecolor.png")))
+    assert tex.shape[:2] == (256, 256)
+    scene = trimesh.load(out)
+    mesh = next(iter(scene.geometry.values()))
+    assert len(mesh.faces) == len(cube(n=3).faces)
+    base = mesh.visual.material.baseColorTexture
+    assert base.size == (256, 256)
+    # The GLB's texture is the map written beside it.
+    assert np.array_equal(np.asarray(base.convert("L")), tex if tex.ndim == 2 else np.asarray(Image.fromarray(tex).convert("L")))
+    # The same coordinates as the engine's, from the same settings.
+    an = analyze(load_exemplar(BRICK))
+    from infinitex.engine.surface import load_model
+    model = load_model(cube_obj)
+    pl = plan(model, 256, an.size)
+    atlas = AtlasDomain(model, 256, pl.sigma)
+    with Synthesizer(an, structure_params(SynthParams.default(an.L), 0)) as s:
+        want = atlas_coords(s, atlas)
+    assert np.array_equal(np.load(coords), want)
+    # Without reads across seams: another texture (the comparison of bench/surface.py).
+    r = run(cube_obj, BRICK, "-o", str(tmp_path / "naive.png"), "--size", "256", "--fidelity", "variety",
+            "--coords", coords, "--no-seams", "-q")
+    assert r.returncode == 0, r.stderr
+    assert not np.array_equal(np.load(coords), want)
+
+
+def test_a_material_on_a_model_writes_every_map_and_a_pbr_glb(tmp_path, cube_obj):
+    out = str(tmp_path / "stones.glb")
+    r = run(cube_obj, COBBLES, "-o", out, "--size", "512", "--fidelity", "variety", "--repeats", "2")
+    assert r.returncode == 0, r.stderr
+    assert "cube.obj: 108 triangles, 6 charts" in r.stderr
+    for role in ("basecolor", "height", "normal", "roughness"):
+        assert os.path.exists(str(tmp_path / f"stones_{role}.png")), role
+    height = Image.open(str(tmp_path / "stones_height.png"))
+    assert height.mode.startswith("I;16") and height.size == (512, 512)  # its own 16 bits
+    mat = next(iter(trimesh.load(out).geometry.values())).visual.material
+    assert mat.baseColorTexture is not None and mat.normalTexture is not None
+    assert mat.metallicRoughnessTexture is not None
+    # Normals point out of the surface (z up in tangent space), turned with the texture but still unit.
+    n = np.asarray(Image.open(str(tmp_path / "stones_normal.png")).convert("RGB")).astype(np.float64) / 127.5 - 1
+    length = np.linalg.norm(n, axis=-1)
+    assert np.median(n[..., 2]) > 0.5 and abs(np.median(length) - 1) < 0.05
+
+
+def test_surface_errors_are_one_line(tmp_path, cube_obj):
+    nouv = str(tmp_path / "nouv.obj")
+    with open(nouv, "w") as f:
+        f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")
+    garbage = str(tmp_path / "bad.glb")
+    with open(garbage, "wb") as f:
+        f.write(b"glTF" + os.urandom(64))
+    out = str(tmp_path / "o.glb")
+    for args, text in (
+        ([nouv, BRICK, "-o", out], "--unwrap"),
+        ([garbage, BRICK, "-o", out], "bad.glb"),
+        ([cube_obj, BRICK, "-o", str(tmp_path / "o.jpg")], ".glb"),
+        ([cube_obj, BRICK, "-o", out, "--size", "300"], "power of two"),
+        ([cube_obj, BRICK, "-o", out, "--size", "64"], "exemplar"),
+        ([cube_obj, BRICK, "-o", out, "--texel-ratio", "9"], "texel-ratio"),
+        ([cube_obj, BRICK, "-o", cube_obj.replace(".obj", ".png")], None),  # fine: the maps only
+        ([str(tmp_path / "missing.obj"), BRICK, "-o", out], "missing.obj"),
+        ([cube_obj, str(tmp_path / "nothing.png"), "-o", out], "nothing.png"),
+    ):
+        r = run(*args, "--fidelity", "variety", "-q")
+        if text is None:
+            assert r.returncode == 0, r.stderr
+            continue
+        assert r.returncode != 0, args
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error:") and text in lines[0], (args, r.stderr)
+    # An output that would replace an input is refused before any work.
+    model_copy = str(tmp_path / "m_basecolor.png")
+    Image.open(BRICK).save(model_copy)
+    r = run(cube_obj, model_copy, "-o", str(tmp_path / "m.glb"), "-q")
+    assert r.returncode != 0 and "m_basecolor.png" in r.stderr
+    # --unwrap textures a model without coordinates.
+    r = run(nouv, BRICK, "-o", out, "--size", "128", "--unwrap", "--fidelity", "variety")
+    assert r.returncode == 0, r.stderr
+    assert "xatlas" in r.stderr and os.path.exists(out)

@@ -1,0 +1,225 @@
+"""Synthesis in a model's atlas (engine/surface): the indirection maps against
+known answers on a cube and a cylinder, coverage, J, continuity across every
+seam against a naive per-chart synthesis, determinism, hostile model files."""
+import os
+
+import numpy as np
+import pytest
+
+from infinitex.engine.controls.direction import J_ONE
+from infinitex.engine.params import SynthParams, structure_params
+from infinitex.engine.surface import AtlasDomain, AtlasError, Model, ModelError, load_model
+from infinitex.engine.surface.atlas import GUTTER
+from infinitex.engine.surface.bake import atlas_coords, atlas_image
+from infinitex.engine.surface.seams import seam_error
+from infinitex.engine.surface.shapes import cube, cylinder
+from infinitex.engine.synth import Synthesizer
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _face_maps(model: Model, atlas: AtlasDomain):
+    """Per chart of the cube (one planar face each): the affine map finest px -> 3D (3 x 3) and its plane."""
+    out = {}
+    for c in range(atlas.charts):
+        t = int(np.flatnonzero(atlas.chart == c)[0])
+        f = model.faces[t]
+        X, P = atlas.uvpx[f], model.positions[f]
+        A = np.c_[X, np.ones(3)]
+        M = np.linalg.solve(A, P)  # P = [x, y, 1] @ M
+        n = np.cross(P[1] - P[0], P[2] - P[0])
+        axis = int(np.argmax(np.abs(n)))
+        out[c] = (M, axis, float(np.sign(P[0][axis])))
+    return out
+
+
+@pytest.mark.parametrize("k", [0, 2])
+def test_cube_links_reach_the_same_surface_point_across_each_edge(k):
+    model = cube(n=3)
+    atlas = AtlasDomain(model, 256, sigma=64.0)
+    assert atlas.charts == 6
+    faces = _face_maps(model, atlas)
+    chart, to = atlas.link_map(k)
+    own = atlas.owner(k)
+    ys, xs = np.nonzero((chart >= 0) & (own != chart))
+    assert len(ys) > 100
+    s = 1 << k
+    boxes = {c: (atlas.uvpx[model.faces[atlas.chart == c].ravel()].min(0),
+                 atlas.uvpx[model.faces[atlas.chart == c].ravel()].max(0)) for c in range(6)}
+    errors, checked = [], 0
+    for y, x in zip(ys, xs):
+        a, tx, ty = int(chart[y, x]), int(to[y, x, 0]), int(to[y, x, 1])
+        b = int(own[ty, tx])
+        assert b >= 0 and b != a  # a cube's charts meet other charts only
+        Ma, ia, sa = faces[a]
+        Mb, ib, sb = faces[b]
+        lo, hi = boxes[a]
+        c = np.array([(x + 0.5) * s, (y + 0.5) * s])
+        if ((c < lo) | (c > hi)).all():
+            continue  # beyond a corner of the face: no single edge to fold about
+        Q = np.array([(tx + 0.5) * s, (ty + 0.5) * s, 1.0]) @ Mb  # the target's surface point
+        # Folded into A's plane about the cube edge where both faces meet.
+        beyond = abs(Q[ia] - sa)
+        Qa = Q.copy()
+        Qa[ia] = sa
+        Qa[ib] = sb * (1.0 + beyond)
+        # Back to A's atlas px through A's map (least squares on its plane).
+        px = np.linalg.lstsq(Ma[:2].T, Qa - Ma[2], rcond=None)[0]
+        checked += 1
+        errors.append(np.hypot(px[0] / s - (x + 0.5), px[1] / s - (y + 0.5)))
+    errors = np.array(errors)
+    assert checked > 80
+    # The target is the texel of the same surface point: within its own half diagonal (corners aside).
+    assert np.median(errors) < 0.5
+    assert np.mean(errors <= 0.75) > 0.9 and errors.max() < 1.25, np.sort(errors)[-20:]  # landings moved onto the chart: 1 texel
+
+
+def test_cylinder_seam_links_wrap_around_and_open_borders_stay_inside():
+    model = cylinder(caps=False)
+    n = 256
+    atlas = AtlasDomain(model, n, sigma=64.0)
+    assert atlas.charts == 1
+    chart, to = atlas.link_map(0)
+    own = atlas.owner(0)
+    ys, xs = np.nonzero(chart >= 0)
+    left = (xs < 0.02 * n) & (ys > 0.05 * n + GUTTER + 2) & (ys < 0.6 * n - GUTTER - 2)
+    shift = 0.96 * n  # u = 0.02 and u = 0.98 are the same surface points
+    dx = to[ys[left], xs[left], 0] - xs[left]
+    dy = to[ys[left], xs[left], 1] - ys[left]
+    assert left.sum() > 100
+    assert np.all(np.abs(dx - shift) <= 1) and np.all(dy == 0)
+    assert np.all(own[to[ys[left], xs[left], 1], to[ys[left], xs[left], 0]] == 0)
+    # The open top and bottom rims: links stay in the chart, next to the texel.
+    top = ys < 0.02 * n
+    assert top.any()
+    assert np.all(np.abs(to[ys[top], xs[top], 1] - ys[top]) <= GUTTER + 1)
+
+
+def test_coverage_partitions_shared_edges_and_j_follows_the_parameterization():
+    model = cylinder(segments=32, rings=5, caps=False)
+    atlas = AtlasDomain(model, 128, sigma=32.0)
+    own = atlas.owner(0)
+    # The side chart is a rectangle [0.02, 0.98] x [0.35, 0.98] of the atlas: every centre inside is covered once.
+    n = 128
+    xs = (np.arange(n) + 0.5) / n
+    inside = ((xs[None, :] > 0.02) & (xs[None, :] < 0.98) & ((1 - xs)[:, None] > 0.35) & ((1 - xs)[:, None] < 0.98))
+    assert np.array_equal(own >= 0, inside)
+    # J: 2 pi r around in 0.96 n texels, height 2 in 0.63 n texels, times sigma (exemplar px per unit).
+    J = atlas.jacobians(0, 64, 64, 1, 1)[0, 0] / J_ONE
+    assert J[1] == 0 and J[2] == 0
+    assert abs(J[0] - 32.0 * 2 * np.pi / (0.96 * n)) < 0.01
+    assert abs(J[3] - 32.0 * 2.0 / (0.63 * n)) < 0.01
+
+
+def test_mirrored_charts_keep_det_positive_and_frames_follow_up():
+    atlas = AtlasDomain(cube(), 256, sigma=64.0)
+    J = atlas.jac.astype(np.int64)
+    assert np.all(J[:, 0] * J[:, 3] - J[:, 1] * J[:, 2] > 0)
+    # "up" frame on the side faces: the exemplar's y runs down the world's y (J maps atlas to exemplar).
+    up = AtlasDomain(cube(turns=False), 256, sigma=64.0)
+    side = up.jac[:len(up.jac) // 6]  # the +z face, its UVs as is: exemplar axes = atlas axes
+    assert np.all(side[:, 0] > 0) and np.all(side[:, 3] > 0) and np.all(side[:, 1] == 0) and np.all(side[:, 2] == 0)
+
+
+def test_synthesis_is_continuous_across_seams_where_per_chart_synthesis_is_not(analyses):
+    an = analyses["gravel-appearance"]
+    model = cube()
+    ratios = {}
+    params = structure_params(SynthParams.default(an.L), 0)
+    with Synthesizer(an, params) as synth:
+        for seams in (True, False):
+            atlas = AtlasDomain(model, 256, sigma=float(an.size) * 1.5, seams=seams)
+            c = atlas_coords(synth, atlas)
+            img = atlas_image(an.levels[an.L].stack, c, atlas, an.toroidal)
+            ratios[seams] = seam_error(img, atlas)
+    assert ratios[True].samples > 500
+    assert ratios[True].ratio <= 1.2, ratios
+    assert ratios[True].ratio < 0.8 * ratios[False].ratio, ratios
+
+
+def test_same_model_and_document_give_the_same_atlas(analyses):
+    an = analyses["gravel-appearance"]
+    params = structure_params(SynthParams.default(an.L), 0)
+    a1 = AtlasDomain(cube(), 128, sigma=80.0)
+    a2 = AtlasDomain(cube(), 128, sigma=80.0)
+    for k in (0, 3):
+        assert np.array_equal(a1.links(k, -5, -5, 80, 70), a2.links(k, -5, -5, 80, 70))
+        assert np.array_equal(a1.jacobians(k, 0, 0, 128 >> k, 128 >> k), a2.jacobians(k, 0, 0, 128 >> k, 128 >> k))
+    with Synthesizer(an, params) as s1:
+        c1 = atlas_coords(s1, a1)
+        # The same synthesizer, used for a plane window in between, and a fresh one agree.
+        from infinitex.engine.pyramid import Rect
+        s1.window(Rect(0, 0, 32, 32))
+        c1b = atlas_coords(s1, a1)
+    with Synthesizer(an, params) as s2:
+        c2 = atlas_coords(s2, a2)
+    assert np.array_equal(c1, c1b) and np.array_equal(c1, c2)
+    assert c1.shape == (128, 128, 4)
+
+
+def test_atlas_arguments_are_checked():
+    m = cube()
+    for kw, text in ((dict(size=100), "power of two"), (dict(size=8192 * 2), "power of two"),
+                     (dict(sigma=-1.0), "scale"), (dict(frame="diagonal"), "frame"),
+                     (dict(up=(0, 0, 0)), "up direction")):
+        args = dict(size=128, sigma=10.0, **{k: v for k, v in kw.items() if k in ("frame", "up")})
+        args.update({k: v for k, v in kw.items() if k in ("size", "sigma")})
+        with pytest.raises(AtlasError, match=text):
+            AtlasDomain(m, args.pop("size"), args.pop("sigma"), **args)
+
+
+def _write(path, data):
+    with open(path, "wb" if isinstance(data, bytes) else "w") as f:
+        f.write(data)
+    return str(path)
+
+
+def test_hostile_model_files_give_one_line(tmp_path, monkeypatch):
+    cases = {
+        "empty.obj": "",
+        "garbage.glb": os.urandom(300),
+        "truncated.glb": b"glTF\x02\x00\x00\x00" + b"\xff" * 20,
+        "nouv.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        "nan.obj": "v 0 0 nan\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+        "text.gltf": "{not json",
+        "image.png": b"\x89PNG\r\n\x1a\n",
+    }
+    for name, data in cases.items():
+        with pytest.raises(ModelError) as e:
+            load_model(_write(tmp_path / name, data))
+        msg = str(e.value)
+        assert "\n" not in msg and len(msg) < 300, (name, msg)
+    assert "unwrap" in str(pytest.raises(ModelError, load_model, str(tmp_path / "nouv.obj")).value)
+    # Unwrapping gives it coordinates.
+    m = load_model(str(tmp_path / "nouv.obj"), unwrap_missing=True)
+    assert m.uvs.shape == (len(m.positions), 2) and m.meta.get("unwrapped")
+    # Limits: size and triangle counts, checked before anything is built.
+    ok = _write(tmp_path / "ok.obj", cases["nan.obj"].replace("nan", "0.5"))
+    import infinitex.engine.surface.mesh as mesh
+    monkeypatch.setattr(mesh, "MAX_MODEL_BYTES", 10)
+    with pytest.raises(ModelError, match="MB"):
+        load_model(ok)
+    monkeypatch.setattr(mesh, "MAX_MODEL_BYTES", 1 << 20)
+    monkeypatch.setattr(mesh, "MAX_FACES", 0)
+    with pytest.raises(ModelError, match="limit"):
+        load_model(ok)
+    # Arrays that do not fit together.
+    with pytest.raises(ModelError):
+        Model(np.zeros((3, 3)), np.array([[0, 1, 5]]), np.zeros((3, 2)))
+    with pytest.raises(ModelError):
+        Model(np.zeros((3, 3)), np.array([[0, 1, 2]]), np.zeros((2, 2)))
+
+
+def test_a_model_round_trips_through_obj_and_glb(tmp_path):
+    import trimesh
+    m = cube(n=2)
+    for ext in ("obj", "glb"):
+        mesh = trimesh.Trimesh(m.positions, m.faces, visual=trimesh.visual.TextureVisuals(uv=m.uvs), process=False)
+        path = str(tmp_path / f"cube.{ext}")
+        mesh.export(path)
+        back = load_model(path)
+        a = AtlasDomain(back, 128, sigma=40.0)
+        b = AtlasDomain(m, 128, sigma=40.0)
+        assert a.charts == 6
+        # The same atlas (the files keep positions, faces and UVs; v's convention included).
+        assert np.array_equal(a.owner(0) >= 0, b.owner(0) >= 0), ext
