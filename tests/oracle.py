@@ -3,7 +3,9 @@
 Written independently of the GL pyramid: one padded window per level with the
 naive padding c * s^2 * radius (larger than the engine's exact margins), plain
 row-major arrays, clamped reads at the window border. Its exact interior must
-equal the GL result bit for bit.
+equal the GL result bit for bit. With a surface (a mesh's texture atlas,
+Controls.surface), every state read goes through the level's indirection map
+(state_texel, and the parent texel in upsample), J comes from the surface.
 """
 from __future__ import annotations
 
@@ -124,6 +126,9 @@ J_IDENTITY = (4096, 0, 0, 4096)
 
 
 def directed(controls: Controls) -> bool:
+    """Coordinates carry 1/256 px remainders: a painted direction field, or a mesh's atlas."""
+    if getattr(controls, "surface", None) is not None:
+        return True
     d = controls.direction
     return d is not None and bool(d.tiles)
 
@@ -169,6 +174,11 @@ def direction_values(controls: Controls, an: Analysis, params: SynthParams, leve
     out[:] = J_IDENTITY
     if not directed(controls) or px.size == 0:
         return out
+    surface = getattr(controls, "surface", None)
+    if surface is not None:  # a mesh's atlas: J_l per level pixel, as the domain gives it (no period)
+        x0, y0 = int(gx.min()), int(gy.min())
+        J = np.asarray(surface.jacobians(k, x0, y0, int(gx.max()) + 1 - x0, int(gy.max()) + 1 - y0), np.int64)
+        return J[gy - y0, gx - x0]
     if n:
         tile = params.period
         red = _dense_direction(d, 0, 0, tile, tile)
@@ -215,6 +225,45 @@ def _full(S: np.ndarray) -> np.ndarray:
     return S[..., :2].astype(np.int64) * Q8 + S[..., 2:4]
 
 
+# -- a mesh's texture atlas (LH06 6) --------------------------------------------
+# Written from shaders/common.glsl (atlas_texel, STATE_TEXEL) and upsample.frag
+# (parent_texel): per texel of a level, links = (own chart or -1, the chart its
+# link serves or -1, link target x, y, level-global). A pixel of chart c (its own
+# links' first entry; the reader) reading texel q (window-local, clamped) reads
+# q when q's own chart is c, else q's target (window-local, clamped) when q's
+# link serves c, else q; a reader < 0 always reads q. The upsample applies the
+# same rule to the parent texel floor(p/2) with the parent level's links, the
+# target read as a level-global position.
+
+def atlas_links(controls: Controls, an: Analysis, level: int, x0: int, y0: int, w: int, h: int) -> np.ndarray | None:
+    """The surface's links (h, w, 4) int64 over a rectangle of ``level``, or None without a surface."""
+    surface = getattr(controls, "surface", None)
+    if surface is None:
+        return None
+    out = np.asarray(surface.links(an.L - level, x0, y0, w, h)).astype(np.int64)
+    assert out.shape == (h, w, 4)
+    return out
+
+
+def _follow(reader: np.ndarray, lk: np.ndarray) -> np.ndarray:
+    """Where the readers take a linked texel's target instead of the texel (links ``lk``)."""
+    return (reader >= 0) & (lk[..., 0] != reader) & (lk[..., 1] == reader)
+
+
+def state_texel(ys: np.ndarray, xs: np.ndarray, dx, dy, H: int, W: int,
+                links: np.ndarray | None = None, origin: tuple[int, int] = (0, 0)):
+    """(rows, cols) of the window texel that pixels (ys, xs) read for their
+    neighbor (dx, dy) (scalars or per pixel): clamped to the window; with the
+    window's ``links``, redirected through the indirection map."""
+    qy, qx = np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)
+    if links is None:
+        return qy, qx
+    lk = links[qy, qx]
+    go = _follow(links[ys, xs, 0], lk)
+    ty, tx = np.clip(lk[..., 3] - origin[1], 0, H - 1), np.clip(lk[..., 2] - origin[0], 0, W - 1)
+    return np.where(go, ty, qy), np.where(go, tx, qx)
+
+
 def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: tuple[int, int],
              shape: tuple[int, int], an: Analysis, params: SynthParams, level: int,
              controls: Controls = NO_CONTROLS) -> np.ndarray:
@@ -230,7 +279,15 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         if direct:
             Fx, Fy = ux * Q8, uy * Q8
     else:
-        px, py = (gx >> 1) - parent_origin[0], (gy >> 1) - parent_origin[1]
+        qx, qy = gx >> 1, gy >> 1
+        links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
+        if links is not None:  # the parent texel through the parent level's links, for the pixel's chart
+            bx, by = int(qx.min()), int(qy.min())
+            plinks = atlas_links(controls, an, level - 1, bx, by, int(qx.max()) + 1 - bx, int(qy.max()) + 1 - by)
+            pl = plinks[qy - by, qx - bx]
+            go = _follow(links[..., 0], pl)
+            qx, qy = np.where(go, pl[..., 2], qx), np.where(go, pl[..., 3], qy)
+        px, py = qx - parent_origin[0], qy - parent_origin[1]
         assert px.min() >= 0 and py.min() >= 0 and px.max() < parent.shape[1] and py.max() < parent.shape[0]
         if direct:  # F_{l-1}[floor(p/2)] + floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1
             J = direction_values(controls, an, params, level, gx, gy)
@@ -311,20 +368,24 @@ def _features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: Synt
 
 
 def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis,
-                             level: int, J: np.ndarray | None = None) -> np.ndarray:
+                             level: int, J: np.ndarray | None = None, links: np.ndarray | None = None,
+                             origin: tuple[int, int] = (0, 0)) -> np.ndarray:
     """Projected N_S(p) for the pixels (ys, xs) of S (reads clamped to S); with
-    ``J`` (N, 4), the Jacobians at those pixels, the anisometric neighborhood."""
+    ``J`` (N, 4), the Jacobians at those pixels, the anisometric neighborhood;
+    with ``links`` (S's window's indirection map, window at ``origin``), reads
+    through it (a mesh's atlas)."""
     lv = an.levels[level]
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
 
     def at(dx, dy):
-        return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
+        return S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
 
     feat = lv.feat
     parts = []
     if J is not None:
-        return fixed.project(np.concatenate(_directed_taps(S, ys, xs, an, level, J), axis=1), lv.proj, lv.shift)
+        return fixed.project(np.concatenate(_directed_taps(S, ys, xs, an, level, J, links, origin), axis=1),
+                             lv.proj, lv.shift)
     if an.model == "appearance":
         for dx, dy in fixed.DIAGONALS:
             acc = 0
@@ -342,7 +403,7 @@ def synthesized_neighborhood(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: 
 
 
 def _directed_taps(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis, level: int,
-                   J: np.ndarray) -> list:
+                   J: np.ndarray, links: np.ndarray | None = None, origin: tuple[int, int] = (0, 0)) -> list:
     """The raw neighborhood parts of N_S(p) with a direction field (correct.frag's
     DIRECTION header): a sample for exemplar offset d comes from an immediate
     neighbor d' of p as the nearest texel of F[p + d'] - h J d' + 256 h d."""
@@ -352,7 +413,7 @@ def _directed_taps(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis, 
     j00, j01, j10, j11 = (J[:, i] for i in range(4))
 
     def sample(dpx, dpy, dx, dy):  # dpx, dpy: per pixel arrays
-        F = _full(S[np.clip(ys + dpy, 0, H - 1), np.clip(xs + dpx, 0, W - 1)].astype(np.int64))
+        F = _full(S[state_texel(ys, xs, dpx, dpy, H, W, links, origin)].astype(np.int64))
         ox, oy = _jd(J, dpx, dpy, h)
         ux = np.mod(_q8_nearest(F[:, 0] + Q8 * h * dx - ox), m)
         uy = np.mod(_q8_nearest(F[:, 1] + Q8 * h * dy - oy), m)
@@ -388,7 +449,8 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     ys, xs = ys[sel], xs[sel]
     direct = directed(controls)
     J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
-    ns = synthesized_neighborhood(S, ys, xs, an, level, J)
+    links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
+    ns = synthesized_neighborhood(S, ys, xs, an, level, J, links, origin)
     nbhd = lv.nbhd
     best = np.full(len(ys), np.iinfo(np.int64).max)
     best_u = S[ys, xs, :2].astype(np.int64)
@@ -401,7 +463,7 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     def lab(u):
         return 0 if labels is None else label_cost(labels[0], labels[1][u[:, 1], u[:, 0]], labels[2])
     for dx, dy in fixed.CANDIDATE_OFFSETS:
-        nb = S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
+        nb = S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
         if direct:  # F[p + d] - h J d: its nearest texel, and its remainder for every candidate
             F = _full(nb)
             ox, oy = _jd(J, dx, dy, h)
@@ -490,9 +552,10 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
     ys, xs = ys[sel], xs[sel]
     direct = directed(controls)
     J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
+    links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
 
     def s_at(dx, dy):
-        return S[np.clip(ys + dy, 0, H - 1), np.clip(xs + dx, 0, W - 1)].astype(np.int64)
+        return S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
 
     patch = [(dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1) if (dx, dy) != (0, 0)]
     nb = {}

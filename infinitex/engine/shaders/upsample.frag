@@ -33,7 +33,7 @@ uniform usampler2D efield;      // R_E,l: (m >> eshift)^2, uint16
 uniform int eshift;             // L - l
 uniform int has_cfield;         // randomness over the canvas
 uniform usampler2D cfield;      // R_S,l over this scratch region (row-major local pixels), uint16
-uniform ivec2 lattice_shift;
+uniform ivec2 lattice_shift;    // lattice level (LH05 4.5): log2 of the cell (cx, cy); else (-1, -1)
 #ifdef ATLAS
 uniform isampler2D plinks;      // the parent level's indirection map over region.half()
 uniform ivec2 plink_origin;     // its level-(l-1) position of texel (0, 0)
@@ -46,7 +46,7 @@ ivec2 parent_texel(ivec2 gp) {
 ivec2 parent_texel(ivec2 gp) {
     return gp;
 }
-#endif    // lattice level (LH05 4.5): log2 of the cell (cx, cy); else (-1, -1)
+#endif
 
 out ivec4 result;
 
