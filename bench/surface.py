@@ -90,7 +90,7 @@ def main() -> int:
             params = structure_params(SynthParams.default(an.L, seed=3), 2)
             with Synthesizer(an, params, gpu=gpu) as synth:
                 for mname, (model, size) in models.items():
-                    pl = plan(model, size, an.size, repeats=6.0)
+                    pl = plan(model, size, an.size)  # about one exemplar px per texel
                     row = dict(exemplar=ename, model=mname, size=size, triangles=len(model.faces))
                     for seams in (True, False):
                         atlas = AtlasDomain(model, size, pl.sigma, seams=seams)

@@ -19,29 +19,14 @@ import numpy as np
 from infinitex.engine.controls import Controls
 from infinitex.engine.imagefile import encode_image, to_u8
 from infinitex.engine.material import IMAGE, Material
+from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import atomic_write
 from infinitex.engine.surface.atlas import MAX_SIZE, AtlasDomain
 from infinitex.engine.surface.bake import atlas_coords, fill_off_charts
-from infinitex.engine.surface.mesh import Model
+from infinitex.engine.surface.mesh import Model, texel_density
 
 MAX_OUTPUT = 8192
 MAG_BAND = 128  # synthesized rows magnified at once
-
-
-def texel_density(model: Model, size: int) -> float:
-    """Atlas texels per world unit at ``size``: the area-weighted median over triangles."""
-    P, f = model.positions, model.faces
-    uv = model.uvs * size
-    a3 = 0.5 * np.linalg.norm(np.cross(P[f[:, 1]] - P[f[:, 0]], P[f[:, 2]] - P[f[:, 0]]), axis=-1)
-    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
-    a2 = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    ok = (a3 > 0) & (a2 > 0)
-    if not ok.any():
-        raise ValueError(f"{model.name}: every triangle is degenerate in space or in its texture coordinates.")
-    rho = np.sqrt(a2[ok] / a3[ok])
-    order = np.argsort(rho)
-    w = np.cumsum(a3[ok][order])
-    return float(rho[order][np.searchsorted(w, 0.5 * w[-1])])
 
 
 @dataclass(frozen=True)
@@ -95,6 +80,12 @@ def bake_maps(synth, atlas: AtlasDomain, material: Material, roles: list[str], p
     coords = atlas_coords(synth, atlas, controls)
     if progress:
         progress("synthesized")
+    return maps_from_coords(coords, atlas, material, roles, plan_, progress), coords
+
+
+def maps_from_coords(coords: np.ndarray, atlas: AtlasDomain, material: Material, roles: list[str],
+                     plan_: SurfacePlan, progress=None) -> dict[str, np.ndarray]:
+    """Every map through the atlas' coordinates (magnified past the synthesized size)."""
     out = {}
     if plan_.magnify == 1:
         from infinitex.engine.subpixel import turn_normals
@@ -107,7 +98,7 @@ def bake_maps(synth, atlas: AtlasDomain, material: Material, roles: list[str], p
             out[role] = fill_off_charts(img, atlas)
             if progress:
                 progress(role)
-        return out, coords
+        return out
     filled = fill_off_charts(coords.copy(), atlas)
     n, s = atlas.size, plan_.magnify
     jac = atlas.jacobians(0, -1, -1, n + 2, n + 2)
@@ -120,7 +111,7 @@ def bake_maps(synth, atlas: AtlasDomain, material: Material, roles: list[str], p
         out[role] = np.concatenate(bands, axis=0)
         if progress:
             progress(role)
-    return out, coords
+    return out
 
 
 def glb_bytes(model: Model, maps: dict[str, np.ndarray]) -> bytes:
@@ -181,3 +172,113 @@ def write_outputs(out: str, model: Model, maps: dict[str, np.ndarray], files, ma
         atomic_write(out, glb_bytes(model, maps))
         written.append(out)
     return written
+
+
+class AtlasRun:
+    """A model's atlas synthesized a budget at a time on one GL context (the
+    editor's model view, model exports): the same request as
+    :func:`~infinitex.engine.surface.bake.atlas_coords`, spread over frames."""
+
+    def __init__(self, gpu, gan, params, controls: Controls, atlas: AtlasDomain):
+        self.atlas = atlas
+        self.L = gan.analysis.L
+        self.pyramid = Pyramid(gpu, gan, params, scrolling=False,
+                               controls=replace(controls, surface=atlas, direction=None))
+        self.pyramid.start_request(self.L, Rect(0, 0, atlas.size, atlas.size))
+        self.done = False
+        self._areas = [float(4 ** l) for l in range(self.L + 1)]
+
+    def level_done(self, l: int) -> bool:
+        buf = self.pyramid.buffers[l]
+        n = max(1, self.atlas.size >> (self.L - l))
+        return buf is not None and buf.valid is not None and buf.valid.contains(Rect(0, 0, n, n))
+
+    @property
+    def finest_done(self) -> int:
+        """The finest level complete (-1: none yet)."""
+        return max((l for l in range(self.L + 1) if self.level_done(l)), default=-1)
+
+    @property
+    def progress(self) -> float:
+        done = sum(a for l, a in enumerate(self._areas) if self.level_done(l))
+        return 1.0 if self.done else min(0.99, done / sum(self._areas))
+
+    def step(self, budget_s: float) -> bool:
+        import time
+        if not self.done:
+            self.done = self.pyramid.advance_request(time.perf_counter() + budget_s)
+        return self.done
+
+    def coords(self, level: int | None = None) -> np.ndarray:
+        """(n, n, 4) of a complete level (default: the finest)."""
+        level = self.L if level is None else level
+        n = max(1, self.atlas.size >> (self.L - level))
+        return self.pyramid.read(level, Rect(0, 0, n, n), remainder=True)
+
+    def release(self) -> None:
+        if self.pyramid is not None:
+            self.pyramid.release()
+            self.pyramid = None
+
+
+class ModelExportJob:
+    """File > Export model in the editor: the atlas at the export's size,
+    synthesized a budget at a time (the editor stays live), then every map and
+    the GLB written. The same interface as export.window.ExportJob."""
+
+    def __init__(self, session, settings, out_path: str, size: int, depth: int | None = None):
+        import time
+
+        from infinitex.engine.material import export_depths
+        if session.synth is None:
+            raise SynthesisError("Nothing to export yet: the exemplar is still being analyzed.")
+        mat = session.material
+        self.material = mat
+        self.roles = mat.roles
+        m = session.analysis.size
+        try:
+            self.plan = plan(settings.model, size, m, repeats=float(settings.repeats))
+            depths = export_depths(mat, self.roles, depth, os.path.splitext(out_path)[0] + ".png")
+        except ValueError as exc:
+            raise SynthesisError(str(exc)) from None
+        self.model = settings.model
+        self.out_path = out_path
+        self.out_rect = Rect(0, 0, size, size)
+        self.coords_path = None
+        self.files = map_files(out_path, self.roles, depths, False)
+        self.outputs = self.files + [("model", out_path, 8)]
+        self.atlas = AtlasDomain(settings.model, self.plan.synth_size, self.plan.sigma, frame=settings.frame,
+                                 up=settings.up)
+        controls, _ = surface_controls(session.controls)
+        self.run_ = AtlasRun(session.gpu, session.synth.gan, session.params, controls, self.atlas)
+        self.done = self.cancelled = False
+        self.error: str | None = None
+        self.started = time.monotonic()
+
+    @property
+    def progress(self) -> float:
+        return 0.95 * self.run_.progress if self.run_ is not None else 1.0
+
+    def cancel(self) -> None:
+        self.cancelled = True
+        self._close()
+
+    def step(self, budget_s: float = 0.03) -> bool:
+        if self.done or self.cancelled:
+            return True
+        try:
+            if not self.run_.step(budget_s):
+                return False
+            coords = self.run_.coords()
+            maps = maps_from_coords(coords, self.atlas, self.material, self.roles, self.plan)
+            write_outputs(self.out_path, self.model, maps, self.files, self.material)
+        except (OSError, ValueError) as exc:
+            self.error = str(exc)
+        self.done = True
+        self._close()
+        return True
+
+    def _close(self) -> None:
+        if self.run_ is not None:
+            self.run_.release()
+            self.run_ = None

@@ -147,6 +147,7 @@ class Document:
     # label each; () for one exemplar.
     palette: tuple[tuple[tuple[str, ExemplarSource], ...], ...] = ()
     direction: DirectionField | None = None            # direction and scale over the canvas (sparse tiles)
+    surface: object | None = None                      # a model to texture (project/surface.py SurfaceSettings)
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on (a lattice's geometry: its
@@ -314,6 +315,11 @@ class Document:
                 raise ProjectError("A palette works without a lattice and without Make tileable.")
             if self.labels is None:
                 raise ProjectError("A palette's exemplars are its labels; the project has no label map.")
+        if self.surface is not None:
+            self.surface.validate()
+            if self.lattice is not None or (self.direction is not None and not self.direction.identity):
+                raise ProjectError("Texture on a model takes its directions from the model; it does not work "
+                                   "with a lattice or a painted direction field.")
         if self.weights is not None:
             roles = {r for r, _ in self.sources()}
             if any(r not in roles or not (is_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \

@@ -202,11 +202,7 @@ class AtlasDomain:
         ok &= nl[:, 0] > 0
         N = nrm / np.maximum(nl, 1e-300)
         if self.frame == "up":
-            Rr = np.cross(self.up, N)
-            weak = np.linalg.norm(Rr, axis=-1) < 0.2
-            alt = np.cross(self.up, [1.0, 0.0, 0.0]) if abs(self.up[0]) < 0.9 else np.cross(self.up, [0.0, 0.0, 1.0])
-            alt = -alt * np.sign((N * self.up).sum(-1, keepdims=True) + 1e-300)  # a second up, facing away
-            Rr = np.where(weak[:, None], np.cross(alt, N), Rr)
+            Rr = np.cross(self._up_field(N), N)
         else:
             Rr = G[:, :, 0] - (G[:, :, 0] * N).sum(-1, keepdims=True) * N
         Rr = Rr / np.maximum(np.linalg.norm(Rr, axis=-1, keepdims=True), 1e-300)
@@ -225,6 +221,34 @@ class AtlasDomain:
         det = q[:, 0] * q[:, 3] - q[:, 1] * q[:, 2]
         q[(det < MIN_DET) | ~ok] = [J_ONE, 0, 0, J_ONE]
         return q.astype(np.int16)
+
+    def _up_field(self, N: np.ndarray) -> np.ndarray:
+        """Per triangle, where the exemplar's up points ("up" frame): the world's
+        up projected on the surface; on faces turned towards up or down (where
+        that vanishes) it blends into the up folded over the model's rims, so
+        across a rim the texture runs on: inwards (towards the vertical axis
+        through the model's centre) on top, outwards underneath. The field is
+        continuous but at the axis (hairy ball: some point must be singular)."""
+        P, f = self.model.positions, self.model.faces
+        up = self.up
+        centre = 0.5 * (P.min(axis=0) + P.max(axis=0))
+        tc = P[f].mean(axis=1)
+        radial = centre - tc
+        radial -= (radial @ up)[:, None] * up
+        radial *= np.sign(N @ up + 1e-300)[:, None]
+
+        def tangent(v):
+            t = v - (v * N).sum(-1, keepdims=True) * N
+            return t, np.linalg.norm(t, axis=-1, keepdims=True)
+        pu, lu = tangent(np.broadcast_to(up, N.shape))
+        pr, lr = tangent(radial)
+        side = np.clip((lu - 0.1) / 0.4, 0.0, 1.0)  # 1 on walls, 0 on faces within 25 degrees of flat
+        u = side * pu / np.maximum(lu, 1e-300) + (1 - side) * pr / np.maximum(lr, 1e-300)
+        # At the axis itself (no radial direction) and where the two cancel: any fixed tangent.
+        alt, _ = tangent(np.broadcast_to(np.cross(up, [1.0, 0.0, 0.0]) if abs(up[0]) < 0.9
+                                         else np.cross(up, [0.0, 0.0, 1.0]), N.shape))
+        lu2 = np.linalg.norm(u, axis=-1, keepdims=True)
+        return np.where(lu2 > 1e-6, u, alt)
 
     # -- per level ------------------------------------------------------------
 

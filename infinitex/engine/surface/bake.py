@@ -41,11 +41,11 @@ def atlas_coords(synth, atlas: AtlasDomain, controls: Controls = NO_CONTROLS) ->
         synth.controls = saved
 
 
-def fill_off_charts(image: np.ndarray, atlas: AtlasDomain) -> np.ndarray:
-    """Texels off the charts: linked ones take their target's value, the rest
-    their nearest chart texel's (in place; returned)."""
-    own = atlas.owner(0)
-    chart, to = atlas.link_map(0)
+def fill_off_charts(image: np.ndarray, atlas: AtlasDomain, k: int = 0) -> np.ndarray:
+    """Texels off the charts (of level k): linked ones take their target's value,
+    the rest their nearest chart texel's (in place; returned)."""
+    own = atlas.owner(k)
+    chart, to = atlas.link_map(k)
     on = own >= 0
     linked = ~on & (chart >= 0)
     image[linked] = image[to[linked][:, 1], to[linked][:, 0]]

@@ -120,3 +120,19 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
     if uv is None and unwrap_missing:
         return unwrap(np.asarray(loaded.vertices), np.asarray(loaded.faces), name)
     return _from_trimesh(loaded, name)
+
+
+def texel_density(model: Model, size: int) -> float:
+    """Atlas texels per world unit at ``size``: the area-weighted median over triangles."""
+    P, f = model.positions, model.faces
+    uv = model.uvs * size
+    a3 = 0.5 * np.linalg.norm(np.cross(P[f[:, 1]] - P[f[:, 0]], P[f[:, 2]] - P[f[:, 0]]), axis=-1)
+    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
+    a2 = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    ok = (a3 > 0) & (a2 > 0)
+    if not ok.any():
+        raise ModelError(f"{model.name}: every triangle is degenerate in space or in its texture coordinates.")
+    rho = np.sqrt(a2[ok] / a3[ok])
+    order = np.argsort(rho)
+    w = np.cumsum(a3[ok][order])
+    return float(rho[order][np.searchsorted(w, 0.5 * w[-1])])
