@@ -24,6 +24,8 @@ from infinitex.engine.pyramid import Pyramid, Rect
 from infinitex.export.loaded import LoadedDocument
 from infinitex.project import Document, View
 
+from .model_session import ModelPreview
+
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
 BAND_S = 0.6  # seconds of synthesis per band of a level too big to refine at once
 
@@ -232,6 +234,7 @@ class Session(LoadedDocument):
         super().__init__(gpu, cache_dir)
         self.pyramid: Pyramid | None = None
         self.refiner: Refiner | None = None
+        self.model = ModelPreview()  # the document's model, textured live (app/model_session.py)
 
     def sync(self, doc: Document) -> None:
         """Keep the engine in step with ``doc``: new analysis key -> analyze;
@@ -255,6 +258,7 @@ class Session(LoadedDocument):
             # The work is done a budget at a time by the refinement, so a dab
             # never holds the editor up (see Pyramid.settle).
             self.pyramid.update_controls(controls, defer=True)
+        self.model.sync(self, doc)
 
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
                 preview: bool = False) -> None:
@@ -269,6 +273,7 @@ class Session(LoadedDocument):
         return self.refiner.step(frame, budget_s)
 
     def release_synthesis(self) -> None:
+        self.model.release()
         if self.pyramid is not None:
             self.pyramid.release()
         self.pyramid = self.refiner = None

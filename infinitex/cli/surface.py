@@ -146,7 +146,7 @@ def run_surface(argv: list[str]) -> int:
         if atlas.stretch_clamped > 0.01:
             sys.stderr.write(f"note: {atlas.stretch_clamped:.0%} of the triangles stretch the texture more than 4x; "
                              "it is held at 4x there (check the model's UVs, or --size)\n")
-    controls, dropped = surface_controls(doc.controls(ex.size))
+    controls, dropped = surface_controls(doc.controls(ex.size), painted_on_model=doc.surface is not None)
     if dropped and not args.quiet:
         sys.stderr.write(f"note: the project's {', '.join(dropped)} belong to the plane; the model leaves them out\n")
     an = analyze(ex, settings, progress=analysis_progress(args.quiet, ex, settings))

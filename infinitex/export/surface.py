@@ -43,14 +43,17 @@ class SurfacePlan:
 
 
 def plan(model: Model, size: int, exemplar_size: int, repeats: float | None = None,
-         texel_ratio: float | None = None) -> SurfacePlan:
+         texel_ratio: float | None = None, synth_size: int | None = None) -> SurfacePlan:
     """Sizes and scale: ``repeats``: the exemplar's width fits this many times
     across the model's largest side; else ``texel_ratio`` (default 1) exemplar
-    px per synthesized texel, typically."""
+    px per synthesized texel, typically. ``synth_size``: synthesize at this
+    size (a project's own, which its painted maps are in) and magnify to ``size``."""
     if size & (size - 1) or not exemplar_size <= size <= MAX_OUTPUT or size < 64:
         raise ValueError(f"The texture size must be a power of two from {max(64, exemplar_size)} "
                          f"(the exemplar's size) to {MAX_OUTPUT}.")
-    synth = min(size, MAX_SIZE)
+    synth = min(size, MAX_SIZE) if synth_size is None else synth_size
+    if synth > size or size // synth > 8:
+        raise ValueError(f"A texture of {size} px is made from a synthesized one of {size // 8} to {size} px.")
     if repeats is not None:
         if not (np.isfinite(repeats) and 0.01 <= repeats <= 10000):
             raise ValueError("--repeats must be from 0.01 to 10000.")
@@ -63,14 +66,18 @@ def plan(model: Model, size: int, exemplar_size: int, repeats: float | None = No
     return SurfacePlan(size, synth, sigma)
 
 
-def surface_controls(controls: Controls) -> tuple[Controls, list[str]]:
+def surface_controls(controls: Controls, painted_on_model: bool = True) -> tuple[Controls, list[str]]:
     """The document's controls that make sense on a model (what is painted or
-    set on the exemplar), and the names of those left out (placed on the plane)."""
-    dropped = [name for name, v in (("canvas randomness", controls.randomness_canvas),
-                                    ("features", controls.features), ("canvas labels", controls.labels_canvas),
-                                    ("direction field", controls.direction), ("lattice", controls.lattice)) if v]
-    kept = replace(controls, randomness_canvas=None, features=(), labels_canvas=None, direction=None,
-                   lattice=None)
+    set on the exemplar, and the canvas randomness when it was painted on the
+    model: a document with a model paints in its atlas), and the names of
+    those left out (placed on the plane)."""
+    plane = [("features", controls.features), ("canvas labels", controls.labels_canvas),
+             ("direction field", controls.direction), ("lattice", controls.lattice)]
+    if not painted_on_model:
+        plane.insert(0, ("canvas randomness", controls.randomness_canvas))
+    dropped = [name for name, v in plane if v]
+    kept = replace(controls, features=(), labels_canvas=None, direction=None, lattice=None,
+                   randomness_canvas=controls.randomness_canvas if painted_on_model else None)
     return kept, dropped
 
 
@@ -237,7 +244,7 @@ class ModelExportJob:
         self.roles = mat.roles
         m = session.analysis.size
         try:
-            self.plan = plan(settings.model, size, m, repeats=float(settings.repeats))
+            self.plan = plan(settings.model, size, m, repeats=float(settings.repeats), synth_size=settings.size)
             depths = export_depths(mat, self.roles, depth, os.path.splitext(out_path)[0] + ".png")
         except ValueError as exc:
             raise SynthesisError(str(exc)) from None

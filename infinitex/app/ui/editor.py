@@ -43,6 +43,7 @@ from .canvas_input import CanvasInputMixin
 from .dialogs import Dialogs
 from .exports import ExportsMixin
 from .files import DEFAULT_EXEMPLAR, FilesMixin
+from .model_mode import ModelModeMixin
 from .shortcuts import ShortcutsMixin
 from .tools import make_tools
 
@@ -64,7 +65,7 @@ ANALYSIS_FPS = 8.0    # while only the analysis thread works (nothing to refine)
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
 
 
-class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
+class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelModeMixin):
     def __init__(self, path: str | None = None, *, screenshot: str | None = None, frames: int = 10,
                  window_size: tuple[int, int] | None = None, recover: bool = True):
         self.start_path = path
@@ -120,6 +121,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self.canvas_pixels = None      # last canvas read back on request (tests)
         self._last_doc = None
         self._last_edit = 0.0
+        self._init_model_mode()
         self.panels = panels.Panels(self)
         self.tools = make_tools(self)
         self.tool = self.tools[0]
@@ -237,6 +239,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
             self.session.release()
         if self.canvas is not None:
             self.canvas.release()
+        self.release_model_view()
         for o in (self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid, self.overlay_labels,
                   self.overlay_canvas_labels):
             if o is not None:
@@ -375,6 +378,9 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin):
         self.canvas_size = (w, h)
         s = self.session
         p0 = imgui.get_cursor_screen_pos()
+        if self.model_mode and s.ready:
+            self._model_canvas(p0, w, h)  # a model is open: it is what the canvas shows
+            return
         # Input first, so this frame already shows what a tool or a pan did.
         hovered = self._canvas_input(p0, w, h)
         if s.ready and self.doc is not None:

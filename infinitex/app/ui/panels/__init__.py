@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.params import DEFAULT_JITTER
 
-from . import brush, display, exemplar, export, material, menu, randomness, status, synthesis, toolbar
+from . import brush, display, exemplar, export, material, menu, model, randomness, status, synthesis, toolbar
 from .display import MAGNIFY_LABELS, MODE_LABELS, MODE_TIPS
 from .exemplar import FIT_LABELS, PANEL_IMAGE, TOROIDAL_LABELS
 from .export import DEPTH_CHOICES, EXPORT_FORMATS, MAGNIFY_CHOICES, TILE_SIZES
@@ -45,6 +45,7 @@ class Panels:
     randomness_panel = randomness.draw
     exemplar_panel, exemplar_thumbnail = exemplar.draw, exemplar.thumbnail
     material_panel = material.draw
+    model_panel = model.draw
     display_panel = display.draw
     export_panel, rectangle_export = export.draw, export.rectangle
     export_view, export_tile, tile_prompt, tile_prompt_window = (export.export_view, export.export_tile,
@@ -66,6 +67,10 @@ class Panels:
             self.brush_panel()
         # Artists' controls first; the synthesis internals wait in Advanced (collapsed).
         # Which sections are open is kept between runs (the user's settings).
+        if ed.model_mode:
+            imgui.set_next_item_open(True, imgui.Cond_.once)
+            if imgui.collapsing_header("Model"):
+                self.model_panel()
         for name, draw in (("Randomness", self.randomness_panel), ("Exemplar", self.exemplar_panel),
                            ("Material", self.material_panel),
                            ("Display", self.display_panel), ("Export", self.export_panel),

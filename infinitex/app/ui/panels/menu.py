@@ -52,6 +52,10 @@ def draw(p: Panels) -> None:
             p.open_material_dialog()
         tip("A material's maps: choose them all, or one map (its siblings named NAME_normal, NAME_height... "
             "come along), or their folder")
+        if imgui.menu_item_simple("Open model...", enabled=ed.doc is not None and ed.session.ready):
+            ed.open_model_dialog()
+        tip("Texture a model (OBJ, glTF, GLB): the texture is synthesized in its atlas, seamless across "
+            "its UV seams")
         if imgui.begin_menu("Open Recent", bool(ed.settings.recent)):
             for i, path in enumerate(ed.settings.recent):
                 if imgui.menu_item_simple(f"{os.path.basename(path)}##recent{i}"):
@@ -70,6 +74,10 @@ def draw(p: Panels) -> None:
         imgui.separator()
         if imgui.menu_item_simple("Export view as PNG...", enabled=ed.session.ready):
             p.export_view()
+        if imgui.menu_item_simple("Export model...", enabled=ed.model_mode and ed.session.ready):
+            ed.export_model_dialog()
+        if imgui.menu_item_simple("Close model", enabled=ed.model_mode):
+            ed.close_model()
         if imgui.menu_item_simple("Export toroidal tile...", enabled=ed.session.ready):
             p.tile_prompt()  # its size first
         imgui.separator()

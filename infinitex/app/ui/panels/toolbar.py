@@ -9,6 +9,8 @@ from imgui_bundle import imgui
 if TYPE_CHECKING:
     from . import Panels
 
+PLANE_ONLY = ("feature", "labels", "direction", "lattice")  # tools of the plane, hidden while a model is open
+
 
 def draw(p: Panels) -> None:
     """The tool bar over the canvas: one button per tool, the field overlay toggle."""
@@ -21,7 +23,8 @@ def draw(p: Panels) -> None:
         imgui.same_line()
         if imgui.get_content_region_avail().x < w:
             imgui.new_line()
-    for i, t in enumerate(ed.tools):
+    shown = [t for t in ed.tools if not (ed.model_mode and t.name in PLANE_ONLY)]
+    for i, t in enumerate(shown):
         if i:
             next_item(f"{t.label} ({t.key})")
         active = t is ed.tool

@@ -1,0 +1,270 @@
+"""The editor with a model open (texture on a surface, LH06 6): the canvas
+shows the model lit, with its texture synthesized live in its atlas
+(app/model_session.py), and takes the mouse the way Blender's viewport does:
+the middle button orbits (Shift: pans), the wheel zooms, the right button
+pans; the left button orbits too, except with the Paint canvas brush, which
+paints randomness on the model (ray-picked into the atlas). File > Open
+model, Export model (GLB and every map) and Close model; the Model panel.
+
+A mixin of ``Editor`` (editor.py); its state (camera, view, framebuffer) is
+made here on first use.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import replace
+
+import moderngl
+import numpy as np
+from imgui_bundle import imgui
+
+from infinitex.engine.controls import CanvasField
+from infinitex.engine.safeio import WriteError, check_output, printable
+from infinitex.engine.surface import AtlasError, ModelError, load_model
+from infinitex.project import ProjectError
+from infinitex.project.surface import SIZES, SurfaceSettings, default_repeats
+
+from ..render.model_view import ModelView, OrbitCamera
+from .tools.paint import dab_centers
+
+MODEL_FILTER = ["Models (*.obj *.glb *.gltf)", "*.obj *.glb *.gltf"]
+MODEL_BUDGET_S = 0.030  # atlas synthesis per frame
+ORBIT_DEG_PER_PX = 0.4
+
+
+class ModelModeMixin:
+    """Opening, showing, orbiting, painting on and exporting a model."""
+
+    @property
+    def model_mode(self) -> bool:
+        return self.doc is not None and self.doc.surface is not None
+
+    # -- open, close, export --------------------------------------------------
+
+    def open_model_dialog(self) -> None:
+        self.dialogs.ask_path("Open model", False, MODEL_FILTER, self.open_model)
+
+    def open_model(self, path: str, unwrap: bool = False) -> None:
+        """Put a model in the document (one undo step): the texture is synthesized in its atlas."""
+        if self.doc is None or not self.session.ready:
+            return
+        try:
+            model = load_model(path, unwrap_missing=unwrap)
+        except ModelError as exc:
+            if "--unwrap" in str(exc) and not unwrap:
+                self.dialogs.ask("Open model", f"{printable(os.path.basename(path))} has no texture coordinates. "
+                                 "Generate them (xatlas)?",
+                                 [("Generate", lambda: self.open_model(path, True)), ("Cancel", None)])
+            else:
+                self.dialogs.message("Open model", str(exc))
+            return
+        m = self.session.analysis.size
+        size = max(m, 1024 if len(model.faces) > 20000 else 512)
+        try:
+            settings = SurfaceSettings(model, size, repeats=default_repeats(model, size, m))
+            settings.validate(m)
+            # The canvas randomness is painted on the model from now on (in its atlas): the plane's goes.
+            self.edit(replace(self.doc, surface=settings, direction=None, lattice=None, randomness_canvas=None),
+                      f"Open model {os.path.basename(path)}")
+        except (ProjectError, AtlasError, ValueError) as exc:
+            self.dialogs.message("Open model", str(exc))
+            return
+        self.camera = OrbitCamera.framing(model.positions)
+        self._model_view_key = None
+
+    def close_model(self) -> None:
+        if self.model_mode:
+            self.edit(replace(self.doc, surface=None, randomness_canvas=None), "Close model")
+
+    def set_surface(self, label: str, **changes) -> None:
+        """An edit of the model's settings (size, scale, frame): one undo step per gesture."""
+        try:
+            s = replace(self.doc.surface, **changes)
+            s.validate(self.session.analysis.size)
+        except (ProjectError, ValueError) as exc:
+            self.dialogs.message("Model", str(exc))
+            return
+        self.edit(replace(self.doc, surface=s), label, group=("surface", label))
+
+    def export_model_dialog(self) -> None:
+        self.dialogs.ask_path("Export model", True, ["glTF binary (*.glb)", "*.glb"], self.start_model_export)
+
+    def start_model_export(self, path: str, magnify: int | None = None) -> None:
+        from infinitex.export.surface import ModelExportJob
+        from infinitex.export.window import Writes, check_own_inputs
+        if not path.lower().endswith(".glb"):
+            path += ".glb"
+        s = self.doc.surface
+        size = s.size * (magnify or getattr(self, "model_export_magnify", 1))
+        try:
+            check_output(path, (".glb",), "export")
+            job = ModelExportJob(self.session, s, path, size, self.export_depth)
+            check_own_inputs(Writes(files=[p for _, p, _ in job.outputs]), self.export_inputs())
+        except (ValueError, WriteError) as exc:
+            self.dialogs.message("Export model", str(exc))
+            return
+        self.export_job = job
+
+    # -- the canvas ---------------------------------------------------------------
+
+    def _init_model_mode(self) -> None:
+        """The model view's state (Editor.__init__)."""
+        self.camera = OrbitCamera()
+        self.model_view: ModelView | None = None
+        self._model_view_key = None
+        self._model_fbo = None
+        self._model_uv = None  # (camera, size, uv image) of the last pick
+        self.show_seams = False
+        self._seams_key = None
+        self._model_tex_version = -1
+        self._stroke_last = None
+        self._stroke_group: object = None
+        self.model_export_magnify = 1
+        self.atlas_request = False  # tests: read the finished atlas's coordinates during a frame
+        self.atlas_read = None
+
+    def _model_canvas(self, p0, w: int, h: int) -> None:
+        s = self.session
+        model = self.doc.surface.model
+        if self._model_view_key != model.key or self.model_view is None:
+            if self.model_view is not None:
+                self.model_view.release()
+            self.model_view = ModelView(self.gpu.ctx, model.positions, model.faces, model.uvs)
+            if self._model_view_key is None:  # a model opened with the document (a project): frame it
+                self.camera = OrbitCamera.framing(model.positions)
+            self._model_view_key = model.key
+            self._model_tex_version = -1
+            self._seams_key = None
+        hovered = self._model_input(p0, w, h)
+        pv = s.model
+        pv.sync(s, self.doc)
+        t0 = time.perf_counter()
+        self.refined = pv.step(MODEL_BUDGET_S, self.shown_role())
+        self.update_ms = (time.perf_counter() - t0) * 1000.0
+        mv = self.model_view
+        if pv.image is not None and pv.version != self._model_tex_version:
+            mv.set_texture(pv.image)
+            self._model_tex_version = pv.version
+        seams_key = (self.show_seams, pv.atlas.key if pv.atlas is not None else None)
+        if seams_key != self._seams_key and pv.atlas is not None:
+            own = pv.atlas.owner(0)
+            border = np.zeros_like(own, bool)
+            if self.show_seams:
+                border[:, 1:] |= own[:, 1:] != own[:, :-1]
+                border[:, :-1] |= own[:, :-1] != own[:, 1:]
+                border[1:] |= own[1:] != own[:-1]
+                border[:-1] |= own[:-1] != own[1:]
+                border &= own >= 0
+            mv.set_seams(border if self.show_seams else None)
+            self._seams_key = seams_key
+        fbo = self._model_fbo
+        if fbo is None or fbo.size != (w, h):
+            if fbo is not None:
+                fbo.release()
+            self._model_fbo = fbo = self.gpu.ctx.framebuffer(
+                color_attachments=[self.gpu.ctx.texture((w, h), 4)],
+                depth_attachment=self.gpu.ctx.depth_renderbuffer((w, h)))
+            fbo.color_attachments[0].filter = (moderngl.NEAREST, moderngl.NEAREST)
+        fbo.use()
+        fbo.clear(0.16, 0.17, 0.19, 1.0, depth=1.0)
+        if pv.image is not None:
+            mv.draw(self.camera, (0, 0, w, h), mode=2 if self.show_seams else 0)
+        if self.canvas_request:
+            self.canvas_pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1].copy()
+            self.canvas_request = False
+        if self.atlas_request and pv.done:
+            self.atlas_read = pv.coords()
+            self.atlas_request = False
+        self.screen_fbo.use()
+        imgui.set_cursor_screen_pos(p0)
+        imgui.image(imgui.ImTextureRef(fbo.color_attachments[0].glo), (w, h), (0, 1), (1, 0))
+        dl = imgui.get_window_draw_list()
+        text = None
+        if pv.image is None:
+            text = f"Texturing {printable(model.name)}: {pv.progress * 100:.0f}%"
+        elif not pv.done:
+            text = f"Refining the texture: {pv.progress * 100:.0f}%"
+        if text:
+            tw = imgui.calc_text_size(text).x
+            dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 24 + tw, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
+            dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), text)
+        if hovered and self.tool.name == "paint-canvas":
+            io = imgui.get_io()
+            r = self.tool.brush.radius
+            dl.add_circle((io.mouse_pos.x, io.mouse_pos.y), r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
+            dl.add_circle((io.mouse_pos.x, io.mouse_pos.y), r, imgui.get_color_u32((1, 1, 1, 0.9)), 0, 1.5)
+
+    def _model_input(self, p0, w: int, h: int) -> bool:
+        imgui.invisible_button("canvas", (w, h), imgui.ButtonFlags_.mouse_button_left
+                               | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
+        io = imgui.get_io()
+        hovered = imgui.is_item_hovered()
+        mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
+        painting = self.tool.name == "paint-canvas" and not io.key_alt
+        if imgui.is_item_activated():
+            left = imgui.is_mouse_down(imgui.MouseButton_.left)
+            self._canvas_button = 0 if left else (2 if imgui.is_mouse_down(imgui.MouseButton_.middle) else 1)
+            if left and painting:
+                self._stroke_last = None
+                self._stroke_group = object()
+                self._paint_model(mx, my, w, h)
+        elif imgui.is_item_active() and self._canvas_button >= 0:
+            d = io.mouse_delta
+            if self._canvas_button == 0 and painting:
+                if d.x or d.y:
+                    self._paint_model(mx, my, w, h)
+            elif (self._canvas_button == 1 or (self._canvas_button == 2 and io.key_shift)) and (d.x or d.y):
+                self.camera = self.camera.pan(-d.x / h, d.y / h, w / max(1, h))
+            elif d.x or d.y:
+                self.camera = self.camera.orbit(-d.x * ORBIT_DEG_PER_PX, d.y * ORBIT_DEG_PER_PX)
+        if imgui.is_item_deactivated() and self._canvas_button >= 0:
+            if self._canvas_button == 0 and painting and self.history is not None:
+                self.history.end_group()
+            self._canvas_button = -1
+            self._stroke_last = None
+        if hovered and io.mouse_wheel:
+            self.camera = self.camera.zoom(0.85 ** io.mouse_wheel)
+        self.cursor = None
+        return hovered
+
+    def _uv_image(self, w: int, h: int) -> np.ndarray:
+        key = (self.camera, w, h, self._model_view_key)
+        if self._model_uv is None or self._model_uv[0] != key:
+            self._model_uv = (key, self.model_view.render(self.camera, (w, h), mode=1, background=(0, 0, 0)))
+        return self._model_uv[1]
+
+    def _paint_model(self, x: float, y: float, w: int, h: int) -> None:
+        """A dab of the Paint canvas brush where the ray under (x, y) meets the model (atlas texels)."""
+        uvh = self._uv_image(w, h)
+        xi, yi = int(x), int(y)
+        if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
+            self._stroke_last = None
+            return
+        n = self.doc.surface.size
+        u, v = float(uvh[yi, xi, 0]), float(uvh[yi, xi, 1])
+        pos = (u * n, (1.0 - v) * n)
+        # Atlas texels per screen pixel here: the brush keeps its size on screen.
+        x2 = min(w - 1, xi + 3) if xi + 3 < w else max(0, xi - 3)
+        du = uvh[yi, x2, :2] - uvh[yi, xi, :2] if uvh[yi, x2, 2] > 0.5 else np.zeros(2)
+        per_px = float(np.hypot(*du)) * n / max(1, abs(x2 - xi)) or 1.0
+        b = self.tool.brush
+        r = max(1.0, b.radius * per_px if b.screen_units else b.radius)
+        last = self._stroke_last
+        if last is not None and math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r:
+            last = None  # a jump across charts: no dabs in between
+        dabs = dab_centers(last, pos, 0.25 * r)
+        if not dabs:
+            return
+        field = self.doc.randomness_canvas or CanvasField()
+        for cx, cy in dabs:
+            field, _ = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)
+        self._stroke_last = dabs[-1]
+        self.tool.dabs += len(dabs)
+        self.edit(replace(self.doc, randomness_canvas=field), "Paint randomness (model)", group=self._stroke_group)
+
+    def release_model_view(self) -> None:
+        for o in (getattr(self, "model_view", None), getattr(self, "_model_fbo", None)):
+            if o is not None:
+                o.release()
