@@ -67,12 +67,15 @@ builds them from label images; ``palette(exemplars)`` packs several
 exemplars into one, one label each), ``DirectionField`` (the texture turns,
 grows and stretches over the canvas; ``direction_field(map)`` reads a flow or
 angle map, ``DirectionField.uniform`` / ``from_jacobians`` / ``painted`` build
-one, ``jacobian(degrees, scale, aspect)`` gives its values). Projects: ``load_project``,
+one, ``jacobian(degrees, scale, aspect)`` gives its values). Models:
+``texture_model(model, exemplar, size)`` synthesizes in a model's atlas,
+seamless across its UV seams (``load_model``, ``Model``, ``AtlasDomain``).
+Projects: ``load_project``,
 ``save_project``; the editor's exports: ``infinitex export``. Runnable
 examples of each capability are in ``examples/`` of the source tree.
 
 Command line: ``infinitex`` (the editor), ``infinitex synth``, ``infinitex
-export``, ``infinitex --version``.
+export``, ``infinitex surface``, ``infinitex --version``.
 """
 from __future__ import annotations
 
@@ -97,7 +100,8 @@ _EXPORTS = {
     "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
     "ExemplarLabels": "engine.controls", "CanvasLabels": "engine.controls",
     "DirectionField": "engine.controls.direction", "jacobian": "engine.controls.direction",
-    "direction_field": "api",
+    "direction_field": "api", "texture_model": "api",
+    "Model": "engine.surface", "load_model": "engine.surface", "AtlasDomain": "engine.surface",
     "Lattice": "engine.controls.lattice", "rectified_exemplar": "engine.controls.lattice", "render_original": "engine.controls.lattice",
     "original_geometry_box": "engine.controls.lattice",
     "TiledExport": "export.streamed",

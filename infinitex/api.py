@@ -200,3 +200,31 @@ def _jitter_params(L: int, seed: int, randomness) -> SynthParams:
     if len(r) != L + 1:
         raise ValueError(f"randomness needs one value or {L + 1} (one per level), not {len(r)}.")
     return SynthParams(jitter=r, seed=seed)
+
+
+def texture_model(model, exemplar, size: int = 1024, *, repeats: float | None = None, frame: str = "up",
+                  seed: int = 0, structure: int | None = None, seams: bool = True):
+    """Texture a model (LH06 6): synthesis directly in its atlas, continuous
+    across its UV seams. ``model``: an OBJ/glTF/GLB path or a
+    :class:`~infinitex.engine.surface.Model`; ``exemplar``: a path, an array
+    or an Exemplar. ``repeats``: the exemplar's width fits that many times
+    across the model's largest side (default: about one exemplar pixel per
+    texel); ``frame``: "up" (upright) or "uv". Returns (image float32
+    (size, size, C), coordinates (size, size, 4) int32, the AtlasDomain).
+    ``seams=False``: each chart on its own (for comparison)."""
+    from .engine.params import DEFAULT_STRUCTURE
+    from .engine.surface import AtlasDomain, Model, load_model
+    from .engine.surface.bake import atlas_coords, atlas_image
+    from .export.surface import plan
+    m = model if isinstance(model, Model) else load_model(os.fspath(model))
+    ex, _ = _exemplar(exemplar, None)
+    an = analyze(ex)
+    pl = plan(m, size, an.size, repeats=repeats)
+    if pl.magnify != 1:
+        raise ValueError(f"texture_model synthesizes up to 4096 px; use `infinitex surface` for {size} px.")
+    atlas = AtlasDomain(m, size, pl.sigma, frame=frame, seams=seams)
+    params = structure_params(SynthParams.default(an.L, seed=seed),
+                              DEFAULT_STRUCTURE if structure is None else structure)
+    with Synthesizer(an, params) as synth:
+        coords = atlas_coords(synth, atlas)
+    return atlas_image(an.levels[an.L].stack, coords, atlas, an.toroidal), coords, atlas
