@@ -331,12 +331,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             cvals = self.controls.randomness_canvas.region(an.L - l, region.x0, region.y0, region.w, region.h,
                                                            p.level_period(l))
         ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
-        dtex = self._direction_texture(l, region)
-        ltex = self._links_texture(l, region)  # a mesh's atlas: its indirection maps (this level's, the parent's)
-        ptex = self._links_texture(l - 1, region.half()) if ltex is not None and l > 0 else None
-        ddef = dict(DIRECTION=True) if dtex is not None else {}
-        if ltex is not None:
-            ddef["ATLAS"] = True
+        dtex, ltex, ptex, ddef = self._geometry_textures(l, region)
         labels = None
         try:
             # Upsample + jitter into scratch a (modulated by the randomness fields), at once.

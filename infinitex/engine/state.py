@@ -39,6 +39,15 @@ class StateAccess:
             vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
         return self.gpu.int_texture((region.w, region.h), 4, vals)
 
+    def _geometry_textures(self, l: int, region: Rect) -> tuple:
+        """What the passes read of the region's geometry: J (or None), the atlas'
+        indirection maps of the level and of its parent (or None), and the shader defines."""
+        dtex = self._direction_texture(l, region)
+        ltex = self._links_texture(l, region)
+        ptex = self._links_texture(l - 1, region.half()) if ltex is not None and l > 0 else None
+        return dtex, ltex, ptex, {**(dict(DIRECTION=True) if dtex is not None else {}),
+                                  **(dict(ATLAS=True) if ltex is not None else {})}
+
     def _links_texture(self, l: int, region: Rect):
         """The indirection map of a mesh's atlas over a region of level l
         (RGBA16I: own chart, the chart its link serves, the link's target), or

@@ -15,6 +15,8 @@ from dataclasses import replace
 import numpy as np
 from imgui_bundle import imgui
 
+from infinitex.engine.material import IMAGE
+
 from .tools import CANVAS_SPACE_TOOLS
 from .tools.direction import draw_field
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
@@ -146,6 +148,15 @@ class CanvasInputMixin:
         dl.pop_clip_rect()
 
     # -- small helpers for panels -----------------------------------------
+
+    def shown_role(self) -> str:
+        """The map the canvas shows: the Display panel's choice; the lit preview
+        shows the base color (or the first map) shaded."""
+        s = self.session
+        mat = s.material
+        if self.display.mode == "lit":
+            return next((r for r in ("basecolor", IMAGE) if r in mat.maps), mat.primary)
+        return s.shown_map(self.display.map)
 
     def geometry(self):
         """The 2x2 map from view positions to the synthesized canvas when a

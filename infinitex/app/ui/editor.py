@@ -27,7 +27,6 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 )
 
 from infinitex.engine.gpu import GLUnavailable, Gpu
-from infinitex.engine.material import IMAGE
 from infinitex.engine.pyramid import SynthesisError
 from infinitex.engine.safeio import WriteError, printable
 from infinitex.export.jobs import ExportEstimate, StreamedExport
@@ -347,15 +346,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
             self._show_maps()
         self._poll_export()
         self._autosave_tick()
-
-    def shown_role(self) -> str:
-        """The map the canvas shows: the Display panel's choice; the lit preview
-        shows the base color (or the first map) shaded."""
-        s = self.session
-        mat = s.material
-        if self.display.mode == "lit":
-            return next((r for r in ("basecolor", IMAGE) if r in mat.maps), mat.primary)
-        return s.shown_map(self.display.map)
 
     def _show_maps(self) -> None:
         """Upload the shown map's stack (and, lit, the shaping map's) when they change."""
