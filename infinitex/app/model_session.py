@@ -95,6 +95,21 @@ class ModelPreview:
         self.image_level = level
         self.version += 1
 
+    def magnification(self, role: str | None = None):
+        """What the model view magnifies once the finest level is shown: the
+        coordinates (off the charts: the texels across the seam, else the
+        nearest chart texel's), J per texel, the shown map's exemplar (its
+        hi-res copy when there is one, uint8), m and whether it wraps; or None."""
+        if self.image is None or self.run is None or self._run_shown != self.run.L:
+            return None
+        mat = self._session.material
+        role = role if role in mat.maps else next((r for r in ("basecolor", IMAGE) if r in mat.maps), mat.primary)
+        ex = mat.maps[role].exemplar
+        n = self.atlas.size
+        coords = fill_off_charts(self.run.coords().copy(), self.atlas)
+        return (coords, self.atlas.jacobians(0, 0, 0, n, n), to_u8(ex.hires if ex.hires is not None else ex.pixels),
+                ex.size, mat.toroidal)
+
     def coords(self) -> np.ndarray | None:
         """The finished atlas's coordinates (tests), or None while it runs."""
         return self.run.coords() if self.run is not None and self.run.done else None

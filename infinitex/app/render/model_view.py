@@ -35,24 +35,68 @@ FRAG = """
 uniform sampler2D tex;
 uniform vec3 light;      // towards the light, world space
 uniform vec3 eye_dir;    // towards the eye, world space
-uniform int mode;        // 0 lit texture, 1 texture coordinates (picking), 2 chart seams overlay
-uniform sampler2D seams; // 1 where a texel is a chart border texel (mode 2)
+uniform int mode;        // 0 lit texture, 1 texture coordinates (picking)
+uniform int marks;       // mark the chart borders (seams)
+uniform sampler2D seams; // 1 where a texel is a chart border texel
+// Synthesis magnification (LH05 5, LH06 6): the atlas's coordinates (texel x,
+// y, remainder x, y in 1/256 px; off the charts, the texels across the seam),
+// J per texel (Q12) and the exemplar (its hi-res copy when there is one).
+uniform int magnify;
+uniform isampler2D coords;
+uniform isampler2D jac;
+uniform sampler2D exemplar;
+uniform int n;           // atlas texels a side
+uniform float m;         // exemplar pixels a side (the coordinates' unit)
+uniform int toroidal;
 in vec3 v_normal;
 in vec2 v_uv;
 out vec4 color;
+
+vec3 magnified(vec2 uv) {
+    vec2 p = uv * float(n) - 0.5;  // atlas texel space, row 0 at the top
+    vec2 fb = floor(p);
+    vec2 t = p - fb;
+    vec2 P[4];
+    float W[4];
+    mat2 J0 = mat2(1.0);
+    for (int c = 0; c < 4; c++) {
+        ivec2 o = ivec2(c & 1, c >> 1);
+        ivec2 g = clamp(ivec2(fb) + o, ivec2(0), ivec2(n - 1));
+        ivec4 S = texelFetch(coords, g, 0);
+        vec4 j = vec4(texelFetch(jac, g, 0)) / 4096.0;
+        mat2 J = mat2(j.x, j.z, j.y, j.w);  // columns: J (1, 0), J (0, 1)
+        if (c == 0) J0 = J;
+        P[c] = vec2(S.xy) + vec2(S.zw) / 256.0 + 0.5 + J * (t - vec2(o));
+        W[c] = (o.x == 0 ? 1.0 - t.x : t.x) * (o.y == 0 ? 1.0 - t.y : t.y);
+    }
+    vec2 dx = J0 * (dFdx(p)) / m, dy = J0 * (dFdy(p)) / m;
+    vec3 acc = vec3(0.0);
+    for (int c = 0; c < 4; c++) {
+        vec2 pull = vec2(0.0);  // patches a texel apart warp into each other (canvas.frag)
+        for (int o = 0; o < 4; o++) {
+            vec2 d = P[o] - P[c];
+            if (toroidal != 0) d -= m * floor(d / m + 0.5);
+            if (o != c && max(abs(d.x), abs(d.y)) <= 1.0) pull += W[o] * d;
+        }
+        acc += W[c] * textureGrad(exemplar, (P[c] + pull) / m, dx, dy).rgb;
+    }
+    return acc;
+}
+
 void main() {
     if (mode == 1) {
         color = vec4(v_uv, 1.0, 1.0);
         return;
     }
-    vec3 n = normalize(v_normal);
-    if (!gl_FrontFacing) n = -n;
-    vec3 c = texture(tex, vec2(v_uv.x, 1.0 - v_uv.y)).rgb;
-    float diff = max(dot(n, normalize(light)), 0.0);
+    vec3 n3 = normalize(v_normal);
+    if (!gl_FrontFacing) n3 = -n3;
+    vec2 uv = vec2(v_uv.x, 1.0 - v_uv.y);
+    vec3 c = magnify != 0 ? magnified(uv) : texture(tex, uv).rgb;
+    float diff = max(dot(n3, normalize(light)), 0.0);
     vec3 h = normalize(normalize(light) + normalize(eye_dir));
-    float spec = pow(max(dot(n, h), 0.0), 40.0) * 0.12;
+    float spec = pow(max(dot(n3, h), 0.0), 40.0) * 0.12;
     vec3 lit = c * (0.28 + 0.8 * diff) + spec;
-    if (mode == 2 && texture(seams, vec2(v_uv.x, 1.0 - v_uv.y)).r > 0.5) lit = mix(lit, vec3(1.0, 0.15, 0.1), 0.75);
+    if (marks != 0 && texture(seams, uv).r > 0.5) lit = mix(lit, vec3(1.0, 0.15, 0.1), 0.75);
     color = vec4(lit, 1.0);
 }
 """
@@ -143,6 +187,8 @@ class ModelView:
         self.texture = None
         self.seam_texture = None
         self._fbo = None
+        self._synthesis = None  # set_synthesis: (coords, J, exemplar textures, m, toroidal)
+        self.magnify = True     # draw by synthesis magnification once it is set
 
     @staticmethod
     def _smooth_normals(positions, faces, face_n) -> np.ndarray:
@@ -179,6 +225,36 @@ class ModelView:
         # frame rate and anisotropic filtering two thirds (bench/surface.py).
         self.texture.filter = (moderngl.LINEAR_MIPMAP_NEAREST, moderngl.LINEAR)
 
+    def _set(self, name: str, value) -> None:
+        if name in self.prog:  # the driver may drop unused uniforms
+            self.prog[name].value = value
+
+    def set_synthesis(self, coords: np.ndarray | None, jac: np.ndarray | None = None, exemplar=None,
+                      m: int = 0, toroidal: bool = True) -> None:
+        """Draw by synthesis magnification: the atlas's coordinates ((N, N, 4):
+        texel, remainder in 1/256 px; off the charts, the texels across the
+        seam), J per texel (Q12) and the exemplar (uint8 (H, H, C); its
+        hi-res copy) whose m x m pixels the coordinates are in. None: the texture."""
+        if self._synthesis is not None:
+            for t in self._synthesis[:3]:
+                t.release()
+            self._synthesis = None
+        if coords is None:
+            return
+        n = coords.shape[0]
+
+        def itex(a):
+            t = self.ctx.texture((n, n), 4, np.ascontiguousarray(a, np.int16).tobytes(), dtype="i2")
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            return t
+        e = np.asarray(exemplar)
+        e = np.repeat(e, 3, axis=2) if e.shape[2] == 1 else (np.repeat(e[..., :1], 3, axis=2) if e.shape[2] == 2 else e[..., :3])
+        ex = self.ctx.texture((e.shape[1], e.shape[0]), 3, np.ascontiguousarray(e, np.uint8).tobytes())
+        ex.build_mipmaps()
+        ex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        ex.repeat_x = ex.repeat_y = bool(toroidal)
+        self._synthesis = (itex(coords), itex(jac), ex, m, toroidal)
+
     def set_seams(self, mask: np.ndarray | None) -> None:
         """Texels to mark (bool (N, N)), e.g. the charts' border texels; None: none."""
         if self.seam_texture is not None:
@@ -198,13 +274,23 @@ class ModelView:
         self.prog["eye_dir"].value = tuple(_normalize(eye - np.asarray(camera.target)))
         light = view[:3, :3].T @ _normalize(np.array([0.5, 0.8, 0.6]))  # from above the camera's right
         self.prog["light"].value = tuple(light)
-        self.prog["mode"].value = mode if (mode != 2 or self.seam_texture is not None) else 0
+        self.prog["mode"].value = 1 if mode == 1 else 0
+        self._set("marks", int(mode == 2 and self.seam_texture is not None))
         if self.texture is not None:
             self.texture.use(0)
-            self.prog["tex"].value = 0
+            self._set("tex", 0)
         if self.seam_texture is not None:
             self.seam_texture.use(1)
-            self.prog["seams"].value = 1
+            self._set("seams", 1)
+        mag = self.magnify and self._synthesis is not None and mode != 1
+        self._set("magnify", int(mag))
+        if mag:
+            coords, jac, ex, m, toroidal = self._synthesis
+            for unit, t in ((2, coords), (3, jac), (4, ex)):
+                t.use(unit)
+            for name, v in (("coords", 2), ("jac", 3), ("exemplar", 4), ("n", coords.size[0]), ("m", float(m)),
+                            ("toroidal", int(toroidal))):
+                self._set(name, v)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         self.vao.render(moderngl.TRIANGLES)
@@ -237,6 +323,7 @@ class ModelView:
         return (min(atlas_size - 1, max(0, int(u * atlas_size))), min(atlas_size - 1, max(0, int((1 - v) * atlas_size))))
 
     def release(self) -> None:
+        self.set_synthesis(None)
         for o in (self.vao, self.vbo, self.prog, self.texture, self.seam_texture, self._fbo):
             if o is not None:
                 o.release()

@@ -146,6 +146,8 @@ class ModelModeMixin:
         mv = self.model_view
         if pv.image is not None and pv.version != self._model_tex_version:
             mv.set_texture(pv.image)
+            mag = pv.magnification(self.shown_role())  # the finest level: magnified when zoomed in
+            mv.set_synthesis(*(mag or (None,)))
             self._model_tex_version = pv.version
         seams_key = (self.show_seams, pv.atlas.key if pv.atlas is not None else None)
         if seams_key != self._seams_key and pv.atlas is not None:

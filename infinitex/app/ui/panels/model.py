@@ -47,6 +47,11 @@ def draw(p: Panels) -> None:
     imgui.pop_item_width()
     _, ed.show_seams = imgui.checkbox("Show seams", ed.show_seams)
     tip("Mark the borders of the model's UV charts: the texture runs across them")
+    if ed.model_view is not None:
+        imgui.same_line()
+        _, ed.model_view.magnify = imgui.checkbox("Magnify", ed.model_view.magnify)
+        tip("Draw the texture by synthesis magnification: sharp when zoomed in close (each pixel reads the "
+            "exemplar, or its full-resolution copy, through the synthesized coordinates). Off: the texture's texels")
     if imgui.button("Frame the model"):
         from ...render.model_view import OrbitCamera
         ed.camera = OrbitCamera.framing(s.model.positions)

@@ -1,0 +1,117 @@
+"""The model view (app/render/model_view.py) and the live model texture
+(app/model_session.py), headless: picking hits the atlas texel under the
+mouse, the camera's moves, the preview's levels coarse to fine and its final
+atlas equal to the engine's, synthesis magnification sharper than the texture."""
+import math
+import os
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from infinitex.app.render.model_view import ModelView, OrbitCamera
+from infinitex.app.session import Session
+from infinitex.engine.surface import Model
+from infinitex.engine.surface.bake import atlas_coords
+from infinitex.engine.surface.shapes import cube
+from infinitex.export.surface import surface_controls
+from infinitex.project import Document, ExemplarSource
+from infinitex.project.surface import SurfaceSettings
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BRICK = os.path.join(ROOT, "infinitex", "assets", "brick.png")
+
+
+def quad() -> Model:
+    """A 2 x 2 square in the z = 0 plane facing +z, its UVs the unit square (v up)."""
+    P = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float64)
+    return Model(P, np.array([[0, 1, 2], [0, 2, 3]]), (P[:, :2] + 1) / 2, name="quad")
+
+
+def test_picking_finds_the_atlas_texel_under_the_mouse(gpu):
+    gpu.activate()
+    q = quad()
+    view = ModelView(gpu.ctx, q.positions, q.faces, q.uvs)
+    cam = OrbitCamera(target=(0.0, 0.0, 0.0), yaw=0.0, pitch=0.0, distance=3.0)
+    try:
+        n = 256
+        assert view.pick(cam, (200, 200), 100, 100, n) in ((127, 127), (128, 128), (127, 128), (128, 127))
+        # Right of the centre is +x (u up), above it is +y (v up: atlas rows towards 0).
+        right, up = view.pick(cam, (200, 200), 140, 100, n), view.pick(cam, (200, 200), 100, 60, n)
+        assert right[0] > 140 and abs(right[1] - 128) <= 1
+        assert up[1] < 116 and abs(up[0] - 128) <= 1
+        assert view.pick(cam, (200, 200), 2, 2, n) is None  # the background
+    finally:
+        view.release()
+
+
+def test_the_camera_orbits_zooms_and_pans():
+    cam = OrbitCamera(target=(0.0, 0.0, 0.0), yaw=0.0, pitch=0.0, distance=2.0)
+    assert np.allclose(cam.eye, [0, 0, 2])
+    assert np.allclose(cam.orbit(90.0, 0.0).eye, [2, 0, 0])
+    assert cam.orbit(0.0, 200.0).pitch == 89.0  # never over the pole
+    assert cam.zoom(0.5).distance == 1.0
+    moved = cam.pan(0.25, 0.0, 1.0)  # a quarter of the view to the right: the target goes left
+    h = 2 * 2.0 * math.tan(math.radians(cam.fovy) / 2)
+    assert np.allclose(moved.target, [-0.25 * h, 0, 0])
+
+
+@pytest.fixture(scope="module")
+def session(gpu):
+    s = Session(gpu)
+    doc = Document(ExemplarSource.from_file(BRICK), structure=0)
+    s.load_now(doc)
+    m = cube(n=2)
+    doc = replace(doc, surface=SurfaceSettings(m, 256, repeats=2.0))
+    s.sync(doc)
+    yield s, doc
+    s.release()
+
+
+def test_the_live_texture_refines_coarse_to_fine_and_ends_as_the_engines(session):
+    s, doc = session
+    pv = s.model
+    shown = []
+    while not pv.step(0.01):
+        if pv.image is not None and (not shown or shown[-1] != pv.image.shape[0]):
+            shown.append(pv.image.shape[0])
+    shown.append(pv.image.shape[0])
+    assert shown[0] < 256 and shown[-1] == 256 and shown == sorted(shown)
+    controls, _ = surface_controls(s.controls)
+    s.synth.set_params(s.params, controls)
+    assert np.array_equal(pv.coords(), atlas_coords(s.synth, pv.atlas, controls))
+    # A change starts again, showing the old texture until the new one is as sharp.
+    old = pv.image
+    s.sync(replace(doc, seed=9))
+    pv.step(0.001)
+    assert pv.image is old
+    while not pv.step(0.05):
+        pass
+    assert not np.array_equal(pv.image, old)
+    s.sync(doc)
+    while not pv.step(0.05):
+        pass
+
+
+def test_magnification_is_sharper_than_the_texture_up_close(gpu, session):
+    s, doc = session
+    pv = s.model
+    while not pv.step(0.05):
+        pass
+    m = doc.surface.model
+    gpu.activate()
+    view = ModelView(gpu.ctx, m.positions, m.faces, m.uvs)
+    try:
+        view.set_texture(pv.image)
+        close = OrbitCamera(target=(0.3, 0.3, 1.0), yaw=0.0, pitch=0.0, distance=0.6)
+        plain = view.render(close, (200, 200)).astype(np.float64).mean(-1)
+        view.set_synthesis(*pv.magnification())
+        sharp = view.render(close, (200, 200)).astype(np.float64).mean(-1)
+
+        def energy(a):
+            return float((np.diff(a, axis=0) ** 2).mean() + (np.diff(a, axis=1) ** 2).mean())
+        assert energy(sharp) > 3 * energy(plain)
+        # The same mean colour: it is the same texture, drawn sharper.
+        assert abs(sharp.mean() - plain.mean()) < 8
+    finally:
+        view.release()
