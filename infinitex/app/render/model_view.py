@@ -52,8 +52,8 @@ in vec3 v_normal;
 in vec2 v_uv;
 out vec4 color;
 
-vec3 magnified(vec2 uv) {
-    vec2 p = uv * float(n) - 0.5;  // atlas texel space, row 0 at the top
+vec3 magnified(vec2 p, vec2 px, vec2 py) {
+    // p: atlas texel space (row 0 at the top); px, py: its derivatives per screen pixel
     vec2 fb = floor(p);
     vec2 t = p - fb;
     vec2 P[4];
@@ -69,7 +69,7 @@ vec3 magnified(vec2 uv) {
         P[c] = vec2(S.xy) + vec2(S.zw) / 256.0 + 0.5 + J * (t - vec2(o));
         W[c] = (o.x == 0 ? 1.0 - t.x : t.x) * (o.y == 0 ? 1.0 - t.y : t.y);
     }
-    vec2 dx = J0 * (dFdx(p)) / m, dy = J0 * (dFdy(p)) / m;
+    vec2 dx = J0 * px / m, dy = J0 * py / m;
     vec3 acc = vec3(0.0);
     for (int c = 0; c < 4; c++) {
         vec2 pull = vec2(0.0);  // patches a texel apart warp into each other (canvas.frag)
@@ -91,7 +91,16 @@ void main() {
     vec3 n3 = normalize(v_normal);
     if (!gl_FrontFacing) n3 = -n3;
     vec2 uv = vec2(v_uv.x, 1.0 - v_uv.y);
-    vec3 c = magnify != 0 ? magnified(uv) : texture(tex, uv).rgb;
+    // Magnified where a texel covers more than a screen pixel (zoomed in); farther
+    // out the texture's mipmaps show the same at a fraction of the cost.
+    vec2 p = uv * float(n) - 0.5;
+    vec2 px = dFdx(p), py = dFdy(p);
+    vec3 c;
+    if (magnify != 0 && max(length(px), length(py)) < 1.0) {
+        c = magnified(p, px, py);
+    } else {
+        c = texture(tex, uv).rgb;
+    }
     float diff = max(dot(n3, normalize(light)), 0.0);
     vec3 h = normalize(normalize(light) + normalize(eye_dir));
     float spec = pow(max(dot(n3, h), 0.0), 40.0) * 0.12;

@@ -172,7 +172,11 @@ class ModelModeMixin:
         fbo.use()
         fbo.clear(0.16, 0.17, 0.19, 1.0, depth=1.0)
         if pv.image is not None:
+            # While the mouse orbits or pans, the texture's mipmaps (a frame rate
+            # that follows the hand); at rest, synthesis magnification when zoomed in.
+            keep, mv.magnify = mv.magnify, mv.magnify and self._canvas_button < 0
             mv.draw(self.camera, (0, 0, w, h), mode=2 if self.show_seams else 0)
+            mv.magnify = keep
         if self.canvas_request:
             self.canvas_pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1].copy()
             self.canvas_request = False
