@@ -2,27 +2,26 @@
 the texture lies on it, and how it is stored in project files (format 11).
 
 The mesh is kept inside the project (positions and texture coordinates as
-float64, faces as int32; npz, zlib, base64), so a project reopens the same
-atlas bit for bit wherever it moves. Untrusted data: size-limited,
-decompressed with a bound, checked by :class:`~infinitex.engine.surface.Model`.
+float64, faces as int32, their counts beside; zlib, base64), so a project
+reopens the same atlas bit for bit wherever it moves. Untrusted data: the
+counts are limited first, the data decompressed to exactly their size, the
+arrays checked by :class:`~infinitex.engine.surface.Model`.
 """
 from __future__ import annotations
 
 import base64
-import io
 import zlib
 from dataclasses import dataclass
 
 import numpy as np
 
 from infinitex.engine.surface import AtlasDomain, Model, ModelError
-from infinitex.engine.surface.mesh import texel_density
+from infinitex.engine.surface.mesh import MAX_FACES, MAX_VERTICES, texel_density
 from infinitex.engine.surface.atlas import FRAMES
 
 from .document import ProjectError
 
 SIZES = (256, 512, 1024, 2048, 4096)
-MAX_MESH_BYTES = 256 * 1024 * 1024  # decompressed arrays
 MIN_REPEATS, MAX_REPEATS = 0.05, 500.0
 
 
@@ -77,32 +76,41 @@ def default_repeats(model: Model, size: int, exemplar_size: int) -> float:
 
 
 def _pack(model: Model) -> str:
-    buf = io.BytesIO()
-    np.savez(buf, positions=model.positions.astype("<f8"), faces=model.faces.astype("<i4"),
-             uvs=model.uvs.astype("<f8"))
-    return base64.b64encode(zlib.compress(buf.getvalue(), 6)).decode("ascii")
+    """Positions (V, 3) and texture coordinates (V, 2) as little-endian float64,
+    faces (F, 3) as int32, one after the other; zlib, base64."""
+    raw = b"".join(np.ascontiguousarray(a, dtype=t).tobytes() for a, t in
+                   ((model.positions, "<f8"), (model.uvs, "<f8"), (model.faces, "<i4")))
+    return base64.b64encode(zlib.compress(raw, 6)).decode("ascii")
 
 
-def _unpack(text: object, name: str) -> Model:
+def _unpack(text: object, name: str, vertices: object, faces: object) -> Model:
     bad = ProjectError("The project's model is damaged.")
-    if not isinstance(text, str) or len(text) > MAX_MESH_BYTES:
+    if not (isinstance(vertices, int) and isinstance(faces, int) and not isinstance(vertices, bool)
+            and not isinstance(faces, bool) and 3 <= vertices <= MAX_VERTICES and 1 <= faces <= MAX_FACES):
+        raise bad
+    size = vertices * 40 + faces * 12  # known before anything is decompressed
+    if not isinstance(text, str) or len(text) > 2 * size + 1024:
         raise bad
     try:
         d = zlib.decompressobj()
-        raw = d.decompress(base64.b64decode(text, validate=True), MAX_MESH_BYTES + 1)
-        if len(raw) > MAX_MESH_BYTES or d.unconsumed_tail:
-            raise bad
-        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-            arrays = {k: z[k] for k in ("positions", "faces", "uvs")}
-        return Model(arrays["positions"], arrays["faces"], arrays["uvs"], name=name)
+        raw = d.decompress(base64.b64decode(text, validate=True), size + 1)
+    except Exception:
+        raise bad from None
+    if len(raw) != size or d.unconsumed_tail:
+        raise bad
+    v3 = vertices * 24
+    P = np.frombuffer(raw[:v3], "<f8").reshape(vertices, 3)
+    uv = np.frombuffer(raw[v3:v3 + vertices * 16], "<f8").reshape(vertices, 2)
+    F = np.frombuffer(raw[v3 + vertices * 16:], "<i4").reshape(faces, 3)
+    try:
+        return Model(P, F, uv, name=name)
     except ModelError as exc:
         raise ProjectError(f"The project's model: {exc}") from None
-    except (ProjectError, Exception):
-        raise bad from None
 
 
 def surface_to_json(s: SurfaceSettings) -> dict:
-    return {"name": s.model.name, "mesh": _pack(s.model), "sha256": s.model.key, "size": s.size,
+    return {"name": s.model.name, "vertices": len(s.model.positions), "faces": len(s.model.faces),
+            "mesh": _pack(s.model), "sha256": s.model.key, "size": s.size,
             "frame": s.frame, "up": [float(v) for v in s.up], "repeats": float(s.repeats)}
 
 
@@ -112,7 +120,7 @@ def surface_from_json(d: object) -> SurfaceSettings | None:
         return None
     if not isinstance(d, dict) or not isinstance(d.get("name"), str) or len(d["name"]) > 255:
         raise ProjectError("The project's model is damaged.")
-    model = _unpack(d.get("mesh"), d["name"])
+    model = _unpack(d.get("mesh"), d["name"], d.get("vertices"), d.get("faces"))
     if d.get("sha256") != model.key:
         raise ProjectError("The project's model is damaged (its checksum does not match).")
     size, frame, up, repeats = d.get("size"), d.get("frame"), d.get("up"), d.get("repeats")

@@ -49,6 +49,7 @@ GUTTER = 4  # texels, at every level, that a chart's pixels may read beyond its 
 SUB = 8  # bits below a finest texel of rasterized positions
 MIN_SIZE, MAX_SIZE = 64, 4096
 CHUNK = 1 << 21  # candidate texels rasterized at once
+MAX_COVERAGE = 16  # triangles' bounding boxes may cover the atlas this many times over (overlapping UVs)
 FRAMES = ("up", "uv")
 MAX_CHARTS = 32000  # chart ids fit the int16 indirection texture
 
@@ -81,6 +82,100 @@ def _match(key_a: np.ndarray, key_b: np.ndarray) -> np.ndarray:
     return res
 
 
+def clamp_stretch(J: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+    """2x2 matrices (n, 4) with their singular values held within [lo, hi]
+    (J V diag(s'/s) V^T), and which were changed; closed-form, elementwise."""
+    a = J[:, 0] ** 2 + J[:, 2] ** 2  # J^T J = [[a, b], [b, c]]
+    b = J[:, 0] * J[:, 1] + J[:, 2] * J[:, 3]
+    c = J[:, 1] ** 2 + J[:, 3] ** 2
+    half, mid = 0.5 * (a - c), 0.5 * (a + c)
+    r = np.sqrt(half * half + b * b)
+    l1, l2 = mid + r, np.maximum(mid - r, 0.0)
+    s1, s2 = np.sqrt(l1), np.sqrt(l2)
+    changed = (s1 > hi) | (s2 < lo)
+    if not changed.any():
+        return J, changed
+    # The eigenvector of l1: (b, l1 - a), or (l1 - c, b), whichever is longer; the other is its normal.
+    va = np.stack([b, l1 - a], -1)
+    vb = np.stack([l1 - c, b], -1)
+    v = np.where((np.abs(va).sum(-1) >= np.abs(vb).sum(-1))[:, None], va, vb)
+    length = np.sqrt((v * v).sum(-1))
+    v = np.where(length[:, None] > 0, v / np.where(length > 0, length, 1.0)[:, None], [1.0, 0.0])
+    f1 = np.clip(s1, lo, hi) / np.where(s1 > 0, s1, 1.0)
+    f2 = np.clip(s2, lo, hi) / np.where(s2 > 0, s2, 1.0)
+    f2 = np.where(s2 > 0, f2, 1.0)
+    # S = V diag(f1, f2) V^T, then J S.
+    x, y = v[:, 0], v[:, 1]
+    S00, S01, S11 = f1 * x * x + f2 * y * y, (f1 - f2) * x * y, f1 * y * y + f2 * x * x
+    out = np.stack([J[:, 0] * S00 + J[:, 1] * S01, J[:, 0] * S01 + J[:, 1] * S11,
+                    J[:, 2] * S00 + J[:, 3] * S01, J[:, 2] * S01 + J[:, 3] * S11], -1)
+    return np.where(changed[:, None], out, J), changed
+
+
+def triangle_jacobians(model: Model, uvpx: np.ndarray, sigma: float, frame: str,
+                       up: np.ndarray) -> tuple[np.ndarray, float]:
+    """J (Q12 int16, (F, 4)) per triangle (module docstring), and the share of
+    triangles whose stretch was held within range."""
+    P, X, f = model.positions, uvpx, model.faces
+    e1, e2 = P[f[:, 1]] - P[f[:, 0]], P[f[:, 2]] - P[f[:, 0]]
+    d1, d2 = X[f[:, 1]] - X[f[:, 0]], X[f[:, 2]] - X[f[:, 0]]
+    dd = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]  # the pixel edges' determinant
+    ok = np.abs(dd) > 1e-12
+    dd = np.where(ok, dd, 1.0)
+    # G = [e1 e2] [d1 d2]^-1: dP per finest px (x, y down), elementwise.
+    Gx = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) / dd[:, None]
+    Gy = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) / dd[:, None]
+    nrm = np.cross(e1, e2)
+    nl = np.linalg.norm(nrm, axis=-1, keepdims=True)
+    ok &= nl[:, 0] > 0
+    N = nrm / np.maximum(nl, 1e-300)
+    if frame == "up":
+        Rr = np.cross(up_field(model, N, up), N)
+    else:
+        Rr = Gx - (Gx * N).sum(-1, keepdims=True) * N
+    Rr = Rr / np.maximum(np.linalg.norm(Rr, axis=-1, keepdims=True), 1e-300)
+    U = np.cross(N, Rr)
+    s = sigma
+    J = np.stack([s * (Rr * Gx).sum(-1), s * (Rr * Gy).sum(-1), -s * (U * Gx).sum(-1), -s * (U * Gy).sum(-1)],
+                 axis=-1)  # (F, 4): j00, j01, j10, j11
+    flip = J[:, 0] * J[:, 3] - J[:, 1] * J[:, 2] < 0  # mirrored against the frame: mirror the texture
+    J[flip, 0:2] *= -1  # left-right (upside down would show more)
+    J, clamped = clamp_stretch(J, 1.0 / MAX_STRETCH, 1.0 / MIN_STRETCH)
+    # Share of the triangles whose texture had to be held within the stretch range (reported by the CLI).
+    stretch_clamped = float(np.mean(clamped & ok))
+    q = np.round(J * J_ONE).astype(np.int64)
+    det = q[:, 0] * q[:, 3] - q[:, 1] * q[:, 2]
+    q[(det < MIN_DET) | ~ok] = [J_ONE, 0, 0, J_ONE]
+    return q.astype(np.int16), stretch_clamped
+
+def up_field(model: Model, N: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """Per triangle, where the exemplar's up points ("up" frame): the world's
+    up projected on the surface; on faces turned towards up or down (where
+    that vanishes) it blends into the up folded over the model's rims, so
+    across a rim the texture runs on: inwards (towards the vertical axis
+    through the model's centre) on top, outwards underneath. The field is
+    continuous but at the axis (hairy ball: some point must be singular)."""
+    P, f = model.positions, model.faces
+    centre = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    tc = P[f].mean(axis=1)
+    radial = centre - tc
+    radial -= (radial * up).sum(-1)[:, None] * up  # elementwise (no BLAS: the same bits everywhere)
+    radial *= np.sign((N * up).sum(-1) + 1e-300)[:, None]
+
+    def tangent(v):
+        t = v - (v * N).sum(-1, keepdims=True) * N
+        return t, np.linalg.norm(t, axis=-1, keepdims=True)
+    pu, lu = tangent(np.broadcast_to(up, N.shape))
+    pr, lr = tangent(radial)
+    side = np.clip((lu - 0.1) / 0.4, 0.0, 1.0)  # 1 on walls, 0 on faces within 25 degrees of flat
+    u = side * pu / np.maximum(lu, 1e-300) + (1 - side) * pr / np.maximum(lr, 1e-300)
+    # At the axis itself (no radial direction) and where the two cancel: any fixed tangent.
+    alt, _ = tangent(np.broadcast_to(np.cross(up, [1.0, 0.0, 0.0]) if abs(up[0]) < 0.9
+                                     else np.cross(up, [0.0, 0.0, 1.0]), N.shape))
+    lu2 = np.linalg.norm(u, axis=-1, keepdims=True)
+    return np.where(lu2 > 1e-6, u, alt)
+
+
 class AtlasDomain:
     """A model's atlas at ``size`` finest texels, textured at ``sigma`` exemplar
     px per world unit with tangent frames from ``frame``; ``seams=False`` gives
@@ -103,10 +198,10 @@ class AtlasDomain:
         self.frame = frame
         self.up = up / np.linalg.norm(up)
         self.seams = bool(seams)
-        self._levels: dict[int, dict] = {}
+        self._levels: dict[int, dict] = {}  # geometry per level (shared by reframed copies)
+        self._jac_levels: dict[int, np.ndarray] = {}
         self._topology()
-        self.key = hashlib.sha256(repr((model.key, self.size, self.sigma, frame, self.up.tolist(),
-                                        self.seams)).encode()).hexdigest()
+        self.key = self._make_key()
 
     # -- topology, frames and maps across edges (once) -------------------------
 
@@ -117,6 +212,7 @@ class AtlasDomain:
         # Welded by position (to 2^-24 of the model's size: exporters may round split vertices differently).
         _, pid = np.unique(np.round(m.positions / (m.extent * 2.0 ** -24)), axis=0, return_inverse=True)
         pid = pid.reshape(-1)
+        self._pid = pid
         _, uvid = np.unique(np.c_[pid, np.round(m.uvs * 2 ** 30)], axis=0, return_inverse=True)
         uvid = uvid.reshape(-1)
         t, a, b, c = _edges(f)
@@ -136,7 +232,7 @@ class AtlasDomain:
         other = across_3d[border]
         self.b_other = np.where(other >= 0, t[np.maximum(other, 0)], -1)
         self.b_map = self._maps(other, t, a, b, c, border)
-        self.jac = self._triangle_jacobians()
+        self.jac, self.stretch_clamped = triangle_jacobians(self.model, self.uvpx, self.sigma, self.frame, self.up)
 
     def _maps(self, other, t, a, b, c, border) -> np.ndarray:
         """Per border half-edge, the affine map (2 x 3) from this chart's finest
@@ -152,7 +248,7 @@ class AtlasDomain:
         pa, pb, pc = self.b_a, self.b_b, self.b_c
         # The other triangle's vertices matching this edge's ends, by position.
         pos = P
-        same_dir = np.all(pos[oa] == pos[pa], axis=-1)
+        same_dir = self._pid[oa] == self._pid[pa]  # welded, like the seams themselves
         q0 = np.where(same_dir, oa, ob)
         q1 = np.where(same_dir, ob, oa)
         q2 = oc
@@ -177,78 +273,22 @@ class AtlasDomain:
         A0, A1, A2 = X[pa], X[pb], X[pc]
         A2u = A0 + al[:, None] * (A1 - A0) + be[:, None] * (A2 - A0)
         B0, B1, B2 = X[q0], X[q1], X[q2]
-        src = np.stack([np.c_[A0, np.ones(n)], np.c_[A1, np.ones(n)], np.c_[A2u, np.ones(n)]], axis=1)  # (n,3,3)
-        dst = np.stack([B0, B1, B2], axis=1)  # (n, 3, 2)
-        dets = np.linalg.det(src)
+        # The affine map sending (A0, A1, A2u) to (B0, B1, B2): linear part L = [B1-B0, B2-B0] [A1-A0, A2u-A0]^-1,
+        # written out elementwise (IEEE operations only: the same bits on every machine, no LAPACK).
+        u1, u2 = A1 - A0, A2u - A0
+        v1, v2 = B1 - B0, B2 - B0
+        dets = u1[:, 0] * u2[:, 1] - u2[:, 0] * u1[:, 1]
         good &= np.abs(dets) > 1e-12
-        src[~good] = np.eye(3)
-        maps = np.linalg.solve(src, dst).transpose(0, 2, 1)  # (n, 2, 3): dst = M @ [x, y, 1]
+        dets = np.where(good, dets, 1.0)
+        i00, i01, i10, i11 = u2[:, 1] / dets, -u2[:, 0] / dets, -u1[:, 1] / dets, u1[:, 0] / dets
+        maps = np.zeros((n, 2, 3))
+        for r in range(2):
+            maps[:, r, 0] = v1[:, r] * i00 + v2[:, r] * i10
+            maps[:, r, 1] = v1[:, r] * i01 + v2[:, r] * i11
+            maps[:, r, 2] = B0[:, r] - maps[:, r, 0] * A0[:, 0] - maps[:, r, 1] * A0[:, 1]
         maps[~good] = 0
         self.b_other = np.where(good, self.b_other, -1)
         return maps
-
-    def _triangle_jacobians(self) -> np.ndarray:
-        """J (Q12 int16, 4) per triangle (module docstring)."""
-        P, X, f = self.model.positions, self.uvpx, self.model.faces
-        e1, e2 = P[f[:, 1]] - P[f[:, 0]], P[f[:, 2]] - P[f[:, 0]]
-        d1, d2 = X[f[:, 1]] - X[f[:, 0]], X[f[:, 2]] - X[f[:, 0]]
-        D = np.stack([d1, d2], axis=-1)  # (F, 2, 2): columns are the pixel edges
-        dd = np.linalg.det(D)
-        ok = np.abs(dd) > 1e-12
-        D[~ok] = np.eye(2)
-        G = np.stack([e1, e2], axis=-1) @ np.linalg.inv(D)  # (F, 3, 2): dP per finest px (x, y down)
-        nrm = np.cross(e1, e2)
-        nl = np.linalg.norm(nrm, axis=-1, keepdims=True)
-        ok &= nl[:, 0] > 0
-        N = nrm / np.maximum(nl, 1e-300)
-        if self.frame == "up":
-            Rr = np.cross(self._up_field(N), N)
-        else:
-            Rr = G[:, :, 0] - (G[:, :, 0] * N).sum(-1, keepdims=True) * N
-        Rr = Rr / np.maximum(np.linalg.norm(Rr, axis=-1, keepdims=True), 1e-300)
-        U = np.cross(N, Rr)
-        s = self.sigma
-        J = np.stack([s * (Rr[:, :, None] * G).sum(1), -s * (U[:, :, None] * G).sum(1)], axis=1)  # (F, 2, 2)
-        sv0 = np.linalg.svd(J, compute_uv=False)
-        # Share of the triangles whose texture had to be held within the stretch range (reported by the CLI).
-        self.stretch_clamped = float(np.mean(((sv0 < 1.0 / MAX_STRETCH) | (sv0 > 1.0 / MIN_STRETCH)).any(-1) & ok))
-        flip = np.linalg.det(J) < 0  # mirrored against the frame: mirror the texture
-        J[flip, 0] *= -1  # mirrored left-right (upside down would show more)
-        u, sv, vt = np.linalg.svd(J)
-        sv = np.clip(sv, 1.0 / MAX_STRETCH, 1.0 / MIN_STRETCH)
-        J = u @ (sv[:, :, None] * vt)
-        q = np.round(J.reshape(-1, 4) * J_ONE).astype(np.int64)
-        det = q[:, 0] * q[:, 3] - q[:, 1] * q[:, 2]
-        q[(det < MIN_DET) | ~ok] = [J_ONE, 0, 0, J_ONE]
-        return q.astype(np.int16)
-
-    def _up_field(self, N: np.ndarray) -> np.ndarray:
-        """Per triangle, where the exemplar's up points ("up" frame): the world's
-        up projected on the surface; on faces turned towards up or down (where
-        that vanishes) it blends into the up folded over the model's rims, so
-        across a rim the texture runs on: inwards (towards the vertical axis
-        through the model's centre) on top, outwards underneath. The field is
-        continuous but at the axis (hairy ball: some point must be singular)."""
-        P, f = self.model.positions, self.model.faces
-        up = self.up
-        centre = 0.5 * (P.min(axis=0) + P.max(axis=0))
-        tc = P[f].mean(axis=1)
-        radial = centre - tc
-        radial -= (radial @ up)[:, None] * up
-        radial *= np.sign(N @ up + 1e-300)[:, None]
-
-        def tangent(v):
-            t = v - (v * N).sum(-1, keepdims=True) * N
-            return t, np.linalg.norm(t, axis=-1, keepdims=True)
-        pu, lu = tangent(np.broadcast_to(up, N.shape))
-        pr, lr = tangent(radial)
-        side = np.clip((lu - 0.1) / 0.4, 0.0, 1.0)  # 1 on walls, 0 on faces within 25 degrees of flat
-        u = side * pu / np.maximum(lu, 1e-300) + (1 - side) * pr / np.maximum(lr, 1e-300)
-        # At the axis itself (no radial direction) and where the two cancel: any fixed tangent.
-        alt, _ = tangent(np.broadcast_to(np.cross(up, [1.0, 0.0, 0.0]) if abs(up[0]) < 0.9
-                                         else np.cross(up, [0.0, 0.0, 1.0]), N.shape))
-        lu2 = np.linalg.norm(u, axis=-1, keepdims=True)
-        return np.where(lu2 > 1e-6, u, alt)
 
     # -- per level ------------------------------------------------------------
 
@@ -277,20 +317,34 @@ class AtlasDomain:
         hi = V.max(axis=1)
         x0 = np.clip(-((half - lo) // step), 0, n)  # ceil((lo - half) / step)
         x1 = np.clip((hi - half) // step + 1, 0, n)
-        cnt = np.maximum(x1[:, 0] - x0[:, 0], 0) * np.maximum(x1[:, 1] - x0[:, 1], 0)
+        w = np.maximum(x1[:, 0] - x0[:, 0], 0)
+        h = np.maximum(x1[:, 1] - x0[:, 1], 0)
+        if int((w * h).sum()) > MAX_COVERAGE * n * n + CHUNK:
+            raise AtlasError(f"{self.model.name}: its triangles cover the atlas {int((w * h).sum()) / (n * n):.0f} "
+                             "times over; its UVs overlap heavily or lie far outside [0, 1].")
+        # Pieces of at most about CHUNK candidates: large triangles in bands of rows.
+        rows = np.maximum(1, CHUNK // np.maximum(w, 1))
+        bands = np.where(w > 0, -(-h // rows), 0)
+        piece = np.repeat(np.arange(len(tris)), bands)
+        k_in = np.arange(int(bands.sum())) - np.repeat(np.cumsum(bands) - bands, bands)
+        py0 = x0[piece, 1] + k_in * rows[piece]
+        py1 = np.minimum(py0 + rows[piece], x1[piece, 1])
+        pw = w[piece]
+        cnt = pw * (py1 - py0)
         best = np.full(n * n, np.iinfo(np.int32).max, np.int64)
         ends = np.cumsum(cnt)
         start = 0
-        while start < len(tris):
+        while start < len(piece):
             base = ends[start - 1] if start else 0
             stop = max(start + 1, int(np.searchsorted(ends, base + CHUNK, side="right")))
             sel = np.arange(start, stop)
             c = cnt[sel]
-            ti = np.repeat(sel, c)
+            pi = np.repeat(sel, c)
+            ti = piece[pi]
             off = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
-            bw = np.repeat(np.maximum(x1[sel, 0] - x0[sel, 0], 1), c)
-            tx = np.repeat(x0[sel, 0], c) + off % bw
-            ty = np.repeat(x0[sel, 1], c) + off // bw
+            bw = np.maximum(pw[pi], 1)
+            tx = x0[ti, 0] + off % bw
+            ty = py0[pi] + off // bw
             px, py = tx * step + half, ty * step + half
             inside = np.ones(len(ti), bool)
             for i in range(3):
@@ -315,13 +369,45 @@ class AtlasDomain:
             near = ndimage.distance_transform_edt(~covered, return_distances=False, return_indices=True)
         else:
             near = np.indices((n, n))
-        jac = self.jac[np.maximum(tri[near[0], near[1]], 0)] if covered.any() else \
-            np.broadcast_to(np.array([J_ONE, 0, 0, J_ONE], np.int16), (n, n, 4)).copy()
+        near_tri = tri[near[0], near[1]] if covered.any() else tri  # whose J a texel takes (-1: none)
         link_chart = np.full((n, n), -1, np.int32)
         link_to = np.zeros((n, n, 2), np.int32)
         if self.seams and len(self.b_tri):
             self._links(k, n, own, near, link_chart, link_to)
-        return dict(own=own, jac=np.ascontiguousarray(jac, np.int16), link_chart=link_chart, link_to=link_to)
+        return dict(own=own.astype(np.int16), near_tri=near_tri.astype(np.int32),
+                    link_chart=link_chart.astype(np.int16), link_to=link_to.astype(np.int16))
+
+    def _level_jac(self, k: int) -> np.ndarray:
+        """J per texel of level k (its covering triangle's, off the charts the nearest texel's)."""
+        if k not in self._jac_levels:
+            t = self._level(k)["near_tri"]
+            jac = self.jac[np.maximum(t, 0)]
+            jac[t < 0] = [J_ONE, 0, 0, J_ONE]
+            self._jac_levels[k] = np.ascontiguousarray(jac, np.int16)
+        return self._jac_levels[k]
+
+    def reframed(self, sigma: float, frame: str | None = None, up=None) -> AtlasDomain:
+        """The same atlas (coverage, charts, indirection maps: shared, not computed
+        again) with another scale, frame or up: only the Jacobians change."""
+        import copy
+        out = copy.copy(self)
+        out.sigma = float(sigma)
+        out.frame = self.frame if frame is None else frame
+        if out.frame not in FRAMES or not (np.isfinite(out.sigma) and out.sigma > 0):
+            raise AtlasError("The tangent frame or the texture scale is not valid.")
+        if up is not None:
+            u = np.asarray(up, np.float64)
+            if u.shape != (3,) or not np.isfinite(u).all() or not np.any(u):
+                raise AtlasError("The up direction must be three numbers, not all zero.")
+            out.up = u / np.linalg.norm(u)
+        out._jac_levels = {}
+        out.jac, out.stretch_clamped = triangle_jacobians(out.model, out.uvpx, out.sigma, out.frame, out.up)
+        out.key = out._make_key()
+        return out
+
+    def _make_key(self) -> str:
+        return hashlib.sha256(repr((self.model.key, self.size, self.sigma, self.frame, self.up.tolist(),
+                                    self.seams)).encode()).hexdigest()
 
     def _links(self, k: int, n: int, own, near, link_chart, link_to) -> None:
         """Fill the level's indirection map (module docstring)."""
@@ -409,18 +495,18 @@ class AtlasDomain:
 
     def jacobians(self, k: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """J (Q12 int16, (h, w, 4)) over a region of level k (outside the atlas: its nearest edge's)."""
-        L = self._level(k)
+        jac = self._level_jac(k)
         n = self.level_size(k)
         ys = np.clip(np.arange(y0, y0 + h), 0, n - 1)
         xs = np.clip(np.arange(x0, x0 + w), 0, n - 1)
-        return np.ascontiguousarray(L["jac"][ys[:, None], xs[None, :]])
+        return np.ascontiguousarray(jac[ys[:, None], xs[None, :]])
 
     def links(self, k: int, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """The indirection map over a region of level k: (h, w, 4) int16 (own
         chart, the chart its link serves, target x, target y); -1 where none."""
         L = self._level(k)
         packed = np.concatenate([L["own"][..., None], L["link_chart"][..., None], L["link_to"]], axis=-1)
-        return self._crop(packed.astype(np.int16), np.array([-1, -1, 0, 0], np.int16), x0, y0, w, h)
+        return self._crop(packed, np.array([-1, -1, 0, 0], np.int16), x0, y0, w, h)
 
     def mask(self, k: int = 0) -> np.ndarray:
         """(n, n) bool: texels covered by a chart at level k (0: finest)."""

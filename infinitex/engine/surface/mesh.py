@@ -21,6 +21,7 @@ MAX_MODEL_BYTES = 512 * 1024 * 1024
 MAX_FACES = 2_000_000
 MAX_VERTICES = 3_000_000
 MODEL_SUFFIXES = (".obj", ".glb", ".gltf")
+MAX_UV = 64.0  # texture coordinates beyond +-64 (far outside the atlas) are refused
 
 
 class ModelError(ValueError):
@@ -53,7 +54,7 @@ class Model:
             raise ModelError(f"{self.name}: a triangle refers to a vertex that does not exist.")
         if not (np.isfinite(p).all() and np.isfinite(uv).all()):
             raise ModelError(f"{self.name} has positions or texture coordinates that are not finite numbers.")
-        if np.abs(uv).max() > 1e4 or np.abs(p).max() > 1e12:
+        if np.abs(uv).max() > MAX_UV or np.abs(p).max() > 1e12:
             raise ModelError(f"{self.name} has texture coordinates or positions far out of range.")
         object.__setattr__(self, "positions", p)
         object.__setattr__(self, "faces", f)
@@ -93,6 +94,36 @@ def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model") 
                  meta={"unwrapped": True})
 
 
+def _check_gltf_buffers(path: str, name: str) -> None:
+    """A .gltf's external buffers and images: files beside it (no absolute
+    path, no way out of its folder), within the size limit together."""
+    import json
+    try:
+        with open(path, "rb") as f:
+            doc = json.loads(f.read(64 * 1024 * 1024))
+    except (OSError, ValueError, RecursionError):
+        raise ModelError(f"{name} is not a glTF file (its JSON cannot be read).") from None
+    if not isinstance(doc, dict):
+        raise ModelError(f"{name} is not a glTF file.")
+    folder = os.path.dirname(os.path.abspath(path))
+    total = 0
+    for key in ("buffers", "images"):
+        for entry in doc.get(key) or []:
+            uri = entry.get("uri") if isinstance(entry, dict) else None
+            if not isinstance(uri, str) or uri.startswith("data:"):
+                continue
+            target = os.path.realpath(os.path.join(folder, uri))
+            if os.path.isabs(uri) or os.path.commonpath([target, os.path.realpath(folder)]) != os.path.realpath(folder):
+                raise ModelError(f"{name} refers to a file outside its folder ({uri[:80]}).")
+            try:
+                total += os.path.getsize(target)
+            except OSError:
+                raise ModelError(f"{name} refers to {uri[:80]}, which cannot be read.") from None
+    if total > MAX_MODEL_BYTES:
+        raise ModelError(f"{name}'s buffers are {total / 2 ** 20:.0f} MB; models of up to "
+                         f"{MAX_MODEL_BYTES >> 20} MB are read.")
+
+
 def load_model(path, unwrap_missing: bool = False) -> Model:
     """Read OBJ, glTF or GLB (all meshes of a scene, joined, in world space).
     ``unwrap_missing``: generate texture coordinates when the model has none.
@@ -106,6 +137,8 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
         raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
     if size > MAX_MODEL_BYTES:
         raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
+    if str(path).lower().endswith(".gltf"):
+        _check_gltf_buffers(str(path), name)
     import trimesh
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
