@@ -30,6 +30,7 @@ class ModelPreview:
         self.version = 0  # bumps when ``image`` changes
         self.left_out: list[str] = []  # the document's plane controls the model does not use
         self.key_model: tuple | None = None
+        self.error: str | None = None  # why the model cannot be textured now
         self._floor = -1  # a new run shows its levels from this one (the old texture's) on
         self._run_shown = -1
 
@@ -42,12 +43,18 @@ class ModelPreview:
         return 0.0 if self.run is None else self.run.progress
 
     def atlas_for(self, settings, m: int) -> AtlasDomain:
-        key = (settings, m)
-        if key not in self._atlases:
-            if len(self._atlases) > 4:
-                self._atlases.clear()
-            self._atlases[key] = settings.atlas(m)
-        return self._atlases[key]
+        """The model's atlas: its geometry (coverage, charts, indirection maps)
+        built once per model and size; a new scale or frame only reframes it."""
+        key = (settings.model.key, settings.size)
+        base = self._atlases.get(key)
+        if base is None:
+            self._atlases.clear()  # one model's geometry at a time (hundreds of MB at 4096)
+            base = self._atlases[key] = settings.atlas(m)
+        sigma = settings.sigma(m)
+        if base.sigma == sigma and base.frame == settings.frame and tuple(base.up) == tuple(
+                np.asarray(settings.up, np.float64) / np.linalg.norm(settings.up)):
+            return base
+        return base.reframed(sigma, settings.frame, settings.up)
 
     def sync(self, session, doc) -> None:
         """Start again when the model, the analysis, the parameters or the controls changed."""
@@ -55,6 +62,12 @@ class ModelPreview:
         if settings is None or not session.ready:
             self.release()
             return
+        if settings.size < session.analysis.size:
+            self.release()
+            self.error = (f"The model's texture ({settings.size} px) must be at least as large as the exemplar "
+                          f"({session.analysis.size} px): choose a larger texture size.")
+            return
+        self.error = None
         controls, self.left_out = surface_controls(session.controls)
         key = (settings, session.generation, session.params, controls)
         if key == self.key:

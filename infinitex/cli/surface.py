@@ -48,11 +48,11 @@ def build_parser() -> Parser:
     scale.add_argument("--texel-ratio", type=number, default=None, metavar="T",
                        help="exemplar pixels per texture texel, typically (0.25 to 4; default 1: as much of the "
                             "exemplar as the texture size shows)")
-    p.add_argument("--frame", choices=("up", "uv"), default="up",
+    p.add_argument("--frame", choices=("up", "uv"), default=None,
                    help="which way the texture runs: up (its top towards the model's up, bricks stay level; "
-                        "default) or uv (its x along the model's u direction)")
-    p.add_argument("--up", nargs=3, type=number, default=(0.0, 1.0, 0.0), metavar=("X", "Y", "Z"),
-                   help="the model's up direction (default 0 1 0, glTF's)")
+                        "default, or a project's own) or uv (its x along the model's u direction)")
+    p.add_argument("--up", nargs=3, type=number, default=None, metavar=("X", "Y", "Z"),
+                   help="the model's up direction (default 0 1 0, glTF's, or a project's own)")
     p.add_argument("--seed", type=integer, default=None, help="random seed (default: the project's, else 0)")
     add_structure_arg(p, None)
     p.add_argument("--maps", default=None, metavar="ROLES",
@@ -134,10 +134,17 @@ def run_surface(argv: list[str]) -> int:
                          [p for p in inputs if p])
     except OwnInputError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
+    own = doc.surface  # a project with a model: its texture size, scale and direction unless given here
+    frame = args.frame or (own.frame if own is not None else "up")
+    up = tuple(args.up) if args.up is not None else (tuple(own.up) if own is not None else (0.0, 1.0, 0.0))
+    painted = own is not None and own.model.key == model.key
     try:
-        pl = plan(model, n, ex.size, args.repeats, args.texel_ratio)
-        atlas = AtlasDomain(model, pl.synth_size, pl.sigma, frame=args.frame, up=tuple(args.up),
-                            seams=not args.no_seams)
+        if own is not None and args.repeats is None and args.texel_ratio is None:
+            pl = plan(model, n, ex.size, repeats=float(own.repeats),
+                      synth_size=own.size if painted and own.size <= n else None)
+        else:
+            pl = plan(model, n, ex.size, args.repeats, args.texel_ratio)
+        atlas = AtlasDomain(model, pl.synth_size, pl.sigma, frame=frame, up=up, seams=not args.no_seams)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE if not isinstance(exc, AtlasError) else EXIT_INPUT) from None
     if not args.quiet:
@@ -146,7 +153,14 @@ def run_surface(argv: list[str]) -> int:
         if atlas.stretch_clamped > 0.01:
             sys.stderr.write(f"note: {atlas.stretch_clamped:.0%} of the triangles stretch the texture more than 4x; "
                              "it is held at 4x there (check the model's UVs, or --size)\n")
-    controls, dropped = surface_controls(doc.controls(ex.size), painted_on_model=doc.surface is not None)
+    # The randomness painted on a project's model is in its texels: it goes with the same model at its size.
+    painted = painted and pl.synth_size == own.size
+    controls, dropped = surface_controls(doc.controls(ex.size), painted_on_model=painted)
+    if own is not None:
+        dropped = [d for d in dropped if d != "canvas randomness"]
+        if not painted and doc.randomness_canvas is not None and not args.quiet:
+            sys.stderr.write("note: the randomness painted on the project's model is left out (another model, "
+                             "or a smaller texture size than the project's)\n")
     if dropped and not args.quiet:
         sys.stderr.write(f"note: the project's {', '.join(dropped)} belong to the plane; the model leaves them out\n")
     an = analyze(ex, settings, progress=analysis_progress(args.quiet, ex, settings))

@@ -21,6 +21,7 @@ from infinitex.engine.imagefile import encode_image, to_u8
 from infinitex.engine.material import IMAGE, Material
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import atomic_write
+from infinitex.engine.subpixel import turn_normals
 from infinitex.engine.surface.atlas import MAX_SIZE, AtlasDomain
 from infinitex.engine.surface.bake import atlas_coords, fill_off_charts
 from infinitex.engine.surface.mesh import Model, texel_density
@@ -95,7 +96,6 @@ def maps_from_coords(coords: np.ndarray, atlas: AtlasDomain, material: Material,
     """Every map through the atlas' coordinates (magnified past the synthesized size)."""
     out = {}
     if plan_.magnify == 1:
-        from infinitex.engine.subpixel import turn_normals
         jac = None
         for role in roles:
             img = material.lookup(role, coords)
@@ -114,7 +114,11 @@ def maps_from_coords(coords: np.ndarray, atlas: AtlasDomain, material: Material,
         bands = []
         for y0 in range(0, n, MAG_BAND):
             y1 = min(n, y0 + MAG_BAND)
-            bands.append(material.magnified(role, padded[y0:y1 + 2], s, jac[y0:y1 + 2]))
+            band = material.magnified(role, padded[y0:y1 + 2], s, jac[y0:y1 + 2])
+            if role == "normal":  # turned with the texture, each output texel by its synthesized texel's J
+                inner = jac[y0 + 1:y1 + 1, 1:n + 1]
+                band = turn_normals(band, np.repeat(np.repeat(inner, s, axis=0), s, axis=1))
+            bands.append(band)
         out[role] = np.concatenate(bands, axis=0)
         if progress:
             progress(role)

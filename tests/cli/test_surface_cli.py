@@ -119,3 +119,32 @@ def test_surface_errors_are_one_line(tmp_path, cube_obj):
     r = run(nouv, BRICK, "-o", out, "--size", "128", "--unwrap", "--fidelity", "variety")
     assert r.returncode == 0, r.stderr
     assert "xatlas" in r.stderr and os.path.exists(out)
+
+
+def test_a_project_with_a_model_brings_its_settings_and_its_paint(tmp_path, cube_obj):
+    """An .itex source: the project's texture size (magnified to --size), scale,
+    direction and the randomness painted on its model; the same atlas as the engine's."""
+    from infinitex.engine.controls import CanvasField
+    from infinitex.engine.surface import load_model
+    from infinitex.export.surface import surface_controls
+    from infinitex.project import Project, save_project
+    from infinitex.project.document import Document, ExemplarSource
+    from infinitex.project.surface import SurfaceSettings
+    model = load_model(cube_obj)
+    paint, _ = CanvasField().painted(90, 90, 40, 65535)
+    doc = Document(ExemplarSource.from_file(BRICK), structure=0, seed=5, randomness_canvas=paint,
+                   surface=SurfaceSettings(model, 256, frame="uv", repeats=1.5))
+    proj = str(tmp_path / "cube.itex")
+    save_project(proj, Project(doc))
+    coords = str(tmp_path / "c.npy")
+    r = run(cube_obj, proj, "-o", str(tmp_path / "p.png"), "--size", "512", "--coords", coords, "-q")
+    assert r.returncode == 0, r.stderr
+    assert Image.open(str(tmp_path / "p.png")).size == (512, 512)  # magnified from the project's 256
+    an = analyze(load_exemplar(BRICK))
+    controls, _ = surface_controls(doc.controls(an.size))
+    with Synthesizer(an, doc.params(an.L)) as s:
+        want = atlas_coords(s, doc.surface.atlas(an.size), controls)
+    assert np.array_equal(np.load(coords), want)
+    # A smaller size than the project's cannot keep its paint: said, and left out.
+    r = run(cube_obj, proj, "-o", str(tmp_path / "q.png"), "--size", "128")
+    assert r.returncode == 0 and "left out" in r.stderr, r.stderr

@@ -77,32 +77,49 @@ class ModelModeMixin:
     def close_model(self) -> None:
         if self.model_mode:
             self.edit(replace(self.doc, surface=None, randomness_canvas=None), "Close model")
+            self.release_model_view()
+            self.model_view, self._model_fbo, self._model_view_key = None, None, None
 
-    def set_surface(self, label: str, **changes) -> None:
-        """An edit of the model's settings (size, scale, frame): one undo step per gesture."""
+    def set_surface(self, label: str, group: object = None, **changes) -> None:
+        """An edit of the model's settings (size, scale, frame); ``group``: the
+        gesture it belongs to (a slider's drag: one undo step)."""
         try:
             s = replace(self.doc.surface, **changes)
             s.validate(self.session.analysis.size)
         except (ProjectError, ValueError) as exc:
             self.dialogs.message("Model", str(exc))
             return
-        self.edit(replace(self.doc, surface=s), label, group=("surface", label))
+        if "size" in changes and self.doc.randomness_canvas is not None and changes["size"] != self.doc.surface.size:
+            # The randomness painted on the model is in its texels: it keeps its place on the surface.
+            rc = self.doc.randomness_canvas.rescaled(changes["size"] / self.doc.surface.size)
+            self.edit(replace(self.doc, surface=s, randomness_canvas=rc), label, group)
+            return
+        self.edit(replace(self.doc, surface=s), label, group)
 
     def export_model_dialog(self) -> None:
         self.dialogs.ask_path("Export model", True, ["glTF binary (*.glb)", "*.glb"], self.start_model_export)
 
-    def start_model_export(self, path: str, magnify: int | None = None) -> None:
+    def start_model_export(self, path: str, magnify: int | None = None, confirmed: bool = False) -> None:
         from infinitex.export.surface import ModelExportJob
         from infinitex.export.window import Writes, check_own_inputs
+        chosen = path
         if not path.lower().endswith(".glb"):
             path += ".glb"
         s = self.doc.surface
         size = s.size * (magnify or getattr(self, "model_export_magnify", 1))
+        job = None
         try:
             check_output(path, (".glb",), "export")
             job = ModelExportJob(self.session, s, path, size, self.export_depth)
-            check_own_inputs(Writes(files=[p for _, p, _ in job.outputs]), self.export_inputs())
+            writes = Writes(files=[p for _, p, _ in job.outputs])
+            check_own_inputs(writes, self.export_inputs())
+            if not confirmed and not self._confirm_replace(
+                    writes, self._asked(chosen, path), lambda: self.start_model_export(path, magnify, True)):
+                job.cancel()
+                return
         except (ValueError, WriteError) as exc:
+            if job is not None:
+                job.cancel()  # its synthesis's GL textures
             self.dialogs.message("Export model", str(exc))
             return
         self.export_job = job
@@ -188,7 +205,9 @@ class ModelModeMixin:
         imgui.image(imgui.ImTextureRef(fbo.color_attachments[0].glo), (w, h), (0, 1), (1, 0))
         dl = imgui.get_window_draw_list()
         text = None
-        if pv.image is None:
+        if pv.error:
+            text = pv.error
+        elif pv.image is None:
             text = f"Texturing {printable(model.name)}: {pv.progress * 100:.0f}%"
         elif not pv.done:
             text = f"Refining the texture: {pv.progress * 100:.0f}%"

@@ -261,6 +261,22 @@ class CanvasField:
                 tiles[(tx, ty)] = apply_dab(base, wts, value, strength)
         return CanvasField(tiles), (x0, y0, x1, y1)
 
+    def rescaled(self, factor: float) -> CanvasField:
+        """The field on a canvas ``factor`` times larger (a model's texture at
+        another size): each new pixel takes the value of the one it came from."""
+        if not self.tiles or factor == 1:
+            return self
+        xs = [tx for tx, _ in self.tiles]
+        ys = [ty for _, ty in self.tiles]
+        x0, y0 = min(xs) * TILE, min(ys) * TILE
+        w, h = (max(xs) + 1) * TILE - x0, (max(ys) + 1) * TILE - y0
+        dense = tiles_region(self.tiles, x0, y0, w, h, NEUTRAL)
+        nx0, ny0 = int(np.floor(x0 * factor)), int(np.floor(y0 * factor))
+        nw, nh = max(1, int(np.ceil((x0 + w) * factor)) - nx0), max(1, int(np.ceil((y0 + h) * factor)) - ny0)
+        sx = np.clip(np.floor((np.arange(nx0, nx0 + nw) + 0.5) / factor).astype(np.int64) - x0, 0, w - 1)
+        sy = np.clip(np.floor((np.arange(ny0, ny0 + nh) + 0.5) / factor).astype(np.int64) - y0, 0, h - 1)
+        return CanvasField.from_image(dense[sy[:, None], sx[None, :]], nx0, ny0)
+
     def changed_rects(self, other: CanvasField) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two fields."""
         return tile_changes(self.tiles, other.tiles, np.full((TILE, TILE), NEUTRAL, np.uint16))

@@ -444,6 +444,9 @@ class AtlasDomain:
             near_enough = dist <= reach
             ei, tx, ty, dist = ei[near_enough], tx[near_enough], ty[near_enough], dist[near_enough]
             idx = ty * n + tx
+            if not len(idx):
+                start = stop
+                continue
             # Per texel, the nearest edge (ties: the lower edge index): sort, take firsts, merge.
             order = np.lexsort((ei, dist, idx))
             idx, ei, dist = idx[order], ei[order], dist[order]

@@ -35,7 +35,9 @@ def draw(p: Panels) -> None:
     changed, rep = imgui.slider_float("Scale", float(s.repeats), MIN_REPEATS, min(MAX_REPEATS, 64.0),
                                       "%.2f repeats", imgui.SliderFlags_.logarithmic)
     if changed:
-        ed.set_surface("Model texture scale", repeats=round(float(rep), 3))
+        ed.set_surface("Model texture scale", group=("model-scale", p), repeats=round(float(rep), 3))
+    if imgui.is_item_deactivated() and ed.history is not None:
+        ed.history.end_group()  # one drag, one undo step
     tip("How many times the exemplar's width fits across the model's largest side")
     if imgui.begin_combo("Direction", FRAME_LABELS[s.frame]):
         for key, label in FRAME_LABELS.items():
