@@ -31,7 +31,6 @@ void main() {
 """
 
 FRAG = """
-#version 330 core
 uniform sampler2D tex;
 uniform vec3 light;      // towards the light, world space
 uniform vec3 eye_dir;    // towards the eye, world space
@@ -41,7 +40,6 @@ uniform sampler2D seams; // 1 where a texel is a chart border texel
 // Synthesis magnification (LH05 5, LH06 6): the atlas's coordinates (texel x,
 // y, remainder x, y in 1/256 px; off the charts, the texels across the seam),
 // J per texel (Q12) and the exemplar (its hi-res copy when there is one).
-uniform int magnify;
 uniform isampler2D coords;
 uniform isampler2D jac;
 uniform sampler2D exemplar;
@@ -52,6 +50,7 @@ in vec3 v_normal;
 in vec2 v_uv;
 out vec4 color;
 
+#ifdef MAGNIFY
 vec3 magnified(vec2 p, vec2 px, vec2 py) {
     // p: atlas texel space (row 0 at the top); px, py: its derivatives per screen pixel
     vec2 fb = floor(p);
@@ -82,6 +81,7 @@ vec3 magnified(vec2 p, vec2 px, vec2 py) {
     }
     return acc;
 }
+#endif
 
 void main() {
     if (mode == 1) {
@@ -93,14 +93,20 @@ void main() {
     vec2 uv = vec2(v_uv.x, 1.0 - v_uv.y);
     // Magnified where a texel covers more than a screen pixel (zoomed in); farther
     // out the texture's mipmaps show the same at a fraction of the cost.
+    vec3 c;
+#ifdef MAGNIFY
+    // (A program of its own: llvmpipe runs a branch's body even when a uniform
+    // turns it off everywhere, which cost the plain view two thirds of its frame rate.)
     vec2 p = uv * float(n) - 0.5;
     vec2 px = dFdx(p), py = dFdy(p);
-    vec3 c;
-    if (magnify != 0 && max(length(px), length(py)) < 1.0) {
+    if (max(length(px), length(py)) < 1.0) {
         c = magnified(p, px, py);
     } else {
         c = texture(tex, uv).rgb;
     }
+#else
+    c = texture(tex, uv).rgb;
+#endif
     float diff = max(dot(n3, normalize(light)), 0.0);
     vec3 h = normalize(normalize(light) + normalize(eye_dir));
     float spec = pow(max(dot(n3, h), 0.0), 40.0) * 0.12;
@@ -182,7 +188,9 @@ class ModelView:
 
     def __init__(self, ctx: moderngl.Context, positions: np.ndarray, faces: np.ndarray, uvs: np.ndarray):
         self.ctx = ctx
-        self.prog = ctx.program(vertex_shader=VERT, fragment_shader=FRAG)
+        self.programs = [ctx.program(vertex_shader=VERT, fragment_shader="#version 330 core\n" + defs + FRAG)
+                         for defs in ("", "#define MAGNIFY\n")]
+        self.prog = self.programs[0]
         P = np.asarray(positions, np.float64)[np.asarray(faces).reshape(-1)]
         tri = P.reshape(-1, 3, 3)
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -191,7 +199,8 @@ class ModelView:
         uv = np.asarray(uvs, np.float64)[np.asarray(faces).reshape(-1)]
         data = np.concatenate([P, normals, uv], axis=1).astype("f4")
         self.vbo = ctx.buffer(data.tobytes())
-        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "3f 3f 2f", "in_pos", "in_normal", "in_uv")])
+        self.vaos = [ctx.vertex_array(p, [(self.vbo, "3f 3f 2f", "in_pos", "in_normal", "in_uv")])
+                     for p in self.programs]
         self.positions = np.asarray(positions)
         self.texture = None
         self.seam_texture = None
@@ -278,6 +287,8 @@ class ModelView:
         x, y, w, h = viewport
         view, proj = camera.matrices(w / max(1, h))
         mvp = (proj @ view).astype("f4")
+        mag = self.magnify and self._synthesis is not None and mode != 1
+        self.prog = self.programs[int(mag)]
         self.prog["mvp"].write(mvp.T.tobytes())
         eye = camera.eye
         self.prog["eye_dir"].value = tuple(_normalize(eye - np.asarray(camera.target)))
@@ -291,8 +302,6 @@ class ModelView:
         if self.seam_texture is not None:
             self.seam_texture.use(1)
             self._set("seams", 1)
-        mag = self.magnify and self._synthesis is not None and mode != 1
-        self._set("magnify", int(mag))
         if mag:
             coords, jac, ex, m, toroidal = self._synthesis
             for unit, t in ((2, coords), (3, jac), (4, ex)):
@@ -302,7 +311,7 @@ class ModelView:
                 self._set(name, v)
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
-        self.vao.render(moderngl.TRIANGLES)
+        self.vaos[int(mag)].render(moderngl.TRIANGLES)
         self.ctx.disable(moderngl.DEPTH_TEST)
 
     def render(self, camera: OrbitCamera, size: tuple[int, int], mode: int = 0,
@@ -333,6 +342,6 @@ class ModelView:
 
     def release(self) -> None:
         self.set_synthesis(None)
-        for o in (self.vao, self.vbo, self.prog, self.texture, self.seam_texture, self._fbo):
+        for o in (*self.vaos, self.vbo, *self.programs, self.texture, self.seam_texture, self._fbo):
             if o is not None:
                 o.release()

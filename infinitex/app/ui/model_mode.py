@@ -132,6 +132,7 @@ class ModelModeMixin:
         self.model_view: ModelView | None = None
         self._model_view_key = None
         self._model_fbo = None
+        self._model_drawn = None  # what the framebuffer shows: drawn again only when it changes
         self._model_uv = None  # (camera, size, uv image) of the last pick
         self.show_seams = False
         self._seams_key = None
@@ -186,15 +187,21 @@ class ModelModeMixin:
                 color_attachments=[self.gpu.ctx.texture((w, h), 4)],
                 depth_attachment=self.gpu.ctx.depth_renderbuffer((w, h)))
             fbo.color_attachments[0].filter = (moderngl.NEAREST, moderngl.NEAREST)
-        fbo.use()
-        fbo.clear(0.16, 0.17, 0.19, 1.0, depth=1.0)
-        if pv.image is not None:
-            # While the mouse orbits or pans, the texture's mipmaps (a frame rate
-            # that follows the hand); at rest, synthesis magnification when zoomed in.
-            keep, mv.magnify = mv.magnify, mv.magnify and self._canvas_button < 0
-            mv.draw(self.camera, (0, 0, w, h), mode=2 if self.show_seams else 0)
-            mv.magnify = keep
+        # While the mouse orbits or pans, the texture's mipmaps (a frame rate that
+        # follows the hand); at rest, synthesis magnification. A picture that would
+        # not change is not drawn again (magnification costs llvmpipe 150 ms a frame).
+        magnify = mv.magnify and self._canvas_button < 0
+        drawn = (self.camera, w, h, self._model_tex_version, self.show_seams, magnify, pv.image is None)
+        if drawn != self._model_drawn or self.canvas_request:
+            fbo.use()
+            fbo.clear(0.16, 0.17, 0.19, 1.0, depth=1.0)
+            if pv.image is not None:
+                keep, mv.magnify = mv.magnify, magnify
+                mv.draw(self.camera, (0, 0, w, h), mode=2 if self.show_seams else 0)
+                mv.magnify = keep
+            self._model_drawn = drawn
         if self.canvas_request:
+            fbo.use()
             self.canvas_pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1].copy()
             self.canvas_request = False
         if self.atlas_request and pv.done:
