@@ -415,7 +415,8 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
                               dict(uni, region_g0=g0, region_t0=t0)).steps():
                     pass
-            yield
+            if not deferred:
+                yield  # (a local update reports what it changed before any frame can draw it: no pause here)
             if deferred:
                 diff = np.any(self._read_rect(buf, strip) != before, axis=-1)
                 if diff.any():
