@@ -82,6 +82,23 @@ def _match(key_a: np.ndarray, key_b: np.ndarray) -> np.ndarray:
     return res
 
 
+def _box_texels(ids: np.ndarray, x0: np.ndarray, y0: np.ndarray, w: np.ndarray, h: np.ndarray):
+    """Every texel (id, x, y) of boxes [x0, x0 + w) x [y0, y0 + h), a chunk of
+    about CHUNK texels at a time (a box larger than that is one chunk)."""
+    cnt = np.maximum(w, 0) * np.maximum(h, 0)
+    ends = np.cumsum(cnt)
+    start = 0
+    while start < len(ids):
+        base = ends[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(ends, base + CHUNK, side="right")))
+        c = cnt[start:stop]
+        rep = np.repeat(np.arange(start, stop), c)
+        off = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        bw = np.maximum(w[rep], 1)
+        yield ids[rep], x0[rep] + off % bw, y0[rep] + off // bw
+        start = stop
+
+
 def clamp_stretch(J: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
     """2x2 matrices (n, 4) with their singular values held within [lo, hi]
     (J V diag(s'/s) V^T), and which were changed; closed-form, elementwise."""
@@ -329,22 +346,8 @@ class AtlasDomain:
         k_in = np.arange(int(bands.sum())) - np.repeat(np.cumsum(bands) - bands, bands)
         py0 = x0[piece, 1] + k_in * rows[piece]
         py1 = np.minimum(py0 + rows[piece], x1[piece, 1])
-        pw = w[piece]
-        cnt = pw * (py1 - py0)
         best = np.full(n * n, np.iinfo(np.int32).max, np.int64)
-        ends = np.cumsum(cnt)
-        start = 0
-        while start < len(piece):
-            base = ends[start - 1] if start else 0
-            stop = max(start + 1, int(np.searchsorted(ends, base + CHUNK, side="right")))
-            sel = np.arange(start, stop)
-            c = cnt[sel]
-            pi = np.repeat(sel, c)
-            ti = piece[pi]
-            off = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
-            bw = np.maximum(pw[pi], 1)
-            tx = x0[ti, 0] + off % bw
-            ty = py0[pi] + off // bw
+        for ti, tx, ty in _box_texels(piece, x0[piece, 0], py0, w[piece], py1 - py0):
             px, py = tx * step + half, ty * step + half
             inside = np.ones(len(ti), bool)
             for i in range(3):
@@ -355,7 +358,6 @@ class AtlasDomain:
                 inside &= (E > 0) | ((E == 0) & topleft)
             idx = ty[inside] * n + tx[inside]
             np.minimum.at(best, idx, tris[ti[inside]])
-            start = stop
         out = np.where(best == np.iinfo(np.int32).max, -1, best).astype(np.int32)
         return out.reshape(n, n)
 
@@ -415,25 +417,20 @@ class AtlasDomain:
         X = self.uvpx / scale  # level-k px
         a, b = X[self.b_a], X[self.b_b]
         reach = GUTTER + 1.0
-        lo = np.floor(np.minimum(a, b) - reach - 0.5).astype(np.int64)
-        hi = np.ceil(np.maximum(a, b) + reach - 0.5).astype(np.int64)
+        # Each edge's band, box by box along it (pieces of at most 32 px: a long diagonal edge's
+        # bounding box would be mostly far from it).
+        pieces = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=-1) / 32.0)).astype(np.int64)
+        pe = np.repeat(np.arange(len(a)), pieces)
+        j = np.arange(int(pieces.sum())) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+        sa = a[pe] + (j / pieces[pe])[:, None] * (b - a)[pe]
+        sb = a[pe] + ((j + 1) / pieces[pe])[:, None] * (b - a)[pe]
+        lo = np.floor(np.minimum(sa, sb) - reach - 0.5).astype(np.int64)
+        hi = np.ceil(np.maximum(sa, sb) + reach - 0.5).astype(np.int64)
         lo, hi = np.clip(lo, 0, n), np.clip(hi + 1, 0, n)
-        cnt = np.maximum(hi[:, 0] - lo[:, 0], 0) * np.maximum(hi[:, 1] - lo[:, 1], 0)
         e_chart = self.chart[self.b_tri]
         best_d = np.full(n * n, np.inf)
         best_e = np.full(n * n, -1, np.int64)
-        ends = np.cumsum(cnt)
-        start = 0
-        while start < len(cnt):
-            base = ends[start - 1] if start else 0
-            stop = max(start + 1, int(np.searchsorted(ends, base + CHUNK, side="right")))
-            sel = np.arange(start, stop)
-            c = cnt[sel]
-            ei = np.repeat(sel, c)
-            off = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
-            bw = np.repeat(np.maximum(hi[sel, 0] - lo[sel, 0], 1), c)
-            tx = np.repeat(lo[sel, 0], c) + off % bw
-            ty = np.repeat(lo[sel, 1], c) + off // bw
+        for ei, tx, ty in _box_texels(pe, lo[:, 0], lo[:, 1], hi[:, 0] - lo[:, 0], hi[:, 1] - lo[:, 1]):
             keep = own[ty, tx] != e_chart[ei]
             ei, tx, ty = ei[keep], tx[keep], ty[keep]
             pa, pb = a[ei], b[ei]
@@ -445,7 +442,6 @@ class AtlasDomain:
             ei, tx, ty, dist = ei[near_enough], tx[near_enough], ty[near_enough], dist[near_enough]
             idx = ty * n + tx
             if not len(idx):
-                start = stop
                 continue
             # Per texel, the nearest edge (ties: the lower edge index): sort, take firsts, merge.
             order = np.lexsort((ei, dist, idx))
@@ -455,7 +451,6 @@ class AtlasDomain:
             better = (dist < best_d[idx]) | ((dist == best_d[idx]) & (ei < best_e[idx]))
             best_d[idx[better]] = dist[better]
             best_e[idx[better]] = ei[better]
-            start = stop
         hit = np.flatnonzero(best_e >= 0)
         if not len(hit):
             return
