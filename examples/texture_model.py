@@ -12,8 +12,6 @@ On the command line: ``infinitex surface vase.glb brick.png -o vase.glb``.
 import os
 import sys
 
-import numpy as np
-
 import infinitex as itx
 from infinitex.engine.surface.seams import seam_error
 from infinitex.engine.surface.shapes import vase
@@ -29,4 +27,5 @@ with open(os.path.join(out, "vase_brick.glb"), "wb") as f:
 naive, _, _ = itx.texture_model(model, brick, 1024, repeats=5.0, seed=1, seams=False)
 print(f"{len(model.faces)} triangles, {atlas.charts} charts; seam error {seam_error(img, atlas).ratio:.2f} "
       f"(each chart on its own: {seam_error(naive, atlas).ratio:.2f}; 1.0 = as continuous as the texture)")
-print("wrote vase_brick.png and vase_brick.glb", np.asarray(img).shape)
+print(f"wrote vase_brick.png {img.shape[1]}x{img.shape[0]}")
+print("and vase_brick.glb: the model with it attached")
