@@ -65,9 +65,3 @@ def atlas_image(stack: np.ndarray, coords: np.ndarray, atlas: AtlasDomain, wrap:
     if normals:
         img = turn_normals(img, atlas.jacobians(0, 0, 0, atlas.size, atlas.size))
     return fill_off_charts(img, atlas)
-
-
-def seam_texels(atlas: AtlasDomain) -> int:
-    """How many finest texels read across a seam (linked gutter texels)."""
-    chart, _ = atlas.link_map(0)
-    return int((chart >= 0).sum())
