@@ -5,7 +5,8 @@ naive padding c * s^2 * radius (larger than the engine's exact margins), plain
 row-major arrays, clamped reads at the window border. Its exact interior must
 equal the GL result bit for bit. With a surface (a mesh's texture atlas,
 Controls.surface), every state read goes through the level's indirection map
-(state_texel, and the parent texel in upsample), J comes from the surface.
+(state_texel, and the parent texel in upsample), J comes from the surface,
+and placed features follow the atlas rule (per-chart copies, _atlas_features).
 """
 from __future__ import annotations
 
@@ -323,9 +324,12 @@ def apply_features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params:
                    controls: Controls) -> np.ndarray:
     """Override the coordinates inside placed features (written from the
     definition: every feature tested at every pixel, exact rationals). With a
-    direction field (4 channels) a feature sets a whole texel: remainder 0."""
+    direction field (4 channels) a feature sets a whole texel: remainder 0.
+    With a surface (a mesh's atlas), the atlas rule (_atlas_features)."""
     if not controls.features:
         return S
+    if getattr(controls, "surface", None) is not None:  # placed on a model: the atlas rule
+        return _atlas_features(S, origin, an, level, controls)
     if S.shape[-1] == 4:
         out = S.copy()
         hit = np.zeros(S.shape[:2], bool)
@@ -364,6 +368,73 @@ def _features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: Synt
                     out[yy, xx] = ((f.exemplar[0] + h * dx) % m, (f.exemplar[1] + h * dy) % m)
                     if hit is not None:
                         hit[yy, xx] = True
+    return out
+
+
+# -- features placed on a model (engine/surface/features.py) ----------------------
+# Written from that module's docstring and shaders/common.glsl's
+# apply_features_atlas, with numpy int64 and floor divisions. The per-chart
+# copies (the centre, its chart and J of each copy) are the engine's CPU-side
+# data, read from the surface; the level range, radius and exemplar point come
+# from each Feature's own methods. Per copy, at a level-k texel g of the copy's
+# chart (its own chart in the indirection map, never -1), with x its centre:
+#   D = clamp((2g + 1) 4h - P, +-65535)   x - p in 1/8 finest texels (h = 2^k)
+#   e = J D                               2^-15 exemplar px (J in Q12)
+#   outside when |e.x| or |e.y| > r << 15, else inside iff
+#   e4 = floor(e / 2^11) (1/16 px) has e4.x^2 + e4.y^2 <= (16 r)^2;
+#   inside: F = u 256 + floor(e / 2^7) (1/256 px), stored as (nearest texel
+#   wrapped mod m, remainder) as everywhere else. Later copies win.
+
+ATLAS_D_MAX = 65535  # |x - p| in 1/8 finest texels per axis (features.py D_MAX; written here again)
+FEATURE_CHARTS = True  # False: a copy applies to texels of every chart (a test shows this matters)
+
+
+def atlas_feature_rows(controls: Controls, an: Analysis, level: int) -> list[tuple]:
+    """The copies active at ``level``, in table order: (P x, P y (1/8 finest
+    texels), chart, (j00, j01, j10, j11), (u x, u y), r_l) per row."""
+    L, m = an.L, an.size
+    copies = controls.surface.feature_copies(controls.features_key, controls._features)
+    rows = []
+    for c in np.asarray(copies):
+        f = controls.features[int(c[0])]
+        a, b = f.level_range(L)
+        if not a <= level <= b:
+            continue
+        u = f.clamped(m, an.toroidal).exemplar
+        rows.append((int(c[1]), int(c[2]), int(c[3]), tuple(int(v) for v in c[4:8]), u, f.radius_at(level, L)))
+    return rows
+
+
+def atlas_feature_hit(row: tuple, gx: np.ndarray, gy: np.ndarray, h: int, m: int):
+    """One copy (a row of atlas_feature_rows) at level texels (gx, gy) of spacing
+    h: (inside its disc, whatever the texels' charts; the state texels it sets (..., 4))."""
+    px, py, _, (j00, j01, j10, j11), (ux, uy), r = row
+    Dx = np.clip((2 * gx + 1) * (4 * h) - px, -ATLAS_D_MAX, ATLAS_D_MAX)
+    Dy = np.clip((2 * gy + 1) * (4 * h) - py, -ATLAS_D_MAX, ATLAS_D_MAX)
+    ex, ey = j00 * Dx + j01 * Dy, j10 * Dx + j11 * Dy
+    R = r << 15
+    e4x, e4y = np.floor_divide(ex, 1 << 11), np.floor_divide(ey, 1 << 11)
+    inside = (np.abs(ex) <= R) & (np.abs(ey) <= R) & (e4x * e4x + e4y * e4y <= (16 * r) ** 2)
+    tx, rx = _q8_split(ux * Q8 + np.floor_divide(ex, 1 << 7), m)
+    ty, ry = _q8_split(uy * Q8 + np.floor_divide(ey, 1 << 7), m)
+    return inside, np.stack([tx, ty, rx, ry], axis=-1)
+
+
+def _atlas_features(S: np.ndarray, origin: tuple[int, int], an: Analysis, level: int,
+                    controls: Controls) -> np.ndarray:
+    """Features placed on a model (the rule above) over a window of state texels (h, w, 4)."""
+    assert S.shape[-1] == 4
+    H, W = S.shape[:2]
+    rows = atlas_feature_rows(controls, an, level)
+    if not rows:
+        return S
+    chart = atlas_links(controls, an, level, origin[0], origin[1], W, H)[..., 0]  # the texels' own charts
+    gy, gx = np.mgrid[origin[1]:origin[1] + H, origin[0]:origin[0] + W].astype(np.int64)
+    out = S.copy()
+    for row in rows:
+        inside, v = atlas_feature_hit(row, gx, gy, an.h(level), an.size)
+        inside &= (chart == row[2]) if FEATURE_CHARTS else (chart >= 0)
+        out[inside] = v[inside]
     return out
 
 

@@ -52,7 +52,7 @@ def feature_textures(gpu: Gpu, controls: Controls, an, l: int, region: Rect, per
             dummy.use(unit)
         return [], uni
     table, cells, entries, origin, shift = found
-    arrays = [(pack_rows(table, TABLE_ROW).reshape(-1, 2 * TABLE_ROW, 4), 4), (cells, 2),
+    arrays = [(pack_rows(table, TABLE_ROW).reshape(-1, table.shape[1] * TABLE_ROW, 4), 4), (cells, 2),
               (pack_rows(entries, ENTRY_ROW), 1)]
     texs = []
     for unit, (arr, comps) in zip((3, 6, 7), arrays):
@@ -407,8 +407,8 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 before = self._read_rect(buf, strip)
             prog, vao = self.gpu.program("writeback.frag", SUB_S=s, **ddef)
             uni = dict(src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
-                       h=h, m=an.size, period=p.level_period(l), **funi)
-            textures = {0: a, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
+                       h=h, m=an.size, period=p.level_period(l), links=12, **funi)  # links: charts (on a model)
+            textures = {0: a, 12: self._dummy_i if ltex is None else ltex, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
             # At once and without a pause: a level shown between two pieces
             # would hold pixels the view was not told about (Pyramid.touched).
             for g0, t0, w, hh in self._texel_pieces(buf, strip):

@@ -72,13 +72,14 @@ def surface_controls(controls: Controls, painted_on_model: bool = True) -> tuple
     set on the exemplar, and the canvas randomness when it was painted on the
     model: a document with a model paints in its atlas), and the names of
     those left out (placed on the plane)."""
-    plane = [("features", controls.features), ("canvas labels", controls.labels_canvas),
-             ("direction field", controls.direction), ("lattice", controls.lattice)]
+    plane = [("canvas labels", controls.labels_canvas), ("direction field", controls.direction),
+             ("lattice", controls.lattice)]
     if not painted_on_model:
-        plane.insert(0, ("canvas randomness", controls.randomness_canvas))
+        plane[:0] = [("canvas randomness", controls.randomness_canvas), ("features", controls.features)]
     dropped = [name for name, v in plane if v]
-    kept = replace(controls, features=(), labels_canvas=None, direction=None, lattice=None,
-                   randomness_canvas=controls.randomness_canvas if painted_on_model else None)
+    kept = replace(controls, labels_canvas=None, direction=None, lattice=None,
+                   randomness_canvas=controls.randomness_canvas if painted_on_model else None,
+                   features=controls.features if painted_on_model else ())
     return kept, dropped
 
 

@@ -7,7 +7,9 @@ canvas shows it textured; the project is saved with the atlas beside it
 (test_editor.py checks it against the engine's); orbit (middle and
 left buttons) and zoom change the view, not the texture; a Paint canvas
 stroke on the model is one undo step and changes the texture; undo restores
-the atlas exactly; Export model writes a GLB with the texture; Close model
+the atlas exactly; the Features tool places a feature on the model
+(its centre copies the exemplar exactly), the wheel resizes it and a drag
+moves it, each one undo step; Export model writes a GLB with the texture; Close model
 returns to the plane. Writes "ok NAME" / "FAIL NAME: why" lines to
 OUT_DIR/report.txt and model-editor.png.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
@@ -41,7 +44,11 @@ def main(out: str) -> int:
         """The finished atlas's coordinates, read by the editor itself during a frame (GL is the main thread's)."""
         settle(ctx)
         ed.atlas_request = True
+        t0 = time.monotonic()
         while ed.atlas_request:
+            if time.monotonic() - t0 > 120 or not ed.model_mode:
+                ed.atlas_request = False
+                return None
             ctx.yield_()
         return ed.atlas_read
 
@@ -121,6 +128,54 @@ def main(out: str) -> int:
         ed.show_seams = False
         ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
         check("undo restores the atlas exactly", np.array_equal(atlas_now(ctx), first), "atlas differs")
+
+        # Features on the model: a click places one (one undo step) whose centre copies the
+        # exemplar exactly; the wheel over it resizes it; dragging its centre moves it over the surface.
+        ctx.item_click("//**/Features (F)##tool-feature")
+        ctx.yield_(2)
+        tool = ed.tool
+        tool.inner, tool.outer, tool.exact = 20, 40, True
+        steps = len(ed.history.undo_stack)
+        ctx.mouse_move_to_pos((cx + 10, cy + 10))
+        ctx.mouse_click(0)
+        placed = atlas_now(ctx)
+        feats = ed.doc.features
+        check("a click on the model places a feature (one undo step)",
+              len(feats) == 1 and len(ed.history.undo_stack) == steps + 1, f"{len(feats)} features")
+        if feats and placed is not None:
+            f = feats[0]
+            at = placed[f.canvas[1], f.canvas[0]]
+            an = ed.session.analysis
+            u = f.clamped(an.size, an.toroidal).exemplar  # (moved inward on an exemplar that does not tile)
+            check("the feature's centre shows its exemplar point exactly",
+                  tuple(at) == (u[0], u[1], 0, 0), f"{tuple(at)} vs {u}")
+            np.save(os.path.join(out, "atlas-feature.npy"), placed)
+            ctx.menu_click("File/Save As...")
+            ctx.yield_(2)
+            ctx.item_input_value("//**/##path", os.path.join(out, "model-feature.itex"))
+            ctx.yield_(3)
+            diff = np.any(placed != first, axis=-1)
+            check("the feature changes the texture around it", diff.sum() > 50, f"{diff.sum()} texels")
+            ctx.mouse_move_to_pos((cx + 10, cy + 10))  # (the dialog took the mouse)
+            ctx.mouse_wheel((0, 2))
+            ctx.yield_(2)
+            g = ed.doc.features[0]
+            check("the wheel over a feature resizes it", g.outer > f.outer and g.canvas == f.canvas,
+                  f"{f.outer} -> {g.outer}")
+            steps = len(ed.history.undo_stack)
+            ctx.mouse_move_to_pos((cx + 10, cy + 10))
+            ctx.mouse_down(0)
+            for i in range(1, 5):
+                ctx.mouse_move_to_pos((cx + 10 + 8 * i, cy + 10))
+            ctx.mouse_up(0)
+            moved = ed.doc.features
+            check("dragging a feature's centre moves it on the surface (one undo step)",
+                  len(moved) == 1 and moved[0].canvas != g.canvas and len(ed.history.undo_stack) == steps + 1,
+                  f"{g.canvas} -> {moved[0].canvas if moved else None}")
+            for _ in range(3):
+                ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+            check("undoing the feature restores the atlas exactly",
+                  not ed.doc.features and np.array_equal(atlas_now(ctx), first), "atlas differs")
 
         # Export model: a GLB with the texture; then Close model returns to the plane.
         glb = os.path.join(out, "cube_gravel.glb")

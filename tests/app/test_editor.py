@@ -172,10 +172,10 @@ def test_direction_tool_driven_by_the_test_engine(tmp_path):
 
 
 def test_model_view_driven_by_the_test_engine(tmp_path, gpu):
-    """Open a model, orbit, paint on it, undo, export a GLB, close it
-    (tests/app/gui_surface.py); the atlas the editor showed is the engine's for
-    the project it saved."""
-    _drive("gui_surface.py", tmp_path, 13)
+    """Open a model, orbit, paint on it, place a feature on it, undo, export a
+    GLB, close it (tests/app/gui_surface.py); the atlas the editor showed is the
+    engine's for each project it saved (without and with the feature)."""
+    _drive("gui_surface.py", tmp_path, 19)
     import numpy as np
 
     from infinitex.engine.analysis import analyze
@@ -184,11 +184,14 @@ def test_model_view_driven_by_the_test_engine(tmp_path, gpu):
     from infinitex.export.surface import surface_controls
     from infinitex.project import load_project
     from infinitex.project.realize import exemplar_for, material_or_none
-    doc = load_project(str(tmp_path / "model.itex")).document
-    assert doc.surface is not None and doc.surface.model.name == "cube.obj"
-    ex, settings = exemplar_for(doc, None, material_or_none(doc))
-    an = analyze(ex, settings)
-    controls, _ = surface_controls(doc.controls(an.size))
-    with Synthesizer(an, doc.params(an.L), gpu=gpu) as s:
-        want = atlas_coords(s, doc.surface.atlas(an.size), controls)
-    assert np.array_equal(np.load(str(tmp_path / "atlas.npy")), want)
+    for project, atlas, features in (("model.itex", "atlas.npy", 0), ("model-feature.itex", "atlas-feature.npy", 1)):
+        doc = load_project(str(tmp_path / project)).document
+        assert doc.surface is not None and doc.surface.model.name == "cube.obj"
+        assert len(doc.features) == features
+        ex, settings = exemplar_for(doc, None, material_or_none(doc))
+        an = analyze(ex, settings)
+        controls, dropped = surface_controls(doc.controls(an.size))
+        assert not dropped
+        with Synthesizer(an, doc.params(an.L), gpu=gpu) as s:
+            want = atlas_coords(s, doc.surface.atlas(an.size), controls)
+        assert np.array_equal(np.load(str(tmp_path / atlas)), want)

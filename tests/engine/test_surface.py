@@ -270,3 +270,37 @@ def test_magnified_normals_turn_with_the_texture():
     assert np.abs(a - b).mean() < 0.02
     # Without turning, the turned faces' normals would lean the other way: the test can tell.
     assert np.abs(a[..., 0] - 0.85).max() > 0.2
+
+
+def test_features_on_a_model_keep_their_place_when_the_texture_size_changes():
+    """rescaled_features: the centre's surface point stays (within a texel of the
+    larger atlas); a feature off the charts has no copy; a feature's change on a
+    model reaches the whole atlas (its copies lie in other charts)."""
+    from infinitex.engine.controls import Controls, Feature, rescaled_features
+    model = cube(n=3)
+    small, large = AtlasDomain(model, 128, sigma=40.0), AtlasDomain(model, 512, sigma=40.0)
+    f = Feature((10, 10), (20, 100), 8, 12)
+    assert small.owner(0)[100, 20] >= 0
+    (g,) = rescaled_features((f,), 4.0)
+    assert g.canvas == (82, 402) and (g.inner, g.outer) == (8, 12)
+
+    def point(atlas, x, y):
+        t = int(atlas.nearest_triangle(0)[y, x])
+        A, B, C = atlas.uvpx[model.faces[t]]
+        P = model.positions[model.faces[t]]
+        w = np.linalg.solve(np.array([[B[0] - A[0], C[0] - A[0]], [B[1] - A[1], C[1] - A[1]]]),
+                            np.array([x + 0.5, y + 0.5]) - A)
+        return P[0] + w[0] * (P[1] - P[0]) + w[1] * (P[2] - P[0])
+    texel_world = 2.0 / (512 * 0.3)  # a cube face (2 units) spans about 0.3 of the atlas
+    assert np.linalg.norm(point(small, 20, 100) - point(large, *g.canvas)) < texel_world
+    off = Controls(features=(Feature((10, 10), (127, 127), 8, 12),))  # on the plane
+    assert len(small.feature_copies("a", Controls(features=(Feature((10, 10), (900, 5), 8, 12),))._features)) == 0
+    arr = Controls(features=(f,))._features
+    j1 = small.feature_copies("f", arr)[0, 4:8]
+    j2 = small.reframed(60.0).feature_copies("f", arr)[0, 4:8]  # another scale: another J (not the cached one)
+    fresh = AtlasDomain(model, 128, sigma=60.0).feature_copies("f", arr)[0, 4:8]
+    assert np.array_equal(j2, fresh) and not np.array_equal(j2, j1)
+    assert np.array_equal(small.feature_copies("f", arr)[0, 4:8], j1)
+    on = Controls(features=(f,), surface=small)
+    assert on.changed_rects(Controls(features=(), surface=small)) is None
+    assert off.changed_rects(Controls(features=())) is not None  # on the plane: local

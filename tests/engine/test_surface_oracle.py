@@ -7,18 +7,26 @@ written from shaders/common.glsl (atlas_texel) and upsample.frag
 remainders) over the atlas window agrees bit for bit, for both neighborhood
 models, with and without similarity sets and the fidelity stage. The links do
 something there, and with every link off (all -1) a surface is exactly the
-direction field with the same J."""
+direction field with the same J.
+
+Features placed on a model (engine/surface/features.py) on real models (the
+cube and the cylinder of engine/surface/shapes.py): GL against the oracle's
+atlas feature rule (copies across seams, a copy on its own chart only, later
+rows winning), and the synthesized coordinates inside a disc against the
+definition F = u_F + J (x - p) in the centre's chart and in the chart across."""
 import numpy as np
 import oracle
 import pytest
 from conftest import periodic_noise
 
 from infinitex.engine.analysis import AnalysisSettings, analyze
-from infinitex.engine.controls import Controls
+from infinitex.engine.controls import Controls, Feature
 from infinitex.engine.controls.direction import IDENTITY, DirectionField, jacobian
 from infinitex.engine.exemplar import from_array
 from infinitex.engine.params import SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
+from infinitex.engine.surface import AtlasDomain
+from infinitex.engine.surface.shapes import cube, cylinder
 from infinitex.engine.synth import Synthesizer
 
 N = 64  # the atlas at the finest level (n x n texels); level l holds n >> (L - l)
@@ -161,3 +169,163 @@ def test_links_off_equal_the_direction_field(atlas_analyses, gpu, name, structur
     assert np.array_equal(by_surface, by_field)
     assert np.array_equal(by_surface, oracle.synthesize(an, params, 0, 0, N, N, controls=Controls(surface=surface)))
     assert (by_field[..., 2:] != 0).any(-1).mean() > 0.5
+
+
+# -- features placed on a model (engine/surface/features.py) ----------------------------------------
+# Real models in a 128 px atlas at 16 exemplar px per world unit (J near the identity on the cube,
+# about diag(0.82, 0.40) on the cylinder's side). Per model: a feature with the default levels whose
+# disc crosses a seam into a chart whose UVs keep their orientation (the cube's +z face into its
+# turned +x face, and around its corner into +y and -y; the cylinder's side across its u seam, into
+# the same chart's other end), and a second one with explicit levels reaching the finest level,
+# overlapping the first (and winning there). Some copies' discs lie over other charts' texels (the
+# cube's +y copy over the -y face; the cylinder's second feature over the top cap below the side in
+# the atlas): the chart rule keeps them off those.
+
+ATLAS = 128
+SIGMA = 16.0
+MODELS = {
+    "cube": (cube, (Feature((10, 12), (35, 106), 12, 16), Feature((20, 9), (30, 103), 4, 7, (1, 5)))),
+    "cylinder": (cylinder, (Feature((10, 12), (5, 64), 8, 12), Feature((20, 9), (16, 78), 8, 11, (1, 5)))),
+}
+_ATLASES: dict = {}
+
+
+def model_atlas(name: str) -> AtlasDomain:
+    if name not in _ATLASES:
+        _ATLASES[name] = AtlasDomain(MODELS[name][0](), ATLAS, sigma=SIGMA)
+    return _ATLASES[name]
+
+
+def copies_of(controls: Controls, i: int) -> np.ndarray:
+    """Feature i's copies (surface/features.py COLUMNS), the engine's CPU-side rows."""
+    c = controls.surface.feature_copies(controls.features_key, controls._features)
+    return c[c[:, 0] == i]
+
+
+def row_hits(controls: Controls, an, level: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per oracle row active at ``level`` (table order), the texels of the level's atlas inside its
+    disc: (those of its chart, those of other charts)."""
+    k = an.L - level
+    n = ATLAS >> k
+    gy, gx = np.mgrid[0:n, 0:n].astype(np.int64)
+    own = controls.surface.owner(k)
+    out = []
+    for row in oracle.atlas_feature_rows(controls, an, level):
+        inside, _ = oracle.atlas_feature_hit(row, gx, gy, an.h(level), an.size)
+        out.append((inside & (own == row[2]), inside & (own >= 0) & (own != row[2])))
+    return out
+
+
+# model, analysis (similarity sets k > 0 or k = 0), structure (1: with the fidelity stage), seed
+FEATURE_CASES = [("cube", "bordered-appearance", 0, 11), ("cube", "torus-appearance-k0", 1, 12),
+                 ("cylinder", "bordered-color-k0", 0, 13), ("cylinder", "torus-color", 1, 14)]
+
+
+@pytest.mark.parametrize("model, name, structure, seed", FEATURE_CASES)
+def test_features_on_a_model_match_the_oracle(atlas_analyses, gpu, monkeypatch, model, name, structure, seed):
+    an = atlas_analyses[name]
+    atlas = model_atlas(model)
+    feats = MODELS[model][1]
+    controls = Controls(features=feats, surface=atlas)
+    controls.validate(an.size)
+    params = structure_params(SynthParams.default(an.L, seed=seed), structure)
+    assert bool(params.fidelity and any(params.fidelity)) == bool(structure)
+    assert feats[0].levels is None and feats[1].levels is not None
+    # The case exercises what it claims: the first feature has copies across its seams, and at its
+    # last level (default range: L - 2) its centre copy and a copy across set texels of their charts;
+    # the second feature's disc overlaps the first's there; some copy's disc lies over texels of
+    # other charts (at some level).
+    across = copies_of(controls, 0)
+    assert len(across) >= 2 and len({(int(r[1]), int(r[2])) for r in across}) == len(across)
+    level = feats[0].level_range(an.L)[1]
+    assert level == an.L - 2
+    hits = row_hits(controls, an, level)
+    assert len(hits) == len(across) + len(copies_of(controls, 1))
+    counts = [int(own.sum()) for own, _ in hits]
+    assert counts[0] >= 3 and max(counts[1:len(across)]) >= 3, counts
+    assert (hits[0][0] & hits[len(across)][0]).sum() >= 3  # the second feature's centre copy overlaps
+    assert sum(int(other.sum()) for lv in range(an.L + 1) for _, other in row_hits(controls, an, lv)) >= 3
+
+    gl = atlas_window(an, params, controls, gpu, ATLAS)
+    ref = oracle.synthesize(an, params, 0, 0, ATLAS, ATLAS, controls=controls)
+    assert np.array_equal(gl, ref), (model, name, int((gl != ref).any(-1).sum()))
+    plain = atlas_window(an, params, Controls(surface=atlas), gpu, ATLAS)
+    assert (plain != gl).any(-1).sum() >= 50  # the features do something
+
+    # Order matters (later rows win), and GL follows it.
+    swapped = Controls(features=feats[::-1], surface=atlas)
+    gl_swapped = atlas_window(an, params, swapped, gpu, ATLAS)
+    assert (gl_swapped != gl).any(-1).sum() >= 3
+    assert np.array_equal(gl_swapped, oracle.synthesize(an, params, 0, 0, ATLAS, ATLAS, controls=swapped))
+
+    # Teeth: an engine that applied each copy to every chart's texels would fail this test.
+    monkeypatch.setattr(oracle, "FEATURE_CHARTS", False)
+    assert not np.array_equal(gl, oracle.synthesize(an, params, 0, 0, ATLAS, ATLAS, controls=controls))
+
+
+def _q8_diff(F: np.ndarray, expected: np.ndarray, m: int) -> np.ndarray:
+    """F - expected (1/256 px) wrapped to [-128 m, 128 m)."""
+    P = 256 * m
+    return np.mod(F - expected + P // 2, P) - P // 2
+
+
+@pytest.mark.parametrize("model", ["cube", "cylinder"])
+def test_a_feature_on_a_model_is_the_exemplar_disc_laid_on_the_surface(atlas_analyses, gpu, model):
+    """At the finest level (the feature's range reaches it; write-back imposes it after correction),
+    inside the disc the state is the definition: in the centre's chart F = u_F + J_F (x - p_F), J_F
+    the atlas' J under the centre; in the chart across, F = u_F + J' (x' - p') with the copy's p', J'
+    (both to the 1/256 px floor of the shader), and J' (x' - p') = J_F A^-1 (x' - M p_F) for the
+    seam's affine map M = (A, t) from the atlas (to the copy's rounding of p' to 1/8 texel)."""
+    an = atlas_analyses["bordered-appearance"]
+    atlas = model_atlas(model)
+    L, m = an.L, an.size
+    r = 8
+    f = Feature(MODELS[model][1][0].exemplar, MODELS[model][1][0].canvas, r, r, (2, L))
+    controls = Controls(features=(f,), surface=atlas)
+    u = np.array(f.clamped(m, an.toroidal).exemplar, np.float64)
+    gl = atlas_window(an, structure_params(SynthParams.default(L, seed=21), 1), controls, gpu, ATLAS)
+    F = gl[..., :2].astype(np.int64) * 256 + gl[..., 2:]
+    own = atlas.owner(0)
+    ys, xs = np.mgrid[0:ATLAS, 0:ATLAS]
+    X = np.stack([xs + 0.5, ys + 0.5], axis=-1)  # texel centres, finest texels
+
+    px, py = f.canvas
+    c = int(own[py, px])
+    J = atlas.jacobians(0, px, py, 1, 1)[0, 0].astype(np.float64) / 4096
+    p = np.array([px + 0.5, py + 0.5])
+    rows = copies_of(controls, 0)
+    assert len(rows) >= 2
+    assert rows[0][1:4].tolist() == [8 * px + 4, 8 * py + 4, c] and np.array_equal(rows[0][4:8], J * 4096)
+
+    def check(chart, Jm, centre, expected_of, tol_lo, tol_hi):
+        d = X - centre
+        e = np.stack([Jm[0] * d[..., 0] + Jm[1] * d[..., 1], Jm[2] * d[..., 0] + Jm[3] * d[..., 1]], -1)
+        sel = (own == chart) & (np.hypot(e[..., 0], e[..., 1]) <= r - 0.1)
+        diff = _q8_diff(F[sel], expected_of(X[sel]), m)
+        assert diff.min() > tol_lo and diff.max() <= tol_hi, (chart, diff.min(), diff.max())
+        return int(sel.sum())
+
+    def linear(Jm, centre):
+        def at(x):
+            d = x - centre
+            return 256 * (u + np.stack([Jm[0] * d[:, 0] + Jm[1] * d[:, 1], Jm[2] * d[:, 0] + Jm[3] * d[:, 1]], -1))
+        return at
+
+    assert check(c, J, p, linear(J, p), -1, 1e-6) >= 100  # the centre's chart
+    e_chart = atlas.chart[atlas.b_tri]
+    counts = []
+    for row in rows[1:]:
+        c2, J2, p2 = int(row[3]), row[4:8] / 4096, row[1:3] / 8
+        counts.append(check(c2, J2, p2, linear(J2, p2), -1, 1e-6))  # the copy across, as stored
+        # The same surface point gives the same exemplar point: the seam map of the nearest edge of
+        # the centre's chart into chart c2 sends p to p' and J to J A^-1 (p' rounds to 1/8 texel:
+        # at most 1/16 texel per axis, times |J'| <= 1.5 here: < 1/8 px).
+        sel = np.flatnonzero((e_chart == c) & (atlas.b_other >= 0) & (atlas.chart[np.maximum(atlas.b_other, 0)] == c2))
+        a, b = atlas.uvpx[atlas.b_a[sel]], atlas.uvpx[atlas.b_b[sel]]
+        t = np.clip(((p - a) * (b - a)).sum(-1) / ((b - a) ** 2).sum(-1), 0, 1)
+        M = atlas.b_map[sel[np.argmin(np.hypot(*(p - a - t[:, None] * (b - a)).T))]]
+        Mp = M[:, :2] @ p + M[:, 2]
+        JA = (J.reshape(2, 2) @ np.linalg.inv(M[:, :2])).ravel()
+        assert np.abs(Mp - p2).max() <= 1 / 16 + 1e-9
+        check(c2, J2, p2, linear(JA, Mp), -32, 32)
+    assert max(counts) >= 5, counts  # (a copy may just reach into a chart: a few texels)

@@ -20,13 +20,15 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
-from infinitex.engine.controls import CanvasField
+from infinitex.engine.controls import CanvasField, rescaled_features
 from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.engine.surface import AtlasError, ModelError, load_model
 from infinitex.project import ProjectError
 from infinitex.project.surface import SIZES, SurfaceSettings, default_repeats
 
 from ..render.model_view import ModelView, OrbitCamera
+from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
+from .tools.feature_model import ModelFeatures
 from .tools.paint import dab_centers
 
 MODEL_FILTER = ["Models (*.obj *.glb *.gltf)", "*.obj *.glb *.gltf"]
@@ -65,8 +67,10 @@ class ModelModeMixin:
         try:
             settings = SurfaceSettings(model, size, repeats=default_repeats(model, size, m))
             settings.validate(m)
-            # The canvas randomness is painted on the model from now on (in its atlas): the plane's goes.
-            self.edit(replace(self.doc, surface=settings, direction=None, lattice=None, randomness_canvas=None),
+            # The canvas randomness and the features are placed on the model from now on (in its
+            # atlas): the plane's go.
+            self.edit(replace(self.doc, surface=settings, direction=None, lattice=None, randomness_canvas=None,
+                              features=()),
                       f"Open model {os.path.basename(path)}")
         except (ProjectError, AtlasError, ValueError) as exc:
             self.dialogs.message("Open model", str(exc))
@@ -76,7 +80,7 @@ class ModelModeMixin:
 
     def close_model(self) -> None:
         if self.model_mode:
-            self.edit(replace(self.doc, surface=None, randomness_canvas=None), "Close model")
+            self.edit(replace(self.doc, surface=None, randomness_canvas=None, features=()), "Close model")
             self.release_model_view()
             self.model_view, self._model_fbo, self._model_view_key = None, None, None
 
@@ -89,10 +93,12 @@ class ModelModeMixin:
         except (ProjectError, ValueError) as exc:
             self.dialogs.message("Model", str(exc))
             return
-        if "size" in changes and self.doc.randomness_canvas is not None and changes["size"] != self.doc.surface.size:
-            # The randomness painted on the model is in its texels: it keeps its place on the surface.
-            rc = self.doc.randomness_canvas.rescaled(changes["size"] / self.doc.surface.size)
-            self.edit(replace(self.doc, surface=s, randomness_canvas=rc), label, group)
+        if "size" in changes and changes["size"] != self.doc.surface.size:
+            # What is painted or placed on the model is in its texels: it keeps its place on the surface.
+            factor = changes["size"] / self.doc.surface.size
+            rc = self.doc.randomness_canvas
+            self.edit(replace(self.doc, surface=s, randomness_canvas=None if rc is None else rc.rescaled(factor),
+                              features=rescaled_features(self.doc.features, factor)), label, group)
             return
         self.edit(replace(self.doc, surface=s), label, group)
 
@@ -142,6 +148,7 @@ class ModelModeMixin:
         self.model_export_magnify = 1
         self.atlas_request = False  # tests: read the finished atlas's coordinates during a frame
         self.atlas_read = None
+        self.model_features = ModelFeatures(self)
 
     def _model_canvas(self, p0, w: int, h: int) -> None:
         s = self.session
@@ -222,6 +229,8 @@ class ModelModeMixin:
             tw = imgui.calc_text_size(text).x
             dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 24 + tw, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
             dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), text)
+        if self.tool.name == "feature":
+            self.model_features.draw(dl, p0, w, h)
         if hovered and self.tool.name == "paint-canvas":
             io = imgui.get_io()
             r = self.tool.brush.radius
@@ -235,6 +244,7 @@ class ModelModeMixin:
         hovered = imgui.is_item_hovered()
         mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
         painting = self.tool.name == "paint-canvas" and not io.key_alt
+        placing = self.tool.name == "feature" and not io.key_alt
         if imgui.is_item_activated():
             left = imgui.is_mouse_down(imgui.MouseButton_.left)
             self._canvas_button = 0 if left else (2 if imgui.is_mouse_down(imgui.MouseButton_.middle) else 1)
@@ -242,9 +252,14 @@ class ModelModeMixin:
                 self._stroke_last = None
                 self._stroke_group = object()
                 self._paint_model(mx, my, w, h)
+            elif left and placing:
+                self.model_features.press(mx, my, w, h)
         elif imgui.is_item_active() and self._canvas_button >= 0:
             d = io.mouse_delta
-            if self._canvas_button == 0 and painting:
+            if self._canvas_button == 0 and placing:
+                if d.x or d.y:
+                    self.model_features.drag(mx, my, w, h)
+            elif self._canvas_button == 0 and painting:
                 if d.x or d.y:
                     self._paint_model(mx, my, w, h)
             elif (self._canvas_button == 1 or (self._canvas_button == 2 and io.key_shift)) and (d.x or d.y):
@@ -252,16 +267,26 @@ class ModelModeMixin:
             elif d.x or d.y:
                 self.camera = self.camera.orbit(-d.x * ORBIT_DEG_PER_PX, d.y * ORBIT_DEG_PER_PX)
         if imgui.is_item_deactivated() and self._canvas_button >= 0:
-            if self._canvas_button == 0 and painting and self.history is not None:
+            if self._canvas_button == 0 and placing:
+                self.model_features.drag(mx, my, w, h)  # a move in the release's frame counts
+                self.model_features.release()
+            elif self._canvas_button == 0 and painting and self.history is not None:
                 self.history.end_group()
             self._canvas_button = -1
             self._stroke_last = None
-        if hovered and io.mouse_wheel:
+        if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
+            payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
+            if payload is not None:
+                self.set_tool("feature")
+                self.model_features.drop((payload.data_id % 4096, payload.data_id // 4096), mx, my, w, h)
+            imgui.end_drag_drop_target()
+        if hovered and io.mouse_wheel and not (self.tool.name == "feature"
+                                               and self.model_features.wheel(mx, my, w, h, io.mouse_wheel)):
             self.camera = self.camera.zoom(0.85 ** io.mouse_wheel)
         self.cursor = None
         return hovered
 
-    def _uv_image(self, w: int, h: int) -> np.ndarray:
+    def uv_image(self, w: int, h: int) -> np.ndarray:
         key = (self.camera, w, h, self._model_view_key)
         if self._model_uv is None or self._model_uv[0] != key:
             self._model_uv = (key, self.model_view.render(self.camera, (w, h), mode=1, background=(0, 0, 0)))
@@ -269,7 +294,7 @@ class ModelModeMixin:
 
     def _paint_model(self, x: float, y: float, w: int, h: int) -> None:
         """A dab of the Paint canvas brush where the ray under (x, y) meets the model (atlas texels)."""
-        uvh = self._uv_image(w, h)
+        uvh = self.uv_image(w, h)
         xi, yi = int(x), int(y)
         if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
             self._stroke_last = None
@@ -300,3 +325,4 @@ class ModelModeMixin:
         for o in (getattr(self, "model_view", None), getattr(self, "_model_fbo", None)):
             if o is not None:
                 o.release()
+

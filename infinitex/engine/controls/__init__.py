@@ -52,6 +52,8 @@ from .features import (
     features_from_json,
     features_to_json,
     fit_features,
+    reach_bins,
+    rescaled_features,
 )
 from .fields import (
     NEUTRAL,
@@ -75,7 +77,7 @@ __all__ = [
     "ExemplarLabels", "ExemplarMask", "MAX_LABELS",
     "Feature", "FEATURE_CELL", "MAX_FEATURE_RADIUS", "MAX_FEATURES", "Lattice", "apply_dab", "dab_rect",
     "dab_weights", "feature_arrays", "feature_bins", "features_from_json", "features_to_json", "fit_features",
-    "modulated_rq", "reduce_toward_neutral",
+    "modulated_rq", "reduce_toward_neutral", "rescaled_features",
 ]
 
 
@@ -226,6 +228,10 @@ class Controls:
         Computed on arrays (Feature.level_range, radius_at and clamped, for all at once)."""
         if not self.features:
             return None
+        if self.surface is not None:  # placed on a model: per-chart copies (engine/surface/features.py)
+            from ..surface.features import feature_table
+            copies = self.surface.feature_copies(self.features_key, self._features)
+            return feature_table(copies, self._features, level, L, m, toroidal, x0, y0, x1, y1)
         k = L - level
         f = self._features if period else self._features[self._meeting(x0 << k, y0 << k, x1 << k, y1 << k)]
         first = np.where(f[:, 8] == 1, f[:, 4], 0)  # Feature.level_range
@@ -255,6 +261,9 @@ class Controls:
         table = self.feature_table(level, L, m, toroidal, x0, y0, x1, y1, period)
         if table is None:
             return None
+        if self.surface is not None:
+            from ..surface.features import table_reach
+            return (table, *reach_bins(*table_reach(table, level, L), len(table), x0, y0, x1 - x0, y1 - y0))
         return (table, *feature_bins(table, x0, y0, x1 - x0, y1 - y0, period))
 
     def changed_rects(self, other: Controls) -> list | None:
@@ -271,6 +280,8 @@ class Controls:
             return None  # the state drops its sub-pixel parts: everything again (a first field widens it in place)
         out += (self.direction or DirectionField()).changed_rects(other.direction or DirectionField())
         if self.features != other.features:
+            if self.surface is not None:
+                return None  # on a model a feature reaches other charts of the atlas too
             old, new = set(self.features), set(other.features)
             out += [f.bbox() for f in old ^ new]  # added, removed, moved or resized
             # Which feature wins an overlap follows the list order: features whose

@@ -121,6 +121,14 @@ def fit_features(features, m: int) -> tuple[Feature, ...]:
     return tuple(out)
 
 
+def rescaled_features(features, factor: float) -> tuple[Feature, ...]:
+    """Features placed on a model's atlas (engine/surface/features.py), for its
+    texture at ``factor`` times the size: the centres keep their place on the
+    surface; the radii are exemplar pixels and stay."""
+    return tuple(replace(f, canvas=(int(np.floor((f.canvas[0] + 0.5) * factor)),
+                                    int(np.floor((f.canvas[1] + 0.5) * factor)))) for f in features)
+
+
 def feature_arrays(features) -> np.ndarray:
     """int64 (N, 9): canvas x, y, inner, outer, first and last level, exemplar
     x, y, and 1 if the levels are given (0: the default range) of each feature, in order."""
@@ -154,6 +162,12 @@ def feature_bins(table: np.ndarray, x0: int, y0: int, w: int, h: int, period: in
     int32 (E,); origin (x, y); shift: a cell is 2^shift level pixels)."""
     p = table[:, 0, :2].astype(np.int64)
     lim = (table[:, 0, 3].astype(np.int64) >> 4) + 2
+    return reach_bins(p, lim, len(table), x0, y0, w, h, period)
+
+
+def reach_bins(p: np.ndarray, lim: np.ndarray, rows: int, x0: int, y0: int, w: int, h: int, period: int = 0):
+    """feature_bins for rows centred at level pixels ``p`` reaching ``lim``
+    level pixels around them (the shader's square): (cells, entries, origin, shift)."""
     ox, oy = (0, 0) if period else (x0, y0)
     sw, sh = (period, period) if period else (w, h)
     shift = min(BIN_SHIFT, 30)  # GLSL shifts stay below 32
@@ -170,7 +184,7 @@ def feature_bins(table: np.ndarray, x0: int, y0: int, w: int, h: int, period: in
                 idx = np.flatnonzero(ok)
                 rects.append((idx, xa[idx], xb[idx], ya[idx], yb[idx]))
         total = sum(int(((xb - xa + 1) * (yb - ya + 1)).sum()) for _, xa, xb, ya, yb in rects)
-        if total <= max(MAX_BIN_ENTRIES, 4 * len(table)) or nx * ny == 1 or shift >= 30:
+        if total <= max(MAX_BIN_ENTRIES, 4 * rows) or nx * ny == 1 or shift >= 30:
             break
         shift += 1
     row, xa, xb, ya, yb = (np.concatenate(a) for a in zip(*rects))
@@ -179,9 +193,9 @@ def feature_bins(table: np.ndarray, x0: int, y0: int, w: int, h: int, period: in
     owner = np.repeat(np.arange(len(row)), count)
     local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
     cell = (ya[owner] + local // cw[owner]) * nx + xa[owner] + local % cw[owner]
-    key = np.sort(cell * len(table) + row[owner])  # by cell, then table order
+    key = np.sort(cell * rows + row[owner])  # by cell, then table order
     key = key[np.r_[True, key[1:] != key[:-1]]] if len(key) else key  # a cell meets a period's copies once
-    cell, entries = key // len(table), (key % len(table)).astype(np.int32)
+    cell, entries = key // rows, (key % rows).astype(np.int32)
     counts = np.bincount(cell, minlength=nx * ny)
     cells = np.stack([np.cumsum(counts) - counts, counts], axis=-1).astype(np.int32).reshape(ny, nx, 2)
     return cells, entries, (ox, oy), shift

@@ -140,6 +140,39 @@ ivec2 atlas_texel(ivec2 q, ivec2 dims, ivec2 origin) {
     return (reader >= 0 && L.x != reader && L.y == reader) ? clamp(L.zw - origin, ivec2(0), dims - 1) : c;
 }
 #define STATE_TEXEL(q) atlas_texel(q, dims, origin)
+
+// Features placed on the model (engine/surface/features.py): table rows of 3
+// texels, (p in 1/8 finest texels, reach in level texels, r_l in exemplar px),
+// (u_F, chart, -), J (Q12). A texel of that chart whose centre x (finest
+// texels) has |J (x - p)| <= r_l takes F = u_F + J (x - p); later rows win.
+ivec4 apply_features_atlas(ivec2 g, ivec4 q, int h, int m, int chart) {
+    if (nfeat == 0 || chart < 0) {
+        return q;
+    }
+    ivec2 cell = texelFetch(fcells, clamp((g - fcell_origin) >> fcell_shift, ivec2(0), fcell_dims - 1), 0).xy;
+    for (int j = cell.x; j < cell.x + cell.y; j++) {
+        int i = texelFetch(fentries, ivec2(j & 4095, j >> 12), 0).x;
+        ivec2 row = ivec2(3 * (i & 511), i >> 9);
+        ivec4 a = texelFetch(features, row, 0);
+        ivec4 b = texelFetch(features, row + ivec2(1, 0), 0);
+        ivec2 d = g - ivec2(floor_div(a.x, 8 * h), floor_div(a.y, 8 * h));
+        if (b.z != chart || abs(d.x) > a.z || abs(d.y) > a.z) {
+            continue;
+        }
+        ivec2 D = clamp((2 * g + 1) * (4 * h) - a.xy, ivec2(-65535), ivec2(65535));
+        ivec4 J = texelFetch(features, row + ivec2(2, 0), 0);
+        ivec2 e = ivec2(J.x * D.x + J.y * D.y, J.z * D.x + J.w * D.y);  // 2^-15 exemplar px
+        int R = a.w << 15;
+        if (abs(e.x) > R || abs(e.y) > R) {
+            continue;
+        }
+        ivec2 e4 = floor_shift(ivec4(e, 0, 0), 11).xy;
+        if (uint(e4.x * e4.x) + uint(e4.y * e4.y) <= uint(16 * a.w) * uint(16 * a.w)) {
+            q = split_q8(b.xy * 256 + floor_shift(ivec4(e, 0, 0), 7).xy, m);
+        }
+    }
+    return q;
+}
 #else
 #define STATE_TEXEL(q) clamp(q, ivec2(0), dims - 1)
 #endif

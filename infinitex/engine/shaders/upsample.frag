@@ -94,7 +94,9 @@ void main() {
         ivec2 half_cell = (ivec2(1) << lattice_shift) >> 1;
         J = (((J + half_cell + SHIFT_BIAS) >> lattice_shift) - (ivec2(SHIFT_BIAS) >> lattice_shift)) << lattice_shift;
     }
-#ifdef DIRECTION
+#if defined(ATLAS)
+    result = apply_features_atlas(g, split_q8(F + J * 256, m), h, m, reader);
+#elif defined(DIRECTION)
     ivec4 q = split_q8(F + J * 256, m);
     bool hit = false;
     ivec2 s = apply_features_hit(g, q.xy, h, m, period, hit);

@@ -18,7 +18,9 @@ void main() {
     ivec2 T = ivec2(gl_FragCoord.xy);
     ivec2 g = region_g0 + ((T - region_t0) & dest_mask);
     ivec4 v = texelFetch(src, packed_texel(g - src_origin, qdims), 0);
-#ifdef DIRECTION
+#if defined(ATLAS)
+    result = apply_features_atlas(g, v, h, m, texelFetch(links, g - src_origin, 0).x);  // the texel's chart
+#elif defined(DIRECTION)
     bool hit = false;
     ivec2 s = apply_features_hit(g, v.xy, h, m, period, hit);
     result = ivec4(s, hit ? ivec2(0) : v.zw);  // a feature sets a whole texel

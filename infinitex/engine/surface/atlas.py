@@ -403,6 +403,7 @@ class AtlasDomain:
                 raise AtlasError("The up direction must be three numbers, not all zero.")
             out.up = u / np.linalg.norm(u)
         out._jac_levels = {}
+        out._feature_copies = {}  # their J follows the frame and scale
         out.jac, out.stretch_clamped = triangle_jacobians(out.model, out.uvpx, out.sigma, out.frame, out.up)
         out.key = out._make_key()
         return out
@@ -512,6 +513,20 @@ class AtlasDomain:
 
     def owner(self, k: int = 0) -> np.ndarray:
         return self._level(k)["own"]
+
+    def nearest_triangle(self, k: int = 0) -> np.ndarray:
+        """(n, n) int32: the triangle covering each texel of level k, off the charts the nearest one's (-1: none)."""
+        return self._level(k)["near_tri"]
+
+    def feature_copies(self, features_key: str, feats: np.ndarray) -> np.ndarray:
+        """Features placed on the model as per-chart copies (surface/features.py), kept per feature list."""
+        from .features import feature_copies
+        cache = self.__dict__.setdefault("_feature_copies", {})
+        if features_key not in cache:
+            if len(cache) > 8:
+                cache.clear()
+            cache[features_key] = feature_copies(self, feats)
+        return cache[features_key]
 
     def link_map(self, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """(chart served, target (n, n, 2)) of level k's links."""

@@ -61,7 +61,7 @@ class FeatureTool(Tool):
         ed = self.ed
         ed.edit(replace(ed.doc, features=tuple(features)), label, group=group)
 
-    def _levels(self):
+    def levels(self):
         return (0, self.ed.session.L) if self.exact else None
 
     def sample(self, pos) -> tuple[int, int]:
@@ -80,7 +80,7 @@ class FeatureTool(Tool):
             return m // 2, m // 2
 
     def place(self, u: tuple[int, int], pos, label: str = "Place feature", group=None) -> None:
-        f = Feature(u, (round(pos[0]), round(pos[1])), self.inner, max(self.inner, self.outer), self._levels())
+        f = Feature(u, (round(pos[0]), round(pos[1])), self.inner, max(self.inner, self.outer), self.levels())
         self._set(self.features + (f,), label, group)
         self.selected = len(self.features) - 1
 
@@ -249,7 +249,10 @@ class FeatureTool(Tool):
             if imgui.is_item_deactivated():
                 ed.history.end_group()
             if imgui.button("Jump to"):
-                ed.view = View(float(f.canvas[0]), float(f.canvas[1]), ed.view.zoom)
+                if ed.model_mode:
+                    ed.model_features.jump_to(f)
+                else:
+                    ed.view = View(float(f.canvas[0]), float(f.canvas[1]), ed.view.zoom)
             imgui.same_line()
             if imgui.button("Delete (Del)"):
                 self.delete(i)
