@@ -11,7 +11,7 @@ import numpy as np
 from infinitex.engine.imagefile import to_u8
 from infinitex.engine.material import IMAGE
 from infinitex.engine.surface import AtlasDomain
-from infinitex.engine.surface.bake import fill_off_charts
+from infinitex.engine.surface.bake import fill_off_charts, with_comb
 from infinitex.export.surface import AtlasRun, surface_controls
 
 MIN_SHOWN = 32  # levels smaller than this are not worth uploading
@@ -80,7 +80,7 @@ class ModelPreview:
         # A new run of the same model keeps showing the old texture until it is as sharp.
         self._floor = self.image_level if same_model else -1
         self._run_shown = -1
-        self.atlas = self.atlas_for(settings, session.analysis.size)
+        self.atlas = with_comb(self.atlas_for(settings, session.analysis.size), controls)
         self.run = AtlasRun(session.gpu, session.synth.gan, session.params, controls, self.atlas)
         self._session = session
 

@@ -155,17 +155,20 @@ def run_surface(argv: list[str]) -> int:
             sys.stderr.write(f"note: {atlas.stretch_clamped:.0%} of the triangles stretch the texture more than 4x; "
                              "it is held at 4x there (check the model's UVs, or --size)\n")
     # The randomness painted on a project's model is in its texels: it goes with the same model at its
-    # size. Its features go with the same model at any size (their centres scaled).
+    # size. Its features and combed directions go with the same model at any size (scaled).
     placed = painted
     painted = painted and pl.synth_size == own.size
     controls, dropped = surface_controls(doc.controls(ex.size), painted_on_model=placed)
     if placed:
-        controls = replace(controls, features=rescaled_features(controls.features, pl.synth_size / own.size),
-                           randomness_canvas=controls.randomness_canvas if painted else None)
+        factor = pl.synth_size / own.size
+        controls = replace(controls, features=rescaled_features(controls.features, factor),
+                           randomness_canvas=controls.randomness_canvas if painted else None,
+                           direction=None if controls.direction is None else controls.direction.rescaled(factor))
     if own is not None:
-        dropped = [d for d in dropped if d not in ("canvas randomness", "features")]
-        if not placed and doc.features and not args.quiet:
-            sys.stderr.write("note: the features placed on the project's model are left out (another model)\n")
+        dropped = [d for d in dropped if d not in ("canvas randomness", "features", "direction field")]
+        if not placed and (doc.features or doc.direction is not None) and not args.quiet:
+            sys.stderr.write("note: the features and directions placed on the project's model are left out "
+                             "(another model)\n")
         if not painted and doc.randomness_canvas is not None and not args.quiet:
             sys.stderr.write("note: the randomness painted on the project's model is left out (another model, "
                              "or a smaller texture size than the project's)\n")

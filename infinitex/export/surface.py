@@ -23,7 +23,7 @@ from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import atomic_write
 from infinitex.engine.subpixel import turn_normals
 from infinitex.engine.surface.atlas import MAX_SIZE, AtlasDomain
-from infinitex.engine.surface.bake import atlas_coords, fill_off_charts
+from infinitex.engine.surface.bake import atlas_coords, fill_off_charts, with_comb
 from infinitex.engine.surface.mesh import Model, texel_density
 
 MAX_OUTPUT = 8192
@@ -69,23 +69,26 @@ def plan(model: Model, size: int, exemplar_size: int, repeats: float | None = No
 
 def surface_controls(controls: Controls, painted_on_model: bool = True) -> tuple[Controls, list[str]]:
     """The document's controls that make sense on a model (what is painted or
-    set on the exemplar, and the canvas randomness when it was painted on the
-    model: a document with a model paints in its atlas), and the names of
-    those left out (placed on the plane)."""
-    plane = [("canvas labels", controls.labels_canvas), ("direction field", controls.direction),
-             ("lattice", controls.lattice)]
+    set on the exemplar, and the canvas randomness, features and direction
+    field when they were placed on the model: a document with a model paints
+    in its atlas; the direction field is then combed over the model, see
+    AtlasDomain.combed), and the names of those left out (placed on the plane)."""
+    plane = [("canvas labels", controls.labels_canvas), ("lattice", controls.lattice)]
     if not painted_on_model:
-        plane[:0] = [("canvas randomness", controls.randomness_canvas), ("features", controls.features)]
+        plane[:0] = [("canvas randomness", controls.randomness_canvas), ("features", controls.features),
+                     ("direction field", controls.direction)]
     dropped = [name for name, v in plane if v]
-    kept = replace(controls, labels_canvas=None, direction=None, lattice=None,
+    kept = replace(controls, labels_canvas=None, lattice=None,
                    randomness_canvas=controls.randomness_canvas if painted_on_model else None,
-                   features=controls.features if painted_on_model else ())
+                   features=controls.features if painted_on_model else (),
+                   direction=controls.direction if painted_on_model else None)
     return kept, dropped
 
 
 def bake_maps(synth, atlas: AtlasDomain, material: Material, roles: list[str], plan_: SurfacePlan,
               controls: Controls, progress=None) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """{role: float32 (size, size, C)} and the synthesized coordinates."""
+    atlas = with_comb(atlas, controls)  # (normal maps turn with the combed J too)
     coords = atlas_coords(synth, atlas, controls)
     if progress:
         progress("synthesized")
@@ -192,7 +195,7 @@ class AtlasRun:
     :func:`~infinitex.engine.surface.bake.atlas_coords`, spread over frames."""
 
     def __init__(self, gpu, gan, params, controls: Controls, atlas: AtlasDomain):
-        self.atlas = atlas
+        self.atlas = atlas = with_comb(atlas, controls)  # a direction field combed over the model
         self.L = gan.analysis.L
         self.pyramid = Pyramid(gpu, gan, params, scrolling=False,
                                controls=replace(controls, surface=atlas, direction=None))
@@ -282,7 +285,7 @@ class ModelExportJob:
             if not self.run_.step(budget_s):
                 return False
             coords = self.run_.coords()
-            maps = maps_from_coords(coords, self.atlas, self.material, self.roles, self.plan)
+            maps = maps_from_coords(coords, self.run_.atlas, self.material, self.roles, self.plan)
             write_outputs(self.out_path, self.model, maps, self.files, self.material)
         except (OSError, ValueError) as exc:
             self.error = str(exc)

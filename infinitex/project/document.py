@@ -317,9 +317,8 @@ class Document:
                 raise ProjectError("A palette's exemplars are its labels; the project has no label map.")
         if self.surface is not None:
             self.surface.validate()
-            if self.lattice is not None or (self.direction is not None and not self.direction.identity):
-                raise ProjectError("Texture on a model takes its directions from the model; it does not work "
-                                   "with a lattice or a painted direction field.")
+            if self.lattice is not None:  # (a direction field is combed over the model: its atlas texels)
+                raise ProjectError("Texture on a model does not work with a lattice; turn one of them off.")
         if self.weights is not None:
             roles = {r for r, _ in self.sources()}
             if any(r not in roles or not (is_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \

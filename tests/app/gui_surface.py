@@ -9,7 +9,8 @@ left buttons) and zoom change the view, not the texture; a Paint canvas
 stroke on the model is one undo step and changes the texture; undo restores
 the atlas exactly; the Features tool places a feature on the model
 (its centre copies the exemplar exactly), the wheel resizes it and a drag
-moves it, each one undo step; Export model writes a GLB with the texture; Close model
+moves it, each one undo step; a Direction comb stroke down the model turns
+the texture there (one undo step, undone exactly); Export model writes a GLB with the texture; Close model
 returns to the plane. Writes "ok NAME" / "FAIL NAME: why" lines to
 OUT_DIR/report.txt and model-editor.png.
 """
@@ -176,6 +177,41 @@ def main(out: str) -> int:
                 ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
             check("undoing the feature restores the atlas exactly",
                   not ed.doc.features and np.array_equal(atlas_now(ctx), first), "atlas differs")
+
+        # Combing on the model: a stroke down the side face turns the texture there (the exemplar's x
+        # runs down the surface: 90 degrees in the model's frame), one undo step; undo restores the atlas.
+        ctx.item_click("//**/Direction (D)##tool-direction")
+        ctx.yield_(2)
+        tool = ed.tool
+        tool.mode, tool.axis = "comb", 0
+        tool.brush.radius, tool.brush.strength, tool.brush.hardness = 40.0, 1.0, 1.0
+        steps = len(ed.history.undo_stack)
+        ctx.mouse_move_to_pos((cx - 60, cy - 120))
+        ctx.mouse_down(0)
+        for i in range(1, 13):
+            ctx.mouse_move_to_pos((cx - 60, cy - 120 + 20 * i))
+        ctx.mouse_up(0)
+        combed = atlas_now(ctx)
+        field = ed.doc.direction
+        check("a comb stroke on the model is one undo step", field is not None
+              and len(ed.history.undo_stack) == steps + 1, f"{len(ed.history.undo_stack) - steps} steps")
+        if field is not None:
+            from infinitex.engine.controls.direction import IDENTITY, decompose
+            n = ed.doc.surface.size
+            j = field.dense(0, 0, n, n)
+            theta, _, _ = decompose(j[np.any(j != IDENTITY, axis=-1)])
+            check("the stroke combs the texture down the surface", abs(float(np.median(theta)) - 90.0) < 25.0,
+                  f"median {float(np.median(theta)):.0f} degrees")
+        diff = np.any(combed != first, axis=-1) if combed is not None else np.zeros(1, bool)
+        check("combing changes the texture", diff.sum() > 50, f"{diff.sum()} texels")
+        np.save(os.path.join(out, "atlas-combed.npy"), combed)
+        ctx.menu_click("File/Save As...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", os.path.join(out, "model-combed.itex"))
+        ctx.yield_(3)
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        check("undoing the comb stroke restores the atlas exactly",
+              ed.doc.direction is None and np.array_equal(atlas_now(ctx), first), "atlas differs")
 
         # Export model: a GLB with the texture; then Close model returns to the plane.
         glb = os.path.join(out, "cube_gravel.glb")

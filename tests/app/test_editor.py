@@ -172,10 +172,11 @@ def test_direction_tool_driven_by_the_test_engine(tmp_path):
 
 
 def test_model_view_driven_by_the_test_engine(tmp_path, gpu):
-    """Open a model, orbit, paint on it, place a feature on it, undo, export a
-    GLB, close it (tests/app/gui_surface.py); the atlas the editor showed is the
-    engine's for each project it saved (without and with the feature)."""
-    _drive("gui_surface.py", tmp_path, 19)
+    """Open a model, orbit, paint on it, place a feature on it, comb it, undo,
+    export a GLB, close it (tests/app/gui_surface.py); the atlas the editor
+    showed is the engine's for each project it saved (as opened, with the
+    feature, combed)."""
+    _drive("gui_surface.py", tmp_path, 23)
     import numpy as np
 
     from infinitex.engine.analysis import analyze
@@ -184,10 +185,11 @@ def test_model_view_driven_by_the_test_engine(tmp_path, gpu):
     from infinitex.export.surface import surface_controls
     from infinitex.project import load_project
     from infinitex.project.realize import exemplar_for, material_or_none
-    for project, atlas, features in (("model.itex", "atlas.npy", 0), ("model-feature.itex", "atlas-feature.npy", 1)):
+    for project, atlas, placed in (("model.itex", "atlas.npy", 0), ("model-feature.itex", "atlas-feature.npy", 1),
+                                   ("model-combed.itex", "atlas-combed.npy", 2)):
         doc = load_project(str(tmp_path / project)).document
         assert doc.surface is not None and doc.surface.model.name == "cube.obj"
-        assert len(doc.features) == features
+        assert len(doc.features) == (placed == 1) and (doc.direction is not None) == (placed == 2)
         ex, settings = exemplar_for(doc, None, material_or_none(doc))
         an = analyze(ex, settings)
         controls, dropped = surface_controls(doc.controls(an.size))

@@ -123,12 +123,12 @@ def test_surface_errors_are_one_line(tmp_path, cube_obj):
 
 def test_a_project_with_a_model_brings_its_settings_and_its_paint(tmp_path, cube_obj):
     """An .itex source: the project's texture size (magnified to --size), scale,
-    direction, the randomness painted and the features placed on its model; the
-    same atlas as the engine's. At a smaller size the paint is left out (said) and
-    the features keep their places."""
+    direction, the randomness painted, the features placed and the direction
+    combed on its model; the same atlas as the engine's. At a smaller size the
+    paint is left out (said); the features and the combed field keep their places."""
     from dataclasses import replace
 
-    from infinitex.engine.controls import CanvasField, Feature, rescaled_features
+    from infinitex.engine.controls import CanvasField, DirectionField, Feature, rescaled_features
     from infinitex.engine.surface import load_model
     from infinitex.export.surface import surface_controls
     from infinitex.project import Project, save_project
@@ -138,7 +138,8 @@ def test_a_project_with_a_model_brings_its_settings_and_its_paint(tmp_path, cube
     paint, _ = CanvasField().painted(90, 90, 40, 65535)
     doc = Document(ExemplarSource.from_file(BRICK), structure=0, seed=5, randomness_canvas=paint,
                    surface=SurfaceSettings(model, 256, frame="uv", repeats=1.5),
-                   features=(Feature((30, 40), (200, 60), 12, 24), Feature((5, 9), (60, 150), 30, 30, (0, 7))))
+                   features=(Feature((30, 40), (200, 60), 12, 24), Feature((5, 9), (60, 150), 30, 30, (0, 7))),
+                   direction=DirectionField.uniform(60.0, 1.3, 1.0, 20, 130, 110, 220))
     proj = str(tmp_path / "cube.itex")
     save_project(proj, Project(doc))
     coords = str(tmp_path / "c.npy")
@@ -150,19 +151,21 @@ def test_a_project_with_a_model_brings_its_settings_and_its_paint(tmp_path, cube
     with Synthesizer(an, doc.params(an.L)) as s:
         want = atlas_coords(s, doc.surface.atlas(an.size), controls)
     assert np.array_equal(np.load(coords), want)
-    assert np.any(want != _without_features(doc, an, controls), axis=-1).sum() > 100  # the features are there
+    for left_out in ("features", "direction"):  # the features and the combed field are there
+        assert np.any(want != _without(doc, an, replace(controls, **{left_out: None if left_out == "direction" else ()})),
+                      axis=-1).sum() > 100
     # A smaller size than the project's cannot keep its paint: said, and left out; the features stay.
     small = str(tmp_path / "c2.npy")
     r = run(cube_obj, proj, "-o", str(tmp_path / "q.png"), "--size", "128", "--coords", small)
     assert r.returncode == 0 and "left out" in r.stderr, r.stderr
     assert "features" not in r.stderr
-    kept = replace(controls, randomness_canvas=None, features=rescaled_features(doc.features, 0.5))
+    kept = replace(controls, randomness_canvas=None, features=rescaled_features(doc.features, 0.5),
+                   direction=doc.direction.rescaled(0.5))
     with Synthesizer(an, doc.params(an.L)) as s:
         want = atlas_coords(s, doc.surface.atlas(an.size, 128), kept)
     assert np.array_equal(np.load(small), want)
 
 
-def _without_features(doc, an, controls):
-    from dataclasses import replace
+def _without(doc, an, controls):
     with Synthesizer(an, doc.params(an.L)) as s:
-        return atlas_coords(s, doc.surface.atlas(an.size), replace(controls, features=()))
+        return atlas_coords(s, doc.surface.atlas(an.size), controls)

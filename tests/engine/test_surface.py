@@ -304,3 +304,44 @@ def test_features_on_a_model_keep_their_place_when_the_texture_size_changes():
     on = Controls(features=(f,), surface=small)
     assert on.changed_rects(Controls(features=(), surface=small)) is None
     assert off.changed_rects(Controls(features=())) is not None  # on the plane: local
+
+
+def test_a_direction_field_combed_over_a_model_turns_its_frame(analyses):
+    """AtlasDomain.combed: J = J_comb J_frame where combed (exact integers), the
+    stretch held within range, nothing else changed; features turn with it; the
+    coordinates equal those of the atlas combed beforehand (atlas_coords combs)."""
+    from infinitex.engine.controls import Controls, Feature
+    from infinitex.engine.controls.direction import IDENTITY, DirectionField, decompose
+    from infinitex.engine.surface.atlas import compose
+    model = cube(n=3)
+    atlas = AtlasDomain(model, 128, sigma=40.0)
+    turn = DirectionField.uniform(90.0, 1.0, 1.0, 0, 88, 40, 124)  # over chart 0 (x 5..37, y 90..122)
+    combed = atlas.combed(turn)
+    assert atlas.combed(None) is atlas and atlas.combed(DirectionField()) is atlas and combed.combed(turn) is combed
+    assert combed.key != atlas.key and combed.comb is turn and atlas.comb is None
+    for k in (0, 2):
+        n = 128 >> k
+        a, b = atlas.jacobians(k, 0, 0, n, n).astype(np.int64), combed.jacobians(k, 0, 0, n, n).astype(np.int64)
+        f = turn.region(k, 0, 0, n, n).astype(np.int64)
+        inside = np.any(f != IDENTITY, axis=-1)
+        assert inside.sum() > 20 and np.array_equal(a[~inside], b[~inside])
+        want = np.stack([f[..., 0] * a[..., 0] + f[..., 1] * a[..., 2], f[..., 0] * a[..., 1] + f[..., 1] * a[..., 3],
+                         f[..., 2] * a[..., 0] + f[..., 3] * a[..., 2], f[..., 2] * a[..., 1] + f[..., 3] * a[..., 3]], -1)
+        assert np.array_equal(b[inside], (want[inside] + 2048) >> 12)
+    th_a, _, _ = decompose(atlas.jacobians(0, 20, 100, 1, 1))
+    th_b, _, _ = decompose(combed.jacobians(0, 20, 100, 1, 1))
+    assert abs(((th_b - th_a + 180) % 360 - 180).item()) == pytest.approx(90.0, abs=0.5)
+    # Growing where the frame already stretches: held at the range's end.
+    big = compose(np.broadcast_to(np.array([1024, 0, 0, 1024], np.int16), (1, 1, 4)),
+                  np.array([[[1500, 0, 0, 1500]]], np.int16))
+    assert big.tolist() == [[[1024, 0, 0, 1024]]]  # 1/4 (the largest stretch), not 375
+    # Features turn with the comb: their J is the combed one.
+    arr = Controls(features=(Feature((10, 10), (20, 100), 8, 12),))._features
+    assert np.array_equal(combed.feature_copies("g", arr)[0, 4:8], combed.jacobians(0, 20, 100, 1, 1)[0, 0])
+    an = analyses["gravel-appearance"]
+    params = structure_params(SynthParams.default(an.L), 0)
+    with Synthesizer(an, params) as s:
+        via_controls = atlas_coords(s, atlas, Controls(direction=turn))
+        via_atlas = atlas_coords(s, combed)
+        plain = atlas_coords(s, atlas)
+    assert np.array_equal(via_controls, via_atlas) and np.any(via_atlas != plain)

@@ -1,6 +1,6 @@
 """A model in documents and project files (format 11): round trip with the
 randomness painted on it, damaged or hostile data refused with one sentence,
-no lattice or direction field with a model, the paint kept in place when the
+no lattice with a model (a direction field is combed over it), the paint kept in place when the
 texture's size changes."""
 import base64
 import json
@@ -84,14 +84,26 @@ def test_a_bomb_in_the_mesh_is_refused_before_it_is_decompressed(tmp_path):
         load_project(_damaged(tmp_path, change))
 
 
-def test_a_model_excludes_a_lattice_and_a_direction_field():
+def test_a_model_excludes_a_lattice_and_keeps_a_combed_direction_field(tmp_path):
     from infinitex.engine.controls.direction import DirectionField
     doc = _doc()
     lat = Lattice(origin=(0.0, 0.0), t1=(16.0, 0.0), t2=(0.0, 16.0), nx=2, ny=2)
-    with pytest.raises(ProjectError, match="model"):
+    with pytest.raises(ProjectError, match="lattice"):
         Document(doc.exemplar, surface=doc.surface, lattice=lat).validate()
-    with pytest.raises(ProjectError, match="model"):
-        Document(doc.exemplar, surface=doc.surface, direction=DirectionField.uniform(30, 1, 1, 0, 0, 64, 64)).validate()
+    combed = Document(doc.exemplar, surface=doc.surface, direction=DirectionField.uniform(30, 1, 1, 0, 0, 64, 64))
+    combed.validate()  # combed over the model (its atlas texels)
+    path = str(tmp_path / "combed.itex")
+    save_project(path, Project(combed))
+    back = load_project(path).document
+    assert back.direction == combed.direction and back.surface == combed.surface
+
+
+def test_a_combed_direction_field_keeps_its_place_when_the_texture_size_changes():
+    from infinitex.engine.controls.direction import DirectionField
+    f = DirectionField.uniform(30, 1.5, 1, 40, 20, 90, 70)
+    g = f.rescaled(2.0)
+    assert np.array_equal(f.dense(30, 10, 80, 80), g.dense(60, 20, 160, 160)[::2, ::2])
+    assert np.array_equal(g.rescaled(0.5).dense(30, 10, 80, 80), f.dense(30, 10, 80, 80))
 
 
 def test_paint_keeps_its_place_when_the_texture_size_changes():

@@ -3,8 +3,10 @@ shows the model lit, with its texture synthesized live in its atlas
 (app/model_session.py), and takes the mouse the way Blender's viewport does:
 the middle button orbits (Shift: pans), the wheel zooms, the right button
 pans; the left button orbits too, except with the Paint canvas brush, which
-paints randomness on the model (ray-picked into the atlas). File > Open
-model, Export model (GLB and every map) and Close model; the Model panel.
+paints randomness on the model (ray-picked into the atlas), the Features
+tool (tools/feature_model.py) and the Direction tool, which combs the
+texture over the surface (tools/direction_model.py). File > Open model,
+Export model (GLB and every map) and Close model; the Model panel.
 
 A mixin of ``Editor`` (editor.py); its state (camera, view, framebuffer) is
 made here on first use.
@@ -28,6 +30,7 @@ from infinitex.project.surface import SIZES, SurfaceSettings, default_repeats
 
 from ..render.model_view import ModelView, OrbitCamera
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
+from .tools.direction_model import ModelComb
 from .tools.feature_model import ModelFeatures
 from .tools.paint import dab_centers
 
@@ -80,7 +83,8 @@ class ModelModeMixin:
 
     def close_model(self) -> None:
         if self.model_mode:
-            self.edit(replace(self.doc, surface=None, randomness_canvas=None, features=()), "Close model")
+            self.edit(replace(self.doc, surface=None, randomness_canvas=None, features=(), direction=None),
+                      "Close model")
             self.release_model_view()
             self.model_view, self._model_fbo, self._model_view_key = None, None, None
 
@@ -96,9 +100,10 @@ class ModelModeMixin:
         if "size" in changes and changes["size"] != self.doc.surface.size:
             # What is painted or placed on the model is in its texels: it keeps its place on the surface.
             factor = changes["size"] / self.doc.surface.size
-            rc = self.doc.randomness_canvas
+            rc, dr = self.doc.randomness_canvas, self.doc.direction
             self.edit(replace(self.doc, surface=s, randomness_canvas=None if rc is None else rc.rescaled(factor),
-                              features=rescaled_features(self.doc.features, factor)), label, group)
+                              features=rescaled_features(self.doc.features, factor),
+                              direction=None if dr is None else dr.rescaled(factor)), label, group)
             return
         self.edit(replace(self.doc, surface=s), label, group)
 
@@ -149,6 +154,7 @@ class ModelModeMixin:
         self.atlas_request = False  # tests: read the finished atlas's coordinates during a frame
         self.atlas_read = None
         self.model_features = ModelFeatures(self)
+        self.model_comb = ModelComb(self)
 
     def _model_canvas(self, p0, w: int, h: int) -> None:
         s = self.session
@@ -231,7 +237,7 @@ class ModelModeMixin:
             dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), text)
         if self.tool.name == "feature":
             self.model_features.draw(dl, p0, w, h)
-        if hovered and self.tool.name == "paint-canvas":
+        if hovered and self.tool.name in ("paint-canvas", "direction"):
             io = imgui.get_io()
             r = self.tool.brush.radius
             dl.add_circle((io.mouse_pos.x, io.mouse_pos.y), r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
@@ -245,6 +251,7 @@ class ModelModeMixin:
         mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
         painting = self.tool.name == "paint-canvas" and not io.key_alt
         placing = self.tool.name == "feature" and not io.key_alt
+        combing = self.tool.name == "direction" and not io.key_alt
         if imgui.is_item_activated():
             left = imgui.is_mouse_down(imgui.MouseButton_.left)
             self._canvas_button = 0 if left else (2 if imgui.is_mouse_down(imgui.MouseButton_.middle) else 1)
@@ -254,11 +261,16 @@ class ModelModeMixin:
                 self._paint_model(mx, my, w, h)
             elif left and placing:
                 self.model_features.press(mx, my, w, h)
+            elif left and combing:
+                self.model_comb.press(mx, my, w, h)
         elif imgui.is_item_active() and self._canvas_button >= 0:
             d = io.mouse_delta
             if self._canvas_button == 0 and placing:
                 if d.x or d.y:
                     self.model_features.drag(mx, my, w, h)
+            elif self._canvas_button == 0 and combing:
+                if d.x or d.y:
+                    self.model_comb.drag(mx, my, w, h)
             elif self._canvas_button == 0 and painting:
                 if d.x or d.y:
                     self._paint_model(mx, my, w, h)
@@ -270,6 +282,9 @@ class ModelModeMixin:
             if self._canvas_button == 0 and placing:
                 self.model_features.drag(mx, my, w, h)  # a move in the release's frame counts
                 self.model_features.release()
+            elif self._canvas_button == 0 and combing:
+                self.model_comb.drag(mx, my, w, h)
+                self.model_comb.release()
             elif self._canvas_button == 0 and painting and self.history is not None:
                 self.history.end_group()
             self._canvas_button = -1
@@ -292,20 +307,26 @@ class ModelModeMixin:
             self._model_uv = (key, self.model_view.render(self.camera, (w, h), mode=1, background=(0, 0, 0)))
         return self._model_uv[1]
 
-    def _paint_model(self, x: float, y: float, w: int, h: int) -> None:
-        """A dab of the Paint canvas brush where the ray under (x, y) meets the model (atlas texels)."""
+    def pick_atlas(self, x: float, y: float, w: int, h: int) -> tuple[tuple[float, float], float] | None:
+        """Where the ray under view pixel (x, y) meets the model: (atlas
+        position in finest texels, atlas texels per screen pixel there), or None."""
         uvh = self.uv_image(w, h)
         xi, yi = int(x), int(y)
         if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
-            self._stroke_last = None
-            return
+            return None
         n = self.doc.surface.size
         u, v = float(uvh[yi, xi, 0]), float(uvh[yi, xi, 1])
-        pos = (u * n, (1.0 - v) * n)
-        # Atlas texels per screen pixel here: the brush keeps its size on screen.
         x2 = min(w - 1, xi + 3) if xi + 3 < w else max(0, xi - 3)
         du = uvh[yi, x2, :2] - uvh[yi, xi, :2] if uvh[yi, x2, 2] > 0.5 else np.zeros(2)
-        per_px = float(np.hypot(*du)) * n / max(1, abs(x2 - xi)) or 1.0
+        return (u * n, (1.0 - v) * n), float(np.hypot(*du)) * n / max(1, abs(x2 - xi)) or 1.0
+
+    def _paint_model(self, x: float, y: float, w: int, h: int) -> None:
+        """A dab of the Paint canvas brush where the ray under (x, y) meets the model (atlas texels)."""
+        hit = self.pick_atlas(x, y, w, h)
+        if hit is None:
+            self._stroke_last = None
+            return
+        pos, per_px = hit  # (atlas texels per screen pixel here: the brush keeps its size on screen)
         b = self.tool.brush
         r = max(1.0, b.radius * per_px if b.screen_units else b.radius)
         last = self._stroke_last

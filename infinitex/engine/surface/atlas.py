@@ -193,6 +193,30 @@ def up_field(model: Model, N: np.ndarray, up: np.ndarray) -> np.ndarray:
     return np.where(lu2 > 1e-6, u, alt)
 
 
+def compose(field: np.ndarray | None, jac: np.ndarray) -> np.ndarray:
+    """Q12 J_comb J_frame per texel (field None: J_frame), in integers (round
+    half up), then held within the stretch range (clamp_stretch) where the two
+    stretches add up beyond it; where the product degenerates, J_frame."""
+    if field is None:
+        return jac
+    f = field.reshape(-1, 4).astype(np.int64)
+    j = jac.reshape(-1, 4).astype(np.int64)
+    sel = np.flatnonzero(np.any(f != [J_ONE, 0, 0, J_ONE], axis=1))
+    if not len(sel):
+        return jac
+    a, b = f[sel], j[sel]
+    q = np.stack([a[:, 0] * b[:, 0] + a[:, 1] * b[:, 2], a[:, 0] * b[:, 1] + a[:, 1] * b[:, 3],
+                  a[:, 2] * b[:, 0] + a[:, 3] * b[:, 2], a[:, 2] * b[:, 1] + a[:, 3] * b[:, 3]], -1)
+    q = (q + (J_ONE >> 1)) >> 12
+    held, changed = clamp_stretch(q.astype(np.float64) / J_ONE, 1.0 / MAX_STRETCH, 1.0 / MIN_STRETCH)
+    q[changed] = np.round(held[changed] * J_ONE).astype(np.int64)  # (the rest exactly as they were)
+    det = q[:, 0] * q[:, 3] - q[:, 1] * q[:, 2]
+    out = j.copy()
+    keep = det >= MIN_DET
+    out[sel[keep]] = q[keep]
+    return out.reshape(jac.shape).astype(np.int16)
+
+
 class AtlasDomain:
     """A model's atlas at ``size`` finest texels, textured at ``sigma`` exemplar
     px per world unit with tangent frames from ``frame``; ``seams=False`` gives
@@ -215,6 +239,7 @@ class AtlasDomain:
         self.frame = frame
         self.up = up / np.linalg.norm(up)
         self.seams = bool(seams)
+        self.comb = None  # a direction field combed over the model (combed)
         self._levels: dict[int, dict] = {}  # geometry per level (shared by reframed copies)
         self._jac_levels: dict[int, np.ndarray] = {}
         self._topology()
@@ -380,13 +405,33 @@ class AtlasDomain:
                     link_chart=link_chart.astype(np.int16), link_to=link_to.astype(np.int16))
 
     def _level_jac(self, k: int) -> np.ndarray:
-        """J per texel of level k (its covering triangle's, off the charts the nearest texel's)."""
+        """J per texel of level k (its covering triangle's, off the charts the
+        nearest texel's), after the combed field's (``combed``) where there is one."""
         if k not in self._jac_levels:
             t = self._level(k)["near_tri"]
             jac = self.jac[np.maximum(t, 0)]
             jac[t < 0] = [J_ONE, 0, 0, J_ONE]
+            if self.comb is not None:
+                n = self.level_size(k)
+                jac = compose(self.comb.region(k, 0, 0, n, n), jac)
             self._jac_levels[k] = np.ascontiguousarray(jac, np.int16)
         return self._jac_levels[k]
+
+    def combed(self, field) -> AtlasDomain:
+        """The same atlas with a direction field combed over the model (a
+        DirectionField in this atlas' finest texels, or None): where painted,
+        the texture turns, grows and stretches from its frame's (J = J_comb J_frame)."""
+        if field is not None and field.identity:
+            field = None
+        if field is self.comb or (field is not None and field == self.comb):
+            return self
+        import copy
+        out = copy.copy(self)
+        out.comb = field
+        out._jac_levels = {}
+        out._feature_copies = {}
+        out.key = out._make_key()
+        return out
 
     def reframed(self, sigma: float, frame: str | None = None, up=None) -> AtlasDomain:
         """The same atlas (coverage, charts, indirection maps: shared, not computed
@@ -410,7 +455,7 @@ class AtlasDomain:
 
     def _make_key(self) -> str:
         return hashlib.sha256(repr((self.model.key, self.size, self.sigma, self.frame, self.up.tolist(),
-                                    self.seams)).encode()).hexdigest()
+                                    self.seams, None if self.comb is None else self.comb.key)).encode()).hexdigest()
 
     def _links(self, k: int, n: int, own, near, link_chart, link_to) -> None:
         """Fill the level's indirection map (module docstring)."""

@@ -28,13 +28,19 @@ def check_sizes(atlas: AtlasDomain, exemplar_size: int) -> None:
                          f"({exemplar_size} px).")
 
 
+def with_comb(atlas: AtlasDomain, controls: Controls) -> AtlasDomain:
+    """The atlas with the controls' direction field combed over it (AtlasDomain.combed); as it is without one."""
+    return atlas if controls.direction is None else atlas.combed(controls.direction)
+
+
 def atlas_coords(synth, atlas: AtlasDomain, controls: Controls = NO_CONTROLS) -> np.ndarray:
     """(N, N, 4) int32: the exemplar coordinate and remainder (1/256 px) of
     every atlas texel, synthesized with ``synth`` (an engine Synthesizer;
-    its controls are replaced by ``controls`` with the atlas as surface)."""
+    its controls are replaced by ``controls`` with the atlas as surface; their
+    direction field is combed over the model: AtlasDomain.combed)."""
     check_sizes(atlas, synth.analysis.size)
     saved = synth.controls
-    synth.set_params(synth.params, replace(controls, surface=atlas, direction=None))
+    synth.set_params(synth.params, replace(controls, surface=with_comb(atlas, controls), direction=None))
     try:
         return synth.window(Rect(0, 0, atlas.size, atlas.size), remainder=True)
     finally:

@@ -56,7 +56,7 @@ def feature_copies(atlas, feats: np.ndarray) -> np.ndarray:
             continue  # off the atlas: it covers nothing
         tri = int(near[py, px])
         c = int(atlas.chart[tri])
-        J = atlas.jac[tri].astype(np.int64)
+        J = atlas.jacobians(0, px, py, 1, 1)[0, 0].astype(np.int64)  # the texel's (a combed field's too)
         centre = np.array([px + 0.5, py + 0.5])
         reach = _inverse_rows(J[None])[0]
         rows.append([i, (px << Q) + (1 << (Q - 1)), (py << Q) + (1 << (Q - 1)), c, *J, *reach])

@@ -9,7 +9,7 @@ from imgui_bundle import imgui
 if TYPE_CHECKING:
     from . import Panels
 
-PLANE_ONLY = ("labels", "direction", "lattice")  # tools of the plane, hidden while a model is open
+PLANE_ONLY = ("labels", "lattice")  # tools of the plane, hidden while a model is open
 
 
 def draw(p: Panels) -> None:

@@ -188,6 +188,8 @@ class DirectionTool(Tool):
     def options(self) -> None:
         ed = self.ed
         for i, (mode, label, tip) in enumerate(MODES):
+            if mode == "guide" and ed.model_mode:
+                continue  # (guides and maps are placed on the plane)
             if i % 3:
                 imgui.same_line()
             if imgui.radio_button(f"{label}##direction-mode", self.mode == mode):
@@ -206,6 +208,8 @@ class DirectionTool(Tool):
             self.axis = 1
         if imgui.is_item_hovered():
             imgui.set_tooltip("The exemplar's vertical runs along your strokes and guides")
+        if self.mode == "guide" and ed.model_mode:
+            self.mode = "comb"
         if self.mode == "guide":
             _, self.guide_width = imgui.slider_float("Guide width", self.guide_width, 4.0, 1024.0, "%.0f px",
                                                      imgui.SliderFlags_.logarithmic)
@@ -237,6 +241,12 @@ class DirectionTool(Tool):
             _, b.hardness = imgui.slider_float("Hardness", b.hardness, 0.0, 1.0, "%.2f")
             imgui.pop_item_width()
         imgui.separator()
+        if ed.model_mode:
+            imgui.text_wrapped("On the model, strokes follow the surface; the direction is read in the model's "
+                               "own (Model panel).")
+            if ed.doc.direction is not None and imgui.button("Clear direction field", (-1, 0)):
+                self._set(DirectionField(), "Clear direction field")
+            return
         if imgui.radio_button("Flow map##direction-map", self.map_kind == "flow"):
             self.map_kind = "flow"
         imgui.same_line()

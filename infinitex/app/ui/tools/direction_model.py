@@ -1,0 +1,121 @@
+"""The Direction tool on a model (AtlasDomain.combed): comb, smooth, grow,
+shrink and erase the texture's direction and size over the surface, with the
+same brush as on the plane (tools/direction.py), ray-picked into the atlas.
+
+The field is kept in the atlas' texels and read in the model's own frame (the
+Model panel's direction): where it is combed, J = J_comb J_frame. A stroke's
+heading is measured in that frame (the stroke's step in atlas texels through
+the frame's J), so on every chart the texture runs the way the mouse went on
+the surface. A stroke is one undo step; the texture is synthesized again as
+the field changes, as when painting randomness on the model.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from infinitex.engine.controls.direction import DirectionField, comb, erase, grow, smooth
+from infinitex.engine.controls.fields import FieldTooLarge, dab_rect, dab_weights
+
+from .direction import MAX_BRUSH
+from .paint import dab_centers
+
+LABELS = {"comb": "Comb direction (model)", "smooth": "Smooth direction (model)", "grow": "Grow texture (model)",
+          "shrink": "Shrink texture (model)", "erase": "Erase direction (model)"}
+
+
+class ModelComb:
+    """Press / drag / release of the Direction tool on the model view."""
+
+    def __init__(self, ed):
+        self.ed = ed
+        self._last: tuple[float, float] | None = None
+        self._group: object = None
+
+    def heading(self, a: tuple[float, float], b: tuple[float, float]) -> float | None:
+        """The direction (degrees, the frame's x towards its y) of the step a -> b in atlas texels."""
+        atlas = self.ed.session.model.atlas
+        if atlas is None:
+            return None
+        n = atlas.size
+        x, y = min(n - 1, max(0, int(b[0]))), min(n - 1, max(0, int(b[1])))
+        t = int(atlas.nearest_triangle(0)[y, x])
+        if t < 0:
+            return None
+        j = atlas.jac[t].astype(np.float64)  # the frame's J there (not the combed one)
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        vx, vy = j[0] * dx + j[1] * dy, j[2] * dx + j[3] * dy
+        return math.degrees(math.atan2(vy, vx)) if vx or vy else None
+
+    def press(self, mx: float, my: float, w: int, h: int) -> None:
+        self._group, self._last = object(), None
+        tool = self.ed.tool
+        if tool.mode == "guide":
+            tool.mode = "comb"  # (guides are drawn on the plane)
+        if tool.mode != "comb":
+            self.drag(mx, my, w, h)
+        else:
+            hit = self.ed.pick_atlas(mx, my, w, h)
+            self._last = None if hit is None else hit[0]
+
+    def drag(self, mx: float, my: float, w: int, h: int) -> None:
+        if self._group is None:
+            return
+        hit = self.ed.pick_atlas(mx, my, w, h)
+        if hit is None:
+            self._last = None
+            return
+        pos, per_px = hit
+        tool = self.ed.tool
+        b = tool.brush
+        r = min(MAX_BRUSH, max(1.0, b.radius * per_px if b.screen_units else b.radius))
+        last = self._last
+        if last is not None and math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r:
+            last = None  # a jump across charts: no dabs in between, no heading
+        dabs = dab_centers(last, pos, 0.25 * r)
+        if not dabs:
+            return
+        doc = self.ed.doc
+        field = doc.direction or DirectionField()
+        before = field
+        prev = last
+        try:
+            for cx, cy in dabs:
+                heading = self.heading(prev, (cx, cy)) if prev is not None and (cx, cy) != prev else None
+                field = self._dab(field, tool, cx, cy, r, heading)
+                prev = (cx, cy)
+        except FieldTooLarge as exc:
+            self.ed.notice = (str(exc), time.monotonic())
+            self.release()
+            return
+        self._last = dabs[-1]
+        tool.dabs += len(dabs)
+        if field is not before:
+            self.ed.edit(replace(doc, direction=None if field.identity else field), LABELS[tool.mode],
+                         group=self._group)
+
+    @staticmethod
+    def _dab(field: DirectionField, tool, cx: float, cy: float, r: float, heading: float | None) -> DirectionField:
+        x0, y0, x1, y1 = dab_rect(cx, cy, r)
+        b = tool.brush
+        w = np.clip(b.strength, 0.0, 1.0) * dab_weights(cx, cy, r, b.hardness, x0, y0, x1 - x0, y1 - y0)
+        if tool.mode == "comb":
+            if heading is None:
+                return field
+            op = comb(heading - 90.0 * tool.axis)
+        elif tool.mode == "smooth":
+            op = smooth(max(3, int(r)))
+        elif tool.mode in ("grow", "shrink"):
+            op = grow(tool.rate ** (0.25 if tool.mode == "grow" else -0.25))
+        else:
+            op = erase()
+        return field.edited(x0, y0, w, op)[0]
+
+    def release(self) -> None:
+        if self._group is not None and self.ed.history is not None:
+            self.ed.history.end_group()
+        self._group, self._last = None, None
+
