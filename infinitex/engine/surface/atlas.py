@@ -559,6 +559,10 @@ class AtlasDomain:
     def owner(self, k: int = 0) -> np.ndarray:
         return self._level(k)["own"]
 
+    def texel_jacobians(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """J (Q12 int16, (N, 4)) of finest texels (xs, ys) inside the atlas (a combed field's included)."""
+        return self._level_jac(0)[ys, xs]
+
     def nearest_triangle(self, k: int = 0) -> np.ndarray:
         """(n, n) int32: the triangle covering each texel of level k, off the charts the nearest one's (-1: none)."""
         return self._level(k)["near_tri"]

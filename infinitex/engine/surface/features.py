@@ -36,63 +36,106 @@ COLUMNS = 10  # a copy: feature index, p x, p y, chart, J (4), reach x, reach y 
 def _inverse_rows(J: np.ndarray) -> np.ndarray:
     """Per Q12 J (n, 4): the lengths of the rows of J^-1 (finest texels per exemplar px along x, y)."""
     a, b, c, d = (J[:, i].astype(np.float64) / J_ONE for i in range(4))
-    det = a * d - b * c
-    return np.stack([np.hypot(d, b), np.hypot(c, a)], axis=-1) / np.abs(det)[:, None]
+    det = np.abs(a * d - b * c)
+    return np.stack([np.sqrt(d * d + b * b), np.sqrt(c * c + a * a)], axis=-1) / det[:, None]
+
+
+PAIRS = 1 << 22  # (feature, border edge) pairs measured at once
+
+
+def _seam_pairs(atlas, chart: np.ndarray, centre: np.ndarray, ext: np.ndarray):
+    """(feature, border edge) pairs: the edges of each feature's chart with a
+    twin across whose segment comes within ``ext`` of its centre, with that
+    distance. Edges are sorted by chart and midpoint x, so a feature measures
+    only the edges of its chart whose midpoint lies within reach along x."""
+    X = atlas.uvpx
+    e = np.flatnonzero(atlas.b_other >= 0)
+    if not len(e) or not len(chart):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    a, b = X[atlas.b_a[e]], X[atlas.b_b[e]]
+    mid = 0.5 * (a[:, 0] + b[:, 0])
+    half = 0.5 * np.abs(b[:, 0] - a[:, 0])
+    ec = atlas.chart[atlas.b_tri[e]].astype(np.int64)
+    order = np.lexsort((mid, ec))
+    e, a, b, mid, ec = e[order], a[order], b[order], mid[order], ec[order]
+    slack = np.zeros(atlas.charts)
+    np.maximum.at(slack, ec, half[order])  # the longest half-edge along x per chart
+    # One sorted key: the chart, then the midpoint's x (each chart a band of ``span``).
+    span = 2.0 * (max(np.abs(mid).max(), np.abs(centre[:, 0]).max()) + ext.max() + slack.max()) + 8.0
+    key = ec * span + mid
+    lo = np.searchsorted(key, chart * span + (centre[:, 0] - ext - slack[chart]), side="left")
+    hi = np.searchsorted(key, chart * span + (centre[:, 0] + ext + slack[chart]), side="right")
+    count = np.maximum(hi - lo, 0)
+    fs, es, ds = [], [], []
+    start = 0
+    ends = np.cumsum(count)
+    while start < len(chart):
+        base = ends[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(ends, base + PAIRS, side="right")))
+        c = count[start:stop]
+        f = np.repeat(np.arange(start, stop), c)
+        k = lo[f] + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        d = b[k] - a[k]
+        p = centre[f]
+        t = np.clip(((p - a[k]) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300), 0.0, 1.0)
+        r = p - (a[k] + t[:, None] * d)
+        dist = np.sqrt((r * r).sum(-1))  # (IEEE sqrt: the same choice on every machine)
+        close = dist <= ext[f]
+        fs.append(f[close])
+        es.append(e[k[close]])
+        ds.append(dist[close])
+        start = stop
+    return np.concatenate(fs), np.concatenate(es), np.concatenate(ds)
 
 
 def feature_copies(atlas, feats: np.ndarray) -> np.ndarray:
     """Per feature (rows of controls.feature_arrays), its copy in the chart
     under its centre and one in each chart across a seam its outer disc
-    reaches: float64 (C, COLUMNS) in feature order (module docstring)."""
+    reaches (across the nearest such edge): float64 (C, COLUMNS), by feature,
+    its own copy first, then by chart across (module docstring)."""
     from .atlas import clamp_stretch
     n = atlas.size
-    near = atlas.nearest_triangle(0)
-    rows = []
-    e_chart = atlas.chart[atlas.b_tri]
-    X = atlas.uvpx
-    for i, f in enumerate(feats):
-        px, py, outer = int(f[0]), int(f[1]), int(f[3])
-        if not (0 <= px < n and 0 <= py < n) or near[py, px] < 0:
-            continue  # off the atlas: it covers nothing
-        tri = int(near[py, px])
-        c = int(atlas.chart[tri])
-        J = atlas.jacobians(0, px, py, 1, 1)[0, 0].astype(np.int64)  # the texel's (a combed field's too)
-        centre = np.array([px + 0.5, py + 0.5])
-        reach = _inverse_rows(J[None])[0]
-        rows.append([i, (px << Q) + (1 << (Q - 1)), (py << Q) + (1 << (Q - 1)), c, *J, *reach])
-        # Seams the outer disc reaches: the nearest border edge of this chart per chart across.
-        sel = np.flatnonzero((e_chart == c) & (atlas.b_other >= 0))
-        if not len(sel):
-            continue
-        a, b = X[atlas.b_a[sel]], X[atlas.b_b[sel]]
-        d = b - a
-        t = np.clip(((centre - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300), 0.0, 1.0)
-        dist = np.hypot(*(centre - (a + t[:, None] * d)).T)
-        ext = outer * float(reach.max()) + 2.0
-        close = dist <= ext
-        sel, dist = sel[close], dist[close]
-        across = atlas.chart[atlas.b_other[sel]]
-        order = np.lexsort((sel, dist, across))
-        first = np.r_[True, across[order][1:] != across[order][:-1]] if len(order) else np.zeros(0, bool)
-        for e in sel[order][first]:
-            M = atlas.b_map[e]
-            p2 = (M[0, 0] * centre[0] + M[0, 1] * centre[1] + M[0, 2],
-                  M[1, 0] * centre[0] + M[1, 1] * centre[1] + M[1, 2])  # elementwise (no BLAS)
-            a00, a01, a10, a11 = M[0, 0], M[0, 1], M[1, 0], M[1, 1]
-            det = a00 * a11 - a01 * a10
-            if not abs(det) > 1e-12:
-                continue
-            i00, i01, i10, i11 = a11 / det, -a01 / det, -a10 / det, a00 / det
-            j = J.astype(np.float64) / J_ONE
-            J2 = np.array([[j[0] * i00 + j[1] * i10, j[0] * i01 + j[1] * i11,
-                            j[2] * i00 + j[3] * i10, j[2] * i01 + j[3] * i11]])
-            J2, _ = clamp_stretch(J2, 1.0 / MAX_STRETCH, 1.0 / MIN_STRETCH)
-            q = np.round(J2[0] * J_ONE).astype(np.int64)
-            if abs(q[0] * q[3] - q[1] * q[2]) < MIN_DET:
-                continue  # (a seam to a mirrored chart turns det J' negative: the disc goes on there, mirrored)
-            rows.append([i, int(np.round(p2[0] * (1 << Q))), int(np.round(p2[1] * (1 << Q))),
-                         int(atlas.chart[atlas.b_other[e]]), *q, *_inverse_rows(q[None])[0]])
-    return np.array(rows, np.float64).reshape(-1, COLUMNS)
+    feats = np.asarray(feats, np.int64).reshape(-1, 9)
+    px, py, outer = feats[:, 0], feats[:, 1], feats[:, 3]
+    inside = (px >= 0) & (px < n) & (py >= 0) & (py < n)
+    idx = np.flatnonzero(inside)
+    tri = atlas.nearest_triangle(0)[py[idx], px[idx]]
+    idx, tri = idx[tri >= 0], tri[tri >= 0]  # off the atlas: it covers nothing
+    px, py, outer = px[idx], py[idx], outer[idx]
+    chart = atlas.chart[tri].astype(np.int64)
+    J = atlas.texel_jacobians(px, py).astype(np.int64)  # the texels' (a combed field's too)
+    reach = _inverse_rows(J)
+    centre = np.stack([px + 0.5, py + 0.5], axis=-1)
+    own = np.column_stack([idx, (px << Q) + (1 << (Q - 1)), (py << Q) + (1 << (Q - 1)), chart, J, reach])
+    # Seams the outer discs reach: per feature and chart across, the nearest edge (ties: the lowest index).
+    f, e, dist = _seam_pairs(atlas, chart, centre, outer * reach.max(axis=1) + 2.0)
+    across = atlas.chart[atlas.b_other[e]].astype(np.int64)
+    order = np.lexsort((e, dist, across, f))
+    f, e, across = f[order], e[order], across[order]
+    first = np.r_[True, (f[1:] != f[:-1]) | (across[1:] != across[:-1])] if len(f) else np.zeros(0, bool)
+    f, e, across = f[first], e[first], across[first]
+    M = atlas.b_map[e]
+    cx, cy = centre[f, 0], centre[f, 1]
+    p2x = M[:, 0, 0] * cx + M[:, 0, 1] * cy + M[:, 0, 2]  # elementwise (no BLAS)
+    p2y = M[:, 1, 0] * cx + M[:, 1, 1] * cy + M[:, 1, 2]
+    a00, a01, a10, a11 = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+    det = a00 * a11 - a01 * a10
+    good = np.abs(det) > 1e-12
+    det = np.where(good, det, 1.0)
+    i00, i01, i10, i11 = a11 / det, -a01 / det, -a10 / det, a00 / det
+    j = J[f].astype(np.float64) / J_ONE
+    J2 = np.stack([j[:, 0] * i00 + j[:, 1] * i10, j[:, 0] * i01 + j[:, 1] * i11,
+                   j[:, 2] * i00 + j[:, 3] * i10, j[:, 2] * i01 + j[:, 3] * i11], axis=-1)
+    J2, _ = clamp_stretch(J2, 1.0 / MAX_STRETCH, 1.0 / MIN_STRETCH)
+    q = np.round(J2 * J_ONE).astype(np.int64)
+    # (A seam to a mirrored chart turns det J' negative: the disc goes on there, mirrored.)
+    good &= np.abs(q[:, 0] * q[:, 3] - q[:, 1] * q[:, 2]) >= MIN_DET
+    f, q, across = f[good], q[good], across[good]
+    other = np.column_stack([idx[f], np.round(p2x[good] * (1 << Q)), np.round(p2y[good] * (1 << Q)), across, q,
+                             _inverse_rows(q)]) if len(f) else np.zeros((0, COLUMNS))
+    rows = np.concatenate([own.astype(np.float64), other.astype(np.float64)]).reshape(-1, COLUMNS)
+    kind = np.r_[np.zeros(len(own)), np.ones(len(other))]
+    return rows[np.lexsort((rows[:, 3], kind, rows[:, 0]))] if len(rows) else rows
 
 
 def feature_table(copies: np.ndarray, feats: np.ndarray, level: int, L: int, m: int, toroidal: bool,
