@@ -163,7 +163,8 @@ def run_surface(argv: list[str]) -> int:
         factor = pl.synth_size / own.size
         controls = replace(controls, features=rescaled_features(controls.features, factor),
                            randomness_canvas=controls.randomness_canvas if painted else None,
-                           direction=None if controls.direction is None else controls.direction.rescaled(factor))
+                           direction=None if controls.direction is None
+                           else controls.direction.rescaled(factor, own.size))
     if own is not None:
         dropped = [d for d in dropped if d not in ("canvas randomness", "features", "direction field")]
         if not placed and (doc.features or doc.direction is not None) and not args.quiet:

@@ -160,7 +160,7 @@ def test_a_project_with_a_model_brings_its_settings_and_its_paint(tmp_path, cube
     assert r.returncode == 0 and "left out" in r.stderr, r.stderr
     assert "features" not in r.stderr
     kept = replace(controls, randomness_canvas=None, features=rescaled_features(doc.features, 0.5),
-                   direction=doc.direction.rescaled(0.5))
+                   direction=doc.direction.rescaled(0.5, 256))
     with Synthesizer(an, doc.params(an.L)) as s:
         want = atlas_coords(s, doc.surface.atlas(an.size, 128), kept)
     assert np.array_equal(np.load(small), want)

@@ -101,14 +101,20 @@ def test_a_model_excludes_a_lattice_and_keeps_a_combed_direction_field(tmp_path)
 def test_a_combed_direction_field_keeps_its_place_when_the_texture_size_changes():
     from infinitex.engine.controls.direction import DirectionField
     f = DirectionField.uniform(30, 1.5, 1, 40, 20, 90, 70)
-    g = f.rescaled(2.0)
+    g = f.rescaled(2.0, 128)
     assert np.array_equal(f.dense(30, 10, 80, 80), g.dense(60, 20, 160, 160)[::2, ::2])
-    assert np.array_equal(g.rescaled(0.5).dense(30, 10, 80, 80), f.dense(30, 10, 80, 80))
+    assert np.array_equal(g.rescaled(0.5, 256).dense(30, 10, 80, 80), f.dense(30, 10, 80, 80))
+    # Tiles beyond the model's texture are never read: dropped, not blown up with it (a hostile
+    # project's far tiles once made a dense box of gigabytes).
+    far = f.replaced(np.broadcast_to(f.dense(50, 30, 1, 1), (64, 64, 4)).copy(), 250 * 64, 250 * 64)
+    assert far.rescaled(0.5, 256) == f.rescaled(0.5, 256) and far.rescaled(1.0, 256) == f
 
 
 def test_paint_keeps_its_place_when_the_texture_size_changes():
     f, _ = CanvasField().painted(100.5, 60.5, 12.0, 0)
-    g = f.rescaled(2.0)
+    g = f.rescaled(2.0, 256)
     assert np.array_equal(f.region(0, 80, 40, 40, 40), g.region(0, 160, 80, 80, 80)[::2, ::2])
-    assert g.rescaled(0.5) == f
-    assert CanvasField().rescaled(2.0) == CanvasField()
+    assert g.rescaled(0.5, 512) == f
+    assert CanvasField().rescaled(2.0, 256) == CanvasField()
+    far, _ = f.painted(250 * 64 + 5, 250 * 64 + 5, 4.0, 0)
+    assert far.rescaled(2.0, 256) == g

@@ -99,11 +99,17 @@ class ModelModeMixin:
             return
         if "size" in changes and changes["size"] != self.doc.surface.size:
             # What is painted or placed on the model is in its texels: it keeps its place on the surface.
-            factor = changes["size"] / self.doc.surface.size
+            n = self.doc.surface.size
+            factor = changes["size"] / n
             rc, dr = self.doc.randomness_canvas, self.doc.direction
-            self.edit(replace(self.doc, surface=s, randomness_canvas=None if rc is None else rc.rescaled(factor),
+            try:
+                doc = replace(self.doc, surface=s, randomness_canvas=None if rc is None else rc.rescaled(factor, n),
                               features=rescaled_features(self.doc.features, factor),
-                              direction=None if dr is None else dr.rescaled(factor)), label, group)
+                              direction=None if dr is None else dr.rescaled(factor, n))
+            except ValueError as exc:  # (FieldTooLarge)
+                self.dialogs.message("Model", str(exc))
+                return
+            self.edit(doc, label, group)
             return
         self.edit(replace(self.doc, surface=s), label, group)
 

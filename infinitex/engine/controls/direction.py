@@ -258,15 +258,17 @@ class DirectionField:
         w = np.where(dist >= half, 0.0, 1.0 - t * t * (3.0 - 2.0 * t)) * np.clip(strength, 0.0, 1.0)
         return self.edited(x0, y0, w, comb(ang - axis_offset))[0]
 
-    def rescaled(self, factor: float) -> DirectionField:
-        """The field on a canvas ``factor`` times larger (a model's texture at
-        another size): each new pixel takes the J of the one it came from."""
-        if not self.tiles or factor == 1:
-            return self
-        xs, ys = [tx for tx, _ in self.tiles], [ty for _, ty in self.tiles]
+    def rescaled(self, factor: float, size: int) -> DirectionField:
+        """The field over a model's texture of ``size`` texels (its tiles beyond
+        it dropped: they are never read) on one ``factor`` times larger: each new
+        pixel takes the J of the one it came from."""
+        inside = {t: v for t, v in self.tiles.items() if 0 <= t[0] * TILE < size and 0 <= t[1] * TILE < size}
+        if not inside or factor == 1:
+            return DirectionField(inside) if len(inside) != len(self.tiles) else self
+        xs, ys = [tx for tx, _ in inside], [ty for _, ty in inside]
         x0, y0 = min(xs) * TILE, min(ys) * TILE
         w, h = (max(xs) + 1) * TILE - x0, (max(ys) + 1) * TILE - y0
-        dense = self.dense(x0, y0, w, h)
+        dense = DirectionField(inside).dense(x0, y0, w, h)
         nx0, ny0 = int(np.floor(x0 * factor)), int(np.floor(y0 * factor))
         nw, nh = max(1, int(np.ceil((x0 + w) * factor)) - nx0), max(1, int(np.ceil((y0 + h) * factor)) - ny0)
         sx = np.clip(np.floor((np.arange(nx0, nx0 + nw) + 0.5) / factor).astype(np.int64) - x0, 0, w - 1)

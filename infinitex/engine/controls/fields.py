@@ -261,16 +261,18 @@ class CanvasField:
                 tiles[(tx, ty)] = apply_dab(base, wts, value, strength)
         return CanvasField(tiles), (x0, y0, x1, y1)
 
-    def rescaled(self, factor: float) -> CanvasField:
-        """The field on a canvas ``factor`` times larger (a model's texture at
-        another size): each new pixel takes the value of the one it came from."""
-        if not self.tiles or factor == 1:
-            return self
-        xs = [tx for tx, _ in self.tiles]
-        ys = [ty for _, ty in self.tiles]
+    def rescaled(self, factor: float, size: int) -> CanvasField:
+        """The field over a model's texture of ``size`` texels (its tiles beyond
+        it dropped: they are never read) on one ``factor`` times larger: each new
+        pixel takes the value of the one it came from."""
+        inside = {t: v for t, v in self.tiles.items() if 0 <= t[0] * TILE < size and 0 <= t[1] * TILE < size}
+        if not inside or factor == 1:
+            return CanvasField(inside) if len(inside) != len(self.tiles) else self
+        xs = [tx for tx, _ in inside]
+        ys = [ty for _, ty in inside]
         x0, y0 = min(xs) * TILE, min(ys) * TILE
         w, h = (max(xs) + 1) * TILE - x0, (max(ys) + 1) * TILE - y0
-        dense = tiles_region(self.tiles, x0, y0, w, h, NEUTRAL)
+        dense = tiles_region(inside, x0, y0, w, h, NEUTRAL)
         nx0, ny0 = int(np.floor(x0 * factor)), int(np.floor(y0 * factor))
         nw, nh = max(1, int(np.ceil((x0 + w) * factor)) - nx0), max(1, int(np.ceil((y0 + h) * factor)) - ny0)
         sx = np.clip(np.floor((np.arange(nx0, nx0 + nw) + 0.5) / factor).astype(np.int64) - x0, 0, w - 1)

@@ -40,59 +40,63 @@ def _inverse_rows(J: np.ndarray) -> np.ndarray:
     return np.stack([np.sqrt(d * d + b * b), np.sqrt(c * c + a * a)], axis=-1) / det[:, None]
 
 
-PAIRS = 1 << 22  # (feature, border edge) pairs measured at once
-
-
-def _seam_pairs(atlas, chart: np.ndarray, centre: np.ndarray, ext: np.ndarray):
-    """(feature, border edge) pairs: the edges of each feature's chart with a
-    twin across whose segment comes within ``ext`` of its centre, with that
-    distance. Edges are sorted by chart and midpoint x, so a feature measures
-    only the edges of its chart whose midpoint lies within reach along x."""
+def _nearest_seams(atlas, chart: np.ndarray, centre: np.ndarray, ext: np.ndarray):
+    """Per feature and chart across a seam of its chart: the border edge
+    nearest its centre (ties: the lower index), when within ``ext``: (feature,
+    edge, distance) arrays. The edges are sampled every texel at most, one k-d
+    tree per pair of charts; a feature measures exactly the edges of its 8
+    nearest samples: the cost follows the features and the seams' length, not
+    their product."""
+    from scipy.spatial import cKDTree
     X = atlas.uvpx
     e = np.flatnonzero(atlas.b_other >= 0)
+    out_f, out_e, out_d = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)], [np.zeros(0)]
     if not len(e) or not len(chart):
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        return out_f[0], out_e[0], out_d[0]
     a, b = X[atlas.b_a[e]], X[atlas.b_b[e]]
-    mid = 0.5 * (a[:, 0] + b[:, 0])
-    half = 0.5 * np.abs(b[:, 0] - a[:, 0])
-    ec = atlas.chart[atlas.b_tri[e]].astype(np.int64)
-    order = np.lexsort((mid, ec))
-    e, a, b, mid, ec = e[order], a[order], b[order], mid[order], ec[order]
-    slack = np.zeros(atlas.charts)
-    np.maximum.at(slack, ec, half[order])  # the longest half-edge along x per chart
-    # One sorted key: the chart, then the midpoint's x (each chart a band of ``span``).
-    span = 2.0 * (max(np.abs(mid).max(), np.abs(centre[:, 0]).max()) + ext.max() + slack.max()) + 8.0
-    key = ec * span + mid
-    lo = np.searchsorted(key, chart * span + (centre[:, 0] - ext - slack[chart]), side="left")
-    hi = np.searchsorted(key, chart * span + (centre[:, 0] + ext + slack[chart]), side="right")
-    count = np.maximum(hi - lo, 0)
-    fs, es, ds = [], [], []
-    start = 0
-    ends = np.cumsum(count)
-    while start < len(chart):
-        base = ends[start - 1] if start else 0
-        stop = max(start + 1, int(np.searchsorted(ends, base + PAIRS, side="right")))
-        c = count[start:stop]
-        f = np.repeat(np.arange(start, stop), c)
-        k = lo[f] + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
-        d = b[k] - a[k]
-        p = centre[f]
-        t = np.clip(((p - a[k]) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300), 0.0, 1.0)
-        r = p - (a[k] + t[:, None] * d)
-        dist = np.sqrt((r * r).sum(-1))  # (IEEE sqrt: the same choice on every machine)
-        close = dist <= ext[f]
-        fs.append(f[close])
-        es.append(e[k[close]])
-        ds.append(dist[close])
-        start = stop
-    return np.concatenate(fs), np.concatenate(es), np.concatenate(ds)
+    d = b - a
+    steps = np.maximum(1, np.ceil(np.sqrt((d * d).sum(-1)))).astype(np.int64) + 1  # samples per edge
+    se = np.repeat(np.arange(len(e)), steps)
+    t = (np.arange(int(steps.sum())) - np.repeat(np.cumsum(steps) - steps, steps)) / (steps[se] - 1)
+    pts = a[se] + t[:, None] * d[se]
+    own = atlas.chart[atlas.b_tri[e]].astype(np.int64)[se]
+    across = atlas.chart[atlas.b_other[e]].astype(np.int64)[se]
+    group = own * atlas.charts + across
+    order = np.argsort(group, kind="stable")
+    group, pts, se = group[order], pts[order], se[order]
+    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    bounds = np.r_[starts, len(group)]
+    by_chart = {}
+    for gi in range(len(starts)):
+        by_chart.setdefault(int(group[starts[gi]] // atlas.charts), []).append(gi)
+    for c in np.unique(chart):
+        fs = np.flatnonzero(chart == c)
+        for gi in by_chart.get(int(c), []):
+            lo, hi = bounds[gi], bounds[gi + 1]
+            kk = min(8, hi - lo)
+            _, k = cKDTree(pts[lo:hi]).query(centre[fs], k=kk)
+            cand = se[lo + k.reshape(len(fs), kk)]  # the edges of the nearest samples: measured exactly
+            pa, pd = a[cand], d[cand]
+            pc = centre[fs][:, None, :]
+            tt = np.clip(((pc - pa) * pd).sum(-1) / np.maximum((pd * pd).sum(-1), 1e-300), 0.0, 1.0)
+            r = pc - (pa + tt[..., None] * pd)
+            dist = np.sqrt((r * r).sum(-1))
+            rows = np.repeat(np.arange(len(fs)), kk)
+            order = np.lexsort((cand.ravel(), dist.ravel(), rows))  # per feature: the nearest, ties the lowest edge
+            pick = order[np.r_[0:len(order):kk]] if len(order) else order
+            cd, dd = cand.ravel()[pick], dist.ravel()[pick]
+            close = dd <= ext[fs]
+            out_f.append(fs[close])
+            out_e.append(e[cd[close]])
+            out_d.append(dd[close])
+    return np.concatenate(out_f), np.concatenate(out_e), np.concatenate(out_d)
 
 
 def feature_copies(atlas, feats: np.ndarray) -> np.ndarray:
     """Per feature (rows of controls.feature_arrays), its copy in the chart
     under its centre and one in each chart across a seam its outer disc
-    reaches (across the nearest such edge): float64 (C, COLUMNS), by feature,
-    its own copy first, then by chart across (module docstring)."""
+    reaches (across the edge of that seam nearest its centre): float64 (C,
+    COLUMNS), by feature, its own copy first, then by chart across (module docstring)."""
     from .atlas import clamp_stretch
     n = atlas.size
     feats = np.asarray(feats, np.int64).reshape(-1, 9)
@@ -107,13 +111,9 @@ def feature_copies(atlas, feats: np.ndarray) -> np.ndarray:
     reach = _inverse_rows(J)
     centre = np.stack([px + 0.5, py + 0.5], axis=-1)
     own = np.column_stack([idx, (px << Q) + (1 << (Q - 1)), (py << Q) + (1 << (Q - 1)), chart, J, reach])
-    # Seams the outer discs reach: per feature and chart across, the nearest edge (ties: the lowest index).
-    f, e, dist = _seam_pairs(atlas, chart, centre, outer * reach.max(axis=1) + 2.0)
+    # Seams the outer discs reach: per feature and chart across, the nearest edge.
+    f, e, _ = _nearest_seams(atlas, chart, centre, outer * reach.max(axis=1) + 2.0)
     across = atlas.chart[atlas.b_other[e]].astype(np.int64)
-    order = np.lexsort((e, dist, across, f))
-    f, e, across = f[order], e[order], across[order]
-    first = np.r_[True, (f[1:] != f[:-1]) | (across[1:] != across[:-1])] if len(f) else np.zeros(0, bool)
-    f, e, across = f[first], e[first], across[first]
     M = atlas.b_map[e]
     cx, cy = centre[f, 0], centre[f, 1]
     p2x = M[:, 0, 0] * cx + M[:, 0, 1] * cy + M[:, 0, 2]  # elementwise (no BLAS)
