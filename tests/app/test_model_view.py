@@ -115,3 +115,54 @@ def test_magnification_is_sharper_than_the_texture_up_close(gpu, session):
         assert abs(sharp.mean() - plain.mean()) < 8
     finally:
         view.release()
+
+
+def test_feature_handles_on_the_model_show_only_what_the_camera_sees(gpu):
+    """tools/feature_model.py: a feature on the cube's face towards the camera
+    has its handle where its centre projects, a disc of its radius on the
+    surface, and can be grabbed; one on the far face is hidden and cannot be
+    grabbed through the model; Jump to turns the camera to face it."""
+    from types import SimpleNamespace
+
+    from infinitex.app.ui.tools.feature_model import ModelFeatures
+    from infinitex.engine.controls import Feature
+    from infinitex.engine.surface import AtlasDomain
+    gpu.activate()
+    model = cube(n=3)
+    n = 256
+    atlas = AtlasDomain(model, n, sigma=40.0)
+    view = ModelView(gpu.ctx, model.positions, model.faces, model.uvs)
+    cam = OrbitCamera(target=(0.0, 0.0, 0.0), yaw=0.0, pitch=0.0, distance=4.0)  # looking at the +z face
+    size = (400, 400)
+    cache = {}
+
+    def uv_image(w, h):
+        key = (ed.camera, w, h)
+        if key not in cache:
+            cache[key] = view.render(ed.camera, (w, h), mode=1, background=(0, 0, 0))
+        return cache[key]
+    ed = SimpleNamespace(camera=cam, uv_image=uv_image, session=SimpleNamespace(model=SimpleNamespace(atlas=atlas)),
+                         doc=SimpleNamespace(surface=SimpleNamespace(size=n), features=()))
+    try:
+        front = view.pick(cam, size, 200, 200, n)  # the +z face's centre
+        mf = ModelFeatures(ed)
+        p = mf.surface_point(front)
+        assert abs(p[2] - 1.0) < 1e-6 and np.abs(p[:2]).max() < 0.05
+        # The same face seen from behind: the -z face's centre (the atlas texel seen from the other side).
+        back = view.pick(OrbitCamera(target=(0.0, 0.0, 0.0), yaw=180.0, pitch=0.0, distance=4.0), size, 200, 200, n)
+        assert abs(mf.surface_point(back)[2] + 1.0) < 1e-6
+        ed.doc.features = (Feature((5, 5), front, 20, 40), Feature((5, 5), back, 20, 40))
+        handles = mf._handles(*size)
+        assert [h[0] for h in handles] == [0]  # the far face's feature is hidden
+        i, x, y, ri, ro = handles[0]
+        assert abs(x - 200) <= 2 and abs(y - 200) <= 2
+        # Outer radius 40 exemplar px = 1 world unit at sigma 40: the projected half-width of a unit at depth 3.
+        want = size[1] / (2 * math.tan(math.radians(cam.fovy) / 2) * 3.0)
+        assert ro == pytest.approx(want, rel=0.05) and ri == pytest.approx(want / 2, rel=0.05)
+        assert mf._hit(200, 200, *size) == (0, "move")
+        assert mf._hit(200 + ro, 200, *size) == (0, "outer")
+        mf.jump_to(ed.doc.features[1])  # the far face: the camera turns round to it
+        assert abs(((ed.camera.yaw - 180.0) + 180) % 360 - 180) < 1e-6 and abs(ed.camera.pitch) < 1e-6
+        assert [h[0] for h in mf._handles(*size)] == [1]
+    finally:
+        view.release()

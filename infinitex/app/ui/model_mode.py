@@ -326,6 +326,14 @@ class ModelModeMixin:
         du = uvh[yi, x2, :2] - uvh[yi, xi, :2] if uvh[yi, x2, 2] > 0.5 else np.zeros(2)
         return (u * n, (1.0 - v) * n), float(np.hypot(*du)) * n / max(1, abs(x2 - xi)) or 1.0
 
+    def chart_at(self, pos: tuple[float, float]) -> int:
+        """The chart of the atlas texel at ``pos`` (finest texels; -1 off the charts)."""
+        atlas = self.session.model.atlas
+        if atlas is None:
+            return -1
+        n = atlas.size
+        return int(atlas.owner(0)[min(n - 1, max(0, int(pos[1]))), min(n - 1, max(0, int(pos[0])))])
+
     def _paint_model(self, x: float, y: float, w: int, h: int) -> None:
         """A dab of the Paint canvas brush where the ray under (x, y) meets the model (atlas texels)."""
         hit = self.pick_atlas(x, y, w, h)
@@ -336,8 +344,9 @@ class ModelModeMixin:
         b = self.tool.brush
         r = max(1.0, b.radius * per_px if b.screen_units else b.radius)
         last = self._stroke_last
-        if last is not None and math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r:
-            last = None  # a jump across charts: no dabs in between
+        if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r
+                                 or self.chart_at(last) != self.chart_at(pos)):
+            last = None  # onto another chart: no dabs in between (the atlas between is elsewhere)
         dabs = dab_centers(last, pos, 0.25 * r)
         if not dabs:
             return

@@ -73,8 +73,9 @@ class ModelComb:
         b = tool.brush
         r = min(MAX_BRUSH, max(1.0, b.radius * per_px if b.screen_units else b.radius))
         last = self._last
-        if last is not None and math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r:
-            last = None  # a jump across charts: no dabs in between, no heading
+        if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r
+                                 or self.ed.chart_at(last) != self.ed.chart_at(pos)):
+            last = None  # onto another chart: no dabs in between (the atlas between is elsewhere), no heading
         dabs = dab_centers(last, pos, 0.25 * r)
         if not dabs:
             return

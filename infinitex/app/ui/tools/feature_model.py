@@ -95,8 +95,37 @@ class ModelFeatures:
         n = self.ed.doc.surface.size
         return (min(n - 1, max(0, int(uvh[yi, xi, 0] * n))), min(n - 1, max(0, int((1 - uvh[yi, xi, 1]) * n))))
 
+    def world_per_exemplar_px(self, texel: tuple[int, int]) -> float:
+        """How long an exemplar pixel is on the surface at an atlas texel (the
+        texture's own scale there: the frame's, a combed field's, the held stretch)."""
+        atlas = self._atlas()
+        x, y = texel
+        t = int(atlas.nearest_triangle(0)[y, x])
+        f = atlas.model.faces[t]
+        P, X = atlas.model.positions[f], atlas.uvpx[f]
+        area3 = 0.5 * np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0]))
+        e1, e2 = X[1] - X[0], X[2] - X[0]
+        area2 = 0.5 * abs(e1[0] * e2[1] - e1[1] * e2[0])
+        J = atlas.texel_jacobians(np.array([x]), np.array([y]))[0].astype(np.float64) / 4096
+        det = abs(J[0] * J[3] - J[1] * J[2])
+        if area2 <= 0 or det <= 0:
+            return 1.0 / atlas.sigma
+        return math.sqrt(area3 / area2) / math.sqrt(det)  # (world per texel) / (exemplar px per texel)
+
+    def visible(self, point: np.ndarray, x: float, y: float, w: int, h: int) -> bool:
+        """Whether the model's front surface at view pixel (x, y) is ``point`` (not hidden behind it)."""
+        uvh = self.ed.uv_image(w, h)
+        xi, yi = int(x), int(y)
+        if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
+            return False
+        n = self.ed.doc.surface.size
+        front = self.surface_point((min(n - 1, max(0, int(uvh[yi, xi, 0] * n))),
+                                    min(n - 1, max(0, int((1 - uvh[yi, xi, 1]) * n)))))
+        return front is not None and np.linalg.norm(front - point) <= 0.02 * self._atlas().model.extent
+
     def _handles(self, w: int, h: int, shown=None):
-        """Per feature (index, screen x, y, inner and outer radius in screen px), topmost last."""
+        """Per feature seen from the camera (index, screen x, y, inner and outer
+        radius in screen px), topmost last; those the model hides are left out."""
         atlas = self._atlas()
         if atlas is None:
             return []
@@ -104,8 +133,8 @@ class ModelFeatures:
         for i, f in enumerate(shown if shown is not None else self.features):
             p = self.surface_point(f.canvas)
             s = self.screen(p, w, h) if p is not None else None
-            if s is not None:
-                k = s[2] / atlas.sigma  # screen px per exemplar px
+            if s is not None and self.visible(p, s[0], s[1], w, h):
+                k = s[2] * self.world_per_exemplar_px(f.canvas)  # screen px per exemplar px
                 out.append((i, s[0], s[1], f.inner * k, f.outer * k))
         return out
 
@@ -172,7 +201,7 @@ class ModelFeatures:
         p = self.surface_point(f0.canvas)
         s = self.screen(p, w, h) if p is not None else None
         if s is not None:  # the outer circle follows the mouse: screen px to exemplar px at the centre's depth
-            per = s[2] / self._atlas().sigma
+            per = s[2] * self.world_per_exemplar_px(f0.canvas)
             r = min(MAX_FEATURE_RADIUS, max(1, round(math.hypot(mx - s[0], my - s[1]) / max(per, 1e-9))))
             t.preview = replace(f0, outer=max(r, f0.inner))
 
@@ -209,10 +238,21 @@ class ModelFeatures:
             self.place(u, texel)
 
     def jump_to(self, f: Feature) -> None:
-        """Turn the camera to look at the feature."""
+        """Turn the camera to look at the feature, straight down its surface's normal."""
         p = self.surface_point(f.canvas)
-        if p is not None:
-            self.ed.camera = replace(self.ed.camera, target=tuple(float(v) for v in p))
+        if p is None:
+            return
+        atlas = self._atlas()
+        t = int(atlas.nearest_triangle(0)[f.canvas[1], f.canvas[0]])
+        P = atlas.model.positions[atlas.model.faces[t]]
+        nrm = np.cross(P[1] - P[0], P[2] - P[0])
+        length = float(np.linalg.norm(nrm))
+        cam = replace(self.ed.camera, target=tuple(float(v) for v in p))
+        if length > 0:
+            nx, ny, nz = nrm / length  # the eye goes where the normal points (OrbitCamera.eye)
+            cam = replace(cam, yaw=math.degrees(math.atan2(nx, nz)) % 360.0,
+                          pitch=max(-89.0, min(89.0, math.degrees(math.asin(max(-1.0, min(1.0, ny)))))))
+        self.ed.camera = cam
 
     def draw(self, dl, p0, w: int, h: int) -> None:
         t = self.tool
