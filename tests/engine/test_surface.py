@@ -319,6 +319,11 @@ def test_a_direction_field_combed_over_a_model_turns_its_frame(analyses):
     combed = atlas.combed(turn)
     assert atlas.combed(None) is atlas and atlas.combed(DirectionField()) is atlas and combed.combed(turn) is combed
     assert combed.key != atlas.key and combed.comb is turn and atlas.comb is None
+    assert combed.combed(None) is atlas  # uncombed: the frame's atlas itself
+    wider = combed.reframed(60.0)  # a new scale: the comb stays, over the new frame
+    assert wider.comb is turn and wider.sigma == 60.0
+    assert np.array_equal(wider.jacobians(0, 0, 0, 128, 128), atlas.reframed(60.0).combed(turn).jacobians(0, 0, 0, 128, 128))
+    assert not np.array_equal(wider.jacobians(0, 0, 0, 128, 128), combed.jacobians(0, 0, 0, 128, 128))
     for k in (0, 2):
         n = 128 >> k
         a, b = atlas.jacobians(k, 0, 0, n, n).astype(np.int64), combed.jacobians(k, 0, 0, n, n).astype(np.int64)

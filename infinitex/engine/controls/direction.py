@@ -302,6 +302,10 @@ class DirectionField:
     def identity(self) -> bool:
         return not self.tiles
 
+    def painted_tiles(self, k: int) -> list[tuple[int, int]]:
+        """The (x, y) origins (level-k pixels) of the TILE x TILE tiles painted at level k."""
+        return sorted((tx * TILE, ty * TILE) for tx, ty in (self._mip_tiles(k) if self.tiles else {}))
+
     def _mip_tiles(self, k: int) -> dict:
         """Tiles of the field reduced k times (2 x 2 means, floor at each step), same tile size."""
         cache = self.__dict__.setdefault("_mips", {0: self.tiles})

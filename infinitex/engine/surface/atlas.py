@@ -43,6 +43,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH
+from ..controls.fields import TILE
 from .mesh import Model
 
 GUTTER = 4  # texels, at every level, that a chart's pixels may read beyond its border (the passes read <= 3)
@@ -408,12 +409,17 @@ class AtlasDomain:
         """J per texel of level k (its covering triangle's, off the charts the
         nearest texel's), after the combed field's (``combed``) where there is one."""
         if k not in self._jac_levels:
-            t = self._level(k)["near_tri"]
-            jac = self.jac[np.maximum(t, 0)]
-            jac[t < 0] = [J_ONE, 0, 0, J_ONE]
-            if self.comb is not None:
+            if self.comb is not None:  # the frame's (kept by the atlas combed), composed over the painted tiles
+                jac = self._frame._level_jac(k).copy()
                 n = self.level_size(k)
-                jac = compose(self.comb.region(k, 0, 0, n, n), jac)
+                for x, y in self.comb.painted_tiles(k):
+                    if 0 <= x < n and 0 <= y < n:  # (tiles are aligned: one beyond the atlas is wholly out)
+                        w, h = min(n - x, TILE), min(n - y, TILE)
+                        jac[y:y + h, x:x + w] = compose(self.comb.region(k, x, y, w, h), jac[y:y + h, x:x + w])
+            else:
+                t = self._level(k)["near_tri"]
+                jac = self.jac[np.maximum(t, 0)]
+                jac[t < 0] = [J_ONE, 0, 0, J_ONE]
             self._jac_levels[k] = np.ascontiguousarray(jac, np.int16)
         return self._jac_levels[k]
 
@@ -425,8 +431,11 @@ class AtlasDomain:
             field = None
         if field is self.comb or (field is not None and field == self.comb):
             return self
+        if field is None:
+            return self._frame
         import copy
         out = copy.copy(self)
+        out._frame = self if self.comb is None else self._frame  # the atlas uncombed: its J levels are kept
         out.comb = field
         out._jac_levels = {}
         out._feature_copies = {}
@@ -435,7 +444,10 @@ class AtlasDomain:
 
     def reframed(self, sigma: float, frame: str | None = None, up=None) -> AtlasDomain:
         """The same atlas (coverage, charts, indirection maps: shared, not computed
-        again) with another scale, frame or up: only the Jacobians change."""
+        again) with another scale, frame or up: only the Jacobians change (a
+        combed field stays, over the new frame)."""
+        if self.comb is not None:
+            return self._frame.reframed(sigma, frame, up).combed(self.comb)
         import copy
         out = copy.copy(self)
         out.sigma = float(sigma)
