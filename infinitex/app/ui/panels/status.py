@@ -27,12 +27,18 @@ def status_bar(p: Panels) -> None:
         parts = ["idle"]
     else:
         parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.fps:5.1f} fps"]
-    if ed.cursor is not None:
-        cx, cy = ed.cursor
-        parts.append(f"x {int(np.floor(cx))}  y {int(np.floor(cy))}")
-    parts.append(f"zoom {zoom_text(ed.view.zoom)}")
-    if ed.frame is not None:
-        parts.append(f"level {ed.frame.level}/{s.L}")
+    pv = s.model if ed.model_mode else None
+    if pv is not None:  # a model: its texture's size and the finest level shown (the plane's view is elsewhere)
+        parts.append(f"model texture {ed.doc.surface.size} px")
+        if pv.image_level >= 0:
+            parts.append(f"level {pv.image_level}/{s.L}")
+    else:
+        if ed.cursor is not None:
+            cx, cy = ed.cursor
+            parts.append(f"x {int(np.floor(cx))}  y {int(np.floor(cy))}")
+        parts.append(f"zoom {zoom_text(ed.view.zoom)}")
+        if ed.frame is not None:
+            parts.append(f"level {ed.frame.level}/{s.L}")
     parts.append(ed.title.rsplit(" - ", 1)[0])
     imgui.text("   |   ".join(parts))
     if ed.notice is not None:
