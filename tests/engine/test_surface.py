@@ -350,3 +350,39 @@ def test_a_direction_field_combed_over_a_model_turns_its_frame(analyses):
         via_atlas = atlas_coords(s, combed)
         plain = atlas_coords(s, atlas)
     assert np.array_equal(via_controls, via_atlas) and np.any(via_atlas != plain)
+
+
+def test_a_dab_near_a_seam_goes_on_in_the_chart_across():
+    """features.across_seams: a brush disc near a cube face's border continues
+    on the face across, on the same surface points (within a texel), and only
+    there; a dab away from every border has no continuation."""
+    from infinitex.engine.controls import CanvasField
+    from infinitex.engine.surface.features import across_seams
+    model = cube(n=3)
+    atlas = AtlasDomain(model, 256, sigma=40.0)
+    faces = _face_maps(model, atlas)
+    own = atlas.owner(0)
+    ys, xs = np.nonzero(own == 0)
+    cx, cy, r = float(xs.max()) - 2.5, float((ys.min() + ys.max()) // 2) + 0.5, 10.0
+    assert across_seams(atlas, float(xs.min() + xs.max()) / 2, float(ys.min() + ys.max()) / 2, r) == []
+    copies = across_seams(atlas, cx, cy, r)
+    assert len(copies) == 1
+    x2, y2, r2 = copies[0]
+    field, _ = CanvasField().painted(cx, cy, r, 0)
+    alone = field.region(0, 0, 0, 256, 256) != 32768
+    for x, y, rr in copies:
+        field, _ = field.painted(x, y, rr, 0)
+    painted = field.region(0, 0, 0, 256, 256) != 32768
+    across = int(own[int(y2), min(255, max(0, int(x2)))]) if 0 <= x2 < 256 else -1
+    other = painted & ~alone & (own >= 0) & (own != 0)
+    charts = set(np.unique(own[other]).tolist())
+    assert len(charts) == 1 and other.sum() > 20
+    c2 = charts.pop()
+    Mc, _, _ = faces[0]
+    P = np.array([cx, cy, 1.0]) @ Mc  # the dab's centre on the surface
+    M2, _, _ = faces[c2]
+    py, px = np.nonzero(other)
+    Q = np.c_[px + 0.5, py + 0.5, np.ones(len(px))] @ M2
+    texel = float(np.linalg.norm(Mc[0]))  # world units per texel along x on face 0
+    assert np.linalg.norm(Q - P, axis=-1).max() <= (r + 1.5) * texel
+    assert across in (-1, c2) and abs(r2 - r) < 0.5  # the cube's faces share a scale

@@ -25,6 +25,7 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import CanvasField, rescaled_features
 from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.engine.surface import AtlasError, ModelError, load_model
+from infinitex.engine.surface.features import across_seams
 from infinitex.project import ProjectError
 from infinitex.project.surface import SIZES, SurfaceSettings, default_repeats
 
@@ -351,8 +352,10 @@ class ModelModeMixin:
         if not dabs:
             return
         field = self.doc.randomness_canvas or CanvasField()
-        for cx, cy in dabs:
-            field, _ = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)
+        atlas = self.session.model.atlas
+        for cx, cy in dabs:  # each dab, and its continuation over the seams it reaches
+            for x, y, rr in [(cx, cy, r)] + (across_seams(atlas, cx, cy, r) if atlas is not None else []):
+                field, _ = field.painted(x, y, rr, b.value_u16, b.strength, b.hardness)
         self._stroke_last = dabs[-1]
         self.tool.dabs += len(dabs)
         self.edit(replace(self.doc, randomness_canvas=field), "Paint randomness (model)", group=self._stroke_group)

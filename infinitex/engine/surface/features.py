@@ -173,3 +173,26 @@ def feature_table(copies: np.ndarray, feats: np.ndarray, level: int, L: int, m: 
 def table_reach(table: np.ndarray, level: int, L: int) -> tuple[np.ndarray, np.ndarray]:
     """The level texel of each row's centre and its reach (features.feature_bins' inputs)."""
     return table[:, 0, :2].astype(np.int64) >> (L - level + Q), table[:, 0, 2].astype(np.int64)
+
+
+def across_seams(atlas, x: float, y: float, radius: float) -> list[tuple[float, float, float]]:
+    """A disc of ``radius`` finest texels at atlas point (x, y), continued
+    over the seams it reaches: per chart across (the nearest edge of each
+    seam), the disc's centre through that seam's map and its radius times the
+    map's scale. What a brush dab near a chart's border also paints, so that
+    painting runs on over the seam like the texture does."""
+    n = atlas.size
+    xi, yi = min(n - 1, max(0, int(x))), min(n - 1, max(0, int(y)))
+    t = int(atlas.nearest_triangle(0)[yi, xi])
+    if t < 0 or atlas.owner(0)[yi, xi] < 0:
+        return []
+    chart = np.array([int(atlas.chart[t])], np.int64)
+    _, edges, _ = _nearest_seams(atlas, chart, np.array([[x, y]], np.float64), np.array([radius]))
+    out = []
+    for e in edges:
+        M = atlas.b_map[e]
+        det = abs(M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0])
+        if det > 1e-12:
+            out.append((float(M[0, 0] * x + M[0, 1] * y + M[0, 2]), float(M[1, 0] * x + M[1, 1] * y + M[1, 2]),
+                        float(radius * np.sqrt(det))))
+    return out

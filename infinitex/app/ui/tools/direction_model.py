@@ -19,6 +19,7 @@ import numpy as np
 
 from infinitex.engine.controls.direction import DirectionField, comb, erase, grow, smooth
 from infinitex.engine.controls.fields import FieldTooLarge, dab_rect, dab_weights
+from infinitex.engine.surface.features import across_seams
 
 from .direction import MAX_BRUSH
 from .paint import dab_centers
@@ -84,9 +85,13 @@ class ModelComb:
         before = field
         prev = last
         try:
+            atlas = self.ed.session.model.atlas
             for cx, cy in dabs:
                 heading = self.heading(prev, (cx, cy)) if prev is not None and (cx, cy) != prev else None
-                field = self._dab(field, tool, cx, cy, r, heading)
+                # The dab, and its continuation over the seams it reaches (the heading is the frame's:
+                # the same on both sides).
+                for x, y, rr in [(cx, cy, r)] + (across_seams(atlas, cx, cy, r) if atlas is not None else []):
+                    field = self._dab(field, tool, x, y, rr, heading)
                 prev = (cx, cy)
         except FieldTooLarge as exc:
             self.ed.notice = (str(exc), time.monotonic())
