@@ -52,6 +52,7 @@ from .features import (
     features_from_json,
     features_to_json,
     fit_features,
+    level_values,
     reach_bins,
     rescaled_features,
 )
@@ -234,17 +235,10 @@ class Controls:
             return feature_table(copies, self._features, level, L, m, toroidal, x0, y0, x1, y1)
         k = L - level
         f = self._features if period else self._features[self._meeting(x0 << k, y0 << k, x1 << k, y1 << k)]
-        first = np.where(f[:, 8] == 1, f[:, 4], 0)  # Feature.level_range
-        last = np.where(f[:, 8] == 1, f[:, 5], max(0, L - 2))
-        f, first, last = (a[(first <= level) & (level <= last)] for a in (f, first, last))
+        active, radius, u = level_values(f, level, L, m, toroidal)
+        f, radius, u = f[active], radius[active], u[active]
         if not len(f):
             return None
-        inner, outer = f[:, 2], f[:, 3]
-        radius = outer - ((outer - inner) * (level - first)) // np.maximum(1, last - first)
-        u = f[:, 6:8]
-        if not toroidal:  # Feature.clamped: the copied disc does not wrap across the exemplar's border
-            r = outer[:, None]
-            u = np.where(2 * r + 1 >= m, m // 2, np.minimum(np.maximum(u, r), m - 1 - r))
         px, py = f[:, 0], f[:, 1]
         table = np.zeros((len(f), 2, 4), dtype=np.int32)
         table[:, 0] = np.stack([px >> k, py >> k, (((px << 4) >> k) & 15) + 16 * (((py << 4) >> k) & 15),

@@ -40,9 +40,11 @@ from .fields import (
     dab_rect,
     dab_weights,
     mip_parents,
+    rescaled_pixels,
     tile_changes,
     tiles_key,
     tiles_region,
+    tiles_within,
 )
 
 J_ONE = 4096  # Q12
@@ -262,18 +264,10 @@ class DirectionField:
         """The field over a model's texture of ``size`` texels (its tiles beyond
         it dropped: they are never read) on one ``factor`` times larger: each new
         pixel takes the J of the one it came from."""
-        inside = {t: v for t, v in self.tiles.items() if 0 <= t[0] * TILE < size and 0 <= t[1] * TILE < size}
+        inside = tiles_within(self.tiles, size)
         if not inside or factor == 1:
             return DirectionField(inside) if len(inside) != len(self.tiles) else self
-        xs, ys = [tx for tx, _ in inside], [ty for _, ty in inside]
-        x0, y0 = min(xs) * TILE, min(ys) * TILE
-        w, h = (max(xs) + 1) * TILE - x0, (max(ys) + 1) * TILE - y0
-        dense = DirectionField(inside).dense(x0, y0, w, h)
-        nx0, ny0 = int(np.floor(x0 * factor)), int(np.floor(y0 * factor))
-        nw, nh = max(1, int(np.ceil((x0 + w) * factor)) - nx0), max(1, int(np.ceil((y0 + h) * factor)) - ny0)
-        sx = np.clip(np.floor((np.arange(nx0, nx0 + nw) + 0.5) / factor).astype(np.int64) - x0, 0, w - 1)
-        sy = np.clip(np.floor((np.arange(ny0, ny0 + nh) + 0.5) / factor).astype(np.int64) - y0, 0, h - 1)
-        return DirectionField.from_jacobians(np.ascontiguousarray(dense[sy[:, None], sx[None, :]]), nx0, ny0)
+        return DirectionField.from_jacobians(*rescaled_pixels(inside, factor, IDENTITY))
 
     def dense(self, x0: int, y0: int, w: int, h: int) -> np.ndarray:
         """J (h, w, 4) int16 over a finest-level rectangle (identity where unpainted)."""

@@ -129,6 +129,21 @@ def rescaled_features(features, factor: float) -> tuple[Feature, ...]:
                                     int(np.floor((f.canvas[1] + 0.5) * factor)))) for f in features)
 
 
+def level_values(f: np.ndarray, level: int, L: int, m: int, toroidal: bool):
+    """For feature_arrays rows ``f`` at ``level``: which are active there
+    (Feature.level_range), their radius (radius_at) and exemplar point
+    (clamped), computed on arrays for all at once."""
+    first = np.where(f[:, 8] == 1, f[:, 4], 0)
+    last = np.where(f[:, 8] == 1, f[:, 5], max(0, L - 2))
+    inner, outer = f[:, 2], f[:, 3]
+    radius = outer - ((outer - inner) * (level - first)) // np.maximum(1, last - first)
+    u = f[:, 6:8]
+    if not toroidal:  # the copied disc does not wrap across the exemplar's border
+        r = outer[:, None]
+        u = np.where(2 * r + 1 >= m, m // 2, np.minimum(np.maximum(u, r), m - 1 - r))
+    return (first <= level) & (level <= last), radius, u
+
+
 def feature_arrays(features) -> np.ndarray:
     """int64 (N, 9): canvas x, y, inner, outer, first and last level, exemplar
     x, y, and 1 if the levels are given (0: the default range) of each feature, in order."""

@@ -104,6 +104,26 @@ def tiles_region(tiles: dict, x0: int, y0: int, w: int, h: int, blank) -> np.nda
     return out
 
 
+def tiles_within(tiles: dict, size: int) -> dict:
+    """The tiles that lie over [0, size)^2 (a model's texture: the rest is never read)."""
+    return {t: v for t, v in tiles.items() if 0 <= t[0] * TILE < size and 0 <= t[1] * TILE < size}
+
+
+def rescaled_pixels(tiles: dict, factor: float, blank) -> tuple[np.ndarray, int, int]:
+    """The pixels of sparse tiles (absent: ``blank``) on a canvas ``factor``
+    times larger, each new pixel the one it came from: (array, x, y of its top left)."""
+    xs = [tx for tx, _ in tiles]
+    ys = [ty for _, ty in tiles]
+    x0, y0 = min(xs) * TILE, min(ys) * TILE
+    w, h = (max(xs) + 1) * TILE - x0, (max(ys) + 1) * TILE - y0
+    dense = tiles_region(tiles, x0, y0, w, h, blank)
+    nx0, ny0 = int(np.floor(x0 * factor)), int(np.floor(y0 * factor))
+    nw, nh = max(1, int(np.ceil((x0 + w) * factor)) - nx0), max(1, int(np.ceil((y0 + h) * factor)) - ny0)
+    sx = np.clip(np.floor((np.arange(nx0, nx0 + nw) + 0.5) / factor).astype(np.int64) - x0, 0, w - 1)
+    sy = np.clip(np.floor((np.arange(ny0, ny0 + nh) + 0.5) / factor).astype(np.int64) - y0, 0, h - 1)
+    return np.ascontiguousarray(dense[sy[:, None], sx[None, :]]), nx0, ny0
+
+
 def mip_parents(finer: dict, blank, reduce) -> dict:
     """One mipmap step of sparse tiles: each parent tile is ``reduce`` of its
     four children put together (2 TILE x 2 TILE; absent ones ``blank``)."""
@@ -265,19 +285,10 @@ class CanvasField:
         """The field over a model's texture of ``size`` texels (its tiles beyond
         it dropped: they are never read) on one ``factor`` times larger: each new
         pixel takes the value of the one it came from."""
-        inside = {t: v for t, v in self.tiles.items() if 0 <= t[0] * TILE < size and 0 <= t[1] * TILE < size}
+        inside = tiles_within(self.tiles, size)
         if not inside or factor == 1:
             return CanvasField(inside) if len(inside) != len(self.tiles) else self
-        xs = [tx for tx, _ in inside]
-        ys = [ty for _, ty in inside]
-        x0, y0 = min(xs) * TILE, min(ys) * TILE
-        w, h = (max(xs) + 1) * TILE - x0, (max(ys) + 1) * TILE - y0
-        dense = tiles_region(inside, x0, y0, w, h, NEUTRAL)
-        nx0, ny0 = int(np.floor(x0 * factor)), int(np.floor(y0 * factor))
-        nw, nh = max(1, int(np.ceil((x0 + w) * factor)) - nx0), max(1, int(np.ceil((y0 + h) * factor)) - ny0)
-        sx = np.clip(np.floor((np.arange(nx0, nx0 + nw) + 0.5) / factor).astype(np.int64) - x0, 0, w - 1)
-        sy = np.clip(np.floor((np.arange(ny0, ny0 + nh) + 0.5) / factor).astype(np.int64) - y0, 0, h - 1)
-        return CanvasField.from_image(dense[sy[:, None], sx[None, :]], nx0, ny0)
+        return CanvasField.from_image(*rescaled_pixels(inside, factor, NEUTRAL))
 
     def changed_rects(self, other: CanvasField) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two fields."""

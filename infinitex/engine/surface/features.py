@@ -27,9 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH
+from ..controls.features import level_values
 
 Q = 3  # bits below a finest texel of a copy's centre
-D_MAX = 65535  # |x - p| in 1/8 finest texels the shader computes (farther: outside any feature)
 COLUMNS = 10  # a copy: feature index, p x, p y, chart, J (4), reach x, reach y (finest texels per exemplar px)
 
 
@@ -146,22 +146,13 @@ def feature_table(copies: np.ndarray, feats: np.ndarray, level: int, L: int, m: 
     if not len(copies):
         return None
     k = L - level
-    f = feats[copies[:, 0].astype(np.int64)]
-    first = np.where(f[:, 8] == 1, f[:, 4], 0)  # Feature.level_range
-    last = np.where(f[:, 8] == 1, f[:, 5], max(0, L - 2))
-    inner, outer = f[:, 2], f[:, 3]
-    radius = outer - ((outer - inner) * (level - first)) // np.maximum(1, last - first)
+    active, radius, u = level_values(feats[copies[:, 0].astype(np.int64)], level, L, m, toroidal)
     P = copies[:, 1:3].astype(np.int64)
     p = P >> (k + Q)
     lim = np.ceil(radius * copies[:, 8:10].max(axis=1) / (1 << k)).astype(np.int64) + 2
-    active = (first <= level) & (level <= last) & (p[:, 0] - lim < x1) & (x0 <= p[:, 0] + lim) \
-        & (p[:, 1] - lim < y1) & (y0 <= p[:, 1] + lim)
+    active &= (p[:, 0] - lim < x1) & (x0 <= p[:, 0] + lim) & (p[:, 1] - lim < y1) & (y0 <= p[:, 1] + lim)
     if not active.any():
         return None
-    u = f[:, 6:8]
-    if not toroidal:  # Feature.clamped: the copied disc does not wrap across the exemplar's border
-        r = outer[:, None]
-        u = np.where(2 * r + 1 >= m, m // 2, np.minimum(np.maximum(u, r), m - 1 - r))
     table = np.zeros((int(active.sum()), 3, 4), np.int32)
     table[:, 0] = np.stack([P[:, 0], P[:, 1], lim, radius], axis=-1)[active]
     table[:, 1, :2] = u[active]

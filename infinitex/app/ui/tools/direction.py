@@ -88,8 +88,11 @@ class DirectionTool(Tool):
     def _axis_offset(self) -> float:
         return 90.0 * self.axis
 
-    def _dab(self, field: DirectionField, cx: float, cy: float, heading: float | None) -> DirectionField:
-        r = self.radius_canvas()
+    def dab(self, field: DirectionField, cx: float, cy: float, heading: float | None,
+            r: float | None = None) -> DirectionField:
+        """The field after one dab of the current mode at (cx, cy), of radius ``r``
+        (canvas or atlas pixels; default: the brush's on the canvas)."""
+        r = self.radius_canvas() if r is None else r
         x0, y0, x1, y1 = dab_rect(cx, cy, r)
         b = self.brush
         w = np.clip(b.strength, 0.0, 1.0) * dab_weights(cx, cy, r, b.hardness, x0, y0, x1 - x0, y1 - y0)
@@ -134,7 +137,7 @@ class DirectionTool(Tool):
                 heading = None
                 if prev is not None and (cx, cy) != prev:
                     heading = math.degrees(math.atan2(cy - prev[1], cx - prev[0]))
-                field = self._dab(field, cx, cy, heading)
+                field = self.dab(field, cx, cy, heading)
                 prev = (cx, cy)
         except FieldTooLarge as exc:
             self.ed.notice = (str(exc), time.monotonic())

@@ -17,8 +17,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from infinitex.engine.controls.direction import DirectionField, comb, erase, grow, smooth
-from infinitex.engine.controls.fields import FieldTooLarge, dab_rect, dab_weights
+from infinitex.engine.controls.direction import DirectionField
+from infinitex.engine.controls.fields import FieldTooLarge
 from infinitex.engine.surface.features import across_seams
 
 from .direction import MAX_BRUSH
@@ -91,7 +91,7 @@ class ModelComb:
                 # The dab, and its continuation over the seams it reaches (the heading is the frame's:
                 # the same on both sides).
                 for x, y, rr in [(cx, cy, r)] + (across_seams(atlas, cx, cy, r) if atlas is not None else []):
-                    field = self._dab(field, tool, x, y, rr, heading)
+                    field = tool.dab(field, x, y, heading, rr)
                 prev = (cx, cy)
         except FieldTooLarge as exc:
             self.ed.notice = (str(exc), time.monotonic())
@@ -102,23 +102,6 @@ class ModelComb:
         if field is not before:
             self.ed.edit(replace(doc, direction=None if field.identity else field), LABELS[tool.mode],
                          group=self._group)
-
-    @staticmethod
-    def _dab(field: DirectionField, tool, cx: float, cy: float, r: float, heading: float | None) -> DirectionField:
-        x0, y0, x1, y1 = dab_rect(cx, cy, r)
-        b = tool.brush
-        w = np.clip(b.strength, 0.0, 1.0) * dab_weights(cx, cy, r, b.hardness, x0, y0, x1 - x0, y1 - y0)
-        if tool.mode == "comb":
-            if heading is None:
-                return field
-            op = comb(heading - 90.0 * tool.axis)
-        elif tool.mode == "smooth":
-            op = smooth(max(3, int(r)))
-        elif tool.mode in ("grow", "shrink"):
-            op = grow(tool.rate ** (0.25 if tool.mode == "grow" else -0.25))
-        else:
-            op = erase()
-        return field.edited(x0, y0, w, op)[0]
 
     def release(self) -> None:
         if self._group is not None and self.ed.history is not None:

@@ -143,7 +143,11 @@ class FeatureTool(Tool):
         hit = self._hit(pos)
         if hit is None:
             return False
-        i = hit[0]
+        self.resize(hit[0], amount)
+        return True
+
+    def resize(self, i: int, amount: float) -> None:
+        """Feature i's radii scaled by the wheel's ``amount`` (Shift: the outer one only); one undo step per feature."""
         f = self.features[i]
         s = 2.0 ** (0.125 * amount)
         outer = min(MAX_FEATURE_RADIUS, max(1, round(f.outer * s)))
@@ -152,7 +156,6 @@ class FeatureTool(Tool):
         feats[i] = replace(f, inner=min(inner, outer), outer=outer)
         self._set(feats, "Resize feature", ("feature-wheel", i))
         self.selected = i
-        return True
 
     def keys(self) -> None:
         if imgui.get_io().want_text_input:

@@ -221,15 +221,7 @@ class ModelFeatures:
         hit = self._hit(mx, my, w, h)
         if hit is None:
             return False
-        i = hit[0]
-        f = self.features[i]
-        s = 2.0 ** (0.125 * amount)
-        outer = min(MAX_FEATURE_RADIUS, max(1, round(f.outer * s)))
-        inner = f.inner if imgui.get_io().key_shift else min(outer, max(0, round(f.inner * s)))
-        feats = list(self.features)
-        feats[i] = replace(f, inner=min(inner, outer), outer=outer)
-        self._set(feats, "Resize feature", ("feature-wheel", i))
-        self.tool.selected = i
+        self.tool.resize(hit[0], amount)
         return True
 
     def drop(self, u: tuple[int, int], mx: float, my: float, w: int, h: int) -> None:
