@@ -703,6 +703,87 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
     return out
 
 
+def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
+                          params: SynthParams, level: int, controls: Controls = NO_CONTROLS) -> np.ndarray:
+    """One vote subpass of the fidelity stage, from its definition (fidelity.frag's
+    header, VOTE): among S[p], then its 8 neighbors' predictions, the first that
+    the most of the (2R+1)^2 predictions equal; never into the avoid mask nor
+    (labels) to a higher label cost than S[p]'s."""
+    s, R = params.subgrid, params.fidelity_radius
+    h, m = an.h(level), an.size
+    H, W = S.shape[:2]
+    ys, xs = np.mgrid[0:H, 0:W]
+    sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
+    ys, xs = ys[sel], xs[sel]
+    direct = directed(controls)
+    J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
+    links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
+    border = -1 if an.toroidal else border_margin(m, h)
+    one = Q8 if direct else 1
+
+    def inside(u):
+        return np.mod(u, one * m) if border < 0 else np.clip(u, one * border, one * (m - 1 - border))
+
+    def texel(u):
+        return np.mod(_q8_nearest(u), m) if direct else u
+
+    def prediction(dx, dy):
+        u = S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
+        if direct:
+            return inside(_full(u) - np.stack(_jd(J, dx, dy, h), axis=1))
+        return inside(u - h * np.array([dx, dy]))
+
+    here = S[ys, xs].astype(np.int64)
+    self_u = _full(here) if direct else here
+    window = [(dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1)]
+    P = {d: (self_u if d == (0, 0) else prediction(*d)) for d in window}
+    labels = label_terms(controls, an, params, level, xs, ys, origin, True)
+
+    def label_of(u):
+        from infinitex.engine.controls.labels import label_cost
+        ut = texel(u)
+        return label_cost(labels[0], labels[1][ut[:, 1], ut[:, 0]], labels[2])
+
+    base = label_of(self_u) if labels is not None else None
+    most = np.full(len(ys), -1, np.int64)
+    best_u = self_u.copy()
+    for d in [(0, 0)] + [(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dx, dy) != (0, 0)]:
+        u = P[d]
+        ok = np.ones(len(ys), bool)
+        if controls.avoid is not None:
+            ut = texel(u)
+            ok &= controls.avoid.values[ut[:, 1], ut[:, 0]] == 0
+        if labels is not None:
+            ok &= label_of(u) <= base
+        votes = sum(np.all(P[e] == u, axis=1).astype(np.int64) for e in window)
+        better = ok & (votes > most)
+        most = np.where(better, votes, most)
+        best_u = np.where(better[:, None], u, best_u)
+    out = S.copy()
+    if direct:
+        tx, rx = _q8_split(best_u[:, 0], m)
+        ty, ry = _q8_split(best_u[:, 1], m)
+        out[ys, xs] = np.stack([tx, ty, rx, ry], axis=1)
+    else:
+        out[ys, xs] = best_u
+    return out
+
+
+def fidelity_stage(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,
+                   controls: Controls = NO_CONTROLS) -> np.ndarray:
+    """All the fidelity stage's subpasses on ``level``: the search on even passes
+    (numbered over the searches alone) and, with the vote, the vote on odd ones."""
+    s = params.subgrid
+    for c, order in enumerate(subpass_order(s, params.fidelity_passes(level))):
+        for k, phase in enumerate(order):
+            if params.fidelity_vote and c % 2:
+                S = fidelity_vote_subpass(S, phase, origin, an, params, level, controls)
+            else:
+                n = (c // 2 if params.fidelity_vote else c) * s * s + k
+                S = fidelity_subpass(S, phase, origin, an, params, level, controls, n)
+    return S
+
+
 def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int,
                level: int | None = None, uncorrected_level: int | None = None,
                controls: Controls = NO_CONTROLS) -> np.ndarray:
@@ -717,7 +798,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
     wins = {}
     x0, y0, x1, y1 = x, y, x + w, y + h
     for l in range(level, -1, -1):
-        p = (params.passes_at(l) * fixed.read_radius(an.model) + params.fidelity_at(l) * params.fidelity_radius) * s * s
+        p = (params.passes_at(l) * fixed.read_radius(an.model) + params.fidelity_passes(l) * params.fidelity_radius) * s * s
         a = 2 * s
         wx0, wy0 = ((x0 - p) // a) * a, ((y0 - p) // a) * a
         wx1, wy1 = -((-(x1 + p)) // a) * a, -((-(y1 + p)) // a) * a
@@ -734,8 +815,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
                     S = correct_subpass(S, phase, (wx0, wy0), an, params, l, controls, n_sub)
                     n_sub += 1
         if l != uncorrected_level and params.fidelity_at(l):
-            for n_sub, phase in enumerate(ph for order in subpass_order(s, params.fidelity_at(l)) for ph in order):
-                S = fidelity_subpass(S, phase, (wx0, wy0), an, params, l, controls, n_sub)
+            S = fidelity_stage(S, (wx0, wy0), an, params, l, controls)
         S = apply_features(S, (wx0, wy0), an, params, l, controls)  # features hold through correction (writeback)
         parent, porigin = S, (wx0, wy0)
     wx0, wy0 = wins[level][:2]

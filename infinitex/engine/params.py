@@ -14,7 +14,10 @@ FIRST_CORRECTED_LEVEL = 3  # LH05: correction is skipped on levels 0-2
 # The fidelity stage (discrete patch optimization, shaders/fidelity.frag): patches
 # of (2 R + 1)^2 level pixels (R = SynthParams.fidelity_radius, default
 # FIDELITY_RADIUS), FIDELITY_SEARCH random candidates around the best (radius
-# m/4, halved each step) after the 8 neighbors' predictions.
+# m/4, halved each step) after the 8 neighbors' predictions; with
+# SynthParams.fidelity_vote each iteration's search is followed by a vote (a
+# plurality over the predictions of the patches around each pixel: Kwatra et
+# al. 2005's voting step, on coordinates).
 FIDELITY_RADIUS = 3
 FIDELITY_RADII = (2, 3, 4, 5)
 FIDELITY_SEARCH = 4
@@ -45,6 +48,7 @@ class SynthParams:
                                                  # overrides `passes` and `corrected`; None: `passes` on `corrected`
     fidelity: tuple[int, ...] | None = None  # fidelity-stage iterations per level, coarse to fine (None: none)
     fidelity_radius: int = FIDELITY_RADIUS   # its patches: (2 R + 1)^2 level pixels
+    fidelity_vote: bool = False              # each iteration: a search pass, then a vote pass
 
     @classmethod
     def default(cls, levels: int, **kw) -> "SynthParams":
@@ -71,6 +75,11 @@ class SynthParams:
         if self.fidelity is None or not 0 <= level < len(self.fidelity):
             return 0
         return int(self.fidelity[level])
+
+    def fidelity_passes(self, level: int) -> int:
+        """Passes of the fidelity stage on ``level``, in subpass_order: one per
+        iteration, or with the vote two (the search on even passes, the vote on odd)."""
+        return self.fidelity_at(level) * (2 if self.fidelity_vote else 1)
 
     def corrected_levels(self) -> frozenset[int]:
         """The levels chosen for correction (whatever their pass counts)."""
@@ -137,23 +146,24 @@ class SynthParams:
         fid = self.fidelity_at(level)
         return (self.jitter[level], self.seed, self.level_period(level), corr,
                 (self.passes_at(level), self.subgrid, self.kappa, self.walk) if corr else None,
-                (fid, self.subgrid, self.fidelity_radius) if fid else None)
+                (fid, self.subgrid, self.fidelity_radius, self.fidelity_vote) if fid else None)
 
 
 # "Structure / Variety" (a document setting): 0 is the per-pixel synthesis alone
 # (most variety); each step up runs the fidelity stage more, for textures whose
 # elements must come out whole (weaves, cells, text, bricks). Per preset: the
 # stage's iterations per level from the finest (the last count repeats down to
-# FIRST_CORRECTED_LEVEL) and the patch radius. (Less randomness on the fine
-# levels was measured too and did not help: docs/benchmarks.md.)
+# FIRST_CORRECTED_LEVEL), the patch radius and whether each iteration ends with
+# the vote. (Less randomness on the fine levels was measured too and did not
+# help; the vote's measurements: docs/benchmarks.md.)
 STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
 STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
 STRUCTURE_PRESETS = (
-    ((), FIDELITY_RADIUS),
-    ((1, 1, 2, 2), 3),
-    ((2, 2, 2, 2), 3),
-    ((2, 2, 2, 2), 5),
-    ((3, 3, 3, 3), 5),
+    ((), FIDELITY_RADIUS, False),
+    ((1, 1, 2, 2), 3, False),
+    ((1, 1, 1, 1), 3, True),
+    ((2, 2, 2, 2), 3, True),
+    ((3, 3, 3, 3), 5, False),
 )
 DEFAULT_STRUCTURE = 2
 
@@ -178,13 +188,13 @@ def structure_params(params: SynthParams, structure: int) -> SynthParams:
     if not 0 <= int(structure) < STRUCTURE_LEVELS:
         raise ValueError(f"Structure must be from 0 ({STRUCTURE_NAMES[0]}) to {STRUCTURE_LEVELS - 1} "
                          f"({STRUCTURE_NAMES[-1]}).")
-    counts, radius = STRUCTURE_PRESETS[int(structure)]
+    counts, radius, vote = STRUCTURE_PRESETS[int(structure)]
     if not counts:
         return params
     L = params.L
     fid = tuple(counts[min(L - l, len(counts) - 1)] if l >= min(FIRST_CORRECTED_LEVEL, L) else 0
                 for l in range(L + 1))
-    return replace(params, fidelity=fid, fidelity_radius=radius)
+    return replace(params, fidelity=fid, fidelity_radius=radius, fidelity_vote=vote)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:

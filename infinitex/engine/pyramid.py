@@ -143,7 +143,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         self.corrected = params.correcting_levels()
         radius = fixed.read_radius(self.an.model)
         self.margins = [correction_margins(params.subgrid, params.passes_at(l), radius,
-                                           ((params.fidelity_at(l), params.fidelity_radius),))
+                                           ((params.fidelity_passes(l), params.fidelity_radius),))
                         for l in range(self.an.L + 1)]
         if old is None:
             return

@@ -115,10 +115,10 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     region's J texture (anisometric synthesis), if any; ``links``: its
     indirection map (synthesis in a mesh's atlas), if any."""
     an = gan.analysis
-    prog, vao = gpu.program("fidelity.frag", SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius,
-                            FID_SEARCH=FIDELITY_SEARCH, **(labels.defines if labels else {}),
-                            **(dict(DIRECTION=True) if direction is not None else {}),
-                            **(dict(ATLAS=True) if links is not None else {}))
+    defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH,
+                   **(labels.defines if labels else {}), **(dict(DIRECTION=True) if direction is not None else {}),
+                   **(dict(ATLAS=True) if links is not None else {}))
+    prog, vao = gpu.program("fidelity.frag", **defines)
     uniforms = dict(colors=1, avoid=5, has_avoid=int(has_avoid), dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
@@ -132,9 +132,23 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     if links is not None:
         textures[12] = links
         uniforms["links"] = 12
-    return subpass_draws(gpu, prog, vao, p.subgrid, subpass_order(p.subgrid, p.fidelity_at(l)), qdims, scratch,
-                         textures, uniforms,
-                         lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})
+    orders = subpass_order(p.subgrid, p.fidelity_passes(l))
+    if not p.fidelity_vote:
+        return subpass_draws(gpu, prog, vao, p.subgrid, orders, qdims, scratch, textures, uniforms,
+                             lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})
+    # Search on even passes (subpasses numbered over the searches alone), the vote on odd ones.
+    vote, vote_vao = gpu.program("fidelity.frag", FID_VOTE=True, **defines)
+    per_pass = p.subgrid * p.subgrid
+    draws = []
+    for c, order in enumerate(orders):
+        if c % 2:
+            draws += subpass_draws(gpu, vote, vote_vao, p.subgrid, [order], qdims, scratch, textures, uniforms,
+                                   lambda n: {})
+        else:
+            first = c // 2 * per_pass
+            draws += subpass_draws(gpu, prog, vao, p.subgrid, [order], qdims, scratch, textures, uniforms,
+                                   lambda n, first=first: {"search_seed": fixed.fidelity_seed(p.seed, first + n)})
+    return draws
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """The fidelity stage (discrete patch optimization, shaders/fidelity.frag): exact
 (GL equals the numpy oracle for both neighborhood models, with and without
-similarity sets, near 0 and +-2^30; windows and pans agree; toroidal tiles stay
-periodic; local updates equal a fresh synthesis), a fixed point on a tiled
+similarity sets, near 0 and +-2^30, with and without the vote; windows and pans
+agree; toroidal tiles stay periodic; local updates equal a fresh synthesis), a fixed point on a tiled
 exemplar, and closer to the exemplar than the per-pixel correction alone."""
 from dataclasses import replace
 
@@ -50,10 +50,11 @@ def test_gl_matches_the_oracle_with_avoided_regions_and_on_every_corrected_level
     assert np.array_equal(gl, oracle.synthesize(an, params, -13, 21, 18, 14, controls=controls))
 
 
+@pytest.mark.parametrize("vote", [False, True])
 @pytest.mark.parametrize("ox, oy", [(0, 0), (FAR - 300, -FAR + 100)])
-def test_overlapping_windows_and_a_pan_agree(analyses, gpu, ox, oy):
+def test_overlapping_windows_and_a_pan_agree(analyses, gpu, ox, oy, vote):
     an = analyses["gravel-appearance"]
-    synth = Synthesizer(an, with_fidelity(an), gpu=gpu)
+    synth = Synthesizer(an, with_fidelity(an, fidelity_vote=vote), gpu=gpu)
     big = synth.window(Rect.of(ox, oy, 150, 110))
     assert np.array_equal(synth.window(Rect.of(ox + 41, oy + 17, 60, 70)), big[17:87, 41:101])
     vp = synth.viewport()
@@ -65,9 +66,10 @@ def test_overlapping_windows_and_a_pan_agree(analyses, gpu, ox, oy):
         vp.release()
 
 
-def test_toroidal_tiles_stay_periodic(analyses, gpu):
+@pytest.mark.parametrize("vote", [False, True])
+def test_toroidal_tiles_stay_periodic(analyses, gpu, vote):
     an = analyses["gravel-appearance"]
-    synth = Synthesizer(an, with_fidelity(an), gpu=gpu)
+    synth = Synthesizer(an, with_fidelity(an, fidelity_vote=vote), gpu=gpu)
     n = 64
     tile = synth.toroidal(n)
     synth.params = replace(synth.params, period=n)
@@ -75,9 +77,10 @@ def test_toroidal_tiles_stay_periodic(analyses, gpu):
     assert np.array_equal(wide, np.tile(tile, (3, 3, 1))[n:3 * n, n // 2:n // 2 + 2 * n])
 
 
-def test_a_local_update_equals_a_fresh_synthesis(analyses, gpu):
+@pytest.mark.parametrize("vote", [False, True])
+def test_a_local_update_equals_a_fresh_synthesis(analyses, gpu, vote):
     an = analyses["gravel-appearance"]
-    params = with_fidelity(an, seed=5)
+    params = with_fidelity(an, seed=5, fidelity_vote=vote)
     view = Rect.of(FAR - 2000, 300, 160, 120)
     synth = Synthesizer(an, params, gpu=gpu)
     vp = synth.viewport()
@@ -138,9 +141,10 @@ def test_a_deferred_update_spread_over_calls_with_pans_and_new_dabs_equals_a_fre
 
 def test_a_tiled_toroidal_exemplar_is_a_fixed_point(analyses, gpu):
     """With no jitter the synthesis tiles a toroidal exemplar; every patch then
-    matches the exemplar exactly, so the stage changes nothing."""
+    matches the exemplar exactly and every prediction agrees, so the stage
+    (search and vote) changes nothing."""
     an = analyses["torus-appearance"]
-    params = replace(SynthParams(jitter=(0.0,) * (an.L + 1)),
+    params = replace(SynthParams(jitter=(0.0,) * (an.L + 1)), fidelity_vote=True,
                      fidelity=tuple(2 if l >= 2 else 0 for l in range(an.L + 1)))
     synth = Synthesizer(an, params, gpu=gpu)
     for x, y in [(0, 0), (-77, 1234), (FAR - 100, -FAR)]:
@@ -179,7 +183,7 @@ def test_structure_presets():
     base = SynthParams.default(L)
     assert structure_params(base, 0) == base  # Variety: the stage off, the randomness as set
     presets = [structure_params(base, s) for s in range(1, STRUCTURE_LEVELS)]
-    work = [sum(p.fidelity) * (2 * p.fidelity_radius + 1) ** 2 for p in presets]
+    work = [sum(p.fidelity_passes(l) for l in range(L + 1)) * (2 * p.fidelity_radius + 1) ** 2 for p in presets]
     assert all(a < b for a, b in zip(work, work[1:])) and work[0] > 0  # more structure, more work
     with pytest.raises(ValueError):
         structure_params(base, STRUCTURE_LEVELS)
@@ -190,6 +194,31 @@ def test_structure_presets():
         replace(base, fidelity=(9,) * (L + 1)).validate(L)
     with pytest.raises(ValueError, match="radius"):
         replace(base, fidelity=(1,) * (L + 1), fidelity_radius=7).validate(L)
+
+
+@pytest.mark.parametrize("name", ["gravel-appearance", "torus-color-k3", "k0"])
+@pytest.mark.parametrize("x, y", [(3, -7), (-FAR + 9, FAR - 28)])
+def test_gl_matches_the_oracle_with_the_vote(analyses, gravel_k0, gpu, name, x, y):
+    an = gravel_k0 if name == "k0" else analyses[name]
+    params = with_fidelity(an, seed=6, fidelity_vote=True)
+    gl = Synthesizer(an, params, gpu=gpu).window(Rect.of(x, y, 20, 16))
+    assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 20, 16)), (name, x, y)
+    # The vote does something: without it the window differs.
+    assert not np.array_equal(gl, Synthesizer(an, replace(params, fidelity_vote=False), gpu=gpu)
+                              .window(Rect.of(x, y, 20, 16)))
+
+
+def test_the_vote_keeps_out_of_avoided_regions_and_matches_the_oracle(analyses, gpu):
+    an = analyses["gravel-appearance"]
+    mask = np.zeros((an.size, an.size), np.uint8)
+    mask[6:38, 50:82] = 1
+    controls = Controls(avoid=ExemplarMask(mask))
+    params = replace(SynthParams.default(an.L, seed=8), fidelity_vote=True,
+                     fidelity=tuple(1 if l >= 3 else 0 for l in range(an.L + 1)))
+    gl = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(-13, 21, 18, 14))
+    assert np.array_equal(gl, oracle.synthesize(an, params, -13, 21, 18, 14, controls=controls))
+    big = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(500, -700, 96, 96))
+    assert not mask[big[..., 1], big[..., 0]].any()
 
 
 @pytest.mark.parametrize("radius", [2, 5])

@@ -122,8 +122,8 @@ def redirected_reads(surface: FakeSurface, k: int) -> float:
     return hits / (9 * n * n)
 
 
-# name, structure (0: no fidelity stage; 1: its default iterations), seed, atlas size
-CASES = [("bordered-appearance", 0, 1, N), ("bordered-color-k0", 1, 2, N), ("torus-color", 0, 3, N),
+# name, Structure preset (0: no fidelity stage; 1: search alone; 2: search and vote), seed, atlas size
+CASES = [("bordered-appearance", 0, 1, N), ("bordered-color-k0", 1, 2, N), ("torus-color", 2, 3, N),
          ("torus-appearance-k0", 1, 4, N), ("bordered-appearance", 0, 6, 128)]
 
 

@@ -19,6 +19,15 @@
 // the best by whole pixels, and candidates are kept inside (wrapped, or clamped
 // to [256 border, 256 (m-1-border)]) in 1/256 px; tried, avoid and labels as
 // without, at the candidate's nearest texel.
+// VOTE (FID_VOTE; SynthParams.fidelity_vote, Kwatra et al. 2005's voting step
+// on coordinates): the odd passes of the stage rewrite each pixel p of the block
+// with, among S[p] and then its 8 neighbors' predictions (row-major), the first
+// that the most of the (2 R + 1)^2 predictions P(d) = S[p + d] - h d (P(0) = S[p];
+// DIRECTION: F[p + d] - jmul(J, d, h), kept inside) equal exactly. A candidate
+// in the avoid mask is never taken, nor (LABELS) one with a higher label cost
+// than S[p]'s. No colors are read: seams move to where the larger copy wins and
+// stray pixels inside a copy go back to it, without pulling colors to a mean
+// (a vote on the mean color grows flat areas: docs/benchmarks.md).
 // Integer sums (at most 4 * 255^2 * 120 < 2^25), so the result is exact; skipping
 // a candidate already tried and stopping a sum once it reaches the best cannot
 // change it (costs only grow as taps are added, and ties keep the first). The
@@ -125,6 +134,59 @@ uint patch_cost(ivec2 u, uint limit) {
     return cost;
 }
 
+#ifdef FID_VOTE
+void main() {
+    ivec2 X = ivec2(gl_FragCoord.xy);
+    ivec2 phase = X / qdims;
+    ivec4 here = texelFetch(src, X, 0);
+    if (phase != active_phase) {
+        result = here;
+        return;
+    }
+    ivec2 p = (X - phase * qdims) * SUB_S + phase;
+#ifdef ATLAS
+    reader = texelFetch(links, p, 0).x;
+#endif
+#ifdef DIRECTION
+    Jp = texelFetch(dfield, p, 0);
+    ivec2 self = full_q8(here);
+#else
+    ivec2 self = here.xy;
+#endif
+    ivec2 P[NT];
+    for (int t = 0; t < NT; ++t) {
+        P[t] = t == NT / 2 ? self : predict(p, ivec2(t % SIDE - R, t / SIDE - R));
+    }
+#ifdef LABELS
+    uint lab_t = texelFetch(lab_canvas, p, 0).r;
+    uint lab_self = label_cost(lab_t, texelFetch(lab_exemplar, texel_of(self), 0).r);
+#endif
+    int most = -1;
+    ivec2 best_u = self;
+    for (int j = -1; j < 9; ++j) {
+        if (j == 4) continue;
+        ivec2 u = j < 0 ? self : P[(j / 3 + R - 1) * SIDE + j % 3 + R - 1];
+        ivec2 ut = texel_of(u);
+        if (has_avoid != 0 && texelFetch(avoid, ut, 0).r != 0u) continue;
+#ifdef LABELS
+        if (label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r) > lab_self) continue;
+#endif
+        int votes = 0;
+        for (int t = 0; t < NT; ++t) {
+            votes += P[t] == u ? 1 : 0;
+        }
+        if (votes > most) {
+            most = votes;
+            best_u = u;
+        }
+    }
+#ifdef DIRECTION
+    result = split_q8(best_u, m);
+#else
+    result = ivec4(best_u, 0, 0);
+#endif
+}
+#else
 void main() {
     ivec2 X = ivec2(gl_FragCoord.xy);
     ivec2 phase = X / qdims;
@@ -201,3 +263,4 @@ void main() {
     result = ivec4(best_u, 0, 0);
 #endif
 }
+#endif
