@@ -148,10 +148,14 @@ def main(argv=None) -> int:
                     help=f"Structure preset of ours (default {DEFAULT_STRUCTURE}, the documents' default)")
     ap.add_argument("--exemplars", nargs="+", default=[os.path.join(os.path.dirname(ROOT), "shared", "exemplars"),
                                                        os.path.join(ROOT, "bench", "exemplars")])
+    ap.add_argument("--no-ps", action="store_true",
+                    help="skip the Portilla-Simoncelli distance (where plenoptic and torch cannot be installed)")
     args = ap.parse_args(argv)
+    ps = not args.no_ps
     try:
         import gmic
-        import plenoptic  # noqa: F401  (the Portilla-Simoncelli statistics)
+        if ps:
+            import plenoptic  # noqa: F401  (the Portilla-Simoncelli statistics)
     except ImportError:
         sys.stderr.write("bench.quality needs the peer: run `bash scripts/setup.sh --bench` "
                          "(or .venv/bin/pip install -r requirements-bench.txt)\n")
@@ -202,9 +206,9 @@ def main(argv=None) -> int:
                                 "--size", str(n), str(n), "--origin", *map(str, ORIGIN), "--fidelity", str(args.fidelity), "-q"], env)
             peer_cold = _timed([sys.executable, "-c", f"import gmic; gmic.run({cmd!r})"], env)
             row = {
-                "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal, ps=True),
-                "tiled": all_measures(ex.pixels, tiled, tiled_coords, m, an.toroidal, ps=True),
-                "peer": all_measures(ex.pixels, peer, toroidal=an.toroidal, ps=True),
+                "ours": all_measures(ex.pixels, ours, coords, m, an.toroidal, ps=ps),
+                "tiled": all_measures(ex.pixels, tiled, tiled_coords, m, an.toroidal, ps=ps),
+                "peer": all_measures(ex.pixels, peer, toroidal=an.toroidal, ps=ps),
                 "time": {"ours_warm_s": ours_warm, "peer_warm_s": peer_warm, "ours_cold_s": ours_cold,
                          "peer_cold_s": peer_cold, "warm_ratio_peer_over_ours": peer_warm / ours_warm,
                          "cold_ratio_peer_over_ours": peer_cold / ours_cold},
@@ -212,7 +216,7 @@ def main(argv=None) -> int:
             lat_out = None
             if case is not None:
                 lat_out = lattice_output(lat, full, n, scale)
-                row["lattice"] = all_measures(ex.pixels, lat_out, ps=True)
+                row["lattice"] = all_measures(ex.pixels, lat_out, ps=ps)
                 for method, img in (("ours", ours), ("tiled", tiled), ("peer", peer), ("lattice", lat_out)):
                     row[method]["lattice_regularity"] = regularity(ex.pixels, img, vectors)
             entry[str(n)] = row
