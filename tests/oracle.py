@@ -708,7 +708,8 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
     """One vote subpass of the fidelity stage, from its definition (fidelity.frag's
     header, VOTE): among S[p], then its 8 neighbors' predictions, the first that
     the most of the (2R+1)^2 predictions equal; never into the avoid mask nor
-    (labels) to a higher label cost than S[p]'s."""
+    (labels) to a higher label cost than S[p]'s; on a non-toroidal exemplar a
+    prediction that clamping would move neither votes nor is a candidate."""
     s, R = params.subgrid, params.fidelity_radius
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
@@ -727,11 +728,14 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
     def texel(u):
         return np.mod(_q8_nearest(u), m) if direct else u
 
-    def prediction(dx, dy):
+    def prediction(dx, dy):  # kept inside; -1 - (index in the window) where clamping moved it
         u = S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
-        if direct:
-            return inside(_full(u) - np.stack(_jd(J, dx, dy, h), axis=1))
-        return inside(u - h * np.array([dx, dy]))
+        raw = _full(u) - np.stack(_jd(J, dx, dy, h), axis=1) if direct else u - h * np.array([dx, dy])
+        kept = inside(raw)
+        if border < 0:
+            return kept
+        t = (dy + R) * (2 * R + 1) + dx + R
+        return np.where(np.all(kept == raw, axis=1)[:, None], kept, -1 - t)
 
     here = S[ys, xs].astype(np.int64)
     self_u = _full(here) if direct else here
@@ -749,12 +753,13 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
     best_u = self_u.copy()
     for d in [(0, 0)] + [(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dx, dy) != (0, 0)]:
         u = P[d]
-        ok = np.ones(len(ys), bool)
+        ok = u[:, 0] >= 0  # not clamped
+        safe = np.where(ok[:, None], u, self_u)  # (what is read for a clamped one does not matter)
         if controls.avoid is not None:
-            ut = texel(u)
+            ut = texel(safe)
             ok &= controls.avoid.values[ut[:, 1], ut[:, 0]] == 0
         if labels is not None:
-            ok &= label_of(u) <= base
+            ok &= label_of(safe) <= base
         votes = sum(np.all(P[e] == u, axis=1).astype(np.int64) for e in window)
         better = ok & (votes > most)
         most = np.where(better, votes, most)

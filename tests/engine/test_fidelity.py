@@ -221,6 +221,23 @@ def test_the_vote_keeps_out_of_avoided_regions_and_matches_the_oracle(analyses, 
     assert not mask[big[..., 1], big[..., 0]].any()
 
 
+def test_the_vote_does_not_stretch_a_bordered_exemplars_edge(analyses, gpu):
+    """On a non-toroidal exemplar, predictions past the usable border would all
+    clamp to its edge and outvote the rest; they do not vote, so the output
+    neither piles up on the edge nor repeats a coordinate across neighbors
+    (with them voting: 1.6% on the edge, 3.9% repeated; without: 0.4%, 1.2%)."""
+    an = analyses["gravel-appearance"]
+    assert not an.toroidal
+    from infinitex.engine.stages import border_margin
+    b = border_margin(an.size, 1)
+    params = structure_params(SynthParams.default(an.L), 2)
+    assert params.fidelity_vote
+    c = Synthesizer(an, params, gpu=gpu).window(Rect.of(500, -700, 256, 256))
+    on_edge = ((c == b) | (c == an.size - 1 - b)).mean()
+    repeated = np.all(c[:, 1:] == c[:, :-1], axis=-1).mean() + np.all(c[1:] == c[:-1], axis=-1).mean()
+    assert on_edge < 0.008 and repeated < 0.02, (on_edge, repeated)
+
+
 @pytest.mark.parametrize("radius", [2, 5])
 def test_other_patch_radii_match_the_oracle(analyses, gpu, radius):
     an = analyses["gravel-color"]

@@ -23,7 +23,10 @@
 // on coordinates): the odd passes of the stage rewrite each pixel p of the block
 // with, among S[p] and then its 8 neighbors' predictions (row-major), the first
 // that the most of the (2 R + 1)^2 predictions P(d) = S[p + d] - h d (P(0) = S[p];
-// DIRECTION: F[p + d] - jmul(J, d, h), kept inside) equal exactly. A candidate
+// DIRECTION: F[p + d] - jmul(J, d, h)) equal exactly. On a non-toroidal exemplar
+// a prediction outside [border, m-1-border] (in 1/256 px with DIRECTION) neither
+// votes nor is a candidate: clamped into the range, such predictions would agree
+// by accident and stretch the exemplar's border rows. A candidate
 // in the avoid mask is never taken, nor (LABELS) one with a higher label cost
 // than S[p]'s. No colors are read: seams move to where the larger copy wins and
 // stray pixels inside a copy go back to it, without pulling colors to a mean
@@ -86,9 +89,8 @@ ivec2 keep_c(ivec2 F) {
     return border < 0 ? (F & (256 * m - 1)) : clamp(F, ivec2(256 * border), ivec2(256 * (m - 1 - border)));
 }
 
-ivec2 predict(ivec2 p, ivec2 d) {
-    return keep_c(full_q8(texelFetch(src, packed_texel(STATE_TEXEL(p + d), qdims), 0))
-                  - jmul(Jp, d, h));
+ivec2 raw_prediction(ivec2 p, ivec2 d) {
+    return full_q8(texelFetch(src, packed_texel(STATE_TEXEL(p + d), qdims), 0)) - jmul(Jp, d, h);
 }
 
 ivec2 step_of(ivec2 off) {
@@ -107,14 +109,18 @@ ivec2 keep_c(ivec2 u) {
     return keep_inside(u);
 }
 
-ivec2 predict(ivec2 p, ivec2 d) {
-    return keep_inside(fetch_s(p + d) - h * d);
+ivec2 raw_prediction(ivec2 p, ivec2 d) {
+    return fetch_s(p + d) - h * d;
 }
 
 ivec2 step_of(ivec2 off) {
     return off;
 }
 #endif
+
+ivec2 predict(ivec2 p, ivec2 d) {
+    return keep_c(raw_prediction(p, d));
+}
 
 uint nb[NT];  // N(p + d) packed RGBA8 (r in the low byte), row-major over the patch (the centre unused)
 
@@ -155,7 +161,10 @@ void main() {
 #endif
     ivec2 P[NT];
     for (int t = 0; t < NT; ++t) {
-        P[t] = t == NT / 2 ? self : predict(p, ivec2(t % SIDE - R, t / SIDE - R));
+        ivec2 raw = raw_prediction(p, ivec2(t % SIDE - R, t / SIDE - R));
+        ivec2 kept = keep_c(raw);
+        // A prediction kept inside by clamping does not vote: clamped ones would agree by accident.
+        P[t] = t == NT / 2 ? self : (border < 0 || kept == raw ? kept : ivec2(-1 - t));
     }
 #ifdef LABELS
     uint lab_t = texelFetch(lab_canvas, p, 0).r;
@@ -166,6 +175,7 @@ void main() {
     for (int j = -1; j < 9; ++j) {
         if (j == 4) continue;
         ivec2 u = j < 0 ? self : P[(j / 3 + R - 1) * SIDE + j % 3 + R - 1];
+        if (u.x < 0) continue;  // clamped
         ivec2 ut = texel_of(u);
         if (has_avoid != 0 && texelFetch(avoid, ut, 0).r != 0u) continue;
 #ifdef LABELS
