@@ -160,10 +160,10 @@ STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
 STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
 STRUCTURE_PRESETS = (
     ((), FIDELITY_RADIUS, False),
-    ((1, 1, 2, 2), 3, False),
-    ((1, 1, 1, 1), 3, True),
-    ((2, 2, 2, 2), 3, True),
-    ((3, 3, 3, 3), 5, False),
+    ((1,), 2, True),
+    ((1,), 3, True),
+    ((2,), 3, True),
+    ((3,), 5, True),
 )
 DEFAULT_STRUCTURE = 2
 

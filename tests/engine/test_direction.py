@@ -134,15 +134,15 @@ def test_gl_matches_oracle_with_a_field(direction_analyses, gpu, name, x, y):
     assert (gl[..., :2] != plain[..., :2]).any(-1).mean() > 0.5  # the field does something here
 
 
-@pytest.mark.parametrize("name, structure", [("bordered-appearance", 2), ("bordered-color-k0", 1),
-                                             ("torus-color", 2), ("torus-appearance-k0", 1)])
+@pytest.mark.parametrize("name, vote", [("bordered-appearance", True), ("bordered-color-k0", False),
+                                        ("torus-color", True), ("torus-appearance-k0", False)])
 @pytest.mark.parametrize("x, y", [(-9, 5), (FAR - 90, -FAR + 30)])
-def test_gl_matches_oracle_with_a_field_and_the_fidelity_stage(direction_analyses, gpu, name, structure, x, y):
-    """Structure 1: the search alone; 2: search and vote."""
+def test_gl_matches_oracle_with_a_field_and_the_fidelity_stage(direction_analyses, gpu, name, vote, x, y):
+    """With the vote, and the search alone."""
     an = direction_analyses[name]
     w, h = 24, 20
     controls = Controls(direction=mixed_field(x - 8, y - 6, w + 16, h + 12, seed=3))
-    params = structure_params(SynthParams.default(an.L, seed=6), structure)
+    params = replace(structure_params(SynthParams.default(an.L, seed=6), 1), fidelity_vote=vote)
     assert params.fidelity is not None and any(params.fidelity)
     gl = window(an, params, controls, gpu, x, y, w, h)
     ref = oracle.synthesize(an, params, x, y, w, h, controls=controls)

@@ -53,13 +53,13 @@ def test_gl_matches_oracle_with_labels(analyses, gpu, name, x, y):
     assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 40, 36, controls=controls))
 
 
-@pytest.mark.parametrize("structure", [1, 2])  # the search alone; search and vote
+@pytest.mark.parametrize("vote", [False, True])  # the search alone; search and vote
 @pytest.mark.parametrize("name", ["gravel-appearance", "torus-color-k3"])
-def test_gl_matches_oracle_with_labels_and_the_fidelity_stage(analyses, gpu, name, structure):
+def test_gl_matches_oracle_with_labels_and_the_fidelity_stage(analyses, gpu, name, vote):
     an = analyses[name]
     controls = Controls(labels_exemplar=halves(an.size), labels_canvas=stripes(-40, -20, 80, 60),
                         label_strength=2.0)
-    params = structure_params(SynthParams.default(an.L, seed=2), structure)
+    params = replace(structure_params(SynthParams.default(an.L, seed=2), 1), fidelity_vote=vote)
     gl = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(-20, -10, 32, 28))
     assert np.array_equal(gl, oracle.synthesize(an, params, -20, -10, 32, 28, controls=controls))
 

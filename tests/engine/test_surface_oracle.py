@@ -14,6 +14,8 @@ cube and the cylinder of engine/surface/shapes.py): GL against the oracle's
 atlas feature rule (copies across seams, a copy on its own chart only, later
 rows winning), and the synthesized coordinates inside a disc against the
 definition F = u_F + J (x - p) in the centre's chart and in the chart across."""
+from dataclasses import replace
+
 import numpy as np
 import oracle
 import pytest
@@ -122,13 +124,13 @@ def redirected_reads(surface: FakeSurface, k: int) -> float:
     return hits / (9 * n * n)
 
 
-# name, Structure preset (0: no fidelity stage; 1: search alone; 2: search and vote), seed, atlas size
-CASES = [("bordered-appearance", 0, 1, N), ("bordered-color-k0", 1, 2, N), ("torus-color", 2, 3, N),
-         ("torus-appearance-k0", 1, 4, N), ("bordered-appearance", 0, 6, 128)]
+# name, Structure preset (0: no fidelity stage), its vote (False: the search alone), seed, atlas size
+CASES = [("bordered-appearance", 0, True, 1, N), ("bordered-color-k0", 1, False, 2, N), ("torus-color", 2, True, 3, N),
+         ("torus-appearance-k0", 1, True, 4, N), ("bordered-appearance", 0, True, 6, 128)]
 
 
-@pytest.mark.parametrize("name, structure, seed, n", CASES)
-def test_gl_matches_oracle_in_an_atlas(atlas_analyses, gpu, name, structure, seed, n):
+@pytest.mark.parametrize("name, structure, vote, seed, n", CASES)
+def test_gl_matches_oracle_in_an_atlas(atlas_analyses, gpu, name, structure, vote, seed, n):
     an = atlas_analyses[name]
     surface = FakeSurface(n, an.L, seed)
     assert min(redirected_reads(surface, k) for k in range(3)) > 0.02  # the rule is exercised
@@ -136,6 +138,8 @@ def test_gl_matches_oracle_in_an_atlas(atlas_analyses, gpu, name, structure, see
     assert controls.directed
     params = structure_params(SynthParams.default(an.L, seed=seed), structure)
     assert bool(params.fidelity and any(params.fidelity)) == bool(structure)
+    if structure:
+        params = replace(params, fidelity_vote=vote)
     gl = atlas_window(an, params, controls, gpu, n)
     assert gl.shape == (n, n, 4)
     ref = oracle.synthesize(an, params, 0, 0, n, n, controls=controls)
