@@ -739,6 +739,8 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
 
     here = S[ys, xs].astype(np.int64)
     self_u = _full(here) if direct else here
+    if direct and border < 0:
+        self_u = inside(self_u)  # wrapped like the predictions
     window = [(dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1)]
     P = {d: (self_u if d == (0, 0) else prediction(*d)) for d in window}
     labels = label_terms(controls, an, params, level, xs, ys, origin, True)

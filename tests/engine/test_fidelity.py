@@ -208,6 +208,13 @@ def test_gl_matches_the_oracle_with_the_vote(analyses, gravel_k0, gpu, name, x, 
                               .window(Rect.of(x, y, 20, 16)))
 
 
+def test_the_vote_matches_the_oracle_on_a_3x3_subpass_grid(analyses, gpu):
+    an = analyses["gravel-color"]
+    params = with_fidelity(an, seed=7, fidelity_vote=True, subgrid=3)
+    gl = Synthesizer(an, params, gpu=gpu).window(Rect.of(FAR - 30, 17, 18, 14))
+    assert np.array_equal(gl, oracle.synthesize(an, params, FAR - 30, 17, 18, 14))
+
+
 def test_the_vote_keeps_out_of_avoided_regions_and_matches_the_oracle(analyses, gpu):
     an = analyses["gravel-appearance"]
     mask = np.zeros((an.size, an.size), np.uint8)

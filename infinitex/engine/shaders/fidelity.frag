@@ -22,7 +22,8 @@
 // VOTE (FID_VOTE; SynthParams.fidelity_vote, Kwatra et al. 2005's voting step
 // on coordinates): the odd passes of the stage rewrite each pixel p of the block
 // with, among S[p] and then its 8 neighbors' predictions (row-major), the first
-// that the most of the (2 R + 1)^2 predictions P(d) = S[p + d] - h d (P(0) = S[p];
+// that the most of the (2 R + 1)^2 predictions P(d) = S[p + d] - h d (P(0) = S[p],
+// wrapped like them on a toroidal exemplar;
 // DIRECTION: F[p + d] - jmul(J, d, h)) equal exactly. On a non-toroidal exemplar
 // a prediction outside [border, m-1-border] (in 1/256 px with DIRECTION) neither
 // votes nor is a candidate: clamped into the range, such predictions would agree
@@ -156,6 +157,7 @@ void main() {
 #ifdef DIRECTION
     Jp = texelFetch(dfield, p, 0);
     ivec2 self = full_q8(here);
+    if (border < 0) self = keep_c(self);  // wrapped like the predictions (a stored texel 0 may hold F < 0)
 #else
     ivec2 self = here.xy;
 #endif
