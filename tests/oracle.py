@@ -509,18 +509,25 @@ def _directed_taps(S: np.ndarray, ys: np.ndarray, xs: np.ndarray, an: Analysis, 
     return parts
 
 
-def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
-                    params: SynthParams, level: int, controls: Controls = NO_CONTROLS, subpass: int = 0) -> np.ndarray:
+def _phase_pixels(S: np.ndarray, phase, origin, an: Analysis, params: SynthParams, level: int, controls: Controls):
+    """The pixels (ys, xs) of S that a subpass of ``phase`` rewrites, whether a
+    direction field applies, its J there (or None) and the window's atlas links."""
     s = params.subgrid
-    lv = an.levels[level]
-    h, m = an.h(level), an.size
     H, W = S.shape[:2]
     ys, xs = np.mgrid[0:H, 0:W]
     sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
     ys, xs = ys[sel], xs[sel]
     direct = directed(controls)
     J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
-    links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
+    return ys, xs, direct, J, atlas_links(controls, an, level, origin[0], origin[1], W, H)
+
+
+def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
+                    params: SynthParams, level: int, controls: Controls = NO_CONTROLS, subpass: int = 0) -> np.ndarray:
+    lv = an.levels[level]
+    h, m = an.h(level), an.size
+    H, W = S.shape[:2]
+    ys, xs, direct, J, links = _phase_pixels(S, phase, origin, an, params, level, controls)
     ns = synthesized_neighborhood(S, ys, xs, an, level, J, links, origin)
     nbhd = lv.nbhd
     best = np.full(len(ys), np.iinfo(np.int64).max)
@@ -605,6 +612,34 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
     return out
 
 
+def _fidelity_space(an: Analysis, level: int, direct: bool):
+    """The fidelity stage's candidates: (one exemplar pixel in their unit, the
+    border (-1: toroidal), keep-inside, nearest texel)."""
+    m = an.size
+    border = -1 if an.toroidal else border_margin(m, an.h(level))
+    one = Q8 if direct else 1
+
+    def inside(u):
+        return np.mod(u, one * m) if border < 0 else np.clip(u, one * border, one * (m - 1 - border))
+
+    def texel(u):
+        return np.mod(_q8_nearest(u), m) if direct else u
+
+    return one, border, inside, texel
+
+
+def _with_fidelity_result(S: np.ndarray, ys, xs, best_u, direct: bool, m: int) -> np.ndarray:
+    """S with the chosen candidates written at (ys, xs) (split into texel and remainder with a direction field)."""
+    out = S.copy()
+    if direct:
+        tx, rx = _q8_split(best_u[:, 0], m)
+        ty, ry = _q8_split(best_u[:, 1], m)
+        out[ys, xs] = np.stack([tx, ty, rx, ry], axis=1)
+    else:
+        out[ys, xs] = best_u
+    return out
+
+
 def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
                      params: SynthParams, level: int, controls: Controls = NO_CONTROLS,
                      subpass: int = 0) -> np.ndarray:
@@ -614,16 +649,11 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
     reads the nearest texels of F + h J d, predictions are F[p + d] - h J d,
     random samples move the best by whole pixels, candidates are kept inside in
     1/256 px, and avoid and labels are read at the nearest texel."""
-    s, R = params.subgrid, params.fidelity_radius
+    R = params.fidelity_radius
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
     E = fixed.quantized_colors(an.levels[level].stack)
-    ys, xs = np.mgrid[0:H, 0:W]
-    sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
-    ys, xs = ys[sel], xs[sel]
-    direct = directed(controls)
-    J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
-    links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
+    ys, xs, direct, J, links = _phase_pixels(S, phase, origin, an, params, level, controls)
 
     def s_at(dx, dy):
         return S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
@@ -633,14 +663,7 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
     for d in patch:
         u = s_at(*d)
         nb[d] = E[u[:, 1], u[:, 0]]
-    border = -1 if an.toroidal else border_margin(m, h)
-    one = Q8 if direct else 1  # a whole exemplar pixel in the candidates' unit
-
-    def inside(u):
-        return np.mod(u, one * m) if border < 0 else np.clip(u, one * border, one * (m - 1 - border))
-
-    def texel(u):
-        return np.mod(_q8_nearest(u), m) if direct else u
+    one, border, inside, texel = _fidelity_space(an, level, direct)
 
     def offset(dx, dy):  # h d, or h J d in 1/256 px (floored)
         if direct:
@@ -693,14 +716,7 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
                 break
             ox, oy = fixed.walk_offsets(gx, gy, level, fseed, t, radius)
             consider(inside(best_u + one * np.stack([ox, oy], axis=1)))
-    out = S.copy()
-    if direct:
-        tx, rx = _q8_split(best_u[:, 0], m)
-        ty, ry = _q8_split(best_u[:, 1], m)
-        out[ys, xs] = np.stack([tx, ty, rx, ry], axis=1)
-    else:
-        out[ys, xs] = best_u
-    return out
+    return _with_fidelity_result(S, ys, xs, best_u, direct, m)
 
 
 def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
@@ -710,23 +726,11 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
     the most of the (2R+1)^2 predictions equal; never into the avoid mask nor
     (labels) to a higher label cost than S[p]'s; on a non-toroidal exemplar a
     prediction that clamping would move neither votes nor is a candidate."""
-    s, R = params.subgrid, params.fidelity_radius
+    R = params.fidelity_radius
     h, m = an.h(level), an.size
     H, W = S.shape[:2]
-    ys, xs = np.mgrid[0:H, 0:W]
-    sel = (((xs + origin[0]) % s) == phase[0]) & (((ys + origin[1]) % s) == phase[1])
-    ys, xs = ys[sel], xs[sel]
-    direct = directed(controls)
-    J = direction_values(controls, an, params, level, xs + origin[0], ys + origin[1]) if direct else None
-    links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
-    border = -1 if an.toroidal else border_margin(m, h)
-    one = Q8 if direct else 1
-
-    def inside(u):
-        return np.mod(u, one * m) if border < 0 else np.clip(u, one * border, one * (m - 1 - border))
-
-    def texel(u):
-        return np.mod(_q8_nearest(u), m) if direct else u
+    ys, xs, direct, J, links = _phase_pixels(S, phase, origin, an, params, level, controls)
+    _, border, inside, texel = _fidelity_space(an, level, direct)
 
     def prediction(dx, dy):  # kept inside; -1 - (index in the window) where clamping moved it
         u = S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
@@ -766,14 +770,7 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
         better = ok & (votes > most)
         most = np.where(better, votes, most)
         best_u = np.where(better[:, None], u, best_u)
-    out = S.copy()
-    if direct:
-        tx, rx = _q8_split(best_u[:, 0], m)
-        ty, ry = _q8_split(best_u[:, 1], m)
-        out[ys, xs] = np.stack([tx, ty, rx, ry], axis=1)
-    else:
-        out[ys, xs] = best_u
-    return out
+    return _with_fidelity_result(S, ys, xs, best_u, direct, m)
 
 
 def fidelity_stage(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,
