@@ -154,15 +154,18 @@ class SynthParams:
 # elements must come out whole (weaves, cells, text, bricks). Per preset: the
 # stage's iterations per level from the finest (the last count repeats down to
 # FIRST_CORRECTED_LEVEL), the patch radius and whether each iteration ends with
-# the vote. (Less randomness on the fine levels was measured too and did not
-# help; the vote's measurements: docs/benchmarks.md.)
+# the vote. The iterations go where they pay: on the coarser scales, which lay
+# out the elements, and which are small (a second iteration there, none on the
+# finest scale, is closer to the exemplar than one everywhere, in less time).
+# (Less randomness on the fine levels was measured too and did not help; the
+# measurements: docs/benchmarks.md.)
 STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
 STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
 STRUCTURE_PRESETS = (
     ((), FIDELITY_RADIUS, False),
-    ((1,), 2, True),
-    ((1,), 3, True),
-    ((2,), 3, True),
+    ((0, 1, 1, 2), 2, True),
+    ((0, 1, 1, 2), 3, True),
+    ((1, 2), 3, True),
     ((3,), 5, True),
 )
 DEFAULT_STRUCTURE = 2
