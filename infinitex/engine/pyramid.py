@@ -209,8 +209,11 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
 
     def _targets(self, level: int, rect: Rect) -> list[tuple[int, Rect]]:
         """What each level must hold for ``rect`` of ``level``, coarse to fine:
-        decided fine to coarse, a level needing of its parent only what its
-        *new* strips read."""
+        decided fine to coarse; a level whose target holds new strips needs its
+        parent to cover what its whole target reads, so that a local update
+        anywhere in what it holds finds its parent's pixels (margins differ
+        between levels, so a parent covering only the new strips' reads could
+        drop what an older part needs); one without new strips needs nothing."""
         targets = []
         need: Rect | None = rect
         for l in range(level, -1, -1):
@@ -221,11 +224,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             buf = self.buffers[l]
             valid = buf.valid if buf is not None else None
             strips = [t] if valid is None else t.minus(valid)
-            need = None
-            for s in strips:
-                r = self.padded(l, s).half()
-                need = r if need is None else Rect(min(need.x0, r.x0), min(need.y0, r.y0),
-                                                   max(need.x1, r.x1), max(need.y1, r.y1))
+            need = self.padded(l, t).half() if strips else None
         return targets[::-1]
 
     def request(self, level: int, rect: Rect) -> int:
