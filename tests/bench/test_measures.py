@@ -147,3 +147,19 @@ def test_copied_windows_have_known_answers():
     off = rng.integers(-2, 3, gray.shape) / 255
     assert copied_windows(gray, np.clip(gray + off, 0, 1)) > 0.95
     assert copied_windows(gray, np.clip(gray + 5 / 255 * np.sign(gray - 0.5), 0, 1)) < 0.01
+
+
+def test_streak_peak_finds_a_period_and_ignores_noise():
+    from bench.streaks import MIN_SHIFT, peak
+    rng = np.random.default_rng(5)
+    cell = rng.random((40, 40))
+    tiled = np.tile(cell, (8, 8))  # 320 px, period 40: a repetition at (40, 0) and (0, 40)
+    value, (dx, dy) = peak(tiled, periodic=False)
+    assert value > 0.95 and dx % 40 == 0 and dy % 40 == 0  # the period or a multiple (tied)
+    noise = rng.random((320, 320))
+    assert peak(noise, periodic=False)[0] < 0.05
+    assert peak(noise, periodic=False, blur=6.0)[0] < 0.5  # blurring keeps a noise field unrepeated
+    # shifts under MIN_SHIFT never count: a period of 16 shows only at its multiples >= 32
+    fine = np.tile(rng.random((16, 16)), (20, 20))
+    value, (dx, dy) = peak(fine, periodic=True)
+    assert value > 0.95 and max(abs(dx), abs(dy)) >= MIN_SHIFT and dx % 16 == 0 and dy % 16 == 0
