@@ -151,21 +151,36 @@ def verbatim_regions(coords: np.ndarray, m: int, toroidal: bool = False,
     return float((sizes.astype(np.float64) ** 2).sum() / sizes.sum()), int(sizes.max())
 
 
+def autocorrelation(y: np.ndarray, periodic: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Normalized autocorrelation (1 at shift 0) of a 2-D array, mean removed,
+    and its shifts dy (a column) and dx (a row): circular when ``periodic``,
+    else over twice the size with each shift divided by its overlap."""
+    h, w = y.shape
+    y = y - y.mean()
+    if periodic:
+        f = np.fft.fft2(y)
+        ac = np.real(np.fft.ifft2(f * np.conj(f)))
+        size = (h, w)
+    else:
+        size = (2 * h, 2 * w)
+        f = np.fft.rfft2(y, s=size)
+        ac = np.fft.irfft2(f * np.conj(f), s=size)
+        ones = np.fft.rfft2(np.ones((h, w)), s=size)
+        overlap = np.fft.irfft2(ones * np.conj(ones), s=size)
+        ac = ac / np.maximum(overlap, 1.0)
+    ac /= max(ac[0, 0], 1e-12)
+    dy = np.fft.fftfreq(size[0], 1.0 / size[0])[:, None]
+    dx = np.fft.fftfreq(size[1], 1.0 / size[1])[None, :]
+    return ac, dy, dx
+
+
 def repetition(output: np.ndarray, exclude: int = 8) -> float:
     """Highest normalized autocorrelation peak away from the origin (shifts of
     ``exclude`` px or more, up to half the image): about 1 for a tiled image,
     about 0 for noise."""
     img = _chan(output).mean(axis=2)
-    img = img - img.mean()
     h, w = img.shape
-    f = np.fft.rfft2(img, s=(2 * h, 2 * w))
-    ac = np.fft.irfft2(f * np.conj(f), s=(2 * h, 2 * w))
-    ones = np.fft.rfft2(np.ones((h, w)), s=(2 * h, 2 * w))
-    overlap = np.fft.irfft2(ones * np.conj(ones), s=(2 * h, 2 * w))
-    ac = ac / np.maximum(overlap, 1.0)
-    ac /= max(ac[0, 0], 1e-12)
-    dy = np.fft.fftfreq(2 * h, 1.0 / (2 * h))[:, None]
-    dx = np.fft.fftfreq(2 * w, 1.0 / (2 * w))[None, :]
+    ac, dy, dx = autocorrelation(img)
     mask = (np.maximum(np.abs(dx), np.abs(dy)) >= exclude) & (np.abs(dx) <= w // 2) & (np.abs(dy) <= h // 2)
     return float(ac[mask].max())
 

@@ -31,9 +31,11 @@ from scipy import ndimage
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from bench.measures import autocorrelation  # noqa: E402
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
 from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
+from infinitex.engine.material import luma  # noqa: E402
 from infinitex.engine.params import STRUCTURE_NAMES, SynthParams, structure_index, structure_params  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.synth import Synthesizer  # noqa: E402
@@ -45,41 +47,22 @@ BLUR = 6.0
 
 
 def luminance(img: np.ndarray) -> np.ndarray:
-    x = np.asarray(img, np.float64)
-    if x.ndim == 2:
-        return x
-    if x.shape[2] >= 3:
-        return x[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
-    return x[..., 0]
+    """An image's luminance as a 2-D float64 array (Rec. 709, as the material's luma)."""
+    return luma(np.asarray(img))[..., 0].astype(np.float64)
 
 
 def peak(y: np.ndarray, periodic: bool, blur: float = 0.0, lim: int | None = None) -> tuple[float, tuple[int, int]]:
     """Highest normalized autocorrelation of ``y`` at shifts (dx, dy) with
     max(|dx|, |dy|) >= MIN_SHIFT, up to ``lim`` (default: half the image when
     periodic, a quarter otherwise); overlap-normalized when not periodic."""
-    h, w = y.shape
     if blur:
         y = ndimage.gaussian_filter(y, blur, mode="wrap" if periodic else "reflect")
-    y = y - y.mean()
-    if periodic:
-        f = np.fft.fft2(y)
-        ac = np.real(np.fft.ifft2(f * np.conj(f)))
-        fy, fx = np.fft.fftfreq(h, 1.0 / h), np.fft.fftfreq(w, 1.0 / w)
-        lim = lim or min(h, w) // 2
-    else:
-        s = (2 * h, 2 * w)
-        f = np.fft.rfft2(y, s=s)
-        ac = np.fft.irfft2(f * np.conj(f), s=s)
-        one = np.fft.rfft2(np.ones((h, w)), s=s)
-        ac /= np.maximum(np.fft.irfft2(one * np.conj(one), s=s), 1.0)
-        fy, fx = np.fft.fftfreq(2 * h, 1.0 / (2 * h)), np.fft.fftfreq(2 * w, 1.0 / (2 * w))
-        lim = lim or min(h, w) // 4
-    ac /= max(ac[0, 0], 1e-12)
-    dy, dx = np.abs(fy)[:, None], np.abs(fx)[None, :]
-    ok = (np.maximum(dx, dy) >= MIN_SHIFT) & (dx <= lim) & (dy <= lim)
-    i = int(np.argmax(np.where(ok, ac, -np.inf)))
-    iy, ix = np.unravel_index(i, ac.shape)
-    return float(ac[iy, ix]), (int(fx[ix]), int(fy[iy]))
+    ac, dy, dx = autocorrelation(y, periodic)
+    lim = lim or min(y.shape) // (2 if periodic else 4)
+    ady, adx = np.abs(dy), np.abs(dx)
+    ok = (np.maximum(adx, ady) >= MIN_SHIFT) & (adx <= lim) & (ady <= lim)
+    iy, ix = np.unravel_index(int(np.argmax(np.where(ok, ac, -np.inf))), ac.shape)
+    return float(ac[iy, ix]), (int(dx[0, ix]), int(dy[iy, 0]))
 
 
 def measure(y: np.ndarray, periodic: bool) -> dict:

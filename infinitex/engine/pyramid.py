@@ -223,8 +223,8 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             targets.append((l, t))
             buf = self.buffers[l]
             valid = buf.valid if buf is not None else None
-            strips = [t] if valid is None else t.minus(valid)
-            need = self.padded(l, t).half() if strips else None
+            new_strips = valid is None or bool(t.minus(valid))
+            need = self.padded(l, t).half() if new_strips else None
         return targets[::-1]
 
     def request(self, level: int, rect: Rect) -> int:
