@@ -1,0 +1,193 @@
+"""The engine on another machine's GL (a lent GPU): per-preset timings and cross-machine identity.
+
+    python -m bench.device run OUT_DIR [--quick] [--presets 0 2 ...]
+    python -m bench.device compare OUT_DIR/coords.npz
+
+``run`` (on the machine to measure) writes ``OUT_DIR/device.json`` and
+``OUT_DIR/coords.npz`` and prints a table. Per Structure preset, on gravel:
+
+  full_ms            a full 512^2 window (warm: shaders compiled, analysis cached), median
+  over_variety       full_ms / Variety's, in the same run
+  pan_ms             mean per frame, 512^2 viewport panned 8 px/frame over 64 frames; pan_speedup = full / pan
+  view_ms            a fresh 1024 x 768 view
+  dab_ms             a paint dab (48 px brush, 32 dabs along a stroke) until that view is exact again:
+                     Pyramid.update_controls done at once, then the view shown (median, p90)
+  dab_px             level pixels re-synthesized per dab (median)
+  dab_exact          the painted view equals a fresh synthesis with the final controls
+
+``coords.npz`` holds exemplar coordinates of fixed windows (gravel and the weave,
+every preset, near the origin and near (+2^30, -2^30), and a toroidal tile);
+``compare`` synthesizes the same windows with this machine's GL and reports
+which are bit-identical: determinism across GPUs, drivers and llvmpipe.
+``--quick``: smaller windows and views, fewer runs, Maximum skipped (< 2 min on llvmpipe).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+from infinitex.engine.analysis import analyze  # noqa: E402
+from infinitex.engine.controls import CanvasField, Controls  # noqa: E402
+from infinitex.engine.exemplar import load_exemplar  # noqa: E402
+from infinitex.engine.gpu import Gpu  # noqa: E402
+from infinitex.engine.params import STRUCTURE_LEVELS, STRUCTURE_NAMES, SynthParams, structure_params  # noqa: E402
+from infinitex.engine.rect import Rect  # noqa: E402
+from infinitex.engine.synth import Synthesizer  # noqa: E402
+
+EXEMPLARS = {"gravel": os.path.join(ROOT, "infinitex", "assets", "gravel.png"),
+             "weave": os.path.join(ROOT, "bench", "exemplars", "weave.png")}
+ORIGINS = {"near0": (-40, -17), "far": (2 ** 30 - 70, -2 ** 30 + 33)}
+
+
+def identity_windows(gpu: Gpu, presets, n: int, tile: int) -> dict[str, np.ndarray]:
+    """Coordinates of the fixed windows, by name (exemplar_preset_origin, exemplar_preset_tor)."""
+    out = {}
+    for name, path in EXEMPLARS.items():
+        an = analyze(load_exemplar(path))
+        for s in presets:
+            syn = Synthesizer(an, structure_params(SynthParams.default(an.L), s), gpu=gpu)
+            try:
+                for tag, (x, y) in ORIGINS.items():
+                    out[f"{name}_{s}_{tag}"] = syn.window(Rect.of(x, y, n, n))
+                out[f"{name}_{s}_tor"] = syn.toroidal(tile)
+            finally:
+                syn.release()
+    return out
+
+
+def _median_ms(fn, runs: int, ctx) -> float:
+    ts = []
+    for i in range(runs):
+        t = time.perf_counter()
+        fn(i)
+        ctx.finish()
+        ts.append((time.perf_counter() - t) * 1000.0)
+    return statistics.median(ts)
+
+
+def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
+    params = structure_params(SynthParams.default(an.L), s)
+    ctx = gpu.ctx
+    syn = Synthesizer(an, params, gpu=gpu)
+    try:
+        syn.window(Rect.of(0, 0, 64, 64))  # compile shaders
+        n = 256 if quick else 512
+        r = {"full_ms": _median_ms(lambda i: syn.window(Rect.of(1000 * i + 7, -777 * i, n, n)),
+                                   3 if quick else 7, ctx)}
+        vp = syn.viewport()
+        vp.show(Rect.of(0, 0, n, n))
+        ctx.finish()
+        frames = []
+        for f in range(1, 17 if quick else 65):
+            t = time.perf_counter()
+            vp.show(Rect.of(8 * f, 3 * f, n, n))
+            ctx.finish()
+            frames.append((time.perf_counter() - t) * 1000.0)
+        vp.release()
+        r["pan_ms"] = statistics.mean(frames)
+        w, h = (512, 384) if quick else (1024, 768)
+        view = Rect.of(-300, 200, w, h)
+        vp = syn.viewport()
+        t = time.perf_counter()
+        vp.show(view)
+        ctx.finish()
+        r["view_ms"] = (time.perf_counter() - t) * 1000.0
+        field, dabs, px = CanvasField(), [], []
+        for k in range(8 if quick else 32):
+            # A stroke across the view, calm then rough every 8 dabs.
+            field, rect = field.painted(-200 + 14 * k, 200 + h / 2 + 40 * np.sin(k / 3), 24.0,
+                                        65535 if (k // 8) % 2 == 0 else 0)
+            t = time.perf_counter()
+            px.append(vp.pyramid.update_controls(Controls(randomness_canvas=field), [Rect(*rect)]))
+            vp.show(view)
+            ctx.finish()
+            dabs.append((time.perf_counter() - t) * 1000.0)
+        got = vp.read(view)
+        vp.release()
+        fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(randomness_canvas=field))
+        try:
+            want = fresh.window(view)
+        finally:
+            fresh.release()
+        r.update(dab_ms=statistics.median(dabs), dab_p90_ms=float(np.percentile(dabs, 90)),
+                 dab_px=int(statistics.median(px)), dab_exact=bool(np.array_equal(got, want)))
+        return {k: round(v, 2) if isinstance(v, float) else v for k, v in r.items()}
+    finally:
+        syn.release()
+
+
+def run(out_dir: str, quick: bool, presets) -> dict:
+    os.makedirs(out_dir, exist_ok=True)
+    gpu = Gpu()
+    res = {"renderer": gpu.renderer, "quick": quick, "presets": {}}
+    coords = identity_windows(gpu, presets, 96 if quick else 192, 64 if quick else 128)
+    np.savez_compressed(os.path.join(out_dir, "coords.npz"), **coords)
+    an = analyze(load_exemplar(EXEMPLARS["gravel"]))
+    for s in presets:
+        res["presets"][STRUCTURE_NAMES[s]] = preset_timings(gpu, an, s, quick)
+    base = res["presets"].get(STRUCTURE_NAMES[0])
+    for r in res["presets"].values():
+        if base:
+            r["over_variety"] = round(r["full_ms"] / base["full_ms"], 2)
+        r["pan_speedup"] = round(r["full_ms"] / r["pan_ms"], 1)
+    gpu.release()
+    with open(os.path.join(out_dir, "device.json"), "w") as f:
+        json.dump(res, f, indent=1)
+    print(f"renderer  {res['renderer']}")
+    print(f"{'preset':<10}{'full':>9}{'/Variety':>10}{'pan':>8}{'pan x':>7}{'view':>9}{'dab':>9}{'dab p90':>9}"
+          f"{'dab px':>9}  exact")
+    for k, r in res["presets"].items():
+        print(f"{k:<10}{r['full_ms']:>7.1f}ms{r.get('over_variety', float('nan')):>9.2f}x{r['pan_ms']:>6.1f}ms"
+              f"{r['pan_speedup']:>6.1f}x{r['view_ms']:>7.1f}ms{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms"
+              f"{r['dab_px']:>9d}  {r['dab_exact']}")
+    return res
+
+
+def compare(path: str) -> tuple[int, int]:
+    """(identical, different) windows between ``path`` and this machine's GL."""
+    theirs = np.load(path)
+    names = sorted(theirs.files)
+    presets = sorted({int(k.split("_")[1]) for k in names})
+    n = theirs[f"gravel_{presets[0]}_near0"].shape[0]
+    tile = theirs[f"gravel_{presets[0]}_tor"].shape[0]
+    gpu = Gpu()
+    print(f"this machine: {gpu.renderer}")
+    mine = identity_windows(gpu, presets, n, tile)
+    gpu.release()
+    same = 0
+    for k in names:
+        ok = k in mine and np.array_equal(mine[k], theirs[k])
+        same += ok
+        print(f"{k:<20} {'identical' if ok else 'DIFFERENT'}")
+    print(f"{same} of {len(names)} windows bit-identical")
+    return same, len(names) - same
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run", help="measure this machine; write device.json and coords.npz")
+    r.add_argument("out_dir")
+    r.add_argument("--quick", action="store_true")
+    r.add_argument("--presets", nargs="+", type=int, choices=range(STRUCTURE_LEVELS), default=None)
+    c = sub.add_parser("compare", help="the windows of coords.npz on this machine's GL")
+    c.add_argument("coords")
+    args = ap.parse_args(argv)
+    if args.cmd == "run":
+        presets = args.presets or [s for s in range(STRUCTURE_LEVELS) if not (args.quick and s == STRUCTURE_LEVELS - 1)]
+        run(args.out_dir, args.quick, sorted(set(presets)))
+        return 0
+    return 1 if compare(args.coords)[1] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
