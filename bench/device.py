@@ -14,6 +14,12 @@
                      Pyramid.update_controls done at once, then the view shown (median, p90)
   dab_px             level pixels re-synthesized per dab (median)
   dab_exact          the painted view equals a fresh synthesis with the final controls
+  jump_ms            that view moved 4,500 px (all of it new) until exact, median of 3
+  release_ms         a randomness slider released (one level's jitter changed) until the view is exact, median of 3
+  label_dab_ms       texture by numbers: a label dab (label 1 over canvas labels of 0, two labels proposed on the
+                     exemplar) until the view is exact, median of 16; label_dab_exact as dab_exact
+  comb_dab_ms        direction fields: a comb dab (48 px) on an identity field until exact, median of 16;
+                     comb_dab_exact as dab_exact
 
 ``coords.npz`` holds exemplar coordinates of fixed windows (gravel and the weave,
 every preset, near the origin and near (+2^30, -2^30), and a toroidal tile);
@@ -29,6 +35,7 @@ import os
 import statistics
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -37,6 +44,8 @@ sys.path.insert(0, ROOT)
 
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.controls import CanvasField, Controls  # noqa: E402
+from infinitex.engine.controls.direction import DirectionField, comb, jacobian  # noqa: E402
+from infinitex.engine.controls.labels import CanvasLabels, ExemplarLabels, propose_labels  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
 from infinitex.engine.gpu import Gpu  # noqa: E402
 from infinitex.engine.params import STRUCTURE_LEVELS, STRUCTURE_NAMES, SynthParams, structure_params  # noqa: E402
@@ -104,25 +113,96 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
         field, dabs, px = CanvasField(), [], []
         for k in range(8 if quick else 32):
             # A stroke across the view, calm then rough every 8 dabs.
-            field, rect = field.painted(-200 + 14 * k, 200 + h / 2 + 40 * np.sin(k / 3), 24.0,
-                                        65535 if (k // 8) % 2 == 0 else 0)
+            field, rect = field.painted(*_stroke(view, k), 24.0, 65535 if (k // 8) % 2 == 0 else 0)
             t = time.perf_counter()
             px.append(vp.pyramid.update_controls(Controls(randomness_canvas=field), [Rect(*rect)]))
             vp.show(view)
             ctx.finish()
             dabs.append((time.perf_counter() - t) * 1000.0)
-        got = vp.read(view)
-        vp.release()
-        fresh = Synthesizer(an, params, gpu=gpu, controls=Controls(randomness_canvas=field))
-        try:
-            want = fresh.window(view)
-        finally:
-            fresh.release()
         r.update(dab_ms=statistics.median(dabs), dab_p90_ms=float(np.percentile(dabs, 90)),
-                 dab_px=int(statistics.median(px)), dab_exact=bool(np.array_equal(got, want)))
+                 dab_px=int(statistics.median(px)),
+                 dab_exact=_exact(vp, gpu, an, params, Controls(randomness_canvas=field), view))
+        # The whole view replaced: a 4,500 px jump, then a randomness slider released.
+        jumps, releases = [], []
+        for k in range(3):
+            view = Rect.of(view.x0 + 4500, view.y0, w, h)
+            jumps.append(_timed(lambda: vp.show(view), ctx))
+        for k in range(3):
+            j = list(params.jitter)
+            j[an.L - 2 - k] = 0.2 + 0.1 * k
+            jumps_params = replace(params, jitter=tuple(j))
+            releases.append(_timed(lambda: (vp.set_params(jumps_params), vp.show(view)), ctx))
+        vp.release()
+        r.update(jump_ms=statistics.median(jumps), release_ms=statistics.median(releases))
+        r.update(_label_dabs(gpu, an, params, view, quick))
+        r.update(_comb_dabs(gpu, an, params, view, quick))
         return {k: round(v, 2) if isinstance(v, float) else v for k, v in r.items()}
     finally:
         syn.release()
+
+
+def _timed(fn, ctx) -> float:
+    t = time.perf_counter()
+    fn()
+    ctx.finish()
+    return (time.perf_counter() - t) * 1000.0
+
+
+def _exact(vp, gpu: Gpu, an, params, controls: Controls, view: Rect) -> bool:
+    """The viewport's pixels (with sub-pixel remainders) equal a fresh synthesis with ``controls``."""
+    got = vp.pyramid.read(an.L, view, remainder=True)
+    fresh = Synthesizer(an, params, gpu=gpu, controls=controls)
+    try:
+        return bool(np.array_equal(got, fresh.window(view, remainder=True)))
+    finally:
+        fresh.release()
+
+
+def _stroke(view: Rect, k: int) -> tuple[float, float]:
+    return view.x0 + 100 + 14 * k, view.y0 + view.h / 2 + 40 * np.sin(k / 3)
+
+
+def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
+    """Texture by numbers: label 1 painted along a stroke over canvas labels of 0 (two labels proposed on
+    the exemplar), each dab until the view is exact."""
+    el = ExemplarLabels(propose_labels(an, 2).astype(np.uint8))
+    cl = CanvasLabels.from_image(np.zeros((view.h, view.w), np.uint8), view.x0, view.y0)
+    vp = Synthesizer(an, params, gpu=gpu, controls=Controls(labels_exemplar=el, labels_canvas=cl)).viewport()
+    try:
+        vp.show(view)
+        dabs = []
+        for k in range(4 if quick else 16):
+            new, _ = cl.painted(*_stroke(view, k), 24.0, 1)
+            dabs.append(_timed(lambda: (vp.pyramid.update_controls(
+                Controls(labels_exemplar=el, labels_canvas=new), [Rect(*c) for c in cl.changed_rects(new)]),
+                vp.show(view)), gpu.ctx))
+            cl = new
+        return dict(label_dab_ms=statistics.median(dabs),
+                    label_dab_exact=_exact(vp, gpu, an, params, Controls(labels_exemplar=el, labels_canvas=cl), view))
+    finally:
+        vp.release()
+        vp.synth.release()
+
+
+def _comb_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
+    """Direction fields: the comb (48 px, turning towards a new angle each dab) over an identity field."""
+    field = DirectionField.from_jacobians(np.broadcast_to(jacobian(0.0), (view.h, view.w, 4)).copy(),
+                                          view.x0, view.y0)
+    vp = Synthesizer(an, params, gpu=gpu, controls=Controls(direction=field)).viewport()
+    try:
+        vp.show(view)
+        dabs = []
+        for k in range(4 if quick else 16):
+            cx, cy = _stroke(view, k)
+            new, _ = field.edited(int(cx) - 24, int(cy) - 24, np.full((48, 48), 0.8), comb(20.0 * k))
+            dabs.append(_timed(lambda: (vp.pyramid.update_controls(
+                Controls(direction=new), [Rect(*c) for c in field.changed_rects(new)]), vp.show(view)), gpu.ctx))
+            field = new
+        return dict(comb_dab_ms=statistics.median(dabs),
+                    comb_dab_exact=_exact(vp, gpu, an, params, Controls(direction=field), view))
+    finally:
+        vp.release()
+        vp.synth.release()
 
 
 def run(out_dir: str, quick: bool, presets) -> dict:
@@ -143,12 +223,14 @@ def run(out_dir: str, quick: bool, presets) -> dict:
     with open(os.path.join(out_dir, "device.json"), "w") as f:
         json.dump(res, f, indent=1)
     print(f"renderer  {res['renderer']}")
-    print(f"{'preset':<10}{'full':>9}{'/Variety':>10}{'pan':>8}{'pan x':>7}{'view':>9}{'dab':>9}{'dab p90':>9}"
-          f"{'dab px':>9}  exact")
+    print(f"{'preset':<10}{'full':>9}{'/Variety':>10}{'pan':>8}{'pan x':>7}{'view':>9}{'jump':>9}{'release':>9}"
+          f"{'dab':>9}{'dab p90':>9}{'dab px':>9}{'label':>9}{'comb':>9}  exact")
     for k, r in res["presets"].items():
+        exact = r["dab_exact"] and r["label_dab_exact"] and r["comb_dab_exact"]
         print(f"{k:<10}{r['full_ms']:>7.1f}ms{r.get('over_variety', float('nan')):>9.2f}x{r['pan_ms']:>6.1f}ms"
-              f"{r['pan_speedup']:>6.1f}x{r['view_ms']:>7.1f}ms{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms"
-              f"{r['dab_px']:>9d}  {r['dab_exact']}")
+              f"{r['pan_speedup']:>6.1f}x{r['view_ms']:>7.1f}ms{r['jump_ms']:>7.1f}ms{r['release_ms']:>7.1f}ms"
+              f"{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms{r['dab_px']:>9d}{r['label_dab_ms']:>7.1f}ms"
+              f"{r['comb_dab_ms']:>7.1f}ms  {exact}")
     return res
 
 

@@ -11,7 +11,9 @@ def test_run_measures_exact_dabs_and_compare_finds_a_changed_window(tmp_path):
     res = json.loads((tmp_path / "device.json").read_text())
     assert set(res["presets"]) == {"Variety", "Balanced"}
     for r in res["presets"].values():
-        assert r["dab_exact"] is True  # painted in place == synthesized fresh with the final controls
+        # painted in place (randomness, labels, direction) == synthesized fresh with the final controls
+        assert r["dab_exact"] is True and r["label_dab_exact"] is True and r["comb_dab_exact"] is True
+        assert r["jump_ms"] > 0 and r["release_ms"] > 0
         assert r["full_ms"] > 0 and r["dab_px"] > 0
     # Balanced's stage reaches further than Variety's correction: a dab re-synthesizes more.
     assert res["presets"]["Balanced"]["dab_px"] > res["presets"]["Variety"]["dab_px"]
