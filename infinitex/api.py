@@ -142,8 +142,7 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
 
     ``exemplar``: an image path, a float array (H, W[, C]) in [0, 1], or an
     :class:`~infinitex.engine.exemplar.Exemplar`. ``randomness``: one r for
-    every level or one per level, coarse to fine (default 0.6; every structure
-    preset but Variety halves it on the 3 finest levels). ``controls``:
+    every level or one per level, coarse to fine (default 0.6). ``controls``:
     painted randomness and placed features (:class:`Controls`). ``lattice``:
     a :class:`Lattice`, ``"auto"`` (detected; no lattice mode when none is
     found) or None; with a lattice, ``geometry`` is ``"original"`` (the

@@ -157,20 +157,16 @@ class SynthParams:
 # the vote. The iterations go where they pay: on the coarser scales, which lay
 # out the elements, and which are small (a second iteration there, none on the
 # finest scale, is closer to the exemplar than one everywhere, in less time).
-# Each preset with the stage also calms the randomness of the STRUCTURE_FINE_LEVELS
-# finest levels (their jitter times the preset's last figure, on top of the
-# document's per-scale randomness): fine-level jitter breaks copies into seams
-# that the stage only moves, while the coarse levels' jitter, kept, is what
-# keeps the layout from repeating (measurements: docs/benchmarks.md).
+# (Less randomness on the fine levels was measured too and did not help; the
+# measurements: docs/benchmarks.md.)
 STRUCTURE_NAMES = ("Variety", "Light", "Balanced", "Strong", "Maximum")
 STRUCTURE_LEVELS = len(STRUCTURE_NAMES)
-STRUCTURE_FINE_LEVELS = 3
 STRUCTURE_PRESETS = (
-    ((), FIDELITY_RADIUS, False, 1.0),
-    ((0, 1, 1, 2), 2, True, 0.5),
-    ((0, 1, 1, 2), 3, True, 0.5),
-    ((1, 2), 3, True, 0.5),
-    ((3,), 5, True, 0.5),
+    ((), FIDELITY_RADIUS, False),
+    ((0, 1, 1, 2), 2, True),
+    ((0, 1, 1, 2), 3, True),
+    ((1, 2), 3, True),
+    ((3,), 5, True),
 )
 DEFAULT_STRUCTURE = 2
 
@@ -195,14 +191,13 @@ def structure_params(params: SynthParams, structure: int) -> SynthParams:
     if not 0 <= int(structure) < STRUCTURE_LEVELS:
         raise ValueError(f"Structure must be from 0 ({STRUCTURE_NAMES[0]}) to {STRUCTURE_LEVELS - 1} "
                          f"({STRUCTURE_NAMES[-1]}).")
-    counts, radius, vote, fine = STRUCTURE_PRESETS[int(structure)]
+    counts, radius, vote = STRUCTURE_PRESETS[int(structure)]
     if not counts:
         return params
     L = params.L
     fid = tuple(counts[min(L - l, len(counts) - 1)] if l >= min(FIRST_CORRECTED_LEVEL, L) else 0
                 for l in range(L + 1))
-    jitter = tuple(j * fine if l > L - STRUCTURE_FINE_LEVELS else j for l, j in enumerate(params.jitter))
-    return replace(params, jitter=jitter, fidelity=fid, fidelity_radius=radius, fidelity_vote=vote)
+    return replace(params, fidelity=fid, fidelity_radius=radius, fidelity_vote=vote)
 
 
 def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:

@@ -8,13 +8,7 @@ from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
 
-from infinitex.engine.params import (
-    DEFAULT_JITTER,
-    DEFAULT_STRUCTURE,
-    STRUCTURE_FINE_LEVELS,
-    STRUCTURE_LEVELS,
-    STRUCTURE_NAMES,
-)
+from infinitex.engine.params import DEFAULT_JITTER, DEFAULT_STRUCTURE, STRUCTURE_LEVELS, STRUCTURE_NAMES
 
 from .widgets import tip
 
@@ -33,8 +27,7 @@ def draw(p: Panels) -> None:
     tip("How hard the synthesis keeps the exemplar's elements whole. Toward Variety: every pixel is "
         "chosen on its own, the most variety, but strands, cell walls, letters and bricks may break. "
         "Toward Maximum: whole patches are matched and their seams moved to where they show least, so "
-        "elements come out whole; more copied, slower to settle. Every setting but Variety also halves "
-        f"the randomness of the {STRUCTURE_FINE_LEVELS} finest scales below (on top of their sliders). "
+        "elements come out whole; more copied, slower to settle. "
         f"Default {STRUCTURE_NAMES[DEFAULT_STRUCTURE]} (fidelity stage: patch optimization)")
     if changed:
         ed.edit(replace(ed.doc, structure=int(v)), "Structure", group="structure")
@@ -51,10 +44,8 @@ def draw(p: Panels) -> None:
     for l in range(L + 1):
         size = 1 << (L - l)
         changed, v = imgui.slider_float(f"{size} px##jit{l}", jit[l], 0.0, 1.0, "%.2f")
-        calmed = (f"; Structure {STRUCTURE_NAMES[doc.structure]} halves it here"
-                  if doc.structure > 0 and l > L - STRUCTURE_FINE_LEVELS else "")
         tip(f"How much features about {size} px across are moved: 0 keeps the exemplar's arrangement "
-            f"at this scale, 1 moves them up to their own size (level {l}, jitter r_{l}{calmed})")
+            f"at this scale, 1 moves them up to their own size (level {l}, jitter r_{l})")
         if changed:
             ed.edit(ed.doc.with_jitter(L, l, v), f"Randomness of level {l}", group=("jitter", l))
         if imgui.is_item_deactivated():
