@@ -42,6 +42,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from bench.speed import timed  # noqa: E402
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.controls import CanvasField, Controls  # noqa: E402
 from infinitex.engine.controls.direction import DirectionField, comb, jacobian  # noqa: E402
@@ -73,16 +74,6 @@ def identity_windows(gpu: Gpu, presets, n: int, tile: int) -> dict[str, np.ndarr
     return out
 
 
-def _median_ms(fn, runs: int, ctx) -> float:
-    ts = []
-    for i in range(runs):
-        t = time.perf_counter()
-        fn(i)
-        ctx.finish()
-        ts.append((time.perf_counter() - t) * 1000.0)
-    return statistics.median(ts)
-
-
 def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
     params = structure_params(SynthParams.default(an.L), s)
     ctx = gpu.ctx
@@ -90,38 +81,25 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
     try:
         syn.window(Rect.of(0, 0, 64, 64))  # compile shaders
         n = 256 if quick else 512
-        r = {"full_ms": _median_ms(lambda i: syn.window(Rect.of(1000 * i + 7, -777 * i, n, n)),
-                                   3 if quick else 7, ctx)}
+        r = {"full_ms": timed(lambda i: _timed(lambda: syn.window(Rect.of(1000 * i + 7, -777 * i, n, n)), ctx),
+                              3 if quick else 7)}
         vp = syn.viewport()
-        vp.show(Rect.of(0, 0, n, n))
-        ctx.finish()
-        frames = []
-        for f in range(1, 17 if quick else 65):
-            t = time.perf_counter()
-            vp.show(Rect.of(8 * f, 3 * f, n, n))
-            ctx.finish()
-            frames.append((time.perf_counter() - t) * 1000.0)
+        _timed(lambda: vp.show(Rect.of(0, 0, n, n)), ctx)
+        r["pan_ms"] = statistics.mean(_timed(lambda: vp.show(Rect.of(8 * f, 3 * f, n, n)), ctx)
+                                      for f in range(1, 17 if quick else 65))
         vp.release()
-        r["pan_ms"] = statistics.mean(frames)
         w, h = (512, 384) if quick else (1024, 768)
         view = Rect.of(-300, 200, w, h)
         vp = syn.viewport()
-        t = time.perf_counter()
-        vp.show(view)
-        ctx.finish()
-        r["view_ms"] = (time.perf_counter() - t) * 1000.0
-        field, dabs, px = CanvasField(), [], []
-        for k in range(8 if quick else 32):
-            # A stroke across the view, calm then rough every 8 dabs.
-            field, rect = field.painted(*_stroke(view, k), 24.0, 65535 if (k // 8) % 2 == 0 else 0)
-            t = time.perf_counter()
-            px.append(vp.pyramid.update_controls(Controls(randomness_canvas=field), [Rect(*rect)]))
-            vp.show(view)
-            ctx.finish()
-            dabs.append((time.perf_counter() - t) * 1000.0)
+        r["view_ms"] = _timed(lambda: vp.show(view), ctx)
+        # A stroke across the view, calm then rough every 8 dabs.
+        def paint(f, k, c):
+            new, box = f.painted(c[0], c[1], 24.0, 65535 if (k // 8) % 2 == 0 else 0)
+            return new, [box]
+        dabs, controls, px = _stroke_dabs(vp, view, 8 if quick else 32, CanvasField(), paint,
+                                          lambda f: Controls(randomness_canvas=f))
         r.update(dab_ms=statistics.median(dabs), dab_p90_ms=float(np.percentile(dabs, 90)),
-                 dab_px=int(statistics.median(px)),
-                 dab_exact=_exact(vp, gpu, an, params, Controls(randomness_canvas=field), view))
+                 dab_px=int(statistics.median(px)), dab_exact=_exact(vp, gpu, an, params, controls, view))
         # The whole view replaced: a 4,500 px jump, then a randomness slider released.
         jumps, releases = [], []
         for k in range(3):
@@ -130,8 +108,8 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
         for k in range(3):
             j = list(params.jitter)
             j[an.L - 2 - k] = 0.2 + 0.1 * k
-            jumps_params = replace(params, jitter=tuple(j))
-            releases.append(_timed(lambda: (vp.set_params(jumps_params), vp.show(view)), ctx))
+            released = replace(params, jitter=tuple(j))
+            releases.append(_timed(lambda: (vp.set_params(released), vp.show(view)), ctx))
         vp.release()
         r.update(jump_ms=statistics.median(jumps), release_ms=statistics.median(releases))
         r.update(_label_dabs(gpu, an, params, view, quick))
@@ -162,23 +140,38 @@ def _stroke(view: Rect, k: int) -> tuple[float, float]:
     return view.x0 + 100 + 14 * k, view.y0 + view.h / 2 + 40 * np.sin(k / 3)
 
 
+def _stroke_dabs(vp, view: Rect, count: int, field, dab, controls_of):
+    """``count`` dabs along a stroke, each a local update of ``vp`` until ``view`` is
+    exact: ``dab(field, k, centre) -> (new field, changed (x0, y0, x1, y1) boxes)``,
+    ``controls_of(field)`` the controls. Returns (ms per dab, the final controls,
+    level pixels per dab)."""
+    times, px = [], []
+    for k in range(count):
+        new, boxes = dab(field, k, _stroke(view, k))
+        t = time.perf_counter()
+        px.append(vp.pyramid.update_controls(controls_of(new), [Rect(*b) for b in boxes]))
+        vp.show(view)
+        vp.synth.gpu.ctx.finish()
+        times.append((time.perf_counter() - t) * 1000.0)
+        field = new
+    return times, controls_of(field), px
+
+
 def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
     """Texture by numbers: label 1 painted along a stroke over canvas labels of 0 (two labels proposed on
     the exemplar), each dab until the view is exact."""
     el = ExemplarLabels(propose_labels(an, 2).astype(np.uint8))
     cl = CanvasLabels.from_image(np.zeros((view.h, view.w), np.uint8), view.x0, view.y0)
-    vp = Synthesizer(an, params, gpu=gpu, controls=Controls(labels_exemplar=el, labels_canvas=cl)).viewport()
+    def controls_of(c):
+        return Controls(labels_exemplar=el, labels_canvas=c)
+    vp = Synthesizer(an, params, gpu=gpu, controls=controls_of(cl)).viewport()
     try:
         vp.show(view)
-        dabs = []
-        for k in range(4 if quick else 16):
-            new, _ = cl.painted(*_stroke(view, k), 24.0, 1)
-            dabs.append(_timed(lambda: (vp.pyramid.update_controls(
-                Controls(labels_exemplar=el, labels_canvas=new), [Rect(*c) for c in cl.changed_rects(new)]),
-                vp.show(view)), gpu.ctx))
-            cl = new
-        return dict(label_dab_ms=statistics.median(dabs),
-                    label_dab_exact=_exact(vp, gpu, an, params, Controls(labels_exemplar=el, labels_canvas=cl), view))
+        def paint(f, k, c):
+            new, _ = f.painted(c[0], c[1], 24.0, 1)
+            return new, f.changed_rects(new)
+        dabs, final, _ = _stroke_dabs(vp, view, 4 if quick else 16, cl, paint, controls_of)
+        return dict(label_dab_ms=statistics.median(dabs), label_dab_exact=_exact(vp, gpu, an, params, final, view))
     finally:
         vp.release()
         vp.synth.release()
@@ -191,15 +184,11 @@ def _comb_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
     vp = Synthesizer(an, params, gpu=gpu, controls=Controls(direction=field)).viewport()
     try:
         vp.show(view)
-        dabs = []
-        for k in range(4 if quick else 16):
-            cx, cy = _stroke(view, k)
-            new, _ = field.edited(int(cx) - 24, int(cy) - 24, np.full((48, 48), 0.8), comb(20.0 * k))
-            dabs.append(_timed(lambda: (vp.pyramid.update_controls(
-                Controls(direction=new), [Rect(*c) for c in field.changed_rects(new)]), vp.show(view)), gpu.ctx))
-            field = new
-        return dict(comb_dab_ms=statistics.median(dabs),
-                    comb_dab_exact=_exact(vp, gpu, an, params, Controls(direction=field), view))
+        def brush(f, k, c):
+            new, _ = f.edited(int(c[0]) - 24, int(c[1]) - 24, np.full((48, 48), 0.8), comb(20.0 * k))
+            return new, f.changed_rects(new)
+        dabs, final, _ = _stroke_dabs(vp, view, 4 if quick else 16, field, brush, lambda f: Controls(direction=f))
+        return dict(comb_dab_ms=statistics.median(dabs), comb_dab_exact=_exact(vp, gpu, an, params, final, view))
     finally:
         vp.release()
         vp.synth.release()
