@@ -12,4 +12,6 @@ if [ "${1:-}" = "--fast" ]; then
   shift
   args=(-m "not gui and not slow")
 fi
-exec .venv/bin/python -m pytest -q ${args[@]+"${args[@]}"} "$@"
+# In parallel processes, one per core (pytest-xdist; the long tests start first,
+# tests/conftest.py), idle ones taking work from busy ones. `-n 0` runs in one process.
+exec .venv/bin/python -m pytest -q -n auto --dist worksteal ${args[@]+"${args[@]}"} "$@"

@@ -1,4 +1,7 @@
 import os
+import select
+import shutil
+import subprocess
 import sys
 import tempfile
 
@@ -8,8 +11,15 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-# A private analysis cache per test session: tests never see a stale one.
-os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
+# A private analysis cache per test run: tests never see a stale one. The
+# workers of one parallel run (pytest-xdist) share it, so each analysis is made
+# once per run (cache files are written atomically, so concurrent writers are safe).
+_RUN = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+if _RUN:
+    os.environ["INFINITEX_CACHE"] = os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{_RUN}")
+    os.makedirs(os.environ["INFINITEX_CACHE"], exist_ok=True)
+else:
+    os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 
@@ -66,3 +76,45 @@ def analyses(gravel, toroidal_ex):
         "torus-appearance": analyze(toroidal_ex, AnalysisSettings(model="appearance")),
         "torus-color-k3": analyze(toroidal_ex, AnalysisSettings(model="color", k=3)),
     }
+
+
+@pytest.fixture
+def xdisplay():
+    """A virtual X display of its own (Xvfb, 1280x800x24) for a test that runs the
+    real editor: ":N", N chosen by the server (-displayfd), so tests in parallel
+    processes never race for a number (xvfb-run -a can); started per test (0.2 s)
+    so no key or button a driver left pressed reaches the next one."""
+    if os.environ.get("INFINITEX_SKIP_GUI"):
+        pytest.skip("INFINITEX_SKIP_GUI is set")
+    exe = shutil.which("Xvfb")
+    assert exe, "Xvfb is missing: run scripts/setup.sh (Debian packages xvfb, xauth)"
+    r, w = os.pipe()
+    proc = subprocess.Popen([exe, "-displayfd", str(w), "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(w)
+    number = b""
+    try:
+        while not number.endswith(b"\n"):
+            ready, _, _ = select.select([r], [], [], 30.0)
+            chunk = os.read(r, 16) if ready else b""
+            assert chunk, "Xvfb did not start"
+            number += chunk
+    finally:
+        os.close(r)
+    try:
+        yield ":" + number.decode().strip()
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def pytest_collection_modifyitems(config, items):
+    """The long tests (GUI drivers, then those marked slow) first: in a parallel
+    run (pytest-xdist) they start at once instead of ending the run alone."""
+    def rank(item):
+        return 0 if item.get_closest_marker("gui") else 1 if item.get_closest_marker("slow") else 2
+    items.sort(key=rank)  # stable: the collection order within each rank

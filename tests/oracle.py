@@ -341,33 +341,37 @@ def apply_features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params:
 
 def _features(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,
               controls: Controls, hit: np.ndarray | None) -> np.ndarray:
-    from fractions import Fraction
+    """Every feature tested at every pixel of the window, in exact rationals
+    written as integers in 1/16 level pixels (the common denominator of the
+    floored radius and centre, 1/16, and of a pixel centre, 1/2): a pixel is
+    inside when |e|^2 <= r^2, e = pixel centre - feature centre."""
     L, m, h = an.L, an.size, an.h(level)
     k = L - level
     n = params.level_period(level)
     H, W = S.shape[:2]
+    gy, gx = np.mgrid[origin[1]:origin[1] + H, origin[0]:origin[0] + W].astype(np.int64)
     out = S.copy()
     for f in controls.features:
         a, b = f.level_range(L)
         if not a <= level <= b:
             continue
         f = f.clamped(m, an.toroidal)
-        r = Fraction(f.radius_at(level, L) * 16 // (1 << k), 16)  # the radius in 1/16 level pixels, floored
-        cx, cy = Fraction(f.canvas[0] * 16 // (1 << k), 16), Fraction(f.canvas[1] * 16 // (1 << k), 16)
+        r16 = f.radius_at(level, L) * 16 // (1 << k)  # the radius in 1/16 level pixels, floored
+        cx16, cy16 = f.canvas[0] * 16 // (1 << k), f.canvas[1] * 16 // (1 << k)
         pfx, pfy = f.canvas[0] >> k, f.canvas[1] >> k
-        for yy in range(H):
-            gy = origin[1] + yy
-            for xx in range(W):
-                gx = origin[0] + xx
-                dx, dy = gx - pfx, gy - pfy
-                ex, ey = Fraction(2 * gx + 1, 2) - cx, Fraction(2 * gy + 1, 2) - cy
-                if n:
-                    dx, dy = ((dx + n // 2) % n) - n // 2, ((dy + n // 2) % n) - n // 2
-                    ex, ey = ex - (gx - pfx - dx), ey - (gy - pfy - dy)
-                if ex * ex + ey * ey <= r * r:
-                    out[yy, xx] = ((f.exemplar[0] + h * dx) % m, (f.exemplar[1] + h * dy) % m)
-                    if hit is not None:
-                        hit[yy, xx] = True
+        dx, dy = gx - pfx, gy - pfy
+        ex, ey = 8 * (2 * gx + 1) - cx16, 8 * (2 * gy + 1) - cy16
+        if n:
+            wx, wy = ((dx + n // 2) % n) - n // 2, ((dy + n // 2) % n) - n // 2
+            ex, ey = ex - 16 * (dx - wx), ey - 16 * (dy - wy)
+            dx, dy = wx, wy
+        # |e| > r on one axis is outside: clamp there so the squares stay small (exact).
+        ex, ey = np.clip(ex, -r16 - 1, r16 + 1), np.clip(ey, -r16 - 1, r16 + 1)
+        inside = ex * ex + ey * ey <= r16 * r16
+        out[inside, 0] = np.mod(f.exemplar[0] + h * dx[inside], m)
+        out[inside, 1] = np.mod(f.exemplar[1] + h * dy[inside], m)
+        if hit is not None:
+            hit |= inside
     return out
 
 
@@ -659,10 +663,9 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
         return S[state_texel(ys, xs, dx, dy, H, W, links, origin)].astype(np.int64)
 
     patch = [(dx, dy) for dy in range(-R, R + 1) for dx in range(-R, R + 1) if (dx, dy) != (0, 0)]
-    nb = {}
-    for d in patch:
-        u = s_at(*d)
-        nb[d] = E[u[:, 1], u[:, 0]]
+    # The patch's colors around p, (N, taps, channels): a candidate's cost is the
+    # sum over every tap (integers: the order of the sum does not matter).
+    nb = np.stack([E[u[:, 1], u[:, 0]] for u in (s_at(*d) for d in patch)], axis=1).astype(np.int32)
     one, border, inside, texel = _fidelity_space(an, level, direct)
 
     def offset(dx, dy):  # h d, or h J d in 1/256 px (floored)
@@ -670,6 +673,8 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
             return np.stack(_jd(J, dx, dy, h), axis=1)
         return h * np.array([dx, dy])
 
+    Eflat = E.reshape(m * m, -1).astype(np.int32)  # colors in [0, 255]: a patch's sum fits 32 bits
+    offsets = np.stack([np.broadcast_to(offset(*d), (len(ys), 2)) for d in patch], axis=1)  # (N, taps, 2)
     labels = label_terms(controls, an, params, level, xs, ys, origin, True)
 
     def cost(u):
@@ -678,13 +683,12 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
         ut = texel(u)
         if labels is not None:
             c += label_cost(labels[0], labels[1][ut[:, 1], ut[:, 0]], labels[2])
-        for dx, dy in patch:
-            t = u + offset(dx, dy)
-            if direct:
-                t = _q8_nearest(t)
-            t = (t & (m - 1)) if border < 0 else np.clip(t, 0, m - 1)
-            e = nb[(dx, dy)] - E[t[:, 1], t[:, 0]]
-            c += (e * e).sum(axis=1)
+        t = u[:, None, :] + offsets
+        if direct:
+            t = _q8_nearest(t)
+        t = (t & (m - 1)) if border < 0 else np.clip(t, 0, m - 1)
+        e = nb - Eflat[t[..., 1] * m + t[..., 0]]
+        c += (e * e).sum(axis=(1, 2), dtype=np.int64)
         if controls.avoid is not None:
             c = np.where(controls.avoid.values[ut[:, 1], ut[:, 0]] != 0, fixed.AVOIDED, c)
         return c
@@ -755,6 +759,9 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
         return label_cost(labels[0], labels[1][ut[:, 1], ut[:, 0]], labels[2])
 
     base = label_of(self_u) if labels is not None else None
+    def key(u):  # one integer per prediction (x, y): y and x are under 2^31 in magnitude
+        return (u[..., 0] << 32) + u[..., 1]
+    PW = np.stack([key(P[e]) for e in window])  # (window, N): the predictions that vote
     most = np.full(len(ys), -1, np.int64)
     best_u = self_u.copy()
     for d in [(0, 0)] + [(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dx, dy) != (0, 0)]:
@@ -766,7 +773,7 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
             ok &= controls.avoid.values[ut[:, 1], ut[:, 0]] == 0
         if labels is not None:
             ok &= label_of(safe) <= base
-        votes = sum(np.all(P[e] == u, axis=1).astype(np.int64) for e in window)
+        votes = (PW == key(u)).sum(axis=0)
         better = ok & (votes > most)
         most = np.where(better, votes, most)
         best_u = np.where(better[:, None], u, best_u)

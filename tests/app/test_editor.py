@@ -1,7 +1,8 @@
 """The real editor, driven by the imgui test engine under Xvfb (tests/app/gui_driver.py).
 
-Needs xvfb-run (scripts/setup.sh installs xvfb and xauth). Set
-INFINITEX_SKIP_GUI=1 to skip on a machine without it; CI never sets it.
+Each test gets an Xvfb display of its own (the ``xdisplay`` fixture of
+tests/conftest.py; scripts/setup.sh installs xvfb). Set INFINITEX_SKIP_GUI=1
+to skip on a machine without it; CI never sets it.
 """
 import os
 import shutil
@@ -16,24 +17,16 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 
 
-def _xvfb():
-    if os.environ.get("INFINITEX_SKIP_GUI"):
-        pytest.skip("INFINITEX_SKIP_GUI is set")
-    path = shutil.which("xvfb-run")
-    assert path, "xvfb-run is missing: run scripts/setup.sh (Debian packages xvfb, xauth)"
-    return path
+def _run(args, tmp_path, display: str, timeout=600):
+    env = dict(os.environ, DISPLAY=display, INFINITEX_STATE=str(tmp_path / "state"), INFINITEX_NO_NATIVE_DIALOGS="1")
+    env.pop("WAYLAND_DISPLAY", None)
+    return subprocess.run([sys.executable, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
 
 
-def _run(args, tmp_path, timeout=600):
-    env = dict(os.environ, INFINITEX_STATE=str(tmp_path / "state"), INFINITEX_NO_NATIVE_DIALOGS="1")
-    return subprocess.run([_xvfb(), "-a", "-s", "-screen 0 1280x800x24", sys.executable, *args],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
-
-
-def _drive(script: str, tmp_path, min_checks: int, *args: str) -> None:
+def _drive(script: str, tmp_path, display: str, min_checks: int, *args: str) -> None:
     """Run a GUI driver (tests/app/gui_*.py, see tests/app/gui_harness.py) and require
     every one of its checks, at least ``min_checks`` of them, to pass."""
-    proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path)
+    proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path, display)
     report_path = tmp_path / "report.txt"
     if not report_path.exists() and "CrashHandler" in proc.stdout + proc.stderr:
         # The imgui test engine itself aborted before any check was written (seen
@@ -43,7 +36,7 @@ def _drive(script: str, tmp_path, min_checks: int, *args: str) -> None:
         print(proc.stdout[-2000:] + proc.stderr[-2000:], file=sys.stderr)
         for entry in tmp_path.iterdir():
             shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
-        proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path)
+        proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path, display)
     assert report_path.exists(), proc.stdout[-3000:] + proc.stderr[-3000:]
     report = report_path.read_text().splitlines()
     failures = [r for r in report if not r.startswith("ok")]
@@ -51,34 +44,34 @@ def _drive(script: str, tmp_path, min_checks: int, *args: str) -> None:
     assert proc.returncode == 0
 
 
-def test_editor_driven_by_the_test_engine(tmp_path):
+def test_editor_driven_by_the_test_engine(tmp_path, xdisplay):
     """Sliders, undo/redo, pan, zoom, Save As, reopen, exports, painting,
     avoided exemplar regions, features, broken and outside projects, quitting
     (tests/app/gui_driver.py)."""
-    _drive("gui_driver.py", tmp_path, 40)
+    _drive("gui_driver.py", tmp_path, xdisplay, 40)
 
 
-def test_fast_input_is_never_lost(tmp_path):
+def test_fast_input_is_never_lost(tmp_path, xdisplay):
     """Real X events (XTest) sent to the editor as a user's hand sends them,
     after it has gone idle: a 750 px flick released at once pans exactly 750 px,
     a 10 ms Ctrl+O opens the file chooser (Escape closes it), Escape closes an
     open menu and the next tool key chooses the tool; three rounds
     (tests/app/gui_fast_input.py; the issue's target, 20 rounds, is run by hand)."""
-    _drive("gui_fast_input.py", tmp_path, 15, "3")
+    _drive("gui_fast_input.py", tmp_path, xdisplay, 15, "3")
 
 
-def test_lattice_tool_driven_by_the_test_engine(tmp_path):
+def test_lattice_tool_driven_by_the_test_engine(tmp_path, xdisplay):
     """Auto-detect places the handles on generated bricks; dragging a handle
     changes the rectified preview; undo restores it (tests/app/gui_lattice.py)."""
-    _drive("gui_lattice.py", tmp_path, 12)
+    _drive("gui_lattice.py", tmp_path, xdisplay, 12)
 
 
-def test_everyday_use_driven_by_the_test_engine(tmp_path):
+def test_everyday_use_driven_by_the_test_engine(tmp_path, xdisplay):
     """Advanced collapsed with explained controls, passes per scale (one undo step),
     zoom keys, F1, tile mode,
     Open Recent, images as new documents, Make tileable, the title, Save before losing edits,
     the in-window file browser, the export notice (tests/app/gui_everyday.py)."""
-    _drive("gui_everyday.py", tmp_path, 30)
+    _drive("gui_everyday.py", tmp_path, xdisplay, 30)
     # On exit the editor kept the window size, the open side-panel sections and
     # the recent files for the next run.
     import json
@@ -87,7 +80,7 @@ def test_everyday_use_driven_by_the_test_engine(tmp_path):
     assert "Advanced" not in saved["panels"]  # opened, then closed again by the test
 
 
-def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
+def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     """The Export panel's formats and estimate; a BigTIFF by worker processes
     while the editor draws; a tile set cancelled, then resumed
     (tests/app/gui_export.py). The files equal the one-piece render."""
@@ -102,7 +95,7 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     from infinitex.engine.synth import Synthesizer
     from infinitex.export import read_tiles
     from infinitex.project import Document, ExemplarSource
-    _drive("gui_export.py", tmp_path, 10)
+    _drive("gui_export.py", tmp_path, xdisplay, 10)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     an = analyze(load_exemplar(gravel))
     synth = Synthesizer(an, Document(ExemplarSource.from_file(gravel)).params(an.L), gpu=gpu)  # the editor's
@@ -113,28 +106,28 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu):
     assert np.array_equal(read_tiles(str(tmp_path / "set.png"), w, h, 256, 1), whole)
 
 
-def test_material_session_driven_by_the_test_engine(tmp_path):
+def test_material_session_driven_by_the_test_engine(tmp_path, xdisplay):
     """Open a material through the menu, reassign a role, switch the shown map,
     light it, export every map through the menu (tests/app/gui_material.py)."""
     import imagecodecs
     import numpy as np
-    _drive("gui_material.py", tmp_path, 9)
+    _drive("gui_material.py", tmp_path, xdisplay, 9)
     height = imagecodecs.png_decode((tmp_path / "view_height.png").read_bytes())
     normal = imagecodecs.png_decode((tmp_path / "view_normal.png").read_bytes())
     assert height.dtype == np.uint16 and height.ndim == 2 and len(np.unique(height)) > 256
     assert normal.dtype == np.uint16 and normal.shape[2] == 3
 
 
-def test_large_photo_driven_by_the_test_engine(tmp_path):
+def test_large_photo_driven_by_the_test_engine(tmp_path, xdisplay):
     """A large photo: Import up to 2048 px keeps 1024 px of it, analyzed in the
     background with the random-walk search; undo goes back (tests/app/gui_large.py)."""
-    _drive("gui_large.py", tmp_path, 7)
+    _drive("gui_large.py", tmp_path, xdisplay, 7)
 
 
-def test_screenshot_option_writes_the_window(tmp_path):
+def test_screenshot_option_writes_the_window(tmp_path, xdisplay):
     from PIL import Image
     out = tmp_path / "shot.png"
-    proc = _run(["main.py", "--screenshot", str(out), "--frames", "3"], tmp_path, timeout=300)
+    proc = _run(["main.py", "--screenshot", str(out), "--frames", "3"], tmp_path, xdisplay, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     img = Image.open(out)
     assert img.size == (1280, 800)
@@ -144,39 +137,39 @@ def test_screenshot_option_writes_the_window(tmp_path):
     assert canvas.std() > 10  # texture, not an empty canvas
 
 
-def test_bad_file_on_the_command_line_keeps_the_editor_running(tmp_path):
+def test_bad_file_on_the_command_line_keeps_the_editor_running(tmp_path, xdisplay):
     bad = tmp_path / "bad.png"
     bad.write_bytes(b"\x89PNG\r\n\x1a\n garbage")
     out = tmp_path / "shot.png"
-    proc = _run(["main.py", "--screenshot", str(out), "--frames", "3", str(bad)], tmp_path, timeout=300)
+    proc = _run(["main.py", "--screenshot", str(out), "--frames", "3", str(bad)], tmp_path, xdisplay, timeout=300)
     # The editor opens the default exemplar and shows the error in a dialog; the
     # dialog stays up, so the run ends by the frame cap with a screenshot.
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert out.exists()
 
 
-def test_texture_by_numbers_driven_by_the_test_engine(tmp_path):
+def test_texture_by_numbers_driven_by_the_test_engine(tmp_path, xdisplay):
     """The Labels tool: propose and import the exemplar's labels, a label stroke
     (the canvas follows it, near it only, one undo step), a fill, the
     exemplar's own labels painted; undo restores the canvas exactly
     (tests/app/gui_labels.py)."""
-    _drive("gui_labels.py", tmp_path, 19)
+    _drive("gui_labels.py", tmp_path, xdisplay, 19)
 
 
-def test_direction_tool_driven_by_the_test_engine(tmp_path):
+def test_direction_tool_driven_by_the_test_engine(tmp_path, xdisplay):
     """The Direction tool: a comb stroke (one undo step, the field and the
     bricks turn along it, the canvas changes near it only), Grow, a guide, a
     placed flow map, the overlay; undo restores the canvas exactly
     (tests/app/gui_direction.py)."""
-    _drive("gui_direction.py", tmp_path, 12)
+    _drive("gui_direction.py", tmp_path, xdisplay, 12)
 
 
-def test_model_view_driven_by_the_test_engine(tmp_path, gpu):
+def test_model_view_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     """Open a model, orbit, paint on it, place a feature on it, comb it, undo,
     export a GLB, close it (tests/app/gui_surface.py); the atlas the editor
     showed is the engine's for each project it saved (as opened, with the
     feature, combed)."""
-    _drive("gui_surface.py", tmp_path, 23)
+    _drive("gui_surface.py", tmp_path, xdisplay, 23)
     import numpy as np
 
     from infinitex.engine.analysis import analyze

@@ -2,10 +2,12 @@
 import json
 
 import numpy as np
+import pytest
 
 from bench import device
 
 
+@pytest.mark.slow
 def test_run_measures_exact_dabs_and_compare_finds_a_changed_window(tmp_path):
     device.run(str(tmp_path), quick=True, presets=[0, 2])
     res = json.loads((tmp_path / "device.json").read_text())

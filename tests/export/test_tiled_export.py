@@ -29,12 +29,12 @@ def synth(gpu):
 
 
 @pytest.mark.slow
-def test_4096_tiles_and_bigtiff_equal_the_one_piece_render(synth, tmp_path):
-    rect = Rect.of(-1000, 30_000, 4096, 4096)
+def test_tiles_and_bigtiff_equal_the_one_piece_render(synth, tmp_path):
+    rect = Rect.of(-1000, 30_000, 2048, 2048)  # 4 x 4 tiles of each size (UDIM 1001 to 1034)
     whole = to_u8(synth.colors(synth.window(rect)))
-    TiledExport(synth, rect, str(tmp_path / "set.png"), "tiles", 1024, key="k").run()
+    TiledExport(synth, rect, str(tmp_path / "set.png"), "tiles", 512, key="k").run()
     assert os.path.isfile(tmp_path / "set.1001.png") and os.path.isfile(tmp_path / "set.1034.png")
-    assert np.array_equal(read_tiles(str(tmp_path / "set.png"), 4096, 4096, 1024, 1), whole)
+    assert np.array_equal(read_tiles(str(tmp_path / "set.png"), 2048, 2048, 512, 1), whole)
     TiledExport(synth, rect, str(tmp_path / "big.tif"), "tiff", 512, key="k").run()
     with tifffile.TiffFile(tmp_path / "big.tif") as tf:
         page = tf.pages[0]
@@ -80,7 +80,7 @@ def test_interrupted_export_resumes_with_the_missing_tiles_only(synth, tmp_path)
 def test_killed_cli_export_finishes_identically_when_run_again(tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "-o", str(tmp_path / "k.tif"),
-            "--format", "tiff", "--rect", "0", "0", "2048", "2048", "--tile", "256", "-q"]
+            "--format", "tiff", "--rect", "0", "0", "2048", "2048", "--tile", "256", "--fidelity", "variety", "-q"]
     proc = subprocess.Popen(args, env=env, stderr=subprocess.PIPE)
     manifest = tmp_path / "k.tif.parts" / "manifest.jsonl"
     deadline = time.monotonic() + 240
@@ -151,7 +151,7 @@ def _children(pid: int) -> list[int]:
 def test_worker_processes_give_the_same_bytes_and_survive_a_killed_worker(tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     base = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiles",
-            "--rect", "-500", "300", "1536", "1536", "--tile", "256", "-q"]
+            "--rect", "-500", "300", "1536", "1536", "--tile", "256", "--fidelity", "variety", "-q"]
     one = subprocess.run([*base, "-o", str(tmp_path / "one.png")], env=env, capture_output=True, text=True,
                          timeout=600)
     assert one.returncode == 0, one.stderr[-2000:]
@@ -252,9 +252,9 @@ def _dask_workers(pid: int) -> list[int]:
 @pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_bytes_and_survives_a_killed_worker(synth, tmp_path):
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
-    rect = Rect.of(-2048, 1000, 4096, 4096)
+    rect = Rect.of(-2048, 1000, 2048, 2048)
     args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiff",
-            "--rect", str(rect.x0), str(rect.y0), "4096", "4096", "--tile", "512",
+            "--rect", str(rect.x0), str(rect.y0), "2048", "2048", "--tile", "256",
             "--scheduler", "--workers", "2", "--fidelity", "variety", "-o", str(tmp_path / "d.tif")]  # as `synth`
     proc = subprocess.Popen(args, env=env, stderr=subprocess.PIPE)
     manifest = tmp_path / "d.tif.parts" / "manifest.jsonl"
@@ -290,7 +290,8 @@ def test_peak_memory_does_not_grow_with_the_export_size(tmp_path):
 
     def args(n):
         return [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "--format", "tiff",
-                "--rect", "0", "0", str(n), str(n), "--tile", "256", "-q", "-o", str(tmp_path / f"m{n}.tif")]
+                "--rect", "0", "0", str(n), str(n), "--tile", "256", "--fidelity", "variety", "-q",
+                "-o", str(tmp_path / f"m{n}.tif")]
     small = _peak_rss_kb(args(512), env)
     large = _peak_rss_kb(args(4096), env)  # 64 times the pixels (16 MB as one uint8 image)
     assert large < small * 1.15 + 20_000, (small, large)
