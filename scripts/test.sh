@@ -12,6 +12,6 @@ if [ "${1:-}" = "--fast" ]; then
   shift
   args=(-m "not gui and not slow")
 fi
-# In parallel processes, one per core (pytest-xdist; the long tests start first,
-# tests/conftest.py), idle ones taking work from busy ones. `-n 0` runs in one process.
-exec .venv/bin/python -m pytest -q -n auto --dist worksteal ${args[@]+"${args[@]}"} "$@"
+# In parallel processes, one per core (pytest-xdist; the long tests are handed out first,
+# tests/conftest.py, then the rest to whichever is free). `-n 0` runs in one process.
+exec .venv/bin/python -m pytest -q -n auto --dist load ${args[@]+"${args[@]}"} "$@"

@@ -4,6 +4,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 import numpy as np
 import pytest
@@ -118,3 +119,25 @@ def pytest_collection_modifyitems(config, items):
     def rank(item):
         return 0 if item.get_closest_marker("gui") else 1 if item.get_closest_marker("slow") else 2
     items.sort(key=rank)  # stable: the collection order within each rank
+
+
+# The suite's time budgets on 2 cores with llvmpipe (docs/testing.md): a run over
+# its budget prints a warning (timing depends on the machine's load: it never fails).
+BUDGET_S = {"": 720.0, "not gui and not slow": 180.0}
+_T0 = pytest.StashKey[float]()
+
+
+def pytest_sessionstart(session):
+    session.config.stash[_T0] = time.monotonic()
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    whole = config.args_source == pytest.Config.ArgsSource.TESTPATHS and not config.getoption("keyword")
+    budget = BUDGET_S.get(config.getoption("markexpr") or "")
+    if hasattr(config, "workerinput") or not whole or budget is None or _T0 not in config.stash:
+        return
+    took = time.monotonic() - config.stash[_T0]
+    if took > budget:
+        terminalreporter.write_line(f"warning: the tests took {took:.0f} s, over their budget of {budget:.0f} s "
+                                    "on 2 cores (docs/testing.md: where the time goes)", yellow=True)
+
