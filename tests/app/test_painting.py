@@ -3,12 +3,11 @@ import base64
 import io
 import json
 import os
-import subprocess
-import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from clirun import infinitex
 from PIL import Image
 
 from infinitex.project import (
@@ -185,8 +184,7 @@ def test_cli_maps(tmp_path):
     Image.fromarray(cmap).save(tmp_path / "c.png")
 
     def run(*a):
-        return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), *a, "-q"], capture_output=True,
-                              text=True, timeout=300)
+        return infinitex(*a, "-q")  # in this process (tests/clirun.py)
     base = ["--size", "96", "80", "--origin", "-20", "-10"]
     assert run("synth", GRAVEL, "-o", str(tmp_path / "a.png"), *base).returncode == 0
     r = run("synth", GRAVEL, "-o", str(tmp_path / "b.png"), *base, "--randomness-canvas", str(tmp_path / "c.png"),

@@ -1,10 +1,9 @@
 """The synth command: outputs, coordinate maps, one-line errors."""
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from clirun import infinitex
 from PIL import Image
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -12,8 +11,7 @@ GRAVEL = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
 
 
 def run(*args):
-    return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), "synth", *args],
-                          capture_output=True, text=True, timeout=300)
+    return infinitex("synth", *args)  # in this process (tests/clirun.py)
 
 
 def test_synth_writes_image_and_coords(tmp_path):

@@ -2,8 +2,7 @@
 the engine's field of the same direction does; the map kinds and the Y
 convention; one-line errors; export of a project that carries a field."""
 import os
-import subprocess
-import sys
+from clirun import infinitex
 
 import numpy as np
 from PIL import Image
@@ -21,8 +20,7 @@ BRICK = os.path.join(ROOT, "infinitex", "assets", "brick.png")
 
 
 def run(cmd, *args):
-    return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), cmd, *args],
-                          capture_output=True, text=True, timeout=300)
+    return infinitex(cmd, *args)  # in this process (tests/clirun.py)
 
 
 def test_flow_map_turns_the_texture_like_the_engine_field(tmp_path):

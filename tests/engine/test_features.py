@@ -3,6 +3,7 @@ windows, local updates after edits, the exemplar border, the spatial index."""
 import numpy as np
 import oracle
 import pytest
+from clirun import infinitex
 
 from infinitex.engine.controls import Controls, Feature
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
@@ -163,8 +164,6 @@ def test_spatial_index_finds_exactly_the_features_that_reach_a_rectangle():
 def test_features_in_projects_and_on_the_command_line(tmp_path):
     import json
     import os
-    import subprocess
-    import sys
 
     from PIL import Image
 
@@ -188,8 +187,7 @@ def test_features_in_projects_and_on_the_command_line(tmp_path):
     fj.write_text(json.dumps([{"exemplar": [60, 40], "canvas": [20, 16], "radius": [12, 24], "levels": [0, 7]}]))
 
     def run(*a):
-        return subprocess.run([sys.executable, os.path.join(root, "main.py"), *a, "-q"], capture_output=True,
-                              text=True, timeout=300)
+        return infinitex(*a, "-q")  # in this process (tests/clirun.py)
     r = run("synth", gravel, "-o", str(tmp_path / "a.png"), "--size", "64", "48", "--features", str(fj))
     assert r.returncode == 0, r.stderr
     r = run("export", gravel, "-o", str(tmp_path / "b.png"), "--rect", "0", "0", "64", "48", "--features", str(fj))

@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import oracle
 import pytest
+from clirun import infinitex
 
 from infinitex.engine.controls import CanvasLabels, Controls, ExemplarLabels
 from infinitex.engine.controls.labels import mix_distance, pack_mix, top_two
@@ -203,17 +204,10 @@ def test_documents_and_projects_keep_the_labels(tmp_path):
 
 
 def test_both_commands_take_label_maps(tmp_path):
-    import os
-    import subprocess
-    import sys
-
     from PIL import Image
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     ex, labels, canvas = _two_textures(tmp_path)
 
-    def cli(*args):
-        return subprocess.run([sys.executable, os.path.join(root, "main.py"), *args], capture_output=True,
-                              text=True, timeout=300)
+    cli = infinitex  # in this process (tests/clirun.py)
     r = cli("synth", str(ex), "-o", str(tmp_path / "o.png"), "--size", "160", "96", "--coords",
             str(tmp_path / "c.npy"), "--labels-exemplar", str(labels), "--labels-canvas", str(canvas), "-q")
     assert r.returncode == 0, r.stderr

@@ -4,6 +4,7 @@ from dataclasses import replace
 import numpy as np
 import oracle
 import pytest
+from clirun import infinitex
 from lattice_gen import (
     bricks,
     lattice_error,
@@ -281,11 +282,8 @@ def test_lattice_controls_must_match_the_analysis(cases, gpu):
 
 def _cli(*args):
     import os
-    import subprocess
-    import sys
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    return subprocess.run([sys.executable, os.path.join(root, "main.py"), *args], capture_output=True,
-                          text=True, timeout=600, cwd=root)
+    return infinitex(*args, cwd=root)  # in this process (tests/clirun.py)
 
 
 @pytest.mark.slow

@@ -6,11 +6,10 @@ from __future__ import annotations
 import io
 import json
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from clirun import infinitex
 from PIL import Image
 
 from infinitex import ASSETS
@@ -151,9 +150,7 @@ def test_both_commands_take_a_palette(tmp_path):
         canvas[:, 64 * i:64 * (i + 1)] = colors[i]
     Image.fromarray(canvas).save(tmp_path / "canvas.png")
 
-    def cli(*args):
-        return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), *args], capture_output=True,
-                              text=True, timeout=300)
+    cli = infinitex  # in this process (tests/clirun.py)
     r = cli("synth", a, "--palette", pal, "--labels-canvas", str(tmp_path / "canvas.png"), "--size", "192", "64",
             "-o", str(tmp_path / "s.png"), "--coords", str(tmp_path / "c.npy"), "--fidelity", "0", "-q")
     assert r.returncode == 0, r.stderr

@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from clirun import infinitex
 from PIL import Image
 from scipy import ndimage
 
@@ -145,9 +144,7 @@ def test_documents_projects_and_commands_carry_it(tmp_path):
     with pytest.raises(Exception, match="make_tileable"):
         load_project(str(proj))
 
-    def cli(*args):
-        return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), *args],
-                              capture_output=True, text=True, timeout=300)
+    cli = infinitex  # in this process (tests/clirun.py)
     out = tmp_path / "o.png"
     r = cli("synth", str(path), "-o", str(out), "--size", "64", "64", "--make-tileable", "-q")
     assert r.returncode == 0, r.stderr

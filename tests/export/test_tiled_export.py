@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from clirun import infinitex
 import tifffile
 
 from infinitex.engine.analysis import analyze
@@ -107,8 +108,7 @@ def test_killed_cli_export_finishes_identically_when_run_again(tmp_path):
 @pytest.mark.slow
 def test_cli_refuses_bad_tiled_arguments(tmp_path):
     def run(*a):
-        return subprocess.run([sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, *a],
-                              capture_output=True, text=True, timeout=120)
+        return infinitex("export", GRAVEL, *a)  # in this process (tests/clirun.py)
     r = run("-o", str(tmp_path / "x.png"), "--format", "tiles", "--tile", "300")
     assert r.returncode == 2 and "--tile must be one of" in r.stderr
     r = run("-o", str(tmp_path / "x.png"), "--format", "tiff")
@@ -223,7 +223,7 @@ def test_a_failed_write_is_one_sentence_and_the_export_resumes(tmp_path):
     import resource
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "-o", str(tmp_path / "f.tif"),
-            "--format", "tiff", "--rect", "0", "0", "1024", "1024", "--tile", "256", "-q"]
+            "--format", "tiff", "--rect", "0", "0", "1024", "1024", "--tile", "256", "--fidelity", "variety", "-q"]
 
     def small_files():  # no file above 400 kB: the tiles fit, the assembled TIFF does not
         resource.setrlimit(resource.RLIMIT_FSIZE, (400_000, 400_000))

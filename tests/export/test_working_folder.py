@@ -373,7 +373,7 @@ def test_a_failed_assembly_names_the_output_not_the_parts_folder(tmp_path):
     import resource
     env = dict(os.environ, INFINITEX_CACHE=str(tmp_path / "cache"))
     args = [sys.executable, os.path.join(ROOT, "main.py"), "export", GRAVEL, "-o", str(tmp_path / "d.tif"),
-            "--format", "tiff", "--rect", "0", "0", "1024", "1024", "--tile", "256", "-q"]
+            "--format", "tiff", "--rect", "0", "0", "1024", "1024", "--tile", "256", "--fidelity", "variety", "-q"]
 
     def small_files():  # no file above 400 kB: the tiles fit, the assembled TIFF does not
         resource.setrlimit(resource.RLIMIT_FSIZE, (400_000, 400_000))
