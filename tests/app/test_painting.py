@@ -126,7 +126,7 @@ def test_session_paints_locally_and_matches_a_fresh_synthesis(doc, gpu, tmp_path
     d = doc
     field = CanvasField()
     pixels = []
-    for i in range(8):
+    for i in range(8 if structure == 0 else 4):  # at Balanced each dab re-synthesizes most of this view
         field, _ = field.painted(-100 + 25 * i, 10.0 + 3 * i, 24.0, 0)
         d = replace(d, randomness_canvas=field)
         s.sync(d)

@@ -208,6 +208,7 @@ def test_gl_matches_the_oracle_with_the_vote(analyses, gravel_k0, gpu, name, x, 
                               .window(Rect.of(x, y, 20, 16)))
 
 
+@pytest.mark.slow  # the oracle on a 3 x 3 grid: 10 s (its margins grow with the grid)
 def test_the_vote_matches_the_oracle_on_a_3x3_subpass_grid(analyses, gpu):
     an = analyses["gravel-color"]
     params = with_fidelity(an, seed=7, fidelity_vote=True, subgrid=3)
