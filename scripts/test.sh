@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Set up (if needed) and run the whole test suite.
-#   bash scripts/test.sh          everything (30 to 45 minutes on 2 cores with llvmpipe)
+#   bash scripts/test.sh          everything (about 11 minutes on 2 cores with llvmpipe)
 #   bash scripts/test.sh --fast   the edit-test loop: all but the GUI drivers (-m gui) and the
-#                                 long tests (-m slow), about 6 minutes
+#                                 long tests (-m slow), about 3 minutes
 # Other arguments go to pytest (e.g. tests/engine, -k lattice, -x).
 set -euo pipefail
 cd "$(dirname "$0")/.."
