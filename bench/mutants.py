@@ -2,7 +2,7 @@
 
     .venv/bin/python -m bench.mutants [--tests-from REV] [--only NAME,...] [--json OUT]
 
-Each mutant is one small, plausible bug in the engine, the exports or the
+Each of the 11 mutants is one small, plausible bug in the engine, the exports or the
 project format (a comparison off by one, a margin too small, a setting left out
 of a cache key...). For each, the checkout is copied to a temporary folder, the
 bug is written into the copy, and the tests that should notice it run there
@@ -49,6 +49,9 @@ MUTANTS = [
     ("analysis cache key without the settings", "infinitex/engine/analysis.py",
      "h.update(json.dumps(asdict(settings), sort_keys=True).encode())", "pass",
      "tests/engine/test_analysis.py tests/engine/test_synthesis.py tests/engine/test_fidelity.py"),
+    ("appearance features in float32", "infinitex/engine/neighborhoods.py",
+     "quantized, np.float64).reshape(m, m, NDIM)", "quantized, np.float32).reshape(m, m, NDIM)",
+     "tests/engine/test_analysis.py"),
     ("export tiles one pixel short", "infinitex/export/streamed.py",
      "Rect(x0, y0, min(x0 + self.tile, lr.x1), min(y0 + self.tile, lr.y1))",
      "Rect(x0, y0, min(x0 + self.tile - 1, lr.x1), min(y0 + self.tile, lr.y1))",
@@ -89,7 +92,9 @@ def run_mutant(mutant, tests_from: str | None, workers: str) -> dict:
                             "-m", "not gui", *tests.split()], cwd=tmp, env=env, capture_output=True, text=True)
         seconds = time.perf_counter() - t0
     failed = [ln for ln in r.stdout.splitlines() if ln.startswith("FAILED")]
-    outcome = "killed" if r.returncode == 1 else "survived" if r.returncode == 0 else f"error (rc {r.returncode})"
+    # pytest -x in parallel processes ends "interrupted" (rc 2) at the first failure.
+    outcome = ("killed" if failed or r.returncode == 1 else "survived" if r.returncode == 0
+               else f"error (rc {r.returncode})")
     return dict(name=name, outcome=outcome, seconds=round(seconds, 1),
                 detail=failed[0][7:] if failed else r.stdout.strip().splitlines()[-1] if r.stdout.strip() else "")
 

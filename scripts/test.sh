@@ -12,6 +12,9 @@ if [ "${1:-}" = "--fast" ]; then
   shift
   args=(-m "not gui and not slow")
 fi
-# In parallel processes, one per core (pytest-xdist; the long tests are handed out first,
-# tests/conftest.py, then the rest to whichever is free). `-n 0` runs in one process.
-exec .venv/bin/python -m pytest -q -n auto --dist load ${args[@]+"${args[@]}"} "$@"
+# In parallel processes (pytest-xdist), one more than the cores: the GUI drivers and the
+# exports wait on other processes (an editor going idle, workers starting) while a third
+# test uses the core. The long tests are handed out first (tests/conftest.py), the rest
+# to whichever process is free. INFINITEX_TEST_WORKERS=N sets the count; `-n 0` runs in one.
+workers=${INFINITEX_TEST_WORKERS:-$(( $(nproc) + 1 ))}
+exec .venv/bin/python -m pytest -q -n "$workers" --dist load ${args[@]+"${args[@]}"} "$@"

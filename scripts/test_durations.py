@@ -3,6 +3,7 @@
     bash scripts/test.sh --junitxml=out/full.xml
     bash scripts/test.sh --fast --junitxml=out/fast.xml
     .venv/bin/python scripts/test_durations.py out/full.xml [out/fast.xml] [--top 15]
+    .venv/bin/python scripts/test_durations.py before=old.xml full=out/full.xml fast=out/fast.xml
 
 Prints, per kind of test and per file, the seconds spent in its tests (setup,
 call and teardown summed over every worker: in a parallel run the wall time is
@@ -74,11 +75,15 @@ def table(runs: list[tuple[str, dict[str, float]]], top: int) -> str:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("full", help="JUnit XML of the whole suite")
-    p.add_argument("fast", nargs="?", help="JUnit XML of scripts/test.sh --fast")
+    p.add_argument("reports", nargs="+", metavar="[NAME=]XML",
+                   help="JUnit XML reports, each a column (default names: full, fast, ...)")
     p.add_argument("--top", type=int, default=15)
     a = p.parse_args(argv)
-    runs = [("full", read(a.full))] + ([("fast", read(a.fast))] if a.fast else [])
+    defaults = ["full", "fast"] + [f"run {i}" for i in range(3, 10)]
+    runs = []
+    for i, spec in enumerate(a.reports):
+        name, _, path = spec.rpartition("=") if "=" in spec else (defaults[i], "", spec)
+        runs.append((name, read(path)))
     print(table(runs, a.top))
     return 0
 
