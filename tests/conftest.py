@@ -17,7 +17,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 # once per run (cache files are written atomically, so concurrent writers are safe).
 _RUN = os.environ.get("PYTEST_XDIST_TESTRUNUID")
 if _RUN:
-    os.environ["INFINITEX_CACHE"] = os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{_RUN}")
+    os.environ["INFINITEX_CACHE"] = os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{_RUN}")  # _shared_cache
     os.makedirs(os.environ["INFINITEX_CACHE"], exist_ok=True)
 else:
     os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
@@ -125,6 +125,30 @@ def pytest_collection_modifyitems(config, items):
 # its budget prints a warning (timing depends on the machine's load: it never fails).
 BUDGET_S = {"": 720.0, "not gui and not slow": 180.0}
 _T0 = pytest.StashKey[float]()
+
+
+def _shared_cache(uid: str) -> str:
+    return os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{uid}")
+
+
+def pytest_configure(config):
+    """The controller of a parallel run names the run (xdist passes the name to
+    its workers) so it can remove the workers' shared cache at the end."""
+    if not hasattr(config, "workerinput") and getattr(config.option, "numprocesses", None):
+        if getattr(config.option, "testrunuid", None) is None:
+            import uuid
+            config.option.testrunuid = uuid.uuid4().hex
+
+
+def pytest_unconfigure(config):
+    """The run's analysis cache goes with the run (the controller's, or this
+    process's own when not in parallel)."""
+    if hasattr(config, "workerinput"):
+        return
+    shutil.rmtree(os.environ["INFINITEX_CACHE"], ignore_errors=True)
+    uid = getattr(config.option, "testrunuid", None)
+    if uid:
+        shutil.rmtree(_shared_cache(uid), ignore_errors=True)
 
 
 def pytest_sessionstart(session):
