@@ -12,12 +12,19 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+
+def _shared_cache(uid: str) -> str:
+    """The analysis cache of the parallel run ``uid`` (its controller removes it at the end)."""
+    return os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{uid}")
+
+
 # A private analysis cache per test run: tests never see a stale one. The
 # workers of one parallel run (pytest-xdist) share it, so each analysis is made
 # once per run (cache files are written atomically, so concurrent writers are safe).
 _RUN = os.environ.get("PYTEST_XDIST_TESTRUNUID")
 if _RUN:
-    os.environ["INFINITEX_CACHE"] = os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{_RUN}")  # _shared_cache
+    os.environ["INFINITEX_CACHE"] = _shared_cache(_RUN)
     os.makedirs(os.environ["INFINITEX_CACHE"], exist_ok=True)
 else:
     os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
@@ -125,10 +132,6 @@ def pytest_collection_modifyitems(config, items):
 # its budget prints a warning (timing depends on the machine's load: it never fails).
 BUDGET_S = {"": 720.0, "not gui and not slow": 180.0}
 _T0 = pytest.StashKey[float]()
-
-
-def _shared_cache(uid: str) -> str:
-    return os.path.join(tempfile.gettempdir(), f"infinitex-test-cache-{uid}")
 
 
 def pytest_configure(config):

@@ -759,6 +759,7 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
         return label_cost(labels[0], labels[1][ut[:, 1], ut[:, 0]], labels[2])
 
     base = label_of(self_u) if labels is not None else None
+
     def key(u):  # one integer per prediction (x, y): y and x are under 2^31 in magnitude
         return (u[..., 0] << 32) + u[..., 1]
     PW = np.stack([key(P[e]) for e in window])  # (window, N): the predictions that vote
