@@ -357,7 +357,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                        **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0)) if ltex is not None else {}))
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
-            yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni).steps(pace)
+            yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni, l).steps(pace)
 
             # Correction subpasses, then the fidelity stage's, on scratch a.
             draws = []
@@ -412,7 +412,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             # would hold pixels the view was not told about (Pyramid.touched).
             for g0, t0, w, hh in self._texel_pieces(buf, strip):
                 for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
-                              dict(uni, region_g0=g0, region_t0=t0)).steps():
+                              dict(uni, region_g0=g0, region_t0=t0), l).steps():
                     pass
             if not deferred:
                 yield  # (a local update reports what it changed before any frame can draw it: no pause here)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,6 +49,51 @@ class Pacer:
         self.cost[prog.glo] = c if old is None else 0.6 * old + 0.4 * c
 
 
+class DrawTimes:
+    """GL timer queries around every draw of the engine while installed
+    (:func:`timing_draws`; bench/profile.py): per draw its program's name (the
+    shader file, `` vote`` for the fidelity stage's vote), level and pixels.
+    The queries are read once the work is done (:meth:`results`), so timing
+    adds no wait between draws."""
+
+    def __init__(self, gpu: Gpu):
+        self.gpu = gpu
+        self._pending: list[tuple[str, int, int, Any]] = []
+
+    def name(self, prog) -> str:
+        for (frag, defines), p in self.gpu._programs.items():
+            if p is prog:
+                return frag.rsplit(".", 1)[0] + (" vote" if dict(defines).get("FID_VOTE") else "")
+        return "other"
+
+    def query(self, prog, level: int, pixels: int):
+        q = self.gpu.ctx.query(time=True)
+        self._pending.append((self.name(prog), level, pixels, q))
+        return q
+
+    def results(self) -> list[tuple[str, int, int, float]]:
+        """(program, level, pixels, GPU seconds) per draw since the last call."""
+        out = [(name, level, px, q.elapsed * 1e-9) for name, level, px, q in self._pending]
+        self._pending = []
+        return out
+
+
+_timers: DrawTimes | None = None
+
+
+@contextmanager
+def timing_draws(gpu: Gpu) -> Iterator[DrawTimes]:
+    """Time every engine draw on ``gpu`` while inside (one profiler at a time)."""
+    global _timers
+    if _timers is not None:
+        raise RuntimeError("Draws are already being timed.")
+    _timers = DrawTimes(gpu)
+    try:
+        yield _timers
+    finally:
+        _timers = None
+
+
 @dataclass
 class Draw:
     """One render of a program over a viewport, self-contained (its textures by
@@ -60,6 +106,7 @@ class Draw:
     viewport: tuple[int, int, int, int]
     textures: dict[int, Any]
     uniforms: dict[str, Any]
+    level: int = -1  # the pyramid level it works on (for DrawTimes)
 
     def steps(self, pace: Pacer | None = None) -> Iterator[None]:
         """Render at once (``pace`` None) or in row pieces sized by ``pace``
@@ -78,7 +125,11 @@ class Draw:
             set_uniforms(self.prog, **self.uniforms)
             self.fbo.use()
             self.fbo.viewport = (x, y0, w, rows)
-            self.vao.render(moderngl.TRIANGLES)
+            if _timers is None:
+                self.vao.render(moderngl.TRIANGLES)
+            else:
+                with _timers.query(self.prog, self.level, w * rows):
+                    self.vao.render(moderngl.TRIANGLES)
             if pace is not None:
                 self.prog.ctx.finish()
                 pace.record(self.prog, w * rows, time.perf_counter() - t)
@@ -100,9 +151,10 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
         for phase in order:
             block = (phase[0] * qdims[0], phase[1] * qdims[1], qdims[0], qdims[1])
             n = len(draws) // 2
+            level = uniforms.get("level", -1)
             draws.append(Draw(prog, vao, fb, block, {**textures, 0: a},
-                              {**uniforms, "src": 0, "active_phase": phase, **per_subpass(n)}))
-            draws.append(Draw(copy, copy_vao, fa, block, {0: b}, {"src": 0}))
+                              {**uniforms, "src": 0, "active_phase": phase, **per_subpass(n)}, level))
+            draws.append(Draw(copy, copy_vao, fa, block, {0: b}, {"src": 0}, level))
     return draws
 
 
