@@ -47,6 +47,14 @@ def read_radius(model: str) -> int:
     return 1 if model == "appearance" else 2
 
 
+def exact_in_float(proj: np.ndarray, value_max: int) -> bool:
+    """Whether projecting values of magnitude <= ``value_max`` by ``proj`` (rows
+    x dims) is exact in float32 in any order of summation: every product and
+    every partial sum is then an integer below 2^24."""
+    bound = int(np.abs(proj.astype(np.int64)).sum(axis=0).max()) * int(value_max)
+    return bound < 1 << 24
+
+
 def choose_shift(proj: np.ndarray, bound_n: float) -> int:
     """Smallest right shift that keeps projected values within NBHD_MAX."""
     col_norm = float(np.sqrt((proj.astype(np.float64) ** 2).sum(axis=0)).max())

@@ -158,8 +158,11 @@ class LevelTextures:
         self.nbhd = gpu.uint_texture((m, m), pack8(lv.nbhd))
         self.sim = [] if lv.simset is None else _sim_textures(gpu, lv.simset)
         self.lattice_sim = None if lv.lattice_simset is None else _sim_textures(gpu, lv.lattice_simset)
-        # Row r of the projection -> uniform P[2r] (dims 0-3), P[2r+1] (dims 4-7).
-        self.proj = np.ascontiguousarray(lv.proj, dtype=np.int32).tobytes()
+        # Row r of the projection -> uniform P[2r] (dims 0-3), P[2r+1] (dims 4-7);
+        # as floats where that is exact (correct.frag PROJ_FLOAT).
+        vmax = int(np.abs(lv.feat).max()) * (fixed.APPEARANCE_PREDICTIONS if an.model == "appearance" else 1)
+        self.proj_float = fixed.exact_in_float(lv.proj, vmax)
+        self.proj = np.ascontiguousarray(lv.proj, dtype=np.float32 if self.proj_float else np.int32).tobytes()
         self.shift = lv.shift
         self._gpu, self._stack = gpu, lv.stack
         self._colors = None
@@ -203,9 +206,14 @@ class GpuAnalysis:
             self._levels[level] = LevelTextures(self.gpu, self.analysis, level)
         return self._levels[level]
 
-    def correction_defines(self) -> dict:
+    def correction_defines(self, level: int, avoid: bool = False) -> dict:
+        """correct.frag's defines on ``level`` (``avoid``: with an avoided region)."""
         an = self.analysis
-        d = dict(DIST_CLAMP=fixed.DIST_CLAMP, PSI_ONE=fixed.PSI_ONE)
+        d = dict(DIST_CLAMP=fixed.DIST_CLAMP, PSI_ONE=fixed.PSI_ONE, K=an.k)
+        if self.level(level).proj_float:
+            d["PROJ_FLOAT"] = True
+        if avoid:
+            d["AVOID"] = True
         if an.model == "appearance":
             d.update(MODEL_APPEARANCE=True, PROJ_ROWS=4 * fixed.NDIM)
         else:

@@ -35,12 +35,23 @@ uniform isampler2D feat;      // colors
 uniform usampler2D nbhd;      // N_E, 8 dims packed in 4
 uniform isampler2D sim01;     // C^1(u).xy, C^2(u).xy
 uniform isampler2D sim23;     // C^3(u).xy, C^4(u).xy
-uniform int k;
+// K: the similarity sets' size k (0..4), a define so the candidate loop unrolls.
 uniform int h;
 uniform int m;
 uniform int shift;
 uniform int psi;              // (1 + kappa) in sixteenths
+// The projection, row r as P[2r] (dims 0-3) and P[2r+1] (dims 4-7). PROJ_FLOAT (gpu.py
+// LevelTextures.proj_exact_in_float): in floats, where every product and partial sum
+// is an integer below 2^24, so exact (and on a CPU much cheaper than integer products).
+#ifdef PROJ_FLOAT
+#define PVEC vec4
+#define PSCALAR float
+uniform vec4 P[2 * PROJ_ROWS];
+#else
+#define PVEC ivec4
+#define PSCALAR int
 uniform ivec4 P[2 * PROJ_ROWS];
+#endif
 // TBN10 coherent random walk after the k-coherence candidates: `walk` steps
 // around the current best, radius m/2 halved each step (stops below 2), each
 // offset from the hash of the pixel's global position (mod the level's period),
@@ -52,8 +63,7 @@ uniform int level;
 uniform uint walk_seed;       // the synthesis seed mixed with the subpass number
 uniform int period;           // n_l, or 0
 uniform int border;
-uniform int has_avoid;        // exemplar regions to avoid (controls.ExemplarMask)
-uniform usampler2D avoid;     // m x m, 1 = avoid
+uniform usampler2D avoid;     // AVOID: exemplar regions to avoid (controls.ExemplarMask), m x m, 1 = avoid
 const uint AVOIDED = 0xfffffffeu;
 
 out ivec4 result;
@@ -74,20 +84,31 @@ void unpack8(uvec4 v, out ivec4 lo, out ivec4 hi) {
     hi = ivec4(v >> 16) - 32768;
 }
 
-void add_tap(int row, int value, inout ivec4 lo, inout ivec4 hi) {
+void add_tap(int row, PSCALAR value, inout PVEC lo, inout PVEC hi) {
     lo += value * P[2 * row];
     hi += value * P[2 * row + 1];
 }
 
+// The squared distance (clamped) of gpu.pack8's v from the projected neighborhood,
+// given as lo + 32768 and hi + 32768 (the unpacking's offset folded in).
+int distance8(uvec4 v, ivec4 lo_b, ivec4 hi_b) {
+    ivec4 e0 = ivec4(v & 0xffffu) - lo_b;
+    ivec4 e1 = ivec4(v >> 16) - hi_b;
+    ivec4 sq = e0 * e0 + e1 * e1;
+    return min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP);
+}
+
+#ifdef AVOID
+#define AVOIDS(u) (texelFetch(avoid, u, 0).r != 0u)
+#else
+#define AVOIDS(u) false
+#endif
+
 void main() {
+    // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
-    ivec2 phase = X / qdims;
     ivec4 here = texelFetch(src, X, 0);
-    if (phase != active_phase) {
-        result = here;
-        return;
-    }
-    ivec2 p = (X - phase * qdims) * SUB_S + phase;
+    ivec2 p = (X - active_phase * qdims) * SUB_S + active_phase;
     int wrap = m - 1;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;
@@ -99,8 +120,8 @@ void main() {
         S[j] = j == 4 ? here.xy : fetch_s(p + d);
     }
 
-    ivec4 lo = ivec4(0);
-    ivec4 hi = ivec4(0);
+    PVEC lo = PVEC(0);
+    PVEC hi = PVEC(0);
 #ifdef DIRECTION
     ivec4 Jp = texelFetch(dfield, p, 0);
     ivec2 F9[9];
@@ -121,9 +142,10 @@ void main() {
             a0 += b0;
             a1 += b1;
         }
+        PVEC f0 = PVEC(a0), f1 = PVEC(a1);
         for (int c = 0; c < 4; ++c) {
-            add_tap(t * 8 + c, a0[c], lo, hi);
-            add_tap(t * 8 + 4 + c, a1[c], lo, hi);
+            add_tap(t * 8 + c, f0[c], lo, hi);
+            add_tap(t * 8 + 4 + c, f1[c], lo, hi);
         }
     }
 #else
@@ -134,7 +156,7 @@ void main() {
         ivec2 dp = clamp(ivec2(floor_div(num.x, 2 * det), floor_div(num.y, 2 * det)), ivec2(-2), ivec2(2));
         ivec2 F = all(lessThanEqual(abs(dp), ivec2(1))) ? F9[(dp.y + 1) * 3 + dp.x + 1] : fetch_f(p + dp);
         ivec2 u = nearest_q8(F + 256 * h * d - jmul(Jp, dp, h)) & wrap;
-        ivec4 col = texelFetch(feat, u, 0);
+        PVEC col = PVEC(texelFetch(feat, u, 0));
         for (int c = 0; c < NCH; ++c) {
             add_tap(t * NCH + c, col[c], lo, hi);
         }
@@ -150,25 +172,24 @@ void main() {
         unpack8(texelFetch(feat, u1, 0), a0, a1);
         unpack8(texelFetch(feat, u2, 0), b0, b1);
         unpack8(texelFetch(feat, u3, 0), c0, c1);
-        a0 += b0 + c0;
-        a1 += b1 + c1;
+        PVEC f0 = PVEC(a0 + b0 + c0), f1 = PVEC(a1 + b1 + c1);
         for (int c = 0; c < 4; ++c) {
-            add_tap(t * 8 + c, a0[c], lo, hi);
-            add_tap(t * 8 + 4 + c, a1[c], lo, hi);
+            add_tap(t * 8 + c, f0[c], lo, hi);
+            add_tap(t * 8 + 4 + c, f1[c], lo, hi);
         }
     }
 #else
     for (int t = 0; t < 25; ++t) {
         ivec2 d = ivec2(t % 5 - 2, t / 5 - 2);                   // COLOR_TAPS order
         ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p + d)) & wrap;
-        ivec4 col = texelFetch(feat, u, 0);
+        PVEC col = PVEC(texelFetch(feat, u, 0));
         for (int c = 0; c < NCH; ++c) {
             add_tap(t * NCH + c, col[c], lo, hi);
         }
     }
 #endif
-    lo = floor_shift(lo, shift);
-    hi = floor_shift(hi, shift);
+    ivec4 lo_b = floor_shift(ivec4(lo), shift) + 32768;
+    ivec4 hi_b = floor_shift(ivec4(hi), shift) + 32768;
 
     uint best = 0xffffffffu;
     ivec2 best_u = here.xy;
@@ -184,24 +205,27 @@ void main() {
 #else
         ivec2 base = (S[j] - h * d) & wrap;
 #endif
-        ivec4 s01 = k > 0 ? texelFetch(sim01, base, 0) : ivec4(0);
-        ivec4 s23 = k > 2 ? texelFetch(sim23, base, 0) : ivec4(0);
-        for (int i = 0; i < max(k, 1); ++i) {
-            // k = 0 (no similarity sets): the coherent candidate itself, kept off
+#if K > 0
+        ivec4 s01 = texelFetch(sim01, base, 0);
+#endif
+#if K > 2
+        ivec4 s23 = texelFetch(sim23, base, 0);
+#endif
+        for (int i = 0; i < max(K, 1); ++i) {
+#if K == 0
+            // No similarity sets: the coherent candidate itself, kept off
             // a non-toroidal exemplar's border band like the walk's.
-            ivec2 u = k == 0 ? (border < 0 ? base : clamp(base, ivec2(border), ivec2(m - 1 - border)))
-                             : (i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw)));
-            ivec4 e0, e1;
-            unpack8(texelFetch(nbhd, u, 0), e0, e1);
-            e0 -= lo;
-            e1 -= hi;
-            ivec4 sq = e0 * e0 + e1 * e1;
-            int dist = min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP);
-            uint cost = uint(dist) * uint(i == 0 ? PSI_ONE : psi);
+            ivec2 u = border < 0 ? base : clamp(base, ivec2(border), ivec2(m - 1 - border));
+#elif K <= 2
+            ivec2 u = i == 0 ? s01.xy : s01.zw;
+#else
+            ivec2 u = i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw));
+#endif
+            uint cost = uint(distance8(texelFetch(nbhd, u, 0), lo_b, hi_b)) * uint(i == 0 ? PSI_ONE : psi);
 #ifdef LABELS
             cost += label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
 #endif
-            if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
+            if (AVOIDS(u)) cost = AVOIDED;
             if (cost < best) {
                 best = cost;
                 best_u = u;
@@ -218,14 +242,9 @@ void main() {
         int pick = (hash2(g, level, walk_seed ^ LAB_SEED_SALT).x + 1024) & (SEED_COUNT - 1);
         ivec2 u = texelFetch(lab_seeds, ivec2(pick, int(lab_t & 15u)), 0).xy;
         u = border < 0 ? (u & wrap) : clamp(u, ivec2(border), ivec2(m - 1 - border));
-        ivec4 e0, e1;
-        unpack8(texelFetch(nbhd, u, 0), e0, e1);
-        e0 -= lo;
-        e1 -= hi;
-        ivec4 sq = e0 * e0 + e1 * e1;
-        uint cost = uint(min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP)) * uint(psi)
+        uint cost = uint(distance8(texelFetch(nbhd, u, 0), lo_b, hi_b)) * uint(psi)
                     + label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
-        if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
+        if (AVOIDS(u)) cost = AVOIDED;
         if (cost < best) {
             best = cost;
             best_u = u;
@@ -246,16 +265,11 @@ void main() {
             ivec2 off = floor_shift(ivec4(H * R, 0, 0), 10).xy;           // in [-R, R)
             ivec2 u = best_u + off;
             u = border < 0 ? (u & wrap) : clamp(u, ivec2(border), ivec2(m - 1 - border));
-            ivec4 e0, e1;
-            unpack8(texelFetch(nbhd, u, 0), e0, e1);
-            e0 -= lo;
-            e1 -= hi;
-            ivec4 sq = e0 * e0 + e1 * e1;
-            uint cost = uint(min(sq.x + sq.y + sq.z + sq.w, DIST_CLAMP)) * uint(psi);
+            uint cost = uint(distance8(texelFetch(nbhd, u, 0), lo_b, hi_b)) * uint(psi);
 #ifdef LABELS
             cost += label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
 #endif
-            if (has_avoid != 0 && texelFetch(avoid, u, 0).r != 0u) cost = AVOIDED;
+            if (AVOIDS(u)) cost = AVOIDED;
             if (cost < best) {
                 best = cost;
                 best_u = u;
