@@ -104,6 +104,34 @@ int distance8(uvec4 v, ivec4 lo_b, ivec4 hi_b) {
 #define AVOIDS(u) false
 #endif
 
+// Diagonal t of the appearance model's neighborhood (DIAGONALS order) added to lo, hi:
+// rows 8 t + c (c < 4) take dims c of the three samples' sum, rows 8 t + 4 + c dims 4 + c.
+#define APPEARANCE_DIAGONAL(t) { \
+        ivec2 d = ivec2((t & 1) * 2 - 1, (t >> 1) * 2 - 1); \
+        ivec2 u1 = S[(d.y + 1) * 3 + d.x + 1] & wrap;            /* d' = d */ \
+        ivec2 u2 = (S[4 + d.x] + ivec2(0, h * d.y)) & wrap;      /* d' = (d.x, 0) */ \
+        ivec2 u3 = (S[4 + 3 * d.y] + ivec2(h * d.x, 0)) & wrap;  /* d' = (0, d.y) */ \
+        ivec4 a0, a1, b0, b1, c0, c1; \
+        unpack8(texelFetch(feat, u1, 0), a0, a1); \
+        unpack8(texelFetch(feat, u2, 0), b0, b1); \
+        unpack8(texelFetch(feat, u3, 0), c0, c1); \
+        PVEC f0 = PVEC(a0 + b0 + c0), f1 = PVEC(a1 + b1 + c1); \
+        lo += f0.x * P[16 * t] + f0.y * P[16 * t + 2] + f0.z * P[16 * t + 4] + f0.w * P[16 * t + 6] \
+            + f1.x * P[16 * t + 8] + f1.y * P[16 * t + 10] + f1.z * P[16 * t + 12] + f1.w * P[16 * t + 14]; \
+        hi += f0.x * P[16 * t + 1] + f0.y * P[16 * t + 3] + f0.z * P[16 * t + 5] + f0.w * P[16 * t + 7] \
+            + f1.x * P[16 * t + 9] + f1.y * P[16 * t + 11] + f1.z * P[16 * t + 13] + f1.w * P[16 * t + 15]; \
+    }
+
+// Tap t of the color model's 5x5 neighborhood (COLOR_TAPS order) added to lo, hi.
+#define COLOR_TAP(t) { \
+        ivec2 d = ivec2(t % 5 - 2, t / 5 - 2); \
+        ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p + d)) & wrap; \
+        PVEC col = PVEC(texelFetch(feat, u, 0)); \
+        for (int c = 0; c < NCH; ++c) { \
+            add_tap(t * NCH + c, col[c], lo, hi); \
+        } \
+    }
+
 void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
@@ -163,30 +191,19 @@ void main() {
     }
 #endif
 #elif defined(MODEL_APPEARANCE)
-    for (int t = 0; t < 4; ++t) {
-        ivec2 d = ivec2((t & 1) * 2 - 1, (t >> 1) * 2 - 1);     // DIAGONALS order
-        ivec2 u1 = S[(d.y + 1) * 3 + d.x + 1] & wrap;            // d' = d
-        ivec2 u2 = (S[4 + d.x] + ivec2(0, h * d.y)) & wrap;      // d' = (d.x, 0)
-        ivec2 u3 = (S[4 + 3 * d.y] + ivec2(h * d.x, 0)) & wrap;  // d' = (0, d.y)
-        ivec4 a0, a1, b0, b1, c0, c1;
-        unpack8(texelFetch(feat, u1, 0), a0, a1);
-        unpack8(texelFetch(feat, u2, 0), b0, b1);
-        unpack8(texelFetch(feat, u3, 0), c0, c1);
-        PVEC f0 = PVEC(a0 + b0 + c0), f1 = PVEC(a1 + b1 + c1);
-        for (int c = 0; c < 4; ++c) {
-            add_tap(t * 8 + c, f0[c], lo, hi);
-            add_tap(t * 8 + 4 + c, f1[c], lo, hi);
-        }
-    }
+    // Written out per diagonal: the projection's indices are constants (in a
+    // loop the compiler reads the uniform array lane by lane: 1.3x the time).
+    APPEARANCE_DIAGONAL(0)
+    APPEARANCE_DIAGONAL(1)
+    APPEARANCE_DIAGONAL(2)
+    APPEARANCE_DIAGONAL(3)
 #else
-    for (int t = 0; t < 25; ++t) {
-        ivec2 d = ivec2(t % 5 - 2, t / 5 - 2);                   // COLOR_TAPS order
-        ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p + d)) & wrap;
-        PVEC col = PVEC(texelFetch(feat, u, 0));
-        for (int c = 0; c < NCH; ++c) {
-            add_tap(t * NCH + c, col[c], lo, hi);
-        }
-    }
+    // COLOR_TAPS order, written out (constant indices, as APPEARANCE_DIAGONAL).
+    COLOR_TAP(0) COLOR_TAP(1) COLOR_TAP(2) COLOR_TAP(3) COLOR_TAP(4)
+    COLOR_TAP(5) COLOR_TAP(6) COLOR_TAP(7) COLOR_TAP(8) COLOR_TAP(9)
+    COLOR_TAP(10) COLOR_TAP(11) COLOR_TAP(12) COLOR_TAP(13) COLOR_TAP(14)
+    COLOR_TAP(15) COLOR_TAP(16) COLOR_TAP(17) COLOR_TAP(18) COLOR_TAP(19)
+    COLOR_TAP(20) COLOR_TAP(21) COLOR_TAP(22) COLOR_TAP(23) COLOR_TAP(24)
 #endif
     ivec4 lo_b = floor_shift(ivec4(lo), shift) + 32768;
     ivec4 hi_b = floor_shift(ivec4(hi), shift) + 32768;
