@@ -169,12 +169,11 @@ class LevelTextures:
 
     @property
     def colors(self):
-        """E_l as the fidelity stage reads it (fixed.quantized_colors, RGBA8UI), uploaded on first use."""
+        """E_l as the fidelity stage reads it (fixed.quantized_colors, one 8-bit
+        unsigned integer channel per channel of E), uploaded on first use."""
         if self._colors is None:
-            q = fixed.quantized_colors(self._stack)
-            rgba = np.zeros(q.shape[:2] + (4,), np.uint8)
-            rgba[:, :, :q.shape[2]] = q
-            self._colors = self._gpu.ctx.texture((q.shape[1], q.shape[0]), 4, rgba.tobytes(), dtype="u1")
+            q = np.ascontiguousarray(fixed.quantized_colors(self._stack), dtype=np.uint8)
+            self._colors = self._gpu.ctx.texture((q.shape[1], q.shape[0]), q.shape[2], q.tobytes(), dtype="u1")
             self._colors.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return self._colors
 

@@ -167,7 +167,7 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     region's J texture (anisometric synthesis), if any; ``links``: its
     indirection map (synthesis in a mesh's atlas), if any."""
     an = gan.analysis
-    defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH,
+    defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH, FID_NCH=an.channels,
                    **(labels.defines if labels else {}), **(dict(DIRECTION=True) if direction is not None else {}),
                    **(dict(ATLAS=True) if links is not None else {}))
     prog, vao = gpu.program("fidelity.frag", **defines)

@@ -39,7 +39,7 @@
 // that is 25% faster than one loop over the taps checked at each.
 
 uniform isampler2D src;       // current state, packed
-uniform usampler2D colors;    // E_l as engine/fixed.py quantized_colors (RGBA8UI), m x m
+uniform usampler2D colors;    // E_l as engine/fixed.py quantized_colors, FID_NCH 8-bit channels, m x m
 uniform ivec2 dims;
 uniform ivec2 qdims;
 uniform ivec2 active_phase;
@@ -123,7 +123,39 @@ ivec2 predict(ivec2 p, ivec2 d) {
     return keep_c(raw_prediction(p, d));
 }
 
-uint nb[NT];  // N(p + d) packed RGBA8 (r in the low byte), row-major over the patch (the centre unused)
+uint nb[NT];  // N(p + d), FID_NCH bytes packed (r in the low byte), row-major over the patch (the centre unused)
+
+// Only the exemplar's channels are read and compared (FID_NCH, 1 to 4).
+uint pack_color(uvec4 c) {
+#if FID_NCH == 1
+    return c.r;
+#elif FID_NCH == 2
+    return c.r | (c.g << 8);
+#elif FID_NCH == 3
+    return c.r | (c.g << 8) | (c.b << 16);
+#else
+    return c.r | (c.g << 8) | (c.b << 16) | (c.a << 24);
+#endif
+}
+
+// ||a - c||^2 over the channels, a packed by pack_color.
+uint color_distance(uint a, uvec4 c) {
+#if FID_NCH == 1
+    int e = int(a) - int(c.r);
+    return uint(e * e);
+#elif FID_NCH == 2
+    ivec2 e = ivec2(a & 0xffu, a >> 8) - ivec2(c.rg);
+    return uint(e.x * e.x + e.y * e.y);
+#elif FID_NCH == 3
+    ivec3 e = ivec3((uvec3(a) >> uvec3(0u, 8u, 16u)) & 0xffu) - ivec3(c.rgb);
+    ivec3 sq = e * e;
+    return uint(sq.x + sq.y + sq.z);
+#else
+    ivec4 e = ivec4((uvec4(a) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu) - ivec4(c);
+    ivec4 sq = e * e;
+    return uint(sq.x + sq.y + sq.z + sq.w);
+#endif
+}
 
 // The patch cost row by row, giving up once a row brings it to the best (the centre adds 0).
 uint patch_cost(ivec2 u, uint limit) {
@@ -131,10 +163,8 @@ uint patch_cost(ivec2 u, uint limit) {
     for (int dy = -R; dy <= R; ++dy) {
         for (int dx = -R; dx <= R; ++dx) {
             int t = (dy + R) * SIDE + dx + R;
-            ivec4 e = ivec4((uvec4(nb[t]) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu)
-                    - ivec4(texelFetch(colors, tap_of(u, dx, dy), 0));
-            ivec4 sq = e * e;
-            cost += t == NT / 2 ? 0u : uint(sq.x + sq.y + sq.z + sq.w);
+            uint e = color_distance(nb[t], texelFetch(colors, tap_of(u, dx, dy), 0));
+            cost += t == NT / 2 ? 0u : e;
         }
         if (cost >= limit) return limit;  // cannot win: stop early
     }
@@ -213,8 +243,7 @@ void main() {
 #endif
     for (int t = 0; t < NT; ++t) {
         ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
-        uvec4 c = t == NT / 2 ? uvec4(0u) : texelFetch(colors, fetch_s(p + d), 0);
-        nb[t] = c.r | (c.g << 8) | (c.b << 16) | (c.a << 24);
+        nb[t] = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p + d), 0));
     }
     ivec2 tried[NCAND];
     int ntried = 0;
