@@ -51,8 +51,7 @@ uniform int level;
 uniform int period;           // n_l, or 0
 uniform uint search_seed;     // engine/fixed.py fidelity_seed
 uniform int no_search;
-uniform int has_avoid;
-uniform usampler2D avoid;     // m x m, 1 = avoid
+uniform usampler2D avoid;     // AVOID: exemplar regions to avoid, m x m, 1 = avoid
 
 const int R = FID_RADIUS;
 const int SIDE = 2 * R + 1;
@@ -61,6 +60,12 @@ const int NCAND = 9 + FID_SEARCH;
 const uint AVOIDED = 0xfffffffeu;
 
 out ivec4 result;
+
+#ifdef AVOID
+#define AVOIDS(u) (texelFetch(avoid, u, 0).r != 0u)
+#else
+#define AVOIDS(u) false
+#endif
 
 ivec2 fetch_s(ivec2 p) {
     return texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0).xy;
@@ -172,15 +177,28 @@ uint patch_cost(ivec2 u, uint limit) {
 }
 
 #ifdef FID_VOTE
+// What the vote compares: coordinates (DIRECTION: in 1/256 px), or without a
+// direction field a texel (x, y), both in [0, 2^15), as one int x | y << 16, so
+// that a vote is one comparison. A clamped prediction (VKEY_NONE) matches no candidate.
+#ifdef DIRECTION
+#define VKEY ivec2
+#define VKEY_OF(u) (u)
+#define VKEY_NONE(t) ivec2(-1 - (t))
+#define VKEY_VALID(k) ((k).x >= 0)
+#define VKEY_COORD(k) (k)
+#else
+#define VKEY int
+#define VKEY_OF(u) ((u).x | ((u).y << 16))
+#define VKEY_NONE(t) (-1)
+#define VKEY_VALID(k) ((k) >= 0)
+#define VKEY_COORD(k) ivec2((k) & 0xffff, (k) >> 16)
+#endif
+
 void main() {
+    // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
-    ivec2 phase = X / qdims;
     ivec4 here = texelFetch(src, X, 0);
-    if (phase != active_phase) {
-        result = here;
-        return;
-    }
-    ivec2 p = (X - phase * qdims) * SUB_S + phase;
+    ivec2 p = (X - active_phase * qdims) * SUB_S + active_phase;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;
 #endif
@@ -191,25 +209,25 @@ void main() {
 #else
     ivec2 self = here.xy;
 #endif
-    ivec2 P[NT];
+    VKEY P[NT];
     for (int t = 0; t < NT; ++t) {
         ivec2 raw = raw_prediction(p, ivec2(t % SIDE - R, t / SIDE - R));
         ivec2 kept = keep_c(raw);
         // A prediction kept inside by clamping does not vote: clamped ones would agree by accident.
-        P[t] = t == NT / 2 ? self : (border < 0 || kept == raw ? kept : ivec2(-1 - t));
+        P[t] = t == NT / 2 ? VKEY_OF(self) : (border < 0 || kept == raw ? VKEY_OF(kept) : VKEY_NONE(t));
     }
 #ifdef LABELS
     uint lab_t = texelFetch(lab_canvas, p, 0).r;
     uint lab_self = label_cost(lab_t, texelFetch(lab_exemplar, texel_of(self), 0).r);
 #endif
     int most = -1;
-    ivec2 best_u = self;
+    VKEY best = VKEY_OF(self);
     for (int j = -1; j < 9; ++j) {
         if (j == 4) continue;
-        ivec2 u = j < 0 ? self : P[(j / 3 + R - 1) * SIDE + j % 3 + R - 1];
-        if (u.x < 0) continue;  // clamped
-        ivec2 ut = texel_of(u);
-        if (has_avoid != 0 && texelFetch(avoid, ut, 0).r != 0u) continue;
+        VKEY u = j < 0 ? VKEY_OF(self) : P[(j / 3 + R - 1) * SIDE + j % 3 + R - 1];
+        if (!VKEY_VALID(u)) continue;  // clamped
+        ivec2 ut = texel_of(VKEY_COORD(u));
+        if (AVOIDS(ut)) continue;
 #ifdef LABELS
         if (label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r) > lab_self) continue;
 #endif
@@ -219,25 +237,21 @@ void main() {
         }
         if (votes > most) {
             most = votes;
-            best_u = u;
+            best = u;
         }
     }
 #ifdef DIRECTION
-    result = split_q8(best_u, m);
+    result = split_q8(VKEY_COORD(best), m);
 #else
-    result = ivec4(best_u, 0, 0);
+    result = ivec4(VKEY_COORD(best), 0, 0);
 #endif
 }
 #else
 void main() {
+    // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
-    ivec2 phase = X / qdims;
     ivec4 here = texelFetch(src, X, 0);
-    if (phase != active_phase) {
-        result = here;
-        return;
-    }
-    ivec2 p = (X - phase * qdims) * SUB_S + phase;
+    ivec2 p = (X - active_phase * qdims) * SUB_S + active_phase;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;  // reads cross chart seams (common.glsl atlas_texel)
 #endif
@@ -258,10 +272,10 @@ void main() {
     ivec2 bt = texel_of(best_u);
 #ifdef LABELS
     uint lab_t = texelFetch(lab_canvas, p, 0).r;
-    uint best = (has_avoid != 0 && texelFetch(avoid, bt, 0).r != 0u) ? AVOIDED
+    uint best = (AVOIDS(bt)) ? AVOIDED
               : label_cost(lab_t, texelFetch(lab_exemplar, bt, 0).r) + patch_cost(best_u, 0xffffffffu);
 #else
-    uint best = (has_avoid != 0 && texelFetch(avoid, bt, 0).r != 0u) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
+    uint best = (AVOIDS(bt)) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
 #endif
     tried[ntried++] = best_u;
     for (int j = 0; j < NCAND; ++j) {
@@ -285,7 +299,7 @@ void main() {
         if (seen) continue;  // the same cost again: it cannot be better
         tried[ntried++] = u;
         ivec2 ut = texel_of(u);
-        if (has_avoid != 0 && texelFetch(avoid, ut, 0).r != 0u) continue;
+        if (AVOIDS(ut)) continue;
 #ifdef LABELS
         uint lc = label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r);
         if (lc >= best) continue;  // cannot win
