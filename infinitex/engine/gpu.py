@@ -18,6 +18,8 @@ from .analysis import Analysis
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
 GLSL_VERSION = "#version 330 core"
+# The most memory the correction's per-texel projection tables may take (LevelTextures.table).
+TABLE_MAX_BYTES = 256 << 20
 
 
 class GLUnavailable(RuntimeError):
@@ -164,8 +166,9 @@ class LevelTextures:
         self.proj_float = fixed.exact_in_float(lv.proj, vmax)
         self.proj = np.ascontiguousarray(lv.proj, dtype=np.float32 if self.proj_float else np.int32).tobytes()
         self.shift = lv.shift
-        self._gpu, self._stack = gpu, lv.stack
+        self._gpu, self._stack, self._lv = gpu, lv.stack, lv
         self._colors = None
+        self._table = None
 
     @property
     def colors(self):
@@ -177,8 +180,29 @@ class LevelTextures:
             self._colors.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return self._colors
 
+    @property
+    def table(self):
+        """The appearance model's projection per exemplar texel (correct.frag
+        PROJ_TABLE), uploaded on first use: layer 2 t (dims 0-3) and 2 t + 1
+        (dims 4-7) of an RGBA32I array hold P_t A_l[u], diagonal t's rows of the
+        projection applied to A_l[u], before the shift. N_S(p) is then a sum of
+        12 of them: the same integers as projecting the sums (it is linear), at
+        a fraction of the cost."""
+        if self._table is None:
+            lv = self._lv
+            m = lv.feat.shape[0]
+            feat = lv.feat.astype(np.int64)
+            proj = lv.proj.astype(np.int64)
+            layers = np.empty((2 * len(fixed.DIAGONALS), m, m, 4), np.int32)
+            for t in range(len(fixed.DIAGONALS)):
+                q = feat @ proj[t * fixed.NDIM:(t + 1) * fixed.NDIM]  # (m, m, 8)
+                layers[2 * t], layers[2 * t + 1] = q[..., :4], q[..., 4:]
+            self._table = self._gpu.ctx.texture_array((m, m, len(layers)), 4, layers.tobytes(), dtype="i4")
+            self._table.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return self._table
+
     def release(self) -> None:
-        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []) + [self._colors]:
+        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []) + [self._colors, self._table]:
             if t is not None:
                 t.release()
 
@@ -205,11 +229,22 @@ class GpuAnalysis:
             self._levels[level] = LevelTextures(self.gpu, self.analysis, level)
         return self._levels[level]
 
-    def correction_defines(self, level: int, avoid: bool = False) -> dict:
-        """correct.frag's defines on ``level`` (``avoid``: with an avoided region)."""
+    @property
+    def projection_tables(self) -> bool:
+        """Whether the correction reads the projection per texel (LevelTextures.table):
+        for the appearance model, while the tables of every level stay within
+        TABLE_MAX_BYTES (128 bytes a texel a level)."""
+        an = self.analysis
+        return an.model == "appearance" and 128 * an.size ** 2 * (an.L + 1) <= TABLE_MAX_BYTES
+
+    def correction_defines(self, level: int, avoid: bool = False, direction: bool = False) -> dict:
+        """correct.frag's defines on ``level`` (``avoid``: with an avoided region;
+        ``direction``: with a direction field, which reads A_l itself)."""
         an = self.analysis
         d = dict(DIST_CLAMP=fixed.DIST_CLAMP, PSI_ONE=fixed.PSI_ONE, K=an.k)
-        if self.level(level).proj_float:
+        if self.projection_tables and not direction:
+            d["PROJ_TABLE"] = True
+        elif self.level(level).proj_float:
             d["PROJ_FLOAT"] = True
         if avoid:
             d["AVOID"] = True

@@ -367,16 +367,17 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             if l in self.corrected:
                 lt = self.gan.level(l)
                 prog, vao = self.gpu.program("correct.frag", SUB_S=s,
-                                             **self.gan.correction_defines(l, avoid is not None),
+                                             **self.gan.correction_defines(l, avoid is not None, dtex is not None),
                                              **(labels.defines if labels else {}), **ddef)
                 sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
                 # Lattice levels keep their lattice candidates only.
                 walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
-                uni = dict(feat=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, h=h,
+                uni = dict(feat=1, ptable=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, h=h,
                            m=an.size, shift=lt.shift, psi=fixed.psi_q(p.kappa), P=lt.proj, walk=walk,
                            origin=(region.x0, region.y0), level=l, period=p.level_period(l),
                            border=-1 if an.toroidal else border_margin(an.size, h), avoid=5)
-                textures = dict(enumerate([lt.feat, lt.nbhd] + sims, start=1))
+                table = self.gan.projection_tables and dtex is None
+                textures = dict(enumerate([lt.table if table else lt.feat, lt.nbhd] + sims, start=1))
                 textures[5] = avoid or self._dummy
                 if labels is not None:
                     textures.update(labels.textures)

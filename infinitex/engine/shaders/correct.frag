@@ -43,6 +43,11 @@ uniform int psi;              // (1 + kappa) in sixteenths
 // The projection, row r as P[2r] (dims 0-3) and P[2r+1] (dims 4-7). PROJ_FLOAT (gpu.py
 // LevelTextures.proj_exact_in_float): in floats, where every product and partial sum
 // is an integer below 2^24, so exact (and on a CPU much cheaper than integer products).
+// PROJ_TABLE (the appearance model): the projection per exemplar texel instead
+// (gpu.py LevelTextures.table; integers before the shift), summed.
+#ifdef PROJ_TABLE
+uniform isampler2DArray ptable;
+#endif
 #ifdef PROJ_FLOAT
 #define PVEC vec4
 #define PSCALAR float
@@ -104,6 +109,19 @@ int distance8(uvec4 v, ivec4 lo_b, ivec4 hi_b) {
 #define AVOIDS(u) false
 #endif
 
+#ifdef PROJ_TABLE
+// Diagonal t of the appearance model's neighborhood added to lo, hi from the tables.
+#define APPEARANCE_DIAGONAL(t) { \
+        ivec2 d = ivec2((t & 1) * 2 - 1, (t >> 1) * 2 - 1); \
+        ivec2 u1 = S[(d.y + 1) * 3 + d.x + 1] & wrap;            /* d' = d */ \
+        ivec2 u2 = (S[4 + d.x] + ivec2(0, h * d.y)) & wrap;      /* d' = (d.x, 0) */ \
+        ivec2 u3 = (S[4 + 3 * d.y] + ivec2(h * d.x, 0)) & wrap;  /* d' = (0, d.y) */ \
+        lo += texelFetch(ptable, ivec3(u1, 2 * t), 0) + texelFetch(ptable, ivec3(u2, 2 * t), 0) \
+            + texelFetch(ptable, ivec3(u3, 2 * t), 0); \
+        hi += texelFetch(ptable, ivec3(u1, 2 * t + 1), 0) + texelFetch(ptable, ivec3(u2, 2 * t + 1), 0) \
+            + texelFetch(ptable, ivec3(u3, 2 * t + 1), 0); \
+    }
+#else
 // Diagonal t of the appearance model's neighborhood (DIAGONALS order) added to lo, hi:
 // rows 8 t + c (c < 4) take dims c of the three samples' sum, rows 8 t + 4 + c dims 4 + c.
 #define APPEARANCE_DIAGONAL(t) { \
@@ -121,6 +139,7 @@ int distance8(uvec4 v, ivec4 lo_b, ivec4 hi_b) {
         hi += f0.x * P[16 * t + 1] + f0.y * P[16 * t + 3] + f0.z * P[16 * t + 5] + f0.w * P[16 * t + 7] \
             + f1.x * P[16 * t + 9] + f1.y * P[16 * t + 11] + f1.z * P[16 * t + 13] + f1.w * P[16 * t + 15]; \
     }
+#endif
 
 // Tap t of the color model's 5x5 neighborhood (COLOR_TAPS order) added to lo, hi.
 #define COLOR_TAP(t) { \
