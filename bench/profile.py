@@ -9,7 +9,11 @@ Per Structure preset and window size (the window at canvas position (10007,
   wall_ms        the whole window call (synthesis and the readback), median of ``--runs``
   request_ms     the synthesis until the GL work is finished, same runs
   read_ms        the readback and its conversion to (H, W, 2) int32
-  draws_ms       the GPU time of every draw (timer queries, one more run)
+  draws_ms       the time of every draw (one more run): GL timer queries, or with
+                 ``--sync`` (the default on llvmpipe) the CPU's time of each draw with
+                 the GL work finished before and after it (llvmpipe renders a draw
+                 when its target or inputs change, so a timer query there can hold the
+                 work of the draw before it)
   outside_ms     request_ms less draws_ms: CPU work between draws, uploads, waiting
   draws          how many draws; level_pixels: pixels of the padded regions, all levels
   per program    GPU ms, share of the draws, pixels rendered, texel fetches per pixel
@@ -63,7 +67,7 @@ def fetches_per_pixel(name: str, an, p, level: int, walk: int) -> int | None:
     return None
 
 
-def profile_window(synth, n: int, runs: int) -> dict:
+def profile_window(synth, n: int, runs: int, sync: bool = False) -> dict:
     from infinitex.engine.pyramid import Pyramid
     from infinitex.engine.rect import Rect
     from infinitex.engine.stages import timing_draws
@@ -91,7 +95,7 @@ def profile_window(synth, n: int, runs: int) -> dict:
         rq, rd, regions = once()
         reqs.append(rq)
         reads.append(rd)
-    with timing_draws(gpu) as timers:
+    with timing_draws(gpu, sync) as timers:
         once()
         draws = timers.results()
     walk = synth.params.walk_steps(an.k, synth.controls.avoid is not None)
@@ -127,7 +131,7 @@ def print_case(name: str, n: int, r: dict) -> None:
     print(f"\n{name}, {n}^2: wall {r['wall_ms']:.1f} ms = request {r['request_ms']:.1f} + read {r['read_ms']:.1f}; "
           f"draws {r['draws_ms']:.1f} ms ({r['draws']} draws, {r['level_pixels']:,} level px), "
           f"outside the draws {r['outside_ms']:.1f} ms")
-    print(f"  {'program':<14}{'GPU ms':>9}{'share':>7}{'pixels':>12}{'fetch/px':>9}")
+    print(f"  {'program':<14}{'ms':>9}{'share':>7}{'pixels':>12}{'fetch/px':>9}")
     for prog in PROGRAMS:
         v = r["programs"].get(prog)
         if v is None:
@@ -148,6 +152,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--exemplar", default=os.path.join(ROOT, "infinitex", "assets", "gravel.png"))
     ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--sync", choices=("auto", "on", "off"), default="auto",
+                    help="time each draw on the CPU with the GL work finished around it (auto: on llvmpipe)")
     args = ap.parse_args(argv)
     from infinitex.engine.analysis import analyze
     from infinitex.engine.exemplar import load_exemplar
@@ -161,8 +167,10 @@ def main(argv=None) -> int:
         s = structure_index(preset)
         with Synthesizer(an, structure_params(SynthParams.default(an.L), s)) as synth:
             out["renderer"] = synth.gpu.renderer
+            sync = args.sync == "on" or (args.sync == "auto" and "llvmpipe" in synth.gpu.renderer)
+            out["sync"] = sync
             for n in args.sizes:
-                r = profile_window(synth, n, args.runs)
+                r = profile_window(synth, n, args.runs, sync)
                 out["cases"][f"{STRUCTURE_NAMES[s]} {n}"] = r
                 print_case(STRUCTURE_NAMES[s], n, r)
     print(f"\n{out['renderer']}; {out['exemplar']} ({an.size} px)")

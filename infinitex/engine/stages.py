@@ -50,14 +50,14 @@ class Pacer:
 
 
 class DrawTimes:
-    """GL timer queries around every draw of the engine while installed
-    (:func:`timing_draws`; bench/profile.py): per draw its program's name (the
-    shader file, `` vote`` for the fidelity stage's vote), level and pixels.
-    The queries are read once the work is done (:meth:`results`), so timing
-    adds no wait between draws."""
+    """The time of every draw of the engine while installed (:func:`timing_draws`;
+    bench/profile.py), with its program's name (the shader file, `` vote`` for
+    the fidelity stage's vote), level and pixels. Timer queries are read once
+    the work is done (:meth:`results`), so timing them adds no wait between draws."""
 
-    def __init__(self, gpu: Gpu):
+    def __init__(self, gpu: Gpu, sync: bool = False):
         self.gpu = gpu
+        self.sync = sync  # finish the GL work before and after each draw and time it on the CPU
         self._pending: list[tuple[str, int, int, Any]] = []
 
     def name(self, prog) -> str:
@@ -67,13 +67,24 @@ class DrawTimes:
         return "other"
 
     def query(self, prog, level: int, pixels: int):
+        if self.sync:
+            return self._synced(self.name(prog), level, pixels)
         q = self.gpu.ctx.query(time=True)
         self._pending.append((self.name(prog), level, pixels, q))
         return q
 
+    @contextmanager
+    def _synced(self, name: str, level: int, pixels: int):
+        self.gpu.ctx.finish()
+        t = time.perf_counter()
+        yield
+        self.gpu.ctx.finish()
+        self._pending.append((name, level, pixels, time.perf_counter() - t))
+
     def results(self) -> list[tuple[str, int, int, float]]:
-        """(program, level, pixels, GPU seconds) per draw since the last call."""
-        out = [(name, level, px, q.elapsed * 1e-9) for name, level, px, q in self._pending]
+        """(program, level, pixels, seconds) per draw since the last call."""
+        out = [(name, level, px, q if isinstance(q, float) else q.elapsed * 1e-9)
+               for name, level, px, q in self._pending]
         self._pending = []
         return out
 
@@ -82,12 +93,17 @@ _timers: DrawTimes | None = None
 
 
 @contextmanager
-def timing_draws(gpu: Gpu) -> Iterator[DrawTimes]:
-    """Time every engine draw on ``gpu`` while inside (one profiler at a time)."""
+def timing_draws(gpu: Gpu, sync: bool = False) -> Iterator[DrawTimes]:
+    """Time every engine draw on ``gpu`` while inside (one profiler at a time):
+    with GL timer queries, or with ``sync`` on the CPU, the GL work finished
+    before and after each draw. On llvmpipe, which renders a draw when its
+    target or inputs change, a timer query can hold the work of the draw
+    before it; ``sync`` times each draw alone (what it adds, its waits
+    included)."""
     global _timers
     if _timers is not None:
         raise RuntimeError("Draws are already being timed.")
-    _timers = DrawTimes(gpu)
+    _timers = DrawTimes(gpu, sync)
     try:
         yield _timers
     finally:
