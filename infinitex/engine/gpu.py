@@ -169,6 +169,7 @@ class LevelTextures:
         self._gpu, self._stack, self._lv = gpu, lv.stack, lv
         self._colors = None
         self._table = None
+        self._row_taps: dict = {}
 
     @property
     def colors(self):
@@ -179,6 +180,33 @@ class LevelTextures:
             self._colors = self._gpu.ctx.texture((q.shape[1], q.shape[0]), q.shape[2], q.tobytes(), dtype="u1")
             self._colors.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return self._colors
+
+    def row_taps(self, h: int, radius: int, toroidal: bool):
+        """fidelity.frag ROW_TAPS' texture (RGBA32UI array, row_taps_layers(C, R)
+        layers): at (x, y), the taps q[y, tap(x + h (i - R))], i = 0..2R, of the
+        quantized colors, packed C bytes each (4 for 3 channels), as many to a
+        uint as fit; tap wraps on a toroidal exemplar, else clamps to [0, m-1]."""
+        key = (h, radius, toroidal)
+        if key not in self._row_taps:
+            q = np.ascontiguousarray(fixed.quantized_colors(self._stack), dtype=np.uint8)
+            m, C = q.shape[0], q.shape[2]
+            tap_bytes = 4 if C >= 3 else C
+            per_uint = 4 // tap_bytes
+            packed = np.zeros((m, m), np.uint32)
+            for c in range(C):
+                packed |= q[:, :, c].astype(np.uint32) << np.uint32(8 * c)
+            layers = row_taps_layers(C, radius)
+            rows = np.zeros((m, m, layers * 4), np.uint32)
+            x = np.arange(m)
+            for i in range(2 * radius + 1):
+                xs = x + h * (i - radius)
+                xs = xs & (m - 1) if toroidal else np.clip(xs, 0, m - 1)
+                rows[:, :, i // per_uint] |= packed[:, xs] << np.uint32(8 * tap_bytes * (i % per_uint))
+            data = np.ascontiguousarray(rows.reshape(m, m, layers, 4).transpose(2, 0, 1, 3))
+            tex = self._gpu.ctx.texture_array((m, m, layers), 4, data.tobytes(), dtype="u4")
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._row_taps[key] = tex
+        return self._row_taps[key]
 
     @property
     def table(self):
@@ -202,9 +230,17 @@ class LevelTextures:
         return self._table
 
     def release(self) -> None:
-        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []) + [self._colors, self._table]:
+        for t in [self.feat, self.nbhd] + self.sim + (self.lattice_sim or []) + [self._colors, self._table,
+                                                                                 *self._row_taps.values()]:
             if t is not None:
                 t.release()
+
+
+def row_taps_layers(channels: int, radius: int) -> int:
+    """Layers of LevelTextures.row_taps (fidelity.frag ROW_TEXELS)."""
+    per_uint = 4 // (4 if channels >= 3 else channels)
+    uints = -(-(2 * radius + 1) // per_uint)
+    return -(-uints // 4)
 
 
 def _sim_textures(gpu: Gpu, simset: np.ndarray) -> list:

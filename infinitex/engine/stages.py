@@ -186,11 +186,15 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH, FID_NCH=an.channels,
                    **(labels.defines if labels else {}), **(dict(DIRECTION=True) if direction is not None else {}),
                    **(dict(ATLAS=True) if links is not None else {}), **(dict(AVOID=True) if has_avoid else {}))
+    if direction is None:
+        defines["ROW_TAPS"] = True
     prog, vao = gpu.program("fidelity.frag", **defines)
-    uniforms = dict(colors=1, avoid=5, dims=(region.w, region.h), qdims=qdims,
+    uniforms = dict(colors=1, rowtaps=2, avoid=5, dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
                     origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
     textures = {1: gan.level(l).colors, 5: avoid_tex}
+    if direction is None:
+        textures[2] = gan.level(l).row_taps(an.h(l), p.fidelity_radius, an.toroidal)
     if labels is not None:
         textures.update(labels.textures)
         uniforms.update(labels.fidelity)

@@ -162,6 +162,77 @@ uint color_distance(uint a, uvec4 c) {
 #endif
 }
 
+#ifdef ROW_TAPS
+// Without a direction field a patch row's taps lie along an exemplar row, h
+// apart: rowtaps (gpu.py LevelTextures.row_taps) holds at (x, y) the taps
+// E_l[tap(x + h (i - R)), y], i = 0..2R, packed TAP_BYTES each (the channels,
+// pack_color) TPU to a uint, so one fetch serves a row (or two or three for
+// larger patches and colors). N(p + d) is packed the same way (nbrow).
+#define FID_SIDE (2 * FID_RADIUS + 1)
+#if FID_NCH >= 3
+#define TAP_BYTES 4
+#define TAP_MASK 0xffffffffu
+#else
+#define TAP_BYTES FID_NCH
+#define TAP_MASK ((1u << (8 * FID_NCH)) - 1u)
+#endif
+#define TPU (4 / TAP_BYTES)
+#define ROW_UINTS ((FID_SIDE + TPU - 1) / TPU)
+#define ROW_TEXELS ((ROW_UINTS + 3) / 4)
+uniform usampler2DArray rowtaps;
+uint nbrow[FID_SIDE * ROW_UINTS];
+
+// ||a - b||^2 over the channels of two packed taps.
+uint tap_distance(uint a, uint b) {
+#if FID_NCH == 1
+    int e = int(a) - int(b);
+    return uint(e * e);
+#elif FID_NCH == 2
+    ivec2 e = ivec2(a & 0xffu, a >> 8) - ivec2(b & 0xffu, b >> 8);
+    return uint(e.x * e.x + e.y * e.y);
+#elif FID_NCH == 3
+    ivec3 e = ivec3((uvec3(a) >> uvec3(0u, 8u, 16u)) & 0xffu) - ivec3((uvec3(b) >> uvec3(0u, 8u, 16u)) & 0xffu);
+    ivec3 sq = e * e;
+    return uint(sq.x + sq.y + sq.z);
+#else
+    ivec4 e = ivec4((uvec4(a) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu) - ivec4((uvec4(b) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu);
+    ivec4 sq = e * e;
+    return uint(sq.x + sq.y + sq.z + sq.w);
+#endif
+}
+
+// Tap i of the row (written out: constant indices); the centre adds 0.
+#define ROW_TAP(i) { \
+        uint a_ = (w[((i) / TPU) >> 2][((i) / TPU) & 3] >> (8 * TAP_BYTES * ((i) % TPU))) & TAP_MASK; \
+        uint b_ = (nbrow[base + (i) / TPU] >> (8 * TAP_BYTES * ((i) % TPU))) & TAP_MASK; \
+        cost += ((i) == R && dy == 0) ? 0u : tap_distance(a_, b_); \
+    }
+
+// The patch cost row by row, giving up once a row brings it to the best.
+uint patch_cost(ivec2 u, uint limit) {
+    uint cost = 0u;
+    for (int dy = -R; dy <= R; ++dy) {
+        int ty = border < 0 ? ((u.y + h * dy) & (m - 1)) : clamp(u.y + h * dy, 0, m - 1);
+        uvec4 w[ROW_TEXELS];
+        for (int k = 0; k < ROW_TEXELS; ++k) {
+            w[k] = texelFetch(rowtaps, ivec3(u.x, ty, k), 0);
+        }
+        int base = (dy + R) * ROW_UINTS;
+        ROW_TAP(0) ROW_TAP(1) ROW_TAP(2) ROW_TAP(3) ROW_TAP(4)
+#if FID_SIDE > 5
+        ROW_TAP(5) ROW_TAP(6)
+#endif
+#if FID_SIDE > 7
+        ROW_TAP(7) ROW_TAP(8)
+#endif
+#if FID_SIDE > 9
+        ROW_TAP(9) ROW_TAP(10)
+#endif
+        if (cost >= limit) return limit;  // cannot win: stop early
+    }
+    return cost;
+}
+#else
 // The patch cost row by row, giving up once a row brings it to the best (the centre adds 0).
 uint patch_cost(ivec2 u, uint limit) {
     uint cost = 0u;
@@ -175,6 +246,7 @@ uint patch_cost(ivec2 u, uint limit) {
     }
     return cost;
 }
+#endif
 
 #ifdef FID_VOTE
 // What the vote compares: coordinates (DIRECTION: in 1/256 px), or without a
@@ -255,9 +327,20 @@ void main() {
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;  // reads cross chart seams (common.glsl atlas_texel)
 #endif
+#ifdef ROW_TAPS
+    for (int k = 0; k < FID_SIDE * ROW_UINTS; ++k) {
+        nbrow[k] = 0u;
+    }
+#endif
     for (int t = 0; t < NT; ++t) {
         ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
+#ifdef ROW_TAPS
+        int i = d.x + R;
+        uint c = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p + d), 0));
+        nbrow[(d.y + R) * ROW_UINTS + i / TPU] |= c << (8 * TAP_BYTES * (i % TPU));
+#else
         nb[t] = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p + d), 0));
+#endif
     }
     ivec2 tried[NCAND];
     int ntried = 0;
