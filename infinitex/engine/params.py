@@ -240,3 +240,56 @@ def correction_margins(s: int, passes: int, radius: int,
                            max(new[2], other[2] - dy), max(new[3], other[3] + dy)]
                 margin[ph] = new
     return tuple(max(margin[ph][i] for ph in phases) for i in range(4))
+
+
+def subpass_rects(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, int],
+                  interior: tuple[int, int, int, int]) -> list[tuple[int, int, int, int]] | None:
+    """What each subpass must compute so that the ``interior`` (x0, y0, x1, y1,
+    local pixels of a region of ``dims``) comes out exactly as if every subpass
+    computed its whole block: per subpass of ``stages`` ((passes, read radius)
+    each, in subpass_order, as correction_margins), its rectangle in block
+    texels (x0, y0, x1, y1), possibly empty. None when a read would leave the
+    region (then compute whole blocks).
+
+    Walked backwards: a subpass matters only at the pixels of its phase that
+    later subpasses (or the interior) read, and those read their neighbors
+    within the radius, which is what matters of each phase before it. A
+    pixel computed with the same inputs gets the same value, and the pixels
+    left as they were are never read by one that matters. A small window on
+    the coarse scales, whose margins are most of their regions, costs a
+    fraction of what it did."""
+    phases = [(i, j) for j in range(s) for i in range(s)]
+    seq = [(ph, r) for n, r in stages for order in subpass_order(s, n) for ph in order]
+    # Per phase, the block texels that matter (x0, y0, x1, y1; empty when x0 >= x1).
+    need = {}
+    for q in phases:
+        need[q] = tuple(-(-(interior[a] - q[a % 2]) // s) for a in (0, 1)) + \
+            tuple((interior[a] - 1 - q[a % 2]) // s + 1 for a in (2, 3))
+    out = []
+    for ph, r in reversed(seq):
+        b = need[ph]
+        out.append(b)
+        if b[0] >= b[2] or b[1] >= b[3]:
+            continue
+        # The pixels of phase ph it computes span [lo, hi] per axis; a read at
+        # offset d lands on phase (ph + d) mod s, block texel floor((x + d) / s).
+        lo = (s * b[0] + ph[0], s * b[1] + ph[1])
+        hi = (s * (b[2] - 1) + ph[0], s * (b[3] - 1) + ph[1])
+        if lo[0] - r < 0 or lo[1] - r < 0 or hi[0] + r >= dims[0] or hi[1] + r >= dims[1]:
+            return None
+        for q in phases:
+            reads = [0, 0, 0, 0]
+            for a in (0, 1):
+                ds = [d for d in range(-r, r + 1) if (ph[a] + d - q[a]) % s == 0]
+                if not ds:
+                    reads = None
+                    break
+                reads[a] = (lo[a] + min(ds) - q[a]) // s
+                reads[a + 2] = (hi[a] + max(ds) - q[a]) // s + 1
+            if reads is None:
+                continue
+            old = need[q]
+            if q != ph and old[0] < old[2] and old[1] < old[3]:
+                reads = [min(old[0], reads[0]), min(old[1], reads[1]), max(old[2], reads[2]), max(old[3], reads[3])]
+            need[q] = tuple(reads)
+    return out[::-1]

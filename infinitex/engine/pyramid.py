@@ -27,7 +27,7 @@ from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
 from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
-from .params import SynthParams, correction_margins, subpass_order
+from .params import SynthParams, correction_margins, subpass_order, subpass_rects
 from .rect import Rect
 from .similarity import border_margin
 from .stages import Draw, Pacer, fidelity_draws, label_draws, subpass_draws
@@ -359,8 +359,15 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 textures[unit] = tex
             yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni, l).steps(pace)
 
-            # Correction subpasses, then the fidelity stage's, on scratch a.
+            # Correction subpasses, then the fidelity stage's, on scratch a, each
+            # over what the strip needs of it (not in an atlas, whose reads jump).
             draws = []
+            radius = fixed.read_radius(an.model)
+            npass = p.passes_at(l) if l in self.corrected else 0
+            rects = None if ltex is not None else subpass_rects(
+                s, ((npass, radius), (p.fidelity_passes(l), p.fidelity_radius)), (region.w, region.h),
+                (strip.x0 - region.x0, strip.y0 - region.y0, strip.x1 - region.x0, strip.y1 - region.y0))
+            ncorr = npass * s * s
             avoid = self._avoid_texture()
             if l in self.corrected or p.fidelity_at(l):
                 labels = label_draws(self.gpu, self._efield, self._label_typical, self.controls, an, p, l, region)
@@ -389,10 +396,12 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                     textures[12] = ltex
                     uni["links"] = 12
                 draws += subpass_draws(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch,
-                                       textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)})
+                                       textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)},
+                                       None if rects is None else rects[:ncorr])
             if p.fidelity_at(l):
                 draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
-                                        avoid or self._dummy, avoid is not None, labels, dtex, ltex)
+                                        avoid or self._dummy, avoid is not None, labels, dtex, ltex,
+                                        None if rects is None else rects[ncorr:])
             for d in draws:
                 yield from d.steps(pace)
 

@@ -154,19 +154,26 @@ class Draw:
 
 
 def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, int], scratch,
-                  textures: dict, uniforms: dict, per_subpass: Callable[[int], dict]) -> list[Draw]:
+                  textures: dict, uniforms: dict, per_subpass: Callable[[int], dict],
+                  rects: list | None = None) -> list[Draw]:
     """The subpasses of ``orders`` (lists of phases) with ``prog`` over the
     packed state in scratch ``a`` of ``scratch`` = (a, its framebuffer, b, b's):
     each renders its phase's block into b, which is then copied back into a.
     ``textures``/``uniforms``: the program's inputs besides the state (unit 0);
-    ``per_subpass(n)``: the uniforms of subpass number n (counted over all passes)."""
+    ``per_subpass(n)``: the uniforms of subpass number n (counted over all passes);
+    ``rects``: per subpass, the part of its block to render (params.subpass_rects;
+    None: all of it; an empty one renders nothing)."""
     a, fa, b, fb = scratch
     copy, copy_vao = gpu.program("copy.frag", SUB_S=subgrid)
     draws = []
+    n = -1
     for order in orders:
         for phase in order:
-            block = (phase[0] * qdims[0], phase[1] * qdims[1], qdims[0], qdims[1])
-            n = len(draws) // 2
+            n += 1
+            x0, y0, x1, y1 = (0, 0, qdims[0], qdims[1]) if rects is None else rects[n]
+            if x0 >= x1 or y0 >= y1:
+                continue
+            block = (phase[0] * qdims[0] + x0, phase[1] * qdims[1] + y0, x1 - x0, y1 - y0)
             level = uniforms.get("level", -1)
             draws.append(Draw(prog, vao, fb, block, {**textures, 0: a},
                               {**uniforms, "src": 0, "active_phase": phase, **per_subpass(n)}, level))
@@ -176,12 +183,13 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
 
 def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
                    lattice: bool, scratch, avoid_tex, has_avoid: bool, labels: LabelDraws | None = None,
-                   direction=None, links=None) -> list[Draw]:
+                   direction=None, links=None, rects: list | None = None) -> list[Draw]:
     """The fidelity stage's iterations on level ``l``'s padded ``region`` (see
     shaders/fidelity.frag); ``lattice``: a lattice level (no random search);
     ``labels``: texture by numbers over the region, if any; ``direction``: the
     region's J texture (anisometric synthesis), if any; ``links``: its
-    indirection map (synthesis in a mesh's atlas), if any."""
+    indirection map (synthesis in a mesh's atlas), if any; ``rects``: what
+    each subpass renders (subpass_draws)."""
     an = gan.analysis
     defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH, FID_NCH=an.channels,
                    **(labels.defines if labels else {}), **(dict(DIRECTION=True) if direction is not None else {}),
@@ -207,19 +215,21 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     orders = subpass_order(p.subgrid, p.fidelity_passes(l))
     if not p.fidelity_vote:
         return subpass_draws(gpu, prog, vao, p.subgrid, orders, qdims, scratch, textures, uniforms,
-                             lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)})
+                             lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)}, rects)
     # Search on even passes (subpasses numbered over the searches alone), the vote on odd ones.
     vote, vote_vao = gpu.program("fidelity.frag", FID_VOTE=True, **defines)
     per_pass = p.subgrid * p.subgrid
     draws = []
     for c, order in enumerate(orders):
+        part = None if rects is None else rects[c * per_pass:(c + 1) * per_pass]
         if c % 2:
             draws += subpass_draws(gpu, vote, vote_vao, p.subgrid, [order], qdims, scratch, textures, uniforms,
-                                   lambda n: {})
+                                   lambda n: {}, part)
         else:
             first = c // 2 * per_pass
             draws += subpass_draws(gpu, prog, vao, p.subgrid, [order], qdims, scratch, textures, uniforms,
-                                   lambda n, first=first: {"search_seed": fixed.fidelity_seed(p.seed, first + n)})
+                                   lambda n, first=first: {"search_seed": fixed.fidelity_seed(p.seed, first + n)},
+                                   part)
     return draws
 
 
