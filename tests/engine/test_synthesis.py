@@ -4,6 +4,8 @@ from dataclasses import replace
 import numpy as np
 import oracle
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from infinitex.engine.params import SynthParams, correction_margins
 from infinitex.engine.pyramid import Rect, SynthesisError
@@ -273,3 +275,51 @@ def test_random_walk_matches_the_oracle_and_stays_deterministic(analyses, gpu, n
         assert np.array_equal(wide, np.tile(tile, (3, 3, 1))[n:3 * n, n // 2:n // 2 + 2 * n])
     plain.release()
     synth.release()
+
+
+def _simulate(s, stages, dims, rects, init):
+    """Subpasses on a CPU grid: each rewritten pixel becomes a hash of its
+    neighbors within the stage's radius (reads outside the region clamped, as
+    the shaders' are); only the ``rects`` (block texels) when given."""
+    from infinitex.engine.params import subpass_order
+    state = init.copy()
+    n = -1
+    for passes, r in stages:
+        for order in subpass_order(s, passes):
+            for ph in order:
+                n += 1
+                new = state.copy()
+                bx0, by0, bx1, by1 = (0, 0, dims[0] // s, dims[1] // s) if rects is None else rects[n]
+                for by in range(by0, by1):
+                    for bx in range(bx0, bx1):
+                        x, y = s * bx + ph[0], s * by + ph[1]
+                        acc = n + 1
+                        for dy in range(-r, r + 1):
+                            for dx in range(-r, r + 1):
+                                v = state[min(max(y + dy, 0), dims[1] - 1), min(max(x + dx, 0), dims[0] - 1)]
+                                acc = (acc * 1000003 + int(v)) & 0xFFFFFFFF
+                        new[y, x] = acc
+                state = new
+    return state
+
+
+@settings(max_examples=25, deadline=None)
+@given(s=st.integers(1, 3), c=st.integers(0, 2), rc=st.integers(1, 2), f=st.integers(0, 2), rf=st.integers(1, 3),
+       w=st.integers(1, 9), h=st.integers(1, 9))
+def test_subpass_rects_give_the_interior_exactly(s, c, rc, f, rf, w, h):
+    """Rendering only params.subpass_rects leaves the strip exactly as rendering
+    every block whole (and renders less whenever there is a margin)."""
+    from infinitex.engine.params import subpass_rects
+    stages = ((c, rc), (f, rf))
+    m = correction_margins(s, c, rc, ((f, rf),))
+    x0, y0 = m[0] + (-m[0]) % s, m[2] + (-m[2]) % s  # the region s-aligned, as Pyramid.padded
+    dims = (x0 + w + m[1] + (-(x0 + w + m[1])) % s, y0 + h + m[3] + (-(y0 + h + m[3])) % s)
+    rects = subpass_rects(s, stages, dims, (x0, y0, x0 + w, y0 + h))
+    assert rects is not None
+    init = np.random.default_rng(w * 10 + h).integers(0, 2 ** 31, (dims[1], dims[0]))
+    full = _simulate(s, stages, dims, None, init)
+    part = _simulate(s, stages, dims, rects, init)
+    assert np.array_equal(full[y0:y0 + h, x0:x0 + w], part[y0:y0 + h, x0:x0 + w])
+    if c + f:
+        area = sum(max(0, b[2] - b[0]) * max(0, b[3] - b[1]) for b in rects)
+        assert area < len(rects) * (dims[0] // s) * (dims[1] // s)
