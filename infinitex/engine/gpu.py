@@ -42,11 +42,14 @@ def create_context() -> moderngl.Context:
 def set_uniforms(prog: moderngl.Program, **values) -> None:
     """Set uniforms by name, skipping those the compiler optimized out (bytes: written raw)."""
     for name, value in values.items():
-        if name in prog:
-            if isinstance(value, bytes):
-                prog[name].write(value)
-            else:
-                prog[name].value = value
+        try:
+            member = prog[name]
+        except KeyError:
+            continue
+        if isinstance(value, bytes):
+            member.write(value)
+        else:
+            member.value = value
 
 
 def read_shader(name: str) -> str:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -217,6 +218,7 @@ def subpass_order(s: int, passes: int) -> list[list[tuple[int, int]]]:
     return out
 
 
+@lru_cache(maxsize=256)
 def correction_margins(s: int, passes: int, radius: int,
                        stages: tuple[tuple[int, int], ...] = ()) -> tuple[int, int, int, int]:
     """Exact padding (left, right, top, bottom) a region needs so that after all
@@ -242,6 +244,7 @@ def correction_margins(s: int, passes: int, radius: int,
     return tuple(max(margin[ph][i] for ph in phases) for i in range(4))
 
 
+@lru_cache(maxsize=1024)
 def subpass_rects(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, int],
                   interior: tuple[int, int, int, int]) -> list[tuple[int, int, int, int]] | None:
     """What each subpass must compute so that the ``interior`` (x0, y0, x1, y1,
@@ -292,4 +295,4 @@ def subpass_rects(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, 
             if q != ph and old[0] < old[2] and old[1] < old[3]:
                 reads = [min(old[0], reads[0]), min(old[1], reads[1]), max(old[2], reads[2]), max(old[3], reads[3])]
             need[q] = tuple(reads)
-    return out[::-1]
+    return tuple(out[::-1])
