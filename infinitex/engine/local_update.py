@@ -106,7 +106,7 @@ class LocalUpdates:
                 if r.empty:
                     continue
                 region = self.padded(l, r)
-                scratch = self._new_scratch(region.w, region.h)  # its own: other strips may run meanwhile
+                scratch = self._new_scratch(*self._scratch_size(region))  # its own: other strips may run meanwhile
                 pace = None if deadline is None else self.pacer
                 self._job = (l, self._strip_steps(l, r, scratch, None, pace), scratch)
                 self.pixels_synthesized += region.w * region.h

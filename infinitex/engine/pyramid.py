@@ -30,7 +30,7 @@ from .state import StateAccess, SynthesisError
 from .params import SynthParams, correction_margins, subpass_order, subpass_rects
 from .rect import Rect
 from .similarity import border_margin
-from .stages import Draw, Pacer, fidelity_draws, label_draws, subpass_draws
+from .stages import Draw, Pacer, block_layout, fidelity_draws, label_draws, subpass_draws
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -286,7 +286,14 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             self._touch(l, strip)
         return count
 
-    def _scratch_pair(self, w: int, h: int):
+    def _scratch_size(self, region: Rect) -> tuple[int, int]:
+        """The size of a padded region's scratch textures (stages.block_layout)."""
+        s = self.params.subgrid
+        return block_layout((region.w // s, region.h // s), s)[2]
+
+    def _scratch_pair(self, region: Rect):
+        """The pair of scratch textures for a padded region (kept for their size)."""
+        w, h = self._scratch_size(region)
         key = (w, h)
         if key not in self._scratch:
             if len(self._scratch) > 24:
@@ -298,14 +305,14 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         return self._scratch[key]
 
     def _new_scratch(self, w: int, h: int):
-        """Two w x h state textures and their framebuffers: (a, fa, b, fb)."""
+        """Two w x h state textures and their framebuffers: (a, fa, b, fb) (see _scratch_pair)."""
         a = self.gpu.int_texture((w, h), self.channels)
         b = self.gpu.int_texture((w, h), self.channels)
         return a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b])
 
     def _synthesize_strip(self, l: int, strip: Rect, buf: _LevelBuffer) -> int:
         region = self.padded(l, strip)
-        steps = self._strip_steps(l, strip, self._scratch_pair(region.w, region.h), buf)
+        steps = self._strip_steps(l, strip, self._scratch_pair(region), buf)
         for _ in steps:
             pass
         return region.w * region.h
@@ -322,6 +329,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         an = self.an
         region = self.padded(l, strip)
         qdims = (region.w // s, region.h // s)
+        bstride, boff, tex_size = block_layout(qdims, s)
         a, fa, b, fb = scratch
         h = an.h(l)
         ftexs, funi = feature_textures(self.gpu, self.controls, an, l, region, p.level_period(l), self._dummy_i)
@@ -349,7 +357,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 textures[0] = parent.tex
                 uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
             lshift = self.controls.lattice_shift(an.size, l)
-            uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, h=h,
+            uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, bstride=bstride, boff=boff, h=h,
                        m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
                        period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
                        cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi,
@@ -357,7 +365,8 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                        **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0)) if ltex is not None else {}))
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
-            yield from Draw(prog, vao, fa, (0, 0, region.w, region.h), textures, uni, l).steps(pace)
+            yield from Draw(prog, vao, fa, (*boff, tex_size[0] - boff[0], tex_size[1] - boff[1]), textures, uni,
+                            l).steps(pace)
 
             # Correction subpasses, then the fidelity stage's, on scratch a, each
             # over what the strip needs of it (not in an atlas, whose reads jump).
@@ -415,7 +424,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                     return None
                 before = self._read_rect(buf, strip)
             prog, vao = self.gpu.program("writeback.frag", SUB_S=s, **ddef)
-            uni = dict(src=0, qdims=qdims, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
+            uni = dict(src=0, qdims=qdims, bstride=bstride, boff=boff, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
                        h=h, m=an.size, period=p.level_period(l), links=12, **funi)  # links: charts (on a model)
             textures = {0: a, 12: self._dummy_i if ltex is None else ltex, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
             # At once and without a pause: a level shown between two pieces

@@ -95,7 +95,7 @@ class SpreadRequests:
             buf, keep, strips = self._keep(l, target)
             for strip in strips:
                 region = self.padded(l, strip)
-                scratch = self._new_scratch(region.w, region.h)
+                scratch = self._new_scratch(*self._scratch_size(region))
                 try:
                     yield from self._strip_steps(l, strip, scratch, buf, self.pacer)
                 finally:

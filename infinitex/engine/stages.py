@@ -21,6 +21,28 @@ from .params import FIDELITY_SEARCH, SynthParams, subpass_order
 from .similarity import border_margin
 
 
+# llvmpipe renders 64 x 64 tiles, each on one thread: a draw inside one tile
+# runs on one core however many there are.
+TILE = 64
+
+
+def block_layout(qdims: tuple[int, int], s: int) -> tuple[tuple[int, int], tuple[int, int], tuple[int, int]]:
+    """Where the s x s blocks of a quadrant-packed scratch buffer lie: (bstride,
+    boff, texture size), block (i, j) starting at boff + (i, j) bstride. Each
+    block's centre sits on a corner of TILE x TILE tiles, so that a subpass's
+    rectangle, about centred in its block however small (params.subpass_rects),
+    spreads over four tiles, the cores' shares even (a small window's coarse
+    scales ran on one core of two)."""
+    stride, off, size = [], [], []
+    for q in qdims:
+        o = -(-(q // 2) // TILE) * TILE - q // 2
+        st = -(-q // TILE) * TILE
+        stride.append(st)
+        off.append(o)
+        size.append(o + (s - 1) * st + q)
+    return (stride[0], stride[1]), (off[0], off[1]), (size[0], size[1])
+
+
 @dataclass
 class Pacer:
     """Sizes the row pieces of draws that run between frames so each takes
@@ -165,6 +187,7 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
     None: all of it; an empty one renders nothing)."""
     a, fa, b, fb = scratch
     copy, copy_vao = gpu.program("copy.frag", SUB_S=subgrid)
+    bstride, boff, _ = block_layout(qdims, subgrid)
     draws = []
     n = -1
     for order in orders:
@@ -173,10 +196,11 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
             x0, y0, x1, y1 = (0, 0, qdims[0], qdims[1]) if rects is None else rects[n]
             if x0 >= x1 or y0 >= y1:
                 continue
-            block = (phase[0] * qdims[0] + x0, phase[1] * qdims[1] + y0, x1 - x0, y1 - y0)
+            block = (boff[0] + phase[0] * bstride[0] + x0, boff[1] + phase[1] * bstride[1] + y0, x1 - x0, y1 - y0)
             level = uniforms.get("level", -1)
             draws.append(Draw(prog, vao, fb, block, {**textures, 0: a},
-                              {**uniforms, "src": 0, "active_phase": phase, **per_subpass(n)}, level))
+                              {**uniforms, "src": 0, "active_phase": phase, "bstride": bstride, "boff": boff,
+                               **per_subpass(n)}, level))
             draws.append(Draw(copy, copy_vao, fa, block, {0: b}, {"src": 0}, level))
     return draws
 

@@ -30,9 +30,14 @@ ivec4 floor_shift(ivec4 x, int s) {
 
 // Scratch buffers are quadrant-packed (LH05 3.6): local pixel p of phase
 // p mod s lives in block (p mod s) at offset p div s, so each subpass
-// rewrites one contiguous block. p must be non-negative.
+// rewrites one contiguous block. Block (i, j) starts at boff + (i, j) bstride
+// (stages.block_layout: each block centred on a corner of llvmpipe's tiles).
+// p must be non-negative.
+uniform ivec2 bstride;
+uniform ivec2 boff;
+
 ivec2 packed_texel(ivec2 p, ivec2 qdims) {
-    return (p % SUB_S) * qdims + p / SUB_S;
+    return boff + (p % SUB_S) * bstride + p / SUB_S;
 }
 
 // The effective r_l in 1024ths for randomness field values E (exemplar) and

@@ -155,7 +155,7 @@ void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
     ivec4 here = texelFetch(src, X, 0);
-    ivec2 p = (X - active_phase * qdims) * SUB_S + active_phase;
+    ivec2 p = (X - boff - active_phase * bstride) * SUB_S + active_phase;
     int wrap = m - 1;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;

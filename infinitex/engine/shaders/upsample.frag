@@ -51,9 +51,14 @@ ivec2 parent_texel(ivec2 gp) {
 out ivec4 result;
 
 void main() {
-    ivec2 X = ivec2(gl_FragCoord.xy);
-    ivec2 phase = X / qdims;
-    ivec2 local = (X - phase * qdims) * SUB_S + phase;
+    ivec2 X = ivec2(gl_FragCoord.xy) - boff;
+    ivec2 phase = X / bstride;
+    ivec2 inblock = X - phase * bstride;
+    if (any(greaterThanEqual(inblock, qdims))) {  // between blocks (stages.block_layout)
+        result = ivec4(0);
+        return;
+    }
+    ivec2 local = inblock * SUB_S + phase;
     ivec2 g = origin + local;
     ivec2 gm = period > 0 ? (g & (period - 1)) : g;
 #ifdef ATLAS
