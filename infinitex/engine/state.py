@@ -114,11 +114,11 @@ class StateAccess:
             raise SynthesisError(f"Level {level} does not hold {rect}; request it first.")
         self.gpu.activate()
         c = buf.channels
-        data = np.frombuffer(buf.tex.read(alignment=1), dtype=np.int16).reshape(buf.size[1], buf.size[0], c)
-        tx = (np.arange(rect.x0, rect.x1) - buf.anchor[0]) & buf.mask[0]
-        ty = (np.arange(rect.y0, rect.y1) - buf.anchor[1]) & buf.mask[1]
-        out = data[ty[:, None], tx[None, :]].astype(np.int32)
+        # Only the rectangle's texels come back (in at most four pieces where the buffer wraps).
+        data = self._read_rect(buf, rect)
         if remainder:
-            return out if c == 4 else np.concatenate([out, np.zeros_like(out)], axis=-1)
-        return out[..., :2] if c == 4 else out
+            out = np.zeros((rect.h, rect.w, 4), np.int32)
+            out[..., :c] = data
+            return out
+        return data[..., :2].astype(np.int32)
 
