@@ -20,6 +20,9 @@
                      exemplar) until the view is exact, median of 16; label_dab_exact as dab_exact
   comb_dab_ms        direction fields: a comb dab (48 px) on an identity field until exact, median of 16;
                      comb_dab_exact as dab_exact
+  hd_view_ms         a 1920 x 1080 view of all-new canvas, kept on the GPU (as the editor shows it), median of 3;
+                     hd_pan_ms: a pan frame of it (8 px, mean of 16); hd_window_ms: the same window read back
+                     as coordinates (Synthesizer.window); uhd_*: the same at 3840 x 2160 (not with --quick)
 
 ``coords.npz`` holds exemplar coordinates of fixed windows (gravel and the weave,
 every preset, near the origin and near (+2^30, -2^30), and a toroidal tile);
@@ -112,11 +115,35 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
             releases.append(_timed(lambda: (vp.set_params(released), vp.show(view)), ctx))
         vp.release()
         r.update(jump_ms=statistics.median(jumps), release_ms=statistics.median(releases))
+        r.update(_screen_views(syn, ctx, quick))
         r.update(_label_dabs(gpu, an, params, view, quick))
         r.update(_comb_dabs(gpu, an, params, view, quick))
         return {k: round(v, 2) if isinstance(v, float) else v for k, v in r.items()}
     finally:
         syn.release()
+
+
+SCREENS = {"hd": (1920, 1080), "uhd": (3840, 2160)}
+
+
+def _screen_views(syn, ctx, quick: bool) -> dict:
+    """Screen-sized views (1920 x 1080, and 3840 x 2160 unless quick): a view of
+    all-new canvas on the GPU (as the editor shows it: nothing read back), median
+    of 3 far apart; a pan frame (8 px, mean of 16); the same window read back as
+    coordinates (Synthesizer.window), one run."""
+    r = {}
+    for name, (w, h) in SCREENS.items():
+        if quick and name == "uhd":
+            continue
+        vp = syn.viewport()
+        views = [_timed(lambda k=k: vp.show(Rect.of(50000 * k - 900, 7000 * k, w, h)), ctx) for k in range(4)][1:]
+        x, y = 100000, 3000
+        pans = [_timed(lambda f=f: vp.show(Rect.of(x + 8 * f, y + 3 * f, w, h)), ctx) for f in range(17)][1:]
+        vp.release()
+        r[f"{name}_view_ms"] = statistics.median(views)
+        r[f"{name}_pan_ms"] = statistics.mean(pans)
+        r[f"{name}_window_ms"] = _timed(lambda: syn.window(Rect.of(-20000, 900, w, h)), ctx)
+    return r
 
 
 def _timed(fn, ctx) -> float:
@@ -220,6 +247,10 @@ def run(out_dir: str, quick: bool, presets) -> dict:
               f"{r['pan_speedup']:>6.1f}x{r['view_ms']:>7.1f}ms{r['jump_ms']:>7.1f}ms{r['release_ms']:>7.1f}ms"
               f"{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms{r['dab_px']:>9d}{r['label_dab_ms']:>7.1f}ms"
               f"{r['comb_dab_ms']:>7.1f}ms  {exact}")
+    for k, r in res["presets"].items():
+        print(f"{k:<10}" + "  ".join(f"{name} {SCREENS[name][0]}x{SCREENS[name][1]}: view {r[name + '_view_ms']:.1f} ms, "
+                                     f"pan {r[name + '_pan_ms']:.2f} ms, window read back {r[name + '_window_ms']:.1f} ms"
+                                     for name in SCREENS if name + "_view_ms" in r))
     return res
 
 
