@@ -2,7 +2,7 @@
 
     .venv/bin/python -m bench.mutants [--tests-from REV] [--only NAME,...] [--json OUT]
 
-Each of the 11 mutants is one small, plausible bug in the engine, the exports or the
+Each of the 13 mutants is one small, plausible bug in the engine, the exports or the
 project format (a comparison off by one, a margin too small, a setting left out
 of a cache key...). For each, the checkout is copied to a temporary folder, the
 bug is written into the copy, and the tests that should notice it run there
@@ -59,6 +59,12 @@ MUTANTS = [
     ("project files forget the seed", "infinitex/project/format.py",
      '"jitter": list(doc.jitter), "seed": doc.seed,', '"jitter": list(doc.jitter), "seed": 0,',
      "tests/project/test_document.py tests/app/test_session.py"),
+    ("subpass rectangles one texel short", "infinitex/engine/params.py",
+     "reads[a + 2] = (hi[a] + max(ds) - q[a]) // s + 1", "reads[a + 2] = (hi[a] + max(ds) - q[a]) // s",
+     "tests/engine/test_synthesis.py tests/engine/test_fidelity.py"),
+    ("row taps clamped on a toroidal exemplar", "infinitex/engine/gpu.py",
+     "xs = xs & (m - 1) if toroidal else np.clip(xs, 0, m - 1)", "xs = np.clip(xs, 0, m - 1)",
+     "tests/engine/test_fidelity.py"),
 ]
 
 

@@ -27,10 +27,9 @@ from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
 from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
-from .params import SynthParams, correction_margins, subpass_order, subpass_rects
+from .params import SynthParams, correction_margins, subpass_rects
 from .rect import Rect
-from .similarity import border_margin
-from .stages import Draw, Pacer, block_layout, fidelity_draws, label_draws, subpass_draws
+from .stages import Draw, Pacer, block_layout, correction_draws, fidelity_draws, label_draws
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -381,32 +380,11 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             if l in self.corrected or p.fidelity_at(l):
                 labels = label_draws(self.gpu, self._efield, self._label_typical, self.controls, an, p, l, region)
             if l in self.corrected:
-                lt = self.gan.level(l)
-                prog, vao = self.gpu.program("correct.frag", SUB_S=s,
-                                             **self.gan.correction_defines(l, avoid is not None, dtex is not None),
-                                             **(labels.defines if labels else {}), **ddef)
-                sims = lt.lattice_sim if lshift is not None else (lt.sim or [self._dummy_i] * 2)
                 # Lattice levels keep their lattice candidates only.
                 walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
-                uni = dict(feat=1, ptable=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, h=h,
-                           m=an.size, shift=lt.shift, psi=fixed.psi_q(p.kappa), P=lt.proj, walk=walk,
-                           origin=(region.x0, region.y0), level=l, period=p.level_period(l),
-                           border=-1 if an.toroidal else border_margin(an.size, h), avoid=5)
-                table = self.gan.projection_tables and dtex is None
-                textures = dict(enumerate([lt.table if table else lt.feat, lt.nbhd] + sims, start=1))
-                textures[5] = avoid or self._dummy
-                if labels is not None:
-                    textures.update(labels.textures)
-                    uni.update(labels.correction)
-                if dtex is not None:
-                    textures[11] = dtex
-                    uni["dfield"] = 11
-                if ltex is not None:
-                    textures[12] = ltex
-                    uni["links"] = 12
-                draws += subpass_draws(self.gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch,
-                                       textures, uni, lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)},
-                                       None if rects is None else rects[:ncorr])
+                draws += correction_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, walk, scratch,
+                                          avoid, self._dummy, self._dummy_i, labels, dtex, ltex, ddef,
+                                          None if rects is None else rects[:ncorr])
             if p.fidelity_at(l):
                 draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
                                         avoid or self._dummy, avoid is not None, labels, dtex, ltex,

@@ -205,6 +205,43 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
     return draws
 
 
+def correction_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
+                     lattice: bool, walk: int, scratch, avoid_tex, dummy, dummy_i, labels: LabelDraws | None,
+                     direction, links, defines: dict, rects: list | None) -> list[Draw]:
+    """The correction's subpasses on level ``l``'s padded ``region`` (see
+    shaders/correct.frag); ``lattice``: a lattice level (its lattice candidates
+    only); ``walk``: random-walk steps; ``avoid_tex``: the avoided region or
+    None; ``dummy``/``dummy_i``: textures bound where an input is absent;
+    ``labels``, ``direction``, ``links``, ``rects`` as fidelity_draws;
+    ``defines``: the geometry's (DIRECTION, ATLAS)."""
+    an = gan.analysis
+    s = p.subgrid
+    lt = gan.level(l)
+    prog, vao = gpu.program("correct.frag", SUB_S=s, **gan.correction_defines(l, avoid_tex is not None,
+                                                                                direction is not None),
+                            **(labels.defines if labels else {}), **defines)
+    sims = lt.lattice_sim if lattice else (lt.sim or [dummy_i] * 2)
+    h = an.h(l)
+    uni = dict(feat=1, ptable=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, h=h,
+               m=an.size, shift=lt.shift, psi=fixed.psi_q(p.kappa), P=lt.proj, walk=walk,
+               origin=(region.x0, region.y0), level=l, period=p.level_period(l),
+               border=-1 if an.toroidal else border_margin(an.size, h), avoid=5)
+    table = gan.projection_tables and direction is None
+    textures = dict(enumerate([lt.table if table else lt.feat, lt.nbhd] + sims, start=1))
+    textures[5] = avoid_tex or dummy
+    if labels is not None:
+        textures.update(labels.textures)
+        uni.update(labels.correction)
+    if direction is not None:
+        textures[11] = direction
+        uni["dfield"] = 11
+    if links is not None:
+        textures[12] = links
+        uni["links"] = 12
+    return subpass_draws(gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch, textures, uni,
+                         lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)}, rects)
+
+
 def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
                    lattice: bool, scratch, avoid_tex, has_avoid: bool, labels: LabelDraws | None = None,
                    direction=None, links=None, rects: list | None = None) -> list[Draw]:
