@@ -97,7 +97,9 @@ class Gpu:
             head = GLSL_VERSION + "\n" + "".join(
                 f"#define {k} {'' if v is True else v}\n" for k, v in sorted(defines.items()))
             vert = head + read_shader("fullscreen.vert")
-            src = head + read_shader("common.glsl") + read_shader(frag)
+            # Macros written over several lines are joined here: GLSL has line
+            # continuations only from 4.20, and some 3.30 compilers reject them.
+            src = (head + read_shader("common.glsl") + read_shader(frag)).replace("\\\n", " ")
             try:
                 prog = self.ctx.program(vertex_shader=vert, fragment_shader=src)
             except moderngl.Error as exc:

@@ -219,7 +219,8 @@ def correction_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region,
     lt = gan.level(l)
     prog, vao = gpu.program("correct.frag", SUB_S=s, **gan.correction_defines(l, avoid_tex is not None,
                                                                                 direction is not None),
-                            **(labels.defines if labels else {}), **defines)
+                            **(labels.defines if labels else {}), **defines,
+                            **(dict(INSIDE=True) if rects is not None else {}))
     sims = lt.lattice_sim if lattice else (lt.sim or [dummy_i] * 2)
     h = an.h(l)
     uni = dict(feat=1, ptable=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, h=h,
@@ -254,7 +255,8 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     an = gan.analysis
     defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH, FID_NCH=an.channels,
                    **(labels.defines if labels else {}), **(dict(DIRECTION=True) if direction is not None else {}),
-                   **(dict(ATLAS=True) if links is not None else {}), **(dict(AVOID=True) if has_avoid else {}))
+                   **(dict(ATLAS=True) if links is not None else {}), **(dict(AVOID=True) if has_avoid else {}),
+                   **(dict(INSIDE=True) if rects is not None else {}))
     if direction is None:
         defines["ROW_TAPS"] = True
     prog, vao = gpu.program("fidelity.frag", **defines)

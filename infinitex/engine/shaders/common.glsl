@@ -40,6 +40,9 @@ ivec2 packed_texel(ivec2 p, ivec2 qdims) {
     return boff + (p % SUB_S) * bstride + p / SUB_S;
 }
 
+uniform ivec2 active_phase;   // the phase a subpass rewrites (correct.frag, fidelity.frag)
+ivec2 block_texel;            // the computed pixel's texel in its block, less boff (set by main)
+
 // The effective r_l in 1024ths for randomness field values E (exemplar) and
 // C (canvas) in 1/32768ths (engine/controls/fields.py: modulated_rq).
 int modulated_rq(int rq, uint E, uint C) {
@@ -206,4 +209,16 @@ uint label_cost(uint t, uint e) {
     uint D = w1 * w1 + w2 * w2 + v1 * v1 + v2 * v2 - 2u * te;
     return (((D * share) >> 8) * uint(lab_weight)) >> 4;
 }
+#endif
+
+// NEIGHBOR_TEXEL(p, d): the scratch texel of local pixel p + d, p the pixel a
+// subpass computes. INSIDE (params.subpass_rects: every read of a computed
+// pixel stays inside the region, so nothing is clamped): p's phase is
+// active_phase, so that of p + d and its block follow from d, and the texel is
+// p's own plus a uniform offset (|d| <= 3 SUB_S).
+#if defined(INSIDE) && (SUB_S == 2 || SUB_S == 4)
+#define NEIGHBOR_TEXEL(p, d) (boff + ((active_phase + (d) + 4 * SUB_S) & (SUB_S - 1)) * bstride \
+                              + block_texel + (active_phase + (d) + 4 * SUB_S) / SUB_S - 4)
+#else
+#define NEIGHBOR_TEXEL(p, d) packed_texel(STATE_TEXEL((p) + (d)), qdims)
 #endif

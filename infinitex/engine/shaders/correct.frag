@@ -26,7 +26,6 @@
 uniform isampler2D src;       // current state, packed
 uniform ivec2 dims;           // scratch size in pixels (multiple of s)
 uniform ivec2 qdims;          // dims / s
-uniform ivec2 active_phase;   // phase being corrected
 #ifdef MODEL_APPEARANCE
 uniform usampler2D feat;      // A_l, 8 dims packed in 4 (gpu.pack8)
 #else
@@ -73,13 +72,13 @@ const uint AVOIDED = 0xfffffffeu;
 
 out ivec4 result;
 
-ivec2 fetch_s(ivec2 p) {
-    return texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0).xy;
+ivec2 fetch_s(ivec2 p, ivec2 d) {
+    return texelFetch(src, NEIGHBOR_TEXEL(p, d), 0).xy;
 }
 
 #ifdef DIRECTION
-ivec2 fetch_f(ivec2 p) {
-    return full_q8(texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0));
+ivec2 fetch_f(ivec2 p, ivec2 d) {
+    return full_q8(texelFetch(src, NEIGHBOR_TEXEL(p, d), 0));
 }
 #endif
 
@@ -144,7 +143,7 @@ int distance8(uvec4 v, ivec4 lo_b, ivec4 hi_b) {
 // Tap t of the color model's 5x5 neighborhood (COLOR_TAPS order) added to lo, hi.
 #define COLOR_TAP(t) { \
         ivec2 d = ivec2(t % 5 - 2, t / 5 - 2); \
-        ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p + d)) & wrap; \
+        ivec2 u = (all(lessThanEqual(abs(d), ivec2(1))) ? S[(d.y + 1) * 3 + d.x + 1] : fetch_s(p, d)) & wrap; \
         PVEC col = PVEC(texelFetch(feat, u, 0)); \
         for (int c = 0; c < NCH; ++c) { \
             add_tap(t * NCH + c, col[c], lo, hi); \
@@ -155,7 +154,8 @@ void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
     ivec4 here = texelFetch(src, X, 0);
-    ivec2 p = (X - boff - active_phase * bstride) * SUB_S + active_phase;
+    block_texel = X - boff - active_phase * bstride;
+    ivec2 p = block_texel * SUB_S + active_phase;
     int wrap = m - 1;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;
@@ -164,7 +164,7 @@ void main() {
     ivec2 S[9];  // 3x3 neighbors, row-major, S[4] = here
     for (int j = 0; j < 9; ++j) {
         ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
-        S[j] = j == 4 ? here.xy : fetch_s(p + d);
+        S[j] = j == 4 ? here.xy : fetch_s(p, d);
     }
 
     PVEC lo = PVEC(0);
@@ -173,7 +173,7 @@ void main() {
     ivec4 Jp = texelFetch(dfield, p, 0);
     ivec2 F9[9];
     for (int j = 0; j < 9; ++j) {
-        F9[j] = j == 4 ? full_q8(here) : fetch_f(p + ivec2(j % 3 - 1, j / 3 - 1));
+        F9[j] = j == 4 ? full_q8(here) : fetch_f(p, ivec2(j % 3 - 1, j / 3 - 1));
     }
 #ifdef MODEL_APPEARANCE
     for (int t = 0; t < 4; ++t) {
@@ -201,7 +201,7 @@ void main() {
         ivec2 d = ivec2(t % 5 - 2, t / 5 - 2);
         ivec2 num = 8192 * ivec2(Jp.w * d.x - Jp.y * d.y, Jp.x * d.y - Jp.z * d.x) + det;
         ivec2 dp = clamp(ivec2(floor_div(num.x, 2 * det), floor_div(num.y, 2 * det)), ivec2(-2), ivec2(2));
-        ivec2 F = all(lessThanEqual(abs(dp), ivec2(1))) ? F9[(dp.y + 1) * 3 + dp.x + 1] : fetch_f(p + dp);
+        ivec2 F = all(lessThanEqual(abs(dp), ivec2(1))) ? F9[(dp.y + 1) * 3 + dp.x + 1] : fetch_f(p, dp);
         ivec2 u = nearest_q8(F + 256 * h * d - jmul(Jp, dp, h)) & wrap;
         PVEC col = PVEC(texelFetch(feat, u, 0));
         for (int c = 0; c < NCH; ++c) {

@@ -42,7 +42,6 @@ uniform isampler2D src;       // current state, packed
 uniform usampler2D colors;    // E_l as engine/fixed.py quantized_colors, FID_NCH 8-bit channels, m x m
 uniform ivec2 dims;
 uniform ivec2 qdims;
-uniform ivec2 active_phase;
 uniform int h;
 uniform int m;
 uniform int border;           // < 0: toroidal exemplar
@@ -67,8 +66,8 @@ out ivec4 result;
 #define AVOIDS(u) false
 #endif
 
-ivec2 fetch_s(ivec2 p) {
-    return texelFetch(src, packed_texel(STATE_TEXEL(p), qdims), 0).xy;
+ivec2 fetch_s(ivec2 p, ivec2 d) {
+    return texelFetch(src, NEIGHBOR_TEXEL(p, d), 0).xy;
 }
 
 ivec2 exemplar_tap(ivec2 u) {
@@ -96,7 +95,7 @@ ivec2 keep_c(ivec2 F) {
 }
 
 ivec2 raw_prediction(ivec2 p, ivec2 d) {
-    return full_q8(texelFetch(src, packed_texel(STATE_TEXEL(p + d), qdims), 0)) - jmul(Jp, d, h);
+    return full_q8(texelFetch(src, NEIGHBOR_TEXEL(p, d), 0)) - jmul(Jp, d, h);
 }
 
 ivec2 step_of(ivec2 off) {
@@ -116,7 +115,7 @@ ivec2 keep_c(ivec2 u) {
 }
 
 ivec2 raw_prediction(ivec2 p, ivec2 d) {
-    return fetch_s(p + d) - h * d;
+    return fetch_s(p, d) - h * d;
 }
 
 ivec2 step_of(ivec2 off) {
@@ -270,7 +269,8 @@ void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
     ivec4 here = texelFetch(src, X, 0);
-    ivec2 p = (X - boff - active_phase * bstride) * SUB_S + active_phase;
+    block_texel = X - boff - active_phase * bstride;
+    ivec2 p = block_texel * SUB_S + active_phase;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;
 #endif
@@ -323,7 +323,8 @@ void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
     ivec4 here = texelFetch(src, X, 0);
-    ivec2 p = (X - boff - active_phase * bstride) * SUB_S + active_phase;
+    block_texel = X - boff - active_phase * bstride;
+    ivec2 p = block_texel * SUB_S + active_phase;
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;  // reads cross chart seams (common.glsl atlas_texel)
 #endif
@@ -336,10 +337,10 @@ void main() {
         ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
 #ifdef ROW_TAPS
         int i = d.x + R;
-        uint c = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p + d), 0));
+        uint c = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p, d), 0));
         nbrow[(d.y + R) * ROW_UINTS + i / TPU] |= c << (8 * TAP_BYTES * (i % TPU));
 #else
-        nb[t] = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p + d), 0));
+        nb[t] = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p, d), 0));
 #endif
     }
     ivec2 tried[NCAND];
