@@ -282,11 +282,14 @@ void main() {
     ivec2 self = here.xy;
 #endif
     VKEY P[NT];
-    for (int t = 0; t < NT; ++t) {
-        ivec2 raw = raw_prediction(p, ivec2(t % SIDE - R, t / SIDE - R));
-        ivec2 kept = keep_c(raw);
-        // A prediction kept inside by clamping does not vote: clamped ones would agree by accident.
-        P[t] = t == NT / 2 ? VKEY_OF(self) : (border < 0 || kept == raw ? VKEY_OF(kept) : VKEY_NONE(t));
+    for (int ty = 0; ty < SIDE; ++ty) {
+        for (int tx = 0; tx < SIDE; ++tx) {
+            int t = ty * SIDE + tx;
+            ivec2 raw = raw_prediction(p, ivec2(tx - R, ty - R));
+            ivec2 kept = keep_c(raw);
+            // A prediction kept inside by clamping does not vote: clamped ones would agree by accident.
+            P[t] = t == NT / 2 ? VKEY_OF(self) : (border < 0 || kept == raw ? VKEY_OF(kept) : VKEY_NONE(t));
+        }
     }
 #ifdef LABELS
     uint lab_t = texelFetch(lab_canvas, p, 0).r;
@@ -304,8 +307,10 @@ void main() {
         if (label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r) > lab_self) continue;
 #endif
         int votes = 0;
-        for (int t = 0; t < NT; ++t) {
-            votes += P[t] == u ? 1 : 0;
+        for (int ty = 0; ty < SIDE; ++ty) {  // rows of at most 11 unroll; a loop of NT would not
+            for (int tx = 0; tx < SIDE; ++tx) {
+                votes += P[ty * SIDE + tx] == u ? 1 : 0;
+            }
         }
         if (votes > most) {
             most = votes;
@@ -333,15 +338,18 @@ void main() {
         nbrow[k] = 0u;
     }
 #endif
-    for (int t = 0; t < NT; ++t) {
-        ivec2 d = ivec2(t % SIDE - R, t / SIDE - R);
+    for (int ty = 0; ty < SIDE; ++ty) {  // nested: a loop of NT would not unroll
+        for (int tx = 0; tx < SIDE; ++tx) {
+            int t = ty * SIDE + tx;
+            ivec2 d = ivec2(tx - R, ty - R);
 #ifdef ROW_TAPS
-        int i = d.x + R;
-        uint c = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p, d), 0));
-        nbrow[(d.y + R) * ROW_UINTS + i / TPU] |= c << (8 * TAP_BYTES * (i % TPU));
+            int i = d.x + R;
+            uint c = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p, d), 0));
+            nbrow[(d.y + R) * ROW_UINTS + i / TPU] |= c << (8 * TAP_BYTES * (i % TPU));
 #else
-        nb[t] = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p, d), 0));
+            nb[t] = t == NT / 2 ? 0u : pack_color(texelFetch(colors, fetch_s(p, d), 0));
 #endif
+        }
     }
     ivec2 tried[NCAND];
     int ntried = 0;
