@@ -324,6 +324,57 @@ void main() {
 #endif
 }
 #else
+ivec2 cand[NCAND + 1];  // cand[0]: S[p]; cand[j + 1]: candidate j (S[p] again where there is none)
+uint best;               // the least cost so far, and its candidate
+ivec2 best_u;
+ivec2 pix;               // the pixel p
+#ifdef LABELS
+uint lab_t;
+#endif
+
+// Candidate j (j < 9: the prediction of neighbor j, row-major, 4 being p
+// itself; j >= 9: random sample j - 9 around the best so far), kept when its
+// cost is below the best. One already tried costs the same again: skipped.
+void try_candidate(const int j) {
+    ivec2 u;
+    if (j < 9) {
+        if (j == 4) {
+            cand[j + 1] = cand[0];
+            return;
+        }
+        u = predict(pix, ivec2(j % 3 - 1, j / 3 - 1));
+    } else {
+        int Rs = (m >> 2) >> (j - 9);
+        if (no_search != 0 || Rs < 2) {  // (then no later sample is tried either)
+            cand[j + 1] = cand[0];
+            return;
+        }
+        ivec2 g = origin + pix;
+        if (period > 0) g &= period - 1;
+        ivec2 H = hash2(g, level, search_seed + uint(j - 9) * 0x9E3779B9u);  // in [-1024, 1024)
+        u = keep_c(best_u + step_of(floor_shift(ivec4(H * Rs, 0, 0), 10).xy));  // offset in [-Rs, Rs)
+    }
+    cand[j + 1] = u;
+    bool seen = false;
+    for (int i = 0; i <= j; ++i) {
+        seen = seen || cand[i] == u;
+    }
+    if (seen) return;  // the same cost again: it cannot be better
+    ivec2 ut = texel_of(u);
+    if (AVOIDS(ut)) return;
+#ifdef LABELS
+    uint lc = label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r);
+    if (lc >= best) return;  // cannot win
+    uint c = lc + patch_cost(u, best - lc);
+#else
+    uint c = patch_cost(u, best);
+#endif
+    if (c < best) {
+        best = c;
+        best_u = u;
+    }
+}
+
 void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
@@ -351,59 +402,43 @@ void main() {
 #endif
         }
     }
-    ivec2 tried[NCAND];
-    int ntried = 0;
 #ifdef DIRECTION
     Jp = texelFetch(dfield, p, 0);
     col0 = h * Jp.xz;
     col1 = h * Jp.yw;
-    ivec2 best_u = full_q8(here);  // a coordinate in 1/256 px
+    best_u = full_q8(here);  // a coordinate in 1/256 px
 #else
-    ivec2 best_u = here.xy;
+    best_u = here.xy;
 #endif
+    pix = p;
     ivec2 bt = texel_of(best_u);
 #ifdef LABELS
-    uint lab_t = texelFetch(lab_canvas, p, 0).r;
-    uint best = (AVOIDS(bt)) ? AVOIDED
-              : label_cost(lab_t, texelFetch(lab_exemplar, bt, 0).r) + patch_cost(best_u, 0xffffffffu);
+    lab_t = texelFetch(lab_canvas, p, 0).r;
+    best = (AVOIDS(bt)) ? AVOIDED
+         : label_cost(lab_t, texelFetch(lab_exemplar, bt, 0).r) + patch_cost(best_u, 0xffffffffu);
 #else
-    uint best = (AVOIDS(bt)) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
+    best = (AVOIDS(bt)) ? AVOIDED : patch_cost(best_u, 0xffffffffu);
 #endif
-    tried[ntried++] = best_u;
-    for (int j = 0; j < NCAND; ++j) {
-        ivec2 u;
-        if (j < 9) {
-            if (j == 4) continue;
-            u = predict(p, ivec2(j % 3 - 1, j / 3 - 1));
-        } else {
-            if (no_search != 0) break;
-            int Rs = (m >> 2) >> (j - 9);
-            if (Rs < 2) break;
-            ivec2 g = origin + p;
-            if (period > 0) g &= period - 1;
-            ivec2 H = hash2(g, level, search_seed + uint(j - 9) * 0x9E3779B9u);  // in [-1024, 1024)
-            u = keep_c(best_u + step_of(floor_shift(ivec4(H * Rs, 0, 0), 10).xy));  // offset in [-Rs, Rs)
-        }
-        bool seen = false;
-        for (int i = 0; i < ntried; ++i) {
-            seen = seen || tried[i] == u;
-        }
-        if (seen) continue;  // the same cost again: it cannot be better
-        tried[ntried++] = u;
-        ivec2 ut = texel_of(u);
-        if (AVOIDS(ut)) continue;
-#ifdef LABELS
-        uint lc = label_cost(lab_t, texelFetch(lab_exemplar, ut, 0).r);
-        if (lc >= best) continue;  // cannot win
-        uint c = lc + patch_cost(u, best - lc);
-#else
-        uint c = patch_cost(u, best);
+    cand[0] = best_u;
+    // One call per candidate with a constant j: every index is then a constant
+    // (in a loop, llvmpipe reads and writes such arrays lane by lane).
+    try_candidate(0); try_candidate(1); try_candidate(2); try_candidate(3); try_candidate(4);
+    try_candidate(5); try_candidate(6); try_candidate(7); try_candidate(8);
+#if FID_SEARCH > 0
+    try_candidate(9);
 #endif
-        if (c < best) {
-            best = c;
-            best_u = u;
-        }
-    }
+#if FID_SEARCH > 1
+    try_candidate(10);
+#endif
+#if FID_SEARCH > 2
+    try_candidate(11);
+#endif
+#if FID_SEARCH > 3
+    try_candidate(12);
+#endif
+#if FID_SEARCH > 4
+#error "fidelity.frag: write out the calls for FID_SEARCH > 4"
+#endif
 #ifdef DIRECTION
     result = split_q8(best_u, m);
 #else
