@@ -150,6 +150,60 @@ int distance8(uvec4 v, ivec4 lo_b, ivec4 hi_b) {
         } \
     }
 
+// What the candidates of a pixel are compared with, and the best so far (set by main).
+ivec2 S[9];           // 3x3 neighbors, row-major, S[4] = the pixel
+ivec4 lo_b, hi_b;     // the projected neighborhood, offset as distance8 takes it
+uint best;
+ivec2 best_u;
+ivec2 best_r;         // DIRECTION: the remainder of the best
+#ifdef DIRECTION
+ivec2 F9[9];
+ivec4 Jp;
+#endif
+#ifdef LABELS
+uint lab_t;
+#endif
+
+// The k-coherence candidates from neighbor j (row-major 3x3, j = 4 the pixel itself).
+void try_neighbor(const int j) {
+    ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
+#ifdef DIRECTION
+    ivec4 bq = split_q8(F9[j] - jmul(Jp, d, h), m);
+    ivec2 base = bq.xy;
+#else
+    ivec2 base = (S[j] - h * d) & (m - 1);
+#endif
+#if K > 0
+    ivec4 s01 = texelFetch(sim01, base, 0);
+#endif
+#if K > 2
+    ivec4 s23 = texelFetch(sim23, base, 0);
+#endif
+    for (int i = 0; i < max(K, 1); ++i) {
+#if K == 0
+        // No similarity sets: the coherent candidate itself, kept off
+        // a non-toroidal exemplar's border band like the walk's.
+        ivec2 u = border < 0 ? base : clamp(base, ivec2(border), ivec2(m - 1 - border));
+#elif K <= 2
+        ivec2 u = i == 0 ? s01.xy : s01.zw;
+#else
+        ivec2 u = i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw));
+#endif
+        uint cost = uint(distance8(texelFetch(nbhd, u, 0), lo_b, hi_b)) * uint(i == 0 ? PSI_ONE : psi);
+#ifdef LABELS
+        cost += label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
+#endif
+        if (AVOIDS(u)) cost = AVOIDED;
+        if (cost < best) {
+            best = cost;
+            best_u = u;
+#ifdef DIRECTION
+            best_r = bq.zw;
+#endif
+        }
+    }
+}
+
 void main() {
     // Only the block of the active phase is rendered (stages.subpass_draws).
     ivec2 X = ivec2(gl_FragCoord.xy);
@@ -161,7 +215,6 @@ void main() {
     reader = texelFetch(links, p, 0).x;
 #endif
 
-    ivec2 S[9];  // 3x3 neighbors, row-major, S[4] = here
     for (int j = 0; j < 9; ++j) {
         ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
         S[j] = j == 4 ? here.xy : fetch_s(p, d);
@@ -170,8 +223,7 @@ void main() {
     PVEC lo = PVEC(0);
     PVEC hi = PVEC(0);
 #ifdef DIRECTION
-    ivec4 Jp = texelFetch(dfield, p, 0);
-    ivec2 F9[9];
+    Jp = texelFetch(dfield, p, 0);
     for (int j = 0; j < 9; ++j) {
         F9[j] = j == 4 ? full_q8(here) : fetch_f(p, ivec2(j % 3 - 1, j / 3 - 1));
     }
@@ -224,53 +276,18 @@ void main() {
     COLOR_TAP(15) COLOR_TAP(16) COLOR_TAP(17) COLOR_TAP(18) COLOR_TAP(19)
     COLOR_TAP(20) COLOR_TAP(21) COLOR_TAP(22) COLOR_TAP(23) COLOR_TAP(24)
 #endif
-    ivec4 lo_b = floor_shift(ivec4(lo), shift) + 32768;
-    ivec4 hi_b = floor_shift(ivec4(hi), shift) + 32768;
+    lo_b = floor_shift(ivec4(lo), shift) + 32768;
+    hi_b = floor_shift(ivec4(hi), shift) + 32768;
 
-    uint best = 0xffffffffu;
-    ivec2 best_u = here.xy;
-    ivec2 best_r = ivec2(0);  // DIRECTION: the remainder of the best
+    best = 0xffffffffu;
+    best_u = here.xy;
+    best_r = ivec2(0);
 #ifdef LABELS
-    uint lab_t = texelFetch(lab_canvas, p, 0).r;
+    lab_t = texelFetch(lab_canvas, p, 0).r;
 #endif
-    for (int j = 0; j < 9; ++j) {
-        ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
-#ifdef DIRECTION
-        ivec4 bq = split_q8(F9[j] - jmul(Jp, d, h), m);
-        ivec2 base = bq.xy;
-#else
-        ivec2 base = (S[j] - h * d) & wrap;
-#endif
-#if K > 0
-        ivec4 s01 = texelFetch(sim01, base, 0);
-#endif
-#if K > 2
-        ivec4 s23 = texelFetch(sim23, base, 0);
-#endif
-        for (int i = 0; i < max(K, 1); ++i) {
-#if K == 0
-            // No similarity sets: the coherent candidate itself, kept off
-            // a non-toroidal exemplar's border band like the walk's.
-            ivec2 u = border < 0 ? base : clamp(base, ivec2(border), ivec2(m - 1 - border));
-#elif K <= 2
-            ivec2 u = i == 0 ? s01.xy : s01.zw;
-#else
-            ivec2 u = i == 0 ? s01.xy : (i == 1 ? s01.zw : (i == 2 ? s23.xy : s23.zw));
-#endif
-            uint cost = uint(distance8(texelFetch(nbhd, u, 0), lo_b, hi_b)) * uint(i == 0 ? PSI_ONE : psi);
-#ifdef LABELS
-            cost += label_cost(lab_t, texelFetch(lab_exemplar, u, 0).r);
-#endif
-            if (AVOIDS(u)) cost = AVOIDED;
-            if (cost < best) {
-                best = cost;
-                best_u = u;
-#ifdef DIRECTION
-                best_r = bq.zw;
-#endif
-            }
-        }
-    }
+    // One call per neighbor with a constant j (constant indices, as in fidelity.frag).
+    try_neighbor(0); try_neighbor(1); try_neighbor(2); try_neighbor(3); try_neighbor(4);
+    try_neighbor(5); try_neighbor(6); try_neighbor(7); try_neighbor(8);
 #ifdef LABELS
     if ((lab_t >> 24) != 0u) {
         ivec2 g = origin + p;
