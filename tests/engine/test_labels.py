@@ -262,3 +262,23 @@ def test_a_label_image_placed_over_painted_labels_keeps_them_where_it_is_free():
     assert np.all(b[15:25, 15:25] == 3) and np.array_equal(b[:15], a[:15])       # free pixels keep what is there
     assert np.all(c[5:15, 5:35] == 0) and np.all(c[15:25, 15:25] == 3)        # else they free it
     assert CanvasLabels.from_image(block, -7, 3) == CanvasLabels().replaced(block, -7, 3)
+
+
+def test_canvas_mixes_from_kept_tiles_equal_the_mixes_computed_anew():
+    """CanvasLabels.features assembles tiles kept between calls and between
+    label maps; they equal the mixes computed from the samples, for any
+    region and level, before and after dabs (which share untouched tiles)."""
+    rng = np.random.default_rng(3)
+    labels = CanvasLabels.from_image(rng.integers(0, 4, (150, 230)).astype(np.uint8), -90, 40)
+    for step in range(4):
+        for _ in range(6):
+            k = int(rng.integers(0, 5))
+            x0, y0 = int(rng.integers(-300, 100)) >> k, int(rng.integers(-50, 250)) >> k
+            w, h = int(rng.integers(1, 150)), int(rng.integers(1, 150))
+            kept = labels.features(k, x0, y0, w, h)
+            anew = labels._features(k, x0, y0, w, h, 0)
+            anew = anew if anew is not None and anew.any() else None
+            assert (kept is None) == (anew is None)
+            if kept is not None:
+                assert np.array_equal(kept, anew)
+        labels, _ = labels.painted(float(rng.integers(-80, 120)), float(rng.integers(40, 190)), 20.0, step + 1)

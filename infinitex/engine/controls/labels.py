@@ -40,6 +40,8 @@ region and find its transitions.
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
@@ -67,6 +69,12 @@ LABEL_COLORS = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (24
 # (k = 0) the walk is the search itself and stays on.
 LABEL_WALK = 0
 SHARE_MIN = 128        # of 255: a canvas pixel less painted than this is free
+# Canvas mixes are kept in tiles of MIX_TILE x MIX_TILE level pixels (CanvasLabels.features),
+# at most MIX_CACHE_TILES of them (4 KB each), shared by every label map of the process.
+MIX_TILE = 32
+MIX_CACHE_TILES = 4096
+_MIX_CACHE: OrderedDict = OrderedDict()
+_MIX_LOCK = threading.Lock()
 
 
 def pack_mix(i1, i2, w1, w2, share=None) -> np.ndarray:
@@ -377,10 +385,65 @@ class CanvasLabels:
     def features(self, k: int, x0: int, y0: int, w: int, h: int, period: int = 0) -> np.ndarray | None:
         """The packed canvas mixes of the level pixels [x0, x0+w) x [y0, y0+h)
         of a level k levels above the finest (uint32 (h, w)); None when no
-        painted pixel reaches them. ``period``: a toroidal tile's period n in
-        finest pixels (the canvas is read at finest positions mod n)."""
+        painted pixel reaches them (or none is painted enough to count).
+        ``period``: a toroidal tile's period n in finest pixels (the canvas is
+        read at finest positions mod n).
+
+        On the infinite canvas they come from tiles of MIX_TILE level pixels
+        kept between calls and between label maps (a dab's map shares the
+        untouched label tiles of the one before): a tile is computed again
+        only when a label tile it reads changed, so a dab costs the tiles
+        around it, not every level's whole region (each level pixel's mix
+        depends on its own samples and its neighbors' alone)."""
         if not self.tiles:
             return None
+        if period:
+            return self._features(k, x0, y0, w, h, period)
+        T = MIX_TILE
+        out = None
+        for ty in range(y0 // T, (y0 + h - 1) // T + 1):
+            for tx in range(x0 // T, (x0 + w - 1) // T + 1):
+                mix = self._tile_mixes(k, tx, ty)
+                if mix is None:
+                    continue
+                if out is None:
+                    out = np.zeros((h, w), np.uint32)
+                ix0, iy0 = max(x0, tx * T), max(y0, ty * T)
+                ix1, iy1 = min(x0 + w, (tx + 1) * T), min(y0 + h, (ty + 1) * T)
+                out[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0] = mix[iy0 - ty * T:iy1 - ty * T, ix0 - tx * T:ix1 - tx * T]
+        return out if out is not None and out.any() else None
+
+    def _tile_mixes(self, k: int, tx: int, ty: int) -> np.ndarray | None:
+        """The mixes of level-k tile (tx, ty) (MIX_TILE^2 level pixels), from the
+        cache when the label tiles they read are the same arrays as then."""
+        T, f = MIX_TILE, 1 << k
+        lx0, lx1 = ((tx * T - 1) * f) // TILE, (((tx + 1) * T + 1) * f - 1) // TILE
+        ly0, ly1 = ((ty * T - 1) * f) // TILE, (((ty + 1) * T + 1) * f - 1) // TILE
+        if (lx1 - lx0 + 1) * (ly1 - ly0 + 1) <= len(self.tiles):
+            reads = [(key, self.tiles[key]) for key in ((a, b) for b in range(ly0, ly1 + 1)
+                                                         for a in range(lx0, lx1 + 1)) if key in self.tiles]
+        else:
+            reads = sorted((key, t) for key, t in self.tiles.items()
+                           if lx0 <= key[0] <= lx1 and ly0 <= key[1] <= ly1)
+        if not reads:
+            return None
+        key = (k, tx, ty)
+        with _MIX_LOCK:
+            hit = _MIX_CACHE.get(key)
+            if hit is not None and len(hit[0]) == len(reads) and all(
+                    a[0] == b[0] and a[1] is b[1] for a, b in zip(hit[0], reads)):
+                _MIX_CACHE.move_to_end(key)
+                return hit[1]
+        mix = self._features(k, tx * T, ty * T, T, T, 0)
+        with _MIX_LOCK:
+            _MIX_CACHE[key] = (reads, mix)  # (holding the arrays keeps their identity unique)
+            _MIX_CACHE.move_to_end(key)
+            while len(_MIX_CACHE) > MIX_CACHE_TILES:
+                _MIX_CACHE.popitem(last=False)
+        return mix
+
+    def _features(self, k: int, x0: int, y0: int, w: int, h: int, period: int) -> np.ndarray | None:
+        """features computed from the label samples themselves."""
         f = 1 << k
         s = min(f, 4)
         step, off = f // s, (f // s) // 2
