@@ -244,15 +244,31 @@ def correction_margins(s: int, passes: int, radius: int,
     return tuple(max(margin[ph][i] for ph in phases) for i in range(4))
 
 
-@lru_cache(maxsize=1024)
 def subpass_rects(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, int],
-                  interior: tuple[int, int, int, int]) -> list[tuple[int, int, int, int]] | None:
+                  interior: tuple[int, int, int, int]) -> tuple | None:
+    """What each subpass must compute (see _needs), or None."""
+    needs = _needs(s, stages, dims, interior)
+    return None if needs is None else needs[0]
+
+
+def first_rects(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, int],
+                interior: tuple[int, int, int, int]) -> dict | None:
+    """What the first subpass reads of each phase, so what the upsampling must
+    compute: phase -> block texels (x0, y0, x1, y1) (see _needs), or None."""
+    needs = _needs(s, stages, dims, interior)
+    return None if needs is None else needs[1]
+
+
+@lru_cache(maxsize=1024)
+def _needs(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, int],
+           interior: tuple[int, int, int, int]) -> tuple | None:
     """What each subpass must compute so that the ``interior`` (x0, y0, x1, y1,
     local pixels of a region of ``dims``) comes out exactly as if every subpass
     computed its whole block: per subpass of ``stages`` ((passes, read radius)
     each, in subpass_order, as correction_margins), its rectangle in block
-    texels (x0, y0, x1, y1), possibly empty. None when a read would leave the
-    region (then compute whole blocks).
+    texels (x0, y0, x1, y1), possibly empty; and per phase what the first
+    subpass reads of it. None when a read would leave the region (then compute
+    whole blocks).
 
     Walked backwards: a subpass matters only at the pixels of its phase that
     later subpasses (or the interior) read, and those read their neighbors
@@ -295,4 +311,4 @@ def subpass_rects(s: int, stages: tuple[tuple[int, int], ...], dims: tuple[int, 
             if q != ph and old[0] < old[2] and old[1] < old[3]:
                 reads = [min(old[0], reads[0]), min(old[1], reads[1]), max(old[2], reads[2]), max(old[3], reads[3])]
             need[q] = tuple(reads)
-    return tuple(out[::-1])
+    return tuple(out[::-1]), dict(need)

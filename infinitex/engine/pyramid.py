@@ -27,7 +27,7 @@ from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
 from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
-from .params import SynthParams, correction_margins, subpass_rects
+from .params import SynthParams, correction_margins, first_rects, subpass_rects
 from .rect import Rect
 from .stages import Draw, Pacer, block_layout, correction_draws, fidelity_draws, label_draws
 
@@ -364,17 +364,25 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                        **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0)) if ltex is not None else {}))
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
-            yield from Draw(prog, vao, fa, (*boff, tex_size[0] - boff[0], tex_size[1] - boff[1]), textures, uni,
-                            l).steps(pace)
+            # Only what the subpasses then read of each phase (not in an atlas, whose reads jump).
+            radius = fixed.read_radius(an.model)
+            npass = p.passes_at(l) if l in self.corrected else 0
+            geometry = (s, ((npass, radius), (p.fidelity_passes(l), p.fidelity_radius)), (region.w, region.h),
+                        (strip.x0 - region.x0, strip.y0 - region.y0, strip.x1 - region.x0, strip.y1 - region.y0))
+            rects = None if ltex is not None else subpass_rects(*geometry)
+            first = None if rects is None else first_rects(*geometry)
+            if first is None:
+                yield from Draw(prog, vao, fa, (*boff, tex_size[0] - boff[0], tex_size[1] - boff[1]), textures, uni,
+                                l).steps(pace)
+            else:
+                for (i, j), (x0, y0, x1, y1) in sorted(first.items()):
+                    if x0 < x1 and y0 < y1:
+                        yield from Draw(prog, vao, fa, (boff[0] + i * bstride[0] + x0, boff[1] + j * bstride[1] + y0,
+                                                        x1 - x0, y1 - y0), textures, uni, l).steps(pace)
 
             # Correction subpasses, then the fidelity stage's, on scratch a, each
             # over what the strip needs of it (not in an atlas, whose reads jump).
             draws = []
-            radius = fixed.read_radius(an.model)
-            npass = p.passes_at(l) if l in self.corrected else 0
-            rects = None if ltex is not None else subpass_rects(
-                s, ((npass, radius), (p.fidelity_passes(l), p.fidelity_radius)), (region.w, region.h),
-                (strip.x0 - region.x0, strip.y0 - region.y0, strip.x1 - region.x0, strip.y1 - region.y0))
             ncorr = npass * s * s
             avoid = self._avoid_texture()
             if l in self.corrected or p.fidelity_at(l):
