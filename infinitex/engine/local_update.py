@@ -17,6 +17,7 @@ import time
 
 from .controls import Controls
 from .rect import Rect, merge_rects
+from .stages import scratch_size
 
 
 class LocalUpdates:
@@ -106,7 +107,7 @@ class LocalUpdates:
                 if r.empty:
                     continue
                 region = self.padded(l, r)
-                scratch = self._new_scratch(*self._scratch_size(region))  # its own: other strips may run meanwhile
+                scratch = self._new_scratch(*scratch_size(region, self.params.subgrid))  # its own: other strips may run meanwhile
                 pace = None if deadline is None else self.pacer
                 self._job = (l, self._strip_steps(l, r, scratch, None, pace), scratch)
                 self.pixels_synthesized += region.w * region.h

@@ -29,7 +29,7 @@ from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
 from .params import SynthParams, correction_margins, first_rects, subpass_rects
 from .rect import Rect
-from .stages import Draw, Pacer, block_layout, correction_draws, fidelity_draws, label_draws
+from .stages import Draw, Pacer, block_layout, correction_draws, fidelity_draws, label_draws, scratch_size
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -61,6 +61,17 @@ def feature_textures(gpu: Gpu, controls: Controls, an, l: int, region: Rect, per
         texs.append(tex)
     uni.update(nfeat=len(table), fcell_origin=origin, fcell_dims=(cells.shape[1], cells.shape[0]), fcell_shift=shift)
     return texs, uni
+
+
+def strip_rects(p: SynthParams, model: str, l: int, npass: int, strip: Rect, region: Rect) -> tuple:
+    """For a strip of level l synthesized on its padded ``region`` with ``npass``
+    correction passes: what each subpass renders and what the upsampling must
+    compute (params.subpass_rects, first_rects), or (None, None)."""
+    geometry = (p.subgrid, ((npass, fixed.read_radius(model)), (p.fidelity_passes(l), p.fidelity_radius)),
+                (region.w, region.h),
+                (strip.x0 - region.x0, strip.y0 - region.y0, strip.x1 - region.x0, strip.y1 - region.y0))
+    rects = subpass_rects(*geometry)
+    return (None, None) if rects is None else (rects, first_rects(*geometry))
 
 
 class _LevelBuffer:
@@ -285,14 +296,9 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             self._touch(l, strip)
         return count
 
-    def _scratch_size(self, region: Rect) -> tuple[int, int]:
-        """The size of a padded region's scratch textures (stages.block_layout)."""
-        s = self.params.subgrid
-        return block_layout((region.w // s, region.h // s), s)[2]
-
     def _scratch_pair(self, region: Rect):
         """The pair of scratch textures for a padded region (kept for their size)."""
-        w, h = self._scratch_size(region)
+        w, h = scratch_size(region, self.params.subgrid)
         key = (w, h)
         if key not in self._scratch:
             if len(self._scratch) > 24:
@@ -365,12 +371,8 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
                 textures[unit] = tex
             # Only what the subpasses then read of each phase (not in an atlas, whose reads jump).
-            radius = fixed.read_radius(an.model)
             npass = p.passes_at(l) if l in self.corrected else 0
-            geometry = (s, ((npass, radius), (p.fidelity_passes(l), p.fidelity_radius)), (region.w, region.h),
-                        (strip.x0 - region.x0, strip.y0 - region.y0, strip.x1 - region.x0, strip.y1 - region.y0))
-            rects = None if ltex is not None else subpass_rects(*geometry)
-            first = None if rects is None else first_rects(*geometry)
+            rects, first = (None, None) if ltex is not None else strip_rects(p, an.model, l, npass, strip, region)
             if first is None:
                 yield from Draw(prog, vao, fa, (*boff, tex_size[0] - boff[0], tex_size[1] - boff[1]), textures, uni,
                                 l).steps(pace)

@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from .rect import Rect
+from .stages import scratch_size
 
 
 class SpreadRequests:
@@ -95,7 +96,7 @@ class SpreadRequests:
             buf, keep, strips = self._keep(l, target)
             for strip in strips:
                 region = self.padded(l, strip)
-                scratch = self._new_scratch(*self._scratch_size(region))
+                scratch = self._new_scratch(*scratch_size(region, self.params.subgrid))
                 try:
                     yield from self._strip_steps(l, strip, scratch, buf, self.pacer)
                 finally:

@@ -43,6 +43,11 @@ def block_layout(qdims: tuple[int, int], s: int) -> tuple[tuple[int, int], tuple
     return (stride[0], stride[1]), (off[0], off[1]), (size[0], size[1])
 
 
+def scratch_size(region, s: int) -> tuple[int, int]:
+    """The size of a padded region's scratch textures (block_layout)."""
+    return block_layout((region.w // s, region.h // s), s)[2]
+
+
 @dataclass
 class Pacer:
     """Sizes the row pieces of draws that run between frames so each takes
