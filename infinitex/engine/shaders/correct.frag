@@ -1,5 +1,6 @@
 // One correction subpass (LH05 3.1, 3.3; LH06 4) over a quadrant-packed
-// scratch buffer: pixels of phase `active_phase` are rewritten, all others copied.
+// scratch buffer: pixels of phase `active_phase` are rewritten (only their
+// block is rendered, and of it what the strip needs: params.subpass_rects).
 // For each rewritten pixel p:
 //   N_S(p) = projected synthesized neighborhood
 //     MODEL_APPEARANCE: for each diagonal d, sum over d' in {d, (d.x,0), (0,d.y)}
