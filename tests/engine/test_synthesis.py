@@ -323,3 +323,19 @@ def test_subpass_rects_give_the_interior_exactly(s, c, rc, f, rf, w, h):
     if c + f:
         area = sum(max(0, b[2] - b[0]) * max(0, b[3] - b[1]) for b in rects)
         assert area < len(rects) * (dims[0] // s) * (dims[1] // s)
+
+
+def test_the_projection_tables_and_the_float_projection_agree(analyses, gpu, monkeypatch):
+    """Large exemplars project neighborhoods in floats instead of reading the
+    per-texel tables (gpu.TABLE_MAX_BYTES): the same integers either way."""
+    import infinitex.engine.gpu as gpu_module
+    an = analyses["gravel-appearance"]
+    rect = Rect.of(-FAR + 40, 333, 72, 56)
+    with Synthesizer(an, gpu=gpu) as synth:
+        assert synth.gan.projection_tables
+        tables = synth.window(rect)
+    monkeypatch.setattr(gpu_module, "TABLE_MAX_BYTES", 0)
+    with Synthesizer(an, gpu=gpu) as synth:
+        assert not synth.gan.projection_tables and synth.gan.level(an.L).proj_float
+        floats = synth.window(rect)
+    assert np.array_equal(tables, floats)
