@@ -64,6 +64,7 @@ class Gpu:
         self.owns_context = ctx is None
         self.ctx = ctx or create_context()
         self._programs: dict[tuple, moderngl.Program] = {}
+        self._sources: dict[int, tuple] = {}  # a program's glo -> (shader file, defines)
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         quad = np.array([-1, -1, 1, -1, -1, 1, -1, 1, 1, -1, 1, 1], dtype="f4")
         self.quad = self.ctx.buffer(quad.tobytes())
@@ -83,6 +84,7 @@ class Gpu:
             obj.release()
         self._vaos.clear()
         self._programs.clear()
+        self._sources.clear()
         if self.owns_context:
             self.ctx.release()
 
@@ -105,8 +107,14 @@ class Gpu:
             except moderngl.Error as exc:
                 raise GLUnavailable(f"The GPU driver rejected shader {frag}: {exc}") from None
             self._programs[key] = prog
+            self._sources[prog.glo] = key
             self._vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "in_pos")])
         return self._programs[key], self._vaos[key]
+
+    def program_source(self, prog) -> tuple[str, dict] | None:
+        """The shader file and defines a program of :meth:`program` was made from."""
+        key = self._sources.get(prog.glo)
+        return None if key is None else (key[0], dict(key[1]))
 
     def uint_texture(self, size: tuple[int, int], data: np.ndarray):
         tex = self.ctx.texture(size, 4, np.ascontiguousarray(data, dtype=np.uint32).tobytes(), dtype="u4")
@@ -171,7 +179,7 @@ class LevelTextures:
         self.proj_float = fixed.exact_in_float(lv.proj, vmax)
         self.proj = np.ascontiguousarray(lv.proj, dtype=np.float32 if self.proj_float else np.int32).tobytes()
         self.shift = lv.shift
-        self._gpu, self._stack, self._lv = gpu, lv.stack, lv
+        self._gpu, self._lv = gpu, lv
         self._colors = None
         self._table = None
         self._row_taps: dict = {}
@@ -181,10 +189,15 @@ class LevelTextures:
         """E_l as the fidelity stage reads it (fixed.quantized_colors, one 8-bit
         unsigned integer channel per channel of E), uploaded on first use."""
         if self._colors is None:
-            q = np.ascontiguousarray(fixed.quantized_colors(self._stack), dtype=np.uint8)
+            q = self._quantized
             self._colors = self._gpu.ctx.texture((q.shape[1], q.shape[0]), q.shape[2], q.tobytes(), dtype="u1")
             self._colors.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return self._colors
+
+    @cached_property
+    def _quantized(self) -> np.ndarray:
+        """fixed.quantized_colors of E_l (uint8 (m, m, C)), for colors and row_taps."""
+        return np.ascontiguousarray(fixed.quantized_colors(self._lv.stack), dtype=np.uint8)
 
     def row_taps(self, h: int, radius: int, toroidal: bool):
         """fidelity.frag ROW_TAPS' texture (RGBA32UI array, row_taps_layers(C, R)
@@ -193,7 +206,7 @@ class LevelTextures:
         uint as fit; tap wraps on a toroidal exemplar, else clamps to [0, m-1]."""
         key = (h, radius, toroidal)
         if key not in self._row_taps:
-            q = np.ascontiguousarray(fixed.quantized_colors(self._stack), dtype=np.uint8)
+            q = self._quantized
             m, C = q.shape[0], q.shape[2]
             tap_bytes = 4 if C >= 3 else C
             per_uint = 4 // tap_bytes

@@ -88,10 +88,11 @@ class DrawTimes:
         self._pending: list[tuple[str, int, int, Any]] = []
 
     def name(self, prog) -> str:
-        for (frag, defines), p in self.gpu._programs.items():
-            if p is prog:
-                return frag.rsplit(".", 1)[0] + (" vote" if dict(defines).get("FID_VOTE") else "")
-        return "other"
+        source = self.gpu.program_source(prog)
+        if source is None:
+            return "other"
+        frag, defines = source
+        return frag.rsplit(".", 1)[0] + (" vote" if defines.get("FID_VOTE") else "")
 
     def query(self, prog, level: int, pixels: int):
         if self.sync:
@@ -193,6 +194,7 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
     a, fa, b, fb = scratch
     copy, copy_vao = gpu.program("copy.frag", SUB_S=subgrid)
     bstride, boff, _ = block_layout(qdims, subgrid)
+    level = uniforms.get("level", -1)
     draws = []
     n = -1
     for order in orders:
@@ -202,12 +204,26 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
             if x0 >= x1 or y0 >= y1:
                 continue
             block = (boff[0] + phase[0] * bstride[0] + x0, boff[1] + phase[1] * bstride[1] + y0, x1 - x0, y1 - y0)
-            level = uniforms.get("level", -1)
             draws.append(Draw(prog, vao, fb, block, {**textures, 0: a},
                               {**uniforms, "src": 0, "active_phase": phase, "bstride": bstride, "boff": boff,
                                **per_subpass(n)}, level))
             draws.append(Draw(copy, copy_vao, fa, block, {0: b}, {"src": 0}, level))
     return draws
+
+
+def _region_inputs(textures: dict, uniforms: dict, labels, label_uniforms, direction, links) -> None:
+    """Add what both stages read of a region besides the state: texture by
+    numbers (``labels`` and the stage's ``label_uniforms``), the J texture of a
+    direction field (unit 11) and a mesh atlas' indirection map (unit 12)."""
+    if labels is not None:
+        textures.update(labels.textures)
+        uniforms.update(label_uniforms)
+    if direction is not None:
+        textures[11] = direction
+        uniforms["dfield"] = 11
+    if links is not None:
+        textures[12] = links
+        uniforms["links"] = 12
 
 
 def correction_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
@@ -235,15 +251,7 @@ def correction_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region,
     table = gan.projection_tables and direction is None
     textures = dict(enumerate([lt.table if table else lt.feat, lt.nbhd] + sims, start=1))
     textures[5] = avoid_tex or dummy
-    if labels is not None:
-        textures.update(labels.textures)
-        uni.update(labels.correction)
-    if direction is not None:
-        textures[11] = direction
-        uni["dfield"] = 11
-    if links is not None:
-        textures[12] = links
-        uni["links"] = 12
+    _region_inputs(textures, uni, labels, labels and labels.correction, direction, links)
     return subpass_draws(gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch, textures, uni,
                          lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)}, rects)
 
@@ -271,15 +279,7 @@ def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, q
     textures = {1: gan.level(l).colors, 5: avoid_tex}
     if direction is None:
         textures[2] = gan.level(l).row_taps(an.h(l), p.fidelity_radius, an.toroidal)
-    if labels is not None:
-        textures.update(labels.textures)
-        uniforms.update(labels.fidelity)
-    if direction is not None:
-        textures[11] = direction
-        uniforms["dfield"] = 11
-    if links is not None:
-        textures[12] = links
-        uniforms["links"] = 12
+    _region_inputs(textures, uniforms, labels, labels and labels.fidelity, direction, links)
     orders = subpass_order(p.subgrid, p.fidelity_passes(l))
     if not p.fidelity_vote:
         return subpass_draws(gpu, prog, vao, p.subgrid, orders, qdims, scratch, textures, uniforms,
