@@ -43,6 +43,9 @@ def main(argv=None) -> int:
     ap.add_argument("--labels", action="store_true",
                     help="paint labels (texture by numbers: two labels proposed on the exemplar, strokes "
                          "alternating between them) instead of randomness")
+    ap.add_argument("--comb", action="store_true", help="comb a direction field (the Direction tool) instead")
+    ap.add_argument("--no-looks", action="store_true", help="without quick looks (Pyramid.quick_look): for an A/B")
+    ap.add_argument("--mid-shot", metavar="PNG", help="also capture the window in the middle of the stroke")
     args = ap.parse_args(argv)
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
@@ -51,6 +54,8 @@ def main(argv=None) -> int:
     dabs_at: list[int] = []
     pixels_at: list[int] = []
     settled_at: list[bool] = []
+    looks_at: list[int] = []
+    upd_at: list[float] = []
     orig_gui = ed.gui
     updates: list[int] = []
 
@@ -59,10 +64,12 @@ def main(argv=None) -> int:
     def gui():
         stamps.append(time.perf_counter())
         orig_gui()
-        dabs_at.append(ed.tools[4 if args.labels else 1].dabs)
+        dabs_at.append(ed.tools[4 if args.labels else 5 if args.comb else 1].dabs)
         pixels_at.append(sum(updates))
         s = ed.session
         settled_at.append(bool(s is not None and s.pyramid is not None and s.pyramid.settled and ed.refined))
+        upd_at.append((ed.update_ms, 1000 * ed.frame_pacer.budget_s))
+        looks_at.append(s.pyramid.looks_made if s is not None and s.pyramid is not None else 0)
         if full_view == [-1]:  # asked by the test (GL calls belong in the frame, on the GL thread)
             from infinitex.engine.pyramid import Pyramid
             s = ed.session
@@ -99,6 +106,8 @@ def main(argv=None) -> int:
             updates.append(pyr.pixels_synthesized - n0)
             return done
         pyr.settle = counted
+        if args.no_looks:
+            pyr.quick_look = lambda *a: 0
         ctx.set_ref("//Infinitex")
         if args.labels:
             ctx.item_click("//**/Labels (G)##tool-labels")
@@ -106,6 +115,10 @@ def main(argv=None) -> int:
             tool.propose_n = 2
             tool.propose()
             settle(ctx)
+        elif args.comb:
+            ctx.item_click("//**/Direction (D)##tool-direction")
+            tool = ed.tool
+            tool.mode, tool.axis = "comb", 1  # the exemplar's y along the strokes: a quarter turn
         else:
             ctx.item_click("//**/Paint canvas (B)##tool-paint-canvas")
             tool = ed.tool
@@ -121,7 +134,7 @@ def main(argv=None) -> int:
         while tool.dabs - d0 < args.dabs:
             if args.labels:
                 tool.active = row % 2
-            else:
+            elif not args.comb:
                 tool.brush.value = 0.0 if row % 2 == 0 else 2.0
             y = cy - 120 + 80 * row
             ctx.mouse_move_to_pos((x0, y))
@@ -131,6 +144,10 @@ def main(argv=None) -> int:
                     break
                 ctx.mouse_move_to_pos((x0 + i * step, y))
                 ctx.yield_()
+                if args.mid_shot and tool.dabs - d0 == args.dabs // 2:
+                    shown, ed.show_fields = ed.show_fields, False  # the texture itself
+                    testing.capture(ctx, args.mid_shot)
+                    ed.show_fields = shown
             ctx.mouse_up(0)
             row += 1
         ctx.yield_()
@@ -146,12 +163,20 @@ def main(argv=None) -> int:
                   for i, (a, b) in enumerate(zip(stamps[n0:n1 - 1], stamps[n0 + 1:n1]), start=n0)]
         # A dab made in frame k (dabs_at[k] > dabs_at[k - 1]) shows exactly at the end of
         # the first frame j >= k that ends settled (about stamps[j + 1]).
-        shown = []
+        # It first shows at the end of the first frame that ends settled or with a
+        # quick look made since the frame before it (Pyramid.quick_look).
+        shown, seen = [], []
         for k in range(n0 + 1, n2 - 1):
             if dabs_at[k] > dabs_at[k - 1]:
                 j = next((j for j in range(k, n2 - 1) if settled_at[j]), n2 - 2)
                 shown.append(stamps[j + 1] - stamps[k])
+                j = next((j for j in range(k, n2 - 1) if settled_at[j] or looks_at[j] > looks_at[k - 1]), n2 - 2)
+                seen.append(stamps[j + 1] - stamps[k])
+        if os.environ.get("PAINT_DEBUG"):
+            for k in range(n0, n1 - 1):
+                print(f"frame {1000 * (stamps[k + 1] - stamps[k]):.1f} update {upd_at[k][0]:.1f} budget {upd_at[k][1]:.1f} look {looks_at[k] - looks_at[k - 1]}")
         lat = sorted(shown)
+        vis = sorted(seen)
         frame_s = sorted(f[0] for f in frames)
         dabs = tool.dabs - d0
         px = pixels_at[n2 - 1] - pixels_at[n0]
@@ -165,6 +190,8 @@ def main(argv=None) -> int:
             "dabs": dabs, "frames_with_a_dab": sum(1 for f in frames if f[1] > 0),
             "latency_ms_median": 1000 * statistics.median(lat), "latency_ms_p90": 1000 * lat[int(0.9 * (len(lat) - 1))],
             "latency_ms_max": 1000 * lat[-1],
+            "visible_ms_median": 1000 * statistics.median(vis), "visible_ms_p90": 1000 * vis[int(0.9 * (len(vis) - 1))],
+            "visible_ms_max": 1000 * vis[-1],
             "frame_ms_median": 1000 * statistics.median(frame_s),
             "frame_ms_p90": 1000 * frame_s[int(0.9 * (len(frame_s) - 1))], "frame_ms_max": 1000 * frame_s[-1],
             "pixels_per_dab": px / max(1, dabs),
@@ -178,12 +205,13 @@ def main(argv=None) -> int:
     if not results:
         print("the benchmark did not run (see the test engine log)")
         return 1
-    print(f"Painting the canvas {'labels' if args.labels else 'randomness'} (canvas {results['canvas'][0]}x{results['canvas'][1]}, "
+    print(f"Painting the canvas {'labels' if args.labels else 'a direction field' if args.comb else 'randomness'} (canvas {results['canvas'][0]}x{results['canvas'][1]}, "
           f"{results['brush_px']:.0f} px brush, {results['renderer']})")
-    print("| structure | dabs | dab shown median / p90 ms | frame median / p90 / max ms | fps | settles after "
+    print("| structure | dabs | dab visible median / p90 / max ms | dab exact median / p90 ms | frame median / p90 / max ms | fps | settles after "
           "the stroke s | pixels per dab | full view pixels | fewer than full |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    print(f"| {results['structure']} | {results['dabs']} | {results['latency_ms_median']:.1f} / "
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    print(f"| {results['structure']} | {results['dabs']} | {results['visible_ms_median']:.1f} / "
+          f"{results['visible_ms_p90']:.1f} / {results['visible_ms_max']:.1f} | {results['latency_ms_median']:.1f} / "
           f"{results['latency_ms_p90']:.1f} | {results['frame_ms_median']:.1f} / {results['frame_ms_p90']:.1f} / "
           f"{results['frame_ms_max']:.1f} | {results['fps_during_stroke']:.1f} | {results['settle_after_stroke_s']:.2f} | "
           f"{results['pixels_per_dab']:.0f} | {results['full_view_pixels']} | {results['fewer_pixels_than_full']:.1f}x |")

@@ -180,7 +180,8 @@ class Refiner:
         deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
-        pixels = 0
+        # This frame's edits shown at once as quick looks (patches), exact soon after.
+        pixels = pyr.quick_look(frame.level, frame.want)
         while time.perf_counter() < deadline:
             missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
             job = pyr.requesting

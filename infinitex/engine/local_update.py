@@ -55,6 +55,7 @@ class LocalUpdates:
         self.controls = controls
         self._signatures = self._level_signatures()
         L = self.an.L
+        self.want_look(changed, b + 1)
         for l in range(L + 1):
             k = L - l
             self._mark(l, [Rect((r.x0 >> k) - b, (r.y0 >> k) - b, -((-r.x1) >> k) + b, -((-r.y1) >> k) + b)
@@ -99,6 +100,7 @@ class LocalUpdates:
             if self._job is None:
                 nxt = next(((l, r) for l in range(self.an.L + 1) for r in self.dirty[l]), None)
                 if nxt is None:
+                    self._drop_patches(None)  # all is exact
                     return True
                 l, r = nxt
                 self.dirty[l].remove(r)
@@ -110,6 +112,8 @@ class LocalUpdates:
                 scratch = self._new_scratch(*scratch_size(region, self.params.subgrid))  # its own: other strips may run meanwhile
                 pace = None if deadline is None else self.pacer
                 self._job = (l, self._strip_steps(l, r, scratch, None, pace), scratch)
+                self._jobs_started += 1
+                self._job_seq = self._jobs_started
                 self.pixels_synthesized += region.w * region.h
             l, steps, _ = self._job
             try:
@@ -121,6 +125,7 @@ class LocalUpdates:
                 changed = stop.value
             self._end_job()
             self._touch(l, changed)
+            self._job_done(l)
             if changed is not None and l < self.an.L:  # only pixels whose value changed reach the next level
                 self._mark(l + 1, [Rect(2 * changed.x0, 2 * changed.y0, 2 * changed.x1, 2 * changed.y1)])
             if regions is not None:

@@ -25,6 +25,7 @@ from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
+from .preview import QuickLooks
 from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
 from .params import SynthParams, correction_margins, first_rects, subpass_rects
@@ -93,12 +94,24 @@ class _LevelBuffer:
             return r.w <= self.size[0] and r.h <= self.size[1]
         return Rect.of(*self.anchor, *self.size).contains(r)
 
+    def pieces(self, r: Rect) -> list:
+        """Split r into pieces contiguous in the texture: ((gx, gy), (tx, ty), w, h)."""
+        xs, ys = [], []
+        for lo, hi, axis, out in ((r.x0, r.x1, 0, xs), (r.y0, r.y1, 1, ys)):
+            g = lo
+            while g < hi:
+                t = (g - self.anchor[axis]) & self.mask[axis]
+                n = min(hi - g, self.size[axis] - t)
+                out.append((g, t, n))
+                g += n
+        return [((gx, gy), (tx, ty), nx, ny) for gx, tx, nx in xs for gy, ty, ny in ys]
+
     def release(self) -> None:
         self.fbo.release()
         self.tex.release()
 
 
-class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
+class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
     """Per-level exact coordinate buffers for one analysis and parameter set.
 
     ``scrolling=True`` keeps power-of-two wrap-around buffers with a prefetch
@@ -132,6 +145,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         self.request_pixels = 0  # level pixels the request in progress has synthesized
         self.pacer = Pacer()  # sizes the pieces of work spread over frames
         self.touched: list[tuple[int, Rect]] | None = []  # what changed since take_touched (None: all)
+        self._init_quick_looks()
         self.set_params(params, controls)
 
     # -- parameters ---------------------------------------------------------
@@ -171,6 +185,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         self.end_request()
         if self._job is not None and self._job[0] >= first_level:
             self._end_job()
+        self._drop_patches(None)
         self.touched = None
         for l in range(first_level, self.an.L + 1):
             self.dirty[l] = []
@@ -281,7 +296,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         src.tex.use(0)
         set_uniforms(prog, src=0, src_anchor=src.anchor, src_mask=src.mask, dest_mask=dest.mask)
         dest.fbo.use()
-        for g0, t0, w, hh in self._texel_pieces(dest, r):
+        for g0, t0, w, hh in dest.pieces(r):
             set_uniforms(prog, region_g0=g0, region_t0=t0)
             dest.fbo.viewport = (t0[0], t0[1], w, hh)
             vao.render(moderngl.TRIANGLES)
@@ -309,6 +324,10 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             self._scratch[key] = self._new_scratch(w, h)
         return self._scratch[key]
 
+    def _new_buffer(self, r: Rect) -> _LevelBuffer:
+        """A level buffer of this pyramid's kind holding exactly ``r`` (not valid yet)."""
+        return _LevelBuffer(self.gpu, (r.w, r.h), False, (r.x0, r.y0), self.channels)
+
     def _new_scratch(self, w: int, h: int):
         """Two w x h state textures and their framebuffers: (a, fa, b, fb) (see _scratch_pair)."""
         a = self.gpu.int_texture((w, h), self.channels)
@@ -323,12 +342,13 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
         return region.w * region.h
 
     def _strip_steps(self, l: int, strip: Rect, scratch, buf: _LevelBuffer | None,
-                     pace: Pacer | None = None) -> Iterator[None]:
+                     pace: Pacer | None = None, parent: _LevelBuffer | None = None) -> Iterator[None]:
         """Synthesize ``strip`` of level l into ``buf`` (None: the level's buffer at
         the end, over what it then holds), a draw (or a piece of one, sized by
         ``pace``) per step: upsample + jitter, correction, fidelity stage, on ``scratch``;
         the write-back is the last step. Returns (as the generator's value) the
-        rectangle of the pixels that changed, when ``buf`` is None."""
+        rectangle of the pixels that changed, when ``buf`` is None. ``parent``:
+        read instead of level l - 1's buffer (a quick look, see preview.py)."""
         p = self.params
         s = p.subgrid
         an = self.an
@@ -357,7 +377,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
                 textures[13] = ptex or ltex
             uni: dict = {}
             if l > 0:
-                parent = self.buffers[l - 1]
+                parent = parent or self.buffers[l - 1]
                 assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
                 textures[0] = parent.tex
                 uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
@@ -417,7 +437,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             textures = {0: a, 12: self._dummy_i if ltex is None else ltex, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
             # At once and without a pause: a level shown between two pieces
             # would hold pixels the view was not told about (Pyramid.touched).
-            for g0, t0, w, hh in self._texel_pieces(buf, strip):
+            for g0, t0, w, hh in buf.pieces(strip):
                 for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
                               dict(uni, region_g0=g0, region_t0=t0), l).steps():
                     pass
@@ -464,23 +484,11 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess):
             t.release()
         self._efield.clear()
 
-    @staticmethod
-    def _texel_pieces(buf: _LevelBuffer, r: Rect):
-        """Split r into pieces contiguous in the destination texture."""
-        xs, ys = [], []
-        for lo, hi, axis, out in ((r.x0, r.x1, 0, xs), (r.y0, r.y1, 1, ys)):
-            g = lo
-            while g < hi:
-                t = (g - buf.anchor[axis]) & buf.mask[axis]
-                n = min(hi - g, buf.size[axis] - t)
-                out.append((g, t, n))
-                g += n
-        return [((gx, gy), (tx, ty), nx, ny) for gx, tx, nx in xs for gy, ty, ny in ys]
-
     # -- reading ------------------------------------------------------------
 
     def release(self) -> None:
         self.gpu.activate()
+        self._drop_patches(None)
         for buf in self.buffers:
             if buf is not None:
                 buf.release()

@@ -26,6 +26,10 @@ class Rect:
         return self.y1 - self.y0
 
     @property
+    def area(self) -> int:
+        return max(0, self.w) * max(0, self.h)
+
+    @property
     def empty(self) -> bool:
         return self.w <= 0 or self.h <= 0
 

@@ -100,7 +100,7 @@ class StateAccess:
         """The held state of ``r`` (H, W, channels) int16, read back piece by piece."""
         c = buf.channels
         out = np.empty((r.h, r.w, c), dtype=np.int16)
-        for (gx, gy), (tx, ty), w, h in self._texel_pieces(buf, r):
+        for (gx, gy), (tx, ty), w, h in buf.pieces(r):
             data = buf.fbo.read(viewport=(tx, ty, w, h), components=c, dtype="i2", alignment=1)
             out[gy - r.y0:gy - r.y0 + h, gx - r.x0:gx - r.x0 + w] = np.frombuffer(data, np.int16).reshape(h, w, c)
         return out

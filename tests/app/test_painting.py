@@ -223,3 +223,18 @@ def test_the_canvas_label_overlay_rewrites_what_a_stroke_changed_exactly(gpu):
             assert tex.read() == ref.read(), (zoom_out, i)
             fresh.release()
         inc.release()
+
+
+def test_every_local_edit_is_refined_locally(doc):
+    """A paint dab, a label dab, a feature move and a comb dab are re-synthesized
+    in place (and shown at once as quick looks), not by the coarse preview a
+    dragged slider gets; a change of a global setting is not local."""
+    from infinitex.app.ui.editor import local_edit
+    from infinitex.engine.controls import DirectionField
+    from infinitex.engine.controls.direction import jacobian
+    field, _ = CanvasField().painted(10.0, 10.0, 8.0, 0)
+    combed, _ = DirectionField().painted(10.0, 10.0, 8.0, jacobian(30.0, 1.0), 1.0)
+    assert local_edit(doc, replace(doc, randomness_canvas=field))
+    assert local_edit(doc, replace(doc, direction=combed))
+    assert not local_edit(doc, replace(doc, seed=doc.seed + 1))
+    assert not local_edit(None, doc)

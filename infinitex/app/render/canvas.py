@@ -26,6 +26,7 @@ SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
 MODES = {"color": 0, "coords": 1, "patches": 2, "level": 3, "relief": 4, "lit": 5}
 SHAPE_KINDS = {"normal": 0, "height": 1}
 MAX_HIRES = 4096
+FEATHER_TEXELS = 6.0  # a quick look's patch blends in over this many texels from its edges
 
 
 class Canvas:
@@ -97,12 +98,14 @@ class Canvas:
         self.shape_kind = SHAPE_KINDS[kind]
         self.shape_key = key
 
-    def _program(self, mode: int, mag: int, alpha: int, shape_kind: int, direction: bool = False):
+    def _program(self, mode: int, mag: int, alpha: int, shape_kind: int, direction: bool = False,
+                 feather: bool = False):
         """The canvas program compiled for one kind of draw (see canvas.frag)."""
-        key = (mode, mag, alpha, shape_kind, direction)
+        key = (mode, mag, alpha, shape_kind, direction, feather)
         if key not in self._programs:
             head = (f"#version 330 core\n#define MODE {mode}\n#define MAG {mag}\n#define ALPHA {alpha}\n"
-                    f"#define SHAPE_KIND {shape_kind}\n" + ("#define DIRECTION\n" if direction else ""))
+                    f"#define SHAPE_KIND {shape_kind}\n" + ("#define DIRECTION\n" if direction else "")
+                    + ("#define FEATHER\n" if feather else ""))
             ctx = self.gpu.ctx
             prog = ctx.program(vertex_shader="#version 330 core\n" + read_shader("fullscreen.vert"),
                                fragment_shader=head + self._frag)
@@ -198,8 +201,13 @@ class Canvas:
         az, el = math.radians(display.light_azimuth), math.radians(display.light_elevation)
         light = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
         alpha = int(self.channels in (2, 4))
-        for i, l in enumerate(reversed(levels)):  # coarse first, finer partial levels on top
-            buf = pyramid.buffers[l]
+        # Coarse first, finer partial levels on top; then the quick looks at the
+        # edits (Pyramid.quick_look) over the shown level until it is exact
+        # there, blended in at their edges.
+        draws = [(l, pyramid.buffers[l], i > 0, None) for i, l in enumerate(reversed(levels))]
+        draws += [(p.level, p.buf, True, p.rect) for p in pyramid.patches if p.level == frame.level]
+        ctx = self.gpu.ctx
+        for l, buf, clip, patch in draws:
             k = L - l
             buf.tex.use(0)
             texel_px = view.zoom * (1 << k) / float(np.linalg.norm(G, 2))
@@ -214,11 +222,15 @@ class Canvas:
             mag = 0 if not magnify or mode in (1, 2, 3, 4) else (2 if use_hires else 1)
             directed = buf.channels == 4
             prog, vao = self._program(mode, mag, alpha if mode in (0, 3, 5) else 0,
-                                      self.shape_kind if mode == 5 else 0, directed)
+                                      self.shape_kind if mode == 5 else 0, directed, patch is not None)
+            if patch is not None:
+                set_uniforms(prog, feather=(patch.x0, patch.y0, patch.x1, patch.y1), feather_w=FEATHER_TEXELS)
+                ctx.enable(moderngl.BLEND)
+                ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO, moderngl.ONE)
             if directed:
-                self._jacobians(pyramid, l, k, buf.valid).use(4)
+                self._jacobians(pyramid, (l, buf is not pyramid.buffers[l]), k, buf.valid).use(4)
                 set_uniforms(prog, jfield=4, jorigin=(buf.valid.x0, buf.valid.y0), jdims=(buf.valid.w, buf.valid.h))
-            scissor = None if i == 0 else self._screen_box(buf.valid, k, tlx, tly, M)
+            scissor = self._screen_box(buf.valid, k, tlx, tly, M) if clip else None
             if box is not None:
                 scissor = box if scissor is None else _intersect(scissor, box)
             self.gpu.ctx.scissor = scissor
@@ -230,23 +242,27 @@ class Canvas:
                          toroidal=int(self.toroidal), relief_strength=float(self.m) / 24.0, shape=3,
                          light=light, relief=float(display.relief) * self.m / 8.0)
             vao.render(moderngl.TRIANGLES)
+            if patch is not None:
+                ctx.disable(moderngl.BLEND)
+                ctx.blend_func = moderngl.DEFAULT_BLENDING
         return levels[-1]
 
-    def _jacobians(self, pyramid: Pyramid, l: int, k: int, r: Rect):
-        """Level l's J over ``r`` as an RGBA16I texture (kept while the field and ``r`` stay)."""
+    def _jacobians(self, pyramid: Pyramid, slot: tuple[int, bool], k: int, r: Rect):
+        """Level L - k's J over ``r`` as an RGBA16I texture (kept in ``slot``, the
+        level and whether for a quick look, while the field and ``r`` stay)."""
         from infinitex.engine.controls.direction import IDENTITY
         field = pyramid.controls.direction
         period = pyramid.params.period
         key = (field.key, r, period)
-        cache = self.__dict__.setdefault("_jtex", {})  # level -> (key, texture)
-        held = cache.get(l)
+        cache = self.__dict__.setdefault("_jtex", {})  # slot -> (key, texture)
+        held = cache.get(slot)
         if held is None or held[0] != key:
             if held is not None:
                 held[1].release()
             vals = field.region(k, r.x0, r.y0, r.w, r.h, period)
             if vals is None:
                 vals = np.broadcast_to(IDENTITY, (r.h, r.w, 4))
-            cache[l] = held = (key, self.gpu.int_texture((r.w, r.h), 4, vals))
+            cache[slot] = held = (key, self.gpu.int_texture((r.w, r.h), 4, vals))
         return held[1]
 
     def _origin(self, view: View, geom: np.ndarray | None) -> tuple[float, float, np.ndarray]:

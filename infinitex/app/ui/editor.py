@@ -48,7 +48,8 @@ from .tools import make_tools
 
 __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EXEMPLAR: where it always was
 
-REST_BUDGET_S = 0.020        # synthesis per frame while refining: with drawing, a frame takes about 33 ms
+REST_BUDGET_S = 0.020        # synthesis per frame while refining, at most: with drawing, a frame takes about 33 ms
+FRAME_S = 0.027              # the frame the refinement's budget aims at (what the rest of a frame leaves)
 PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
 INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
@@ -62,6 +63,27 @@ ACTIVE_AFTER_INPUT_S = 0.5   # full frame rate this long after the last input ev
 BACKGROUND_FPS = 4.0  # while worker processes export: progress, and the cores left to them
 ANALYSIS_FPS = 8.0    # while only the analysis thread works (nothing to refine)
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
+
+
+class FramePacer:
+    """Learns what a busy frame costs besides the synthesis (drawing, the UI,
+    an edit), so that the refinement's budget keeps frames near FRAME_S."""
+
+    def __init__(self) -> None:
+        self._t = 0.0  # when the last frame began (perf_counter)
+        self._other_s = 0.010
+
+    def frame_began(self, update_ms: float) -> None:
+        """A frame begins; the last one spent ``update_ms`` synthesizing."""
+        now = time.perf_counter()
+        dt, self._t = now - self._t, now
+        if dt < 0.1 and update_ms > 0.0:  # (not after an idle wait)
+            self._other_s = 0.8 * self._other_s + 0.2 * max(0.0, dt - update_ms / 1000.0)
+
+    @property
+    def budget_s(self) -> float:
+        """The synthesis budget of this frame."""
+        return min(REST_BUDGET_S, max(0.006, FRAME_S - self._other_s))
 
 
 class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelModeMixin):
@@ -109,6 +131,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
         self._fps_t = time.perf_counter()
         self._fps_n = 0
         self.update_ms = 0.0
+        self.frame_pacer = FramePacer()
         self.pixels = 0
         self.cursor: tuple[float, float] | None = None
         self.cursor_uv: tuple[int, int] | None = None
@@ -249,6 +272,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
     def gui(self) -> None:
         self.frame_count += 1
         self._last_frame_t = time.monotonic()
+        self.frame_pacer.frame_began(self.update_ms)
         self._tick_fps()
         vp = imgui.get_main_viewport()
         imgui.set_next_window_pos(vp.work_pos)
@@ -398,7 +422,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
                     if self.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
                         scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
                 else:
-                    self.refined = s.refine(self.frame, REST_BUDGET_S)
+                    self.refined = s.refine(self.frame, self.frame_pacer.budget_s)
             except SynthesisError as exc:
                 self.view = View(0, 0, self.view.zoom)
                 self.dialogs.message("Synthesis", str(exc))
@@ -461,12 +485,13 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
 
 def local_edit(prev: Document | None, doc: Document) -> bool:
     """Whether ``doc`` differs from ``prev`` only in what is re-synthesized
-    locally and exactly (canvas paint, canvas labels, features): no coarse
-    preview for those."""
+    locally and exactly (canvas paint, canvas labels, features, the direction
+    field): no coarse preview for those."""
     if prev is None:
         return False
     labels = prev.labels if None in (prev.labels, doc.labels) else replace(prev.labels, canvas=doc.labels.canvas)
-    return replace(prev, randomness_canvas=doc.randomness_canvas, features=doc.features, labels=labels) == doc
+    return replace(prev, randomness_canvas=doc.randomness_canvas, features=doc.features, labels=labels,
+                   direction=doc.direction) == doc
 
 
 def probe_gl() -> str | None:

@@ -38,6 +38,10 @@ uniform int toroidal;
 uniform float relief_strength;
 
 out vec4 color;
+#ifdef FEATHER
+uniform vec4 feather;         // a quick look's patch (x0, y0, x1, y1, level texels): drawn over the level,
+uniform float feather_w;      // its opacity rising over feather_w texels from its edges (no hard seam)
+#endif
 
 ivec2 S(ivec2 g) {
     g = clamp(g, vlo, vhi - 1);
@@ -198,5 +202,11 @@ void main() {
     if ((right && !coherent(g, ivec2(1, 0))) || (below && !coherent(g, ivec2(0, 1))))
         c.rgb = vec3(0.05);
 #endif
+#ifdef FEATHER
+    vec2 gp = vec2(base) + frac;  // continuous level position
+    vec2 edge = min(gp - feather.xy, feather.zw - gp);
+    color = vec4(c.rgb, clamp(min(edge.x, edge.y) / feather_w, 0.0, 1.0));
+#else
     color = vec4(c.rgb, 1.0);
+#endif
 }

@@ -1,0 +1,81 @@
+"""Quick looks at local updates (engine/preview.py): a dab shows at once as a
+patch synthesized on its own buffers; the held levels, and so the exact result,
+are untouched; the patch goes once the level is exact under it."""
+import numpy as np
+import pytest
+
+from infinitex.engine.controls import CanvasField, Controls
+from infinitex.engine.pyramid import Rect
+from infinitex.engine.synth import Synthesizer
+from test_fidelity import FAR, with_fidelity
+
+
+@pytest.fixture
+def viewport(analyses, gpu):
+    an = analyses["gravel-appearance"]
+    vp = Synthesizer(an, with_fidelity(an, seed=4), gpu=gpu).viewport()
+    yield vp
+    vp.release()
+
+
+@pytest.mark.parametrize("coarser", [0, 1])
+def test_a_look_from_exact_levels_is_exact(viewport, coarser):
+    """From exact coarser levels, with the same controls, a patch is exactly
+    the level it stands for: it is real synthesis, not an approximation of one."""
+    view = Rect.of(FAR - 3000, -FAR + 200, 160, 120)
+    viewport.show(view)
+    pyr = viewport.pyramid
+    d = pyr.an.L - coarser
+    rect = Rect(view.x0 + 50 >> coarser, view.y0 + 40 >> coarser, view.x0 + 110 >> coarser, view.y0 + 75 >> coarser)
+    assert pyr._make_patch(d, rect) > 0
+    patch = pyr.patches[-1]
+    assert (patch.level, patch.rect) == (d, rect)
+    assert np.array_equal(pyr._read_rect(patch.buf, rect), pyr._read_rect(pyr.buffers[d], rect))
+
+
+def test_a_dab_shows_at_once_and_its_patch_goes_when_exact(viewport, analyses, gpu):
+    an = analyses["gravel-appearance"]
+    pyr = viewport.pyramid
+    view = Rect.of(-FAR + 900, 3000, 160, 120)
+    viewport.show(view)
+    L = an.L
+    held = pyr.read(L, view)
+    field, _ = CanvasField().painted(view.x0 + 70, view.y0 + 60, 16.0, 0)
+    controls = Controls(randomness_canvas=field)
+    pyr.update_controls(controls, defer=True)
+    assert pyr.quick_look(L, view) > 0
+    assert len(pyr.patches) == 1
+    patch = pyr.patches[0]
+    assert patch.rect.contains(Rect.of(view.x0 + 56, view.y0 + 46, 28, 28))
+    look = pyr._read_rect(patch.buf, patch.rect)
+    assert np.array_equal(pyr.read(L, view), held)  # the held levels are untouched
+    assert np.mean(np.any(look != pyr._read_rect(pyr.buffers[L], patch.rect), axis=-1)) > 0.2  # it shows the dab
+    fresh = Synthesizer(an, viewport.synth.params, gpu=gpu, controls=controls).window(view)
+    r = patch.rect
+    jobs = 0
+    while pyr.patches:
+        pyr.settle(None, regions=1)
+        jobs += 1
+    # Gone (once a job of its level that started after it ended, with none left
+    # to do under it): the level is exact there.
+    assert jobs > 1
+    exact = fresh[r.y0 - view.y0:r.y1 - view.y0, r.x0 - view.x0:r.x1 - view.x0]
+    assert np.array_equal(pyr.read(L, r), exact)
+    while not pyr.settle(None, regions=1):
+        pass
+    assert np.array_equal(pyr.read(L, view), fresh)
+
+
+def test_looks_of_another_level_or_outside_the_view_are_dropped(viewport):
+    pyr = viewport.pyramid
+    view = Rect.of(500, 500, 160, 120)
+    viewport.show(view)
+    L = pyr.an.L
+    field, _ = CanvasField().painted(580, 560, 16.0, 65535)
+    pyr.update_controls(Controls(randomness_canvas=field), defer=True)
+    pyr.quick_look(L, view)
+    assert len(pyr.patches) == 1
+    pyr.quick_look(L - 1, view.half())  # zoomed out: the shown level changed
+    assert not pyr.patches
+    pyr.settle()
+    assert pyr.settled and not pyr.patches
