@@ -1,6 +1,6 @@
 """Time from opening an image to the first texture on the editor's canvas.
 
-    xvfb-run -a -s "-screen 0 1280x800x24" python -m bench.editor_open [--json OUT.json]
+    xvfb-run -a -s "-screen 0 1280x800x24" python -m bench.editor_open [--load N] [--only NAME] [--json OUT.json]
 
 Each case runs the real editor (its own runner, no test engine) in a fresh
 process with an empty analysis cache, opening the image given on its command
@@ -11,7 +11,8 @@ analysis builds similarity sets), the frame the full analysis is installed
 ("full analysis"), and the frame the view is exact ("exact"). Prints a table,
 writes JSON. Images: the shipped gravel (128 px), the bench exemplars at 256 px,
 and a generated cobblestone photo at 512, 1024 and 2048 px (the default import
-fits the last two to 512 px).
+fits the last two to 512 px). ``--load 2``: two busy processes beside the
+editor (a load average of 2, all this machine's cores).
 """
 from __future__ import annotations
 
@@ -72,6 +73,9 @@ def cases(folder: str) -> list[tuple[str, str]]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", metavar="OUT.json")
+    ap.add_argument("--load", type=int, default=0, metavar="N",
+                    help="N busy processes run beside the editor (a load average of N)")
+    ap.add_argument("--only", metavar="TEXT", help="only the cases whose name contains TEXT")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -79,13 +83,21 @@ def main(argv=None) -> int:
     tmp = tempfile.mkdtemp(prefix="infinitex-open-")
     rows = []
     for name, path in cases(tmp):
+        if args.only and args.only not in name:
+            continue
         out = os.path.join(tmp, "t.json")
         if os.path.exists(out):
             os.remove(out)
         env = dict(os.environ, INFINITEX_CACHE=tempfile.mkdtemp(prefix="cache-", dir=tmp),
                    INFINITEX_STATE=tempfile.mkdtemp(prefix="state-", dir=tmp), INFINITEX_NO_NATIVE_DIALOGS="1")
-        subprocess.run([sys.executable, "-m", "bench.editor_open", "--child", path, out], cwd=HERE, env=env,
-                       timeout=900, capture_output=True)
+        busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)]
+        try:
+            subprocess.run([sys.executable, "-m", "bench.editor_open", "--child", path, out], cwd=HERE, env=env,
+                           timeout=900, capture_output=True)
+        finally:
+            for b in busy:
+                b.kill()
+                b.wait()
         t = json.load(open(out)) if os.path.exists(out) else {}
         rows.append({"case": name, **t})
         print(f"{name:<18} first texture {t.get('first_texture', float('nan')):6.2f} s   "
@@ -93,7 +105,7 @@ def main(argv=None) -> int:
               flush=True)
     if args.json:
         from infinitex.engine.safeio import atomic_write
-        atomic_write(args.json, json.dumps({"cases": rows}, indent=1).encode())
+        atomic_write(args.json, json.dumps({"cases": rows, "load": args.load}, indent=1).encode())
     return 0
 
 

@@ -180,8 +180,12 @@ class Refiner:
         deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
-        # This frame's edits shown at once as quick looks (patches), exact soon after.
-        pixels = pyr.quick_look(frame.level, frame.want)
+        # This frame's edits shown at once as quick looks (patches) unless their
+        # exact update fits in the frame (about: a coarse level's change spreads).
+        work = 0.0
+        if pyr.looks_wanted:
+            work = sum(pyr.padded(l, r).area * self.cost[l] for l, rects in enumerate(pyr.dirty) for r in rects)
+        pixels = pyr.quick_look(frame.level, frame.want, skip=work < 0.5 * budget_s)
         while time.perf_counter() < deadline:
             missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
             job = pyr.requesting

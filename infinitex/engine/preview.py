@@ -56,16 +56,22 @@ class QuickLooks:
         self._looks_wanted = merge_rects(self._looks_wanted + [r.pad(pad, pad, pad, pad) for r in changed
                                                                 if not r.empty])
 
-    def quick_look(self, level: int, want: Rect) -> int:
+    @property
+    def looks_wanted(self) -> bool:
+        """Edits were noted since the last :meth:`quick_look`."""
+        return bool(self._looks_wanted)
+
+    def quick_look(self, level: int, want: Rect, skip: bool = False) -> int:
         """Make a patch of every edit noted since the last call, at ``level``
-        (the shown one) within ``want``; drop the patches of another level or
-        no longer held. Returns the level pixels synthesized."""
+        (the shown one) within ``want`` (``skip``: forget them; their exact
+        update will show as soon); drop the patches of another level or no
+        longer held. Returns the level pixels synthesized."""
         L = self.an.L
         buf = self.buffers[level] if 0 <= level <= L else None
         held = buf.valid if buf is not None and buf.valid is not None else None
         self._drop_patches(lambda p: p.level != level or held is None or not held.contains(p.rect))
         wanted, self._looks_wanted = self._looks_wanted, []
-        if held is None or level < 1 or self.settled:
+        if skip or held is None or level < 1 or self.settled:
             return 0
         k = L - level
         rects = [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)).intersect(want).intersect(held)
