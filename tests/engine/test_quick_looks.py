@@ -79,3 +79,56 @@ def test_looks_of_another_level_or_outside_the_view_are_dropped(viewport):
     assert not pyr.patches
     pyr.settle()
     assert pyr.settled and not pyr.patches
+
+
+def _dabs(kind: str, an, x0: int, y0: int):
+    """Three dabs' controls of one kind, in the order made (a feature: placed, then moved twice)."""
+    from infinitex.engine.controls import CanvasLabels, DirectionField, Feature
+    from infinitex.engine.controls.direction import jacobian
+    from test_labels import halves
+    out, le = [], halves(an.size)
+    field, labels, comb = CanvasField(), CanvasLabels(), DirectionField()
+    for i, (cx, cy) in enumerate([(x0 + 30, y0 + 30), (x0 + 38, y0 + 34), (x0 + 60, y0 + 50)]):
+        if kind == "randomness":
+            field, _ = field.painted(cx, cy, 12.0, 65535 * (i % 2))
+            out.append(Controls(randomness_canvas=field))
+        elif kind == "labels":
+            labels, _ = labels.painted(cx, cy, 12.0, 1 + 2 * (i % 2))
+            out.append(Controls(labels_exemplar=le, labels_canvas=labels))
+        elif kind == "comb":
+            comb, _ = comb.painted(cx, cy, 12.0, jacobian(60.0 * (i + 1), 1.0), 0.9)
+            out.append(Controls(direction=comb))
+        else:
+            out.append(Controls(features=(Feature((20, 30), (int(cx), int(cy)), 6, 14, None),)))
+    return out
+
+
+@pytest.mark.parametrize("kind", ["randomness", "labels", "comb", "feature"])
+def test_dabs_at_balanced_shown_as_looks_end_as_a_fresh_synthesis(analyses, gpu, kind):
+    """The editor's way at the default preset, per kind of edit: each dab
+    recorded, looked at, a few pieces of its update done, the next dab; the
+    view ends as a fresh synthesis with the last controls, and no patch stays."""
+    from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
+    an = analyses["gravel-appearance"]
+    params = structure_params(SynthParams.default(an.L, seed=8), DEFAULT_STRUCTURE)
+    view = Rect.of(FAR - 5000, 700, 96, 80)
+    steps = _dabs(kind, an, view.x0, view.y0)
+    vp = Synthesizer(an, params, gpu=gpu, controls=Controls(labels_exemplar=steps[0].labels_exemplar)
+                     if kind == "labels" else Controls()).viewport()
+    pyr = vp.pyramid
+    looks = 0
+    try:
+        vp.show(view)
+        for controls in steps:
+            pyr.update_controls(controls, None, defer=True)
+            pyr.quick_look(an.L, view)
+            looks = max(looks, len(pyr.patches))
+            for _ in range(3):
+                pyr.settle(0.0)
+        while not pyr.settle(0.0):
+            pass
+        assert looks > 0 and not pyr.patches
+        fresh = Synthesizer(an, params, gpu=gpu, controls=steps[-1]).window(view, remainder=kind == "comb")
+        assert np.array_equal(pyr.read(an.L, view, remainder=kind == "comb"), fresh)
+    finally:
+        vp.release()
