@@ -116,33 +116,41 @@ class Gpu:
         key = self._sources.get(prog.glo)
         return None if key is None else (key[0], dict(key[1]))
 
-    def uint_texture(self, size: tuple[int, int], data: np.ndarray):
-        tex = self.ctx.texture(size, 4, np.ascontiguousarray(data, dtype=np.uint32).tobytes(), dtype="u4")
+    def texture(self, size: tuple[int, int], components: int, data: np.ndarray | None, dtype: str):
+        """A 2D integer texture of ``size`` (w, h), texel-fetched only, holding
+        ``data`` (h, w, components) if given.
+
+        Its storage is never a power of two wide or high (one texel more where
+        ``size`` is): llvmpipe compiles a shader variant per combination of its
+        textures' power-of-two sides, so strips of changing sizes would compile
+        new ones (about a second each, cold) in the middle of a stroke. The
+        texels beyond ``size`` are never read."""
+        w, h = (int(size[0]), int(size[1]))
+        tex = self.ctx.texture((_npot(w), _npot(h)), components, dtype=dtype)
+        if data is not None:
+            tex.write(np.ascontiguousarray(data).tobytes(), viewport=(0, 0, w, h), alignment=1)
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.repeat_x = tex.repeat_y = False
         return tex
+
+    def uint_texture(self, size: tuple[int, int], data: np.ndarray):
+        return self.texture(size, 4, np.asarray(data, dtype=np.uint32), "u4")
 
     def u32_texture(self, data: np.ndarray):
         """A single-channel uint32 (R32UI) texture of a (h, w) array."""
-        data = np.ascontiguousarray(data, dtype=np.uint32)
-        tex = self.ctx.texture((data.shape[1], data.shape[0]), 1, data.tobytes(), dtype="u4")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        tex.repeat_x = tex.repeat_y = False
-        return tex
+        return self.texture((data.shape[1], data.shape[0]), 1, np.asarray(data, dtype=np.uint32), "u4")
 
     def u16_texture(self, data: np.ndarray):
         """A single-channel uint16 (R16UI) texture of a (h, w) array."""
-        data = np.ascontiguousarray(data, dtype=np.uint16)
-        tex = self.ctx.texture((data.shape[1], data.shape[0]), 1, data.tobytes(), dtype="u2")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        tex.repeat_x = tex.repeat_y = False
-        return tex
+        return self.texture((data.shape[1], data.shape[0]), 1, np.asarray(data, dtype=np.uint16), "u2")
 
     def int_texture(self, size: tuple[int, int], components: int, data: np.ndarray | None = None):
-        tex = self.ctx.texture(size, components, None if data is None else
-                               np.ascontiguousarray(data, dtype=np.int16).tobytes(), dtype="i2")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        tex.repeat_x = tex.repeat_y = False
-        return tex
+        return self.texture(size, components, None if data is None else np.asarray(data, dtype=np.int16), "i2")
+
+
+def _npot(n: int) -> int:
+    """n, or n + 1 where n is a power of two of at least 2 (see Gpu.texture)."""
+    return n + 1 if n >= 2 and n & (n - 1) == 0 else n
 
 
 def _rgba(arr: np.ndarray) -> np.ndarray:

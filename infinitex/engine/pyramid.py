@@ -56,8 +56,7 @@ def feature_textures(gpu: Gpu, controls: Controls, an, l: int, region: Rect, per
               (pack_rows(entries, ENTRY_ROW), 1)]
     texs = []
     for unit, (arr, comps) in zip((3, 6, 7), arrays):
-        tex = gpu.ctx.texture((arr.shape[1], arr.shape[0]), comps, np.ascontiguousarray(arr).tobytes(), dtype="i4")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex = gpu.texture((arr.shape[1], arr.shape[0]), comps, arr.astype(np.int32, copy=False), "i4")
         tex.use(unit)
         texs.append(tex)
     uni.update(nfeat=len(table), fcell_origin=origin, fcell_dims=(cells.shape[1], cells.shape[0]), fcell_shift=shift)

@@ -83,7 +83,8 @@ class StateAccess:
         for buf in self.buffers:
             if buf is None or buf.channels == 4:
                 continue
-            data = np.frombuffer(buf.tex.read(alignment=1), np.int16).reshape(buf.size[1], buf.size[0], 2)
+            data = np.frombuffer(buf.fbo.read(viewport=(0, 0, *buf.size), components=2, dtype="i2", alignment=1),
+                                 np.int16).reshape(buf.size[1], buf.size[0], 2)
             wide = np.zeros((buf.size[1], buf.size[0], 4), np.int16)
             wide[..., :2] = data
             buf.fbo.release()

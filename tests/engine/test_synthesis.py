@@ -339,3 +339,24 @@ def test_the_projection_tables_and_the_float_projection_agree(analyses, gpu, mon
         assert not synth.gan.projection_tables and synth.gan.level(an.L).proj_float
         floats = synth.window(rect)
     assert np.array_equal(tables, floats)
+
+
+def test_textures_are_never_a_power_of_two_and_hold_their_data(gpu):
+    """llvmpipe compiles a shader variant per combination of its textures'
+    power-of-two sides: strips of changing sizes would compile new ones mid-stroke
+    (about a second each, cold). Storage is never a power of two; data sits at 0,0."""
+    rng = np.random.default_rng(3)
+    for w, h in [(64, 32), (60, 30), (1, 1), (2, 5)]:
+        data = rng.integers(-3000, 3000, size=(h, w, 2)).astype(np.int16)
+        tex = gpu.int_texture((w, h), 2, data)
+        sw, sh = tex.size
+        assert sw in (w, w + 1) and sh in (h, h + 1)
+        assert all(n == 1 or n & (n - 1) for n in (sw, sh))
+        fbo = gpu.ctx.framebuffer([tex])
+        back = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=2, dtype="i2", alignment=1), np.int16)
+        assert np.array_equal(back.reshape(h, w, 2), data)
+        fbo.release()
+        tex.release()
+    u = gpu.u16_texture(np.arange(16 * 8, dtype=np.uint16).reshape(8, 16))
+    assert u.size == (17, 9)
+    u.release()
