@@ -28,6 +28,8 @@ if _RUN:
     os.makedirs(os.environ["INFINITEX_CACHE"], exist_ok=True)
 else:
     os.environ["INFINITEX_CACHE"] = tempfile.mkdtemp(prefix="infinitex-test-cache-")
+# No shader warm-up processes behind the tests' editors (tests/app/test_warmup.py runs one).
+os.environ["INFINITEX_NO_WARMUP"] = "1"
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 

@@ -25,6 +25,8 @@ from infinitex.export.loaded import LoadedDocument
 from infinitex.project import Document, View
 
 from .model_session import ModelPreview
+from .settings import config_dir
+from .warmup import ShaderWarmup
 
 MIN_BAND = 32  # rows: thinner bands cost more in correction margins than they save
 BAND_S = 0.6  # seconds of synthesis per band of a level too big to refine at once
@@ -240,6 +242,7 @@ class Session(LoadedDocument):
         self.pyramid: Pyramid | None = None
         self.refiner: Refiner | None = None
         self.model = ModelPreview()  # the document's model, textured live (app/model_session.py)
+        self.warmup = ShaderWarmup(config_dir())  # the shader variants of the next edits, compiled aside
 
     def sync(self, doc: Document) -> None:
         """Keep the engine in step with ``doc``: new analysis key -> analyze;
@@ -264,6 +267,7 @@ class Session(LoadedDocument):
             # never holds the editor up (see Pyramid.settle).
             self.pyramid.update_controls(controls, defer=True)
         self.model.sync(self, doc)
+        self.warmup.poll()
 
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
                 preview: bool = False) -> None:
@@ -271,11 +275,19 @@ class Session(LoadedDocument):
         self.pyramid = Pyramid(self.gpu, self.synth.gan, self.params, scrolling=True, prefetch=16,
                                controls=self.controls)
         self.refiner = Refiner(self.pyramid, self.gpu)
+        if not preview and an.size <= 512:  # (larger analyses are not cached: the process would redo them)
+            import json
+            from infinitex.project import Project, project_to_json
+            self.warmup.start(json.dumps(project_to_json(Project(doc), embed=True)), self.gpu.renderer)
 
     def refine(self, frame: Frame, budget_s: float) -> bool:
         if self.refiner is None:
             return False
         return self.refiner.step(frame, budget_s)
+
+    def release(self) -> None:
+        self.warmup.stop()
+        super().release()
 
     def release_synthesis(self) -> None:
         self.model.release()
