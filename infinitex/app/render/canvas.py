@@ -26,6 +26,7 @@ SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
 MODES = {"color": 0, "coords": 1, "patches": 2, "level": 3, "relief": 4, "lit": 5}
 SHAPE_KINDS = {"normal": 0, "height": 1}
 MAX_HIRES = 4096
+REDRAW_PX = 160_000  # canvas pixels redrawn a frame where the synthesis changed texels (redraw)
 FEATHER_TEXELS = 6.0  # a quick look's patch blends in over this many texels from its edges
 
 
@@ -51,6 +52,7 @@ class Canvas:
         self.channels = 3
         self.toroidal = False
         self.shown_key: tuple | None = None  # what the texture shows (redraw)
+        self.pending: tuple[int, int, int, int] | None = None  # a box still to redraw (redraw)
 
     # -- exemplar textures ----------------------------------------------------
 
@@ -136,17 +138,28 @@ class Canvas:
         """Bring the texture up to date for this frame: drawn whole when the view,
         the display or ``source`` (what the pyramid is synthesized from) changed,
         else only where the synthesis changed texels since the last call (a band
-        of the view's level is cheap; the whole canvas magnified is not)."""
+        of the view's level is cheap; the whole canvas magnified is not: about
+        25 ms on llvmpipe, so a redraw of more than REDRAW_PX canvas pixels is
+        spread over frames, that many a frame, the rest kept in ``pending``)."""
         key = (source, frame, view, display, self.size, None if geom is None else tuple(np.ravel(geom)))
         touched = pyramid.take_touched()
         if key != self.shown_key or force or touched is None:
             self.render(pyramid, frame, view, display, geom)
             self.shown_key = key
-        elif touched:
+            self.pending = None
+            return
+        if touched:
             L = len(pyramid.buffers) - 1
             box = union_box(self.screen_box(l, r, L, view, geom) for l, r in touched)
-            if box is not None:
-                self.render(pyramid, frame, view, display, geom, box=box)
+            if box is not None and box[2] * box[3] <= REDRAW_PX:
+                self.render(pyramid, frame, view, display, geom, box=box)  # (a dab's quick look: at once)
+            elif box is not None:
+                self.pending = box if self.pending is None else union_box([self.pending, box])
+        if self.pending is not None:
+            x, y, w, h = self.pending
+            rows = max(1, min(h, REDRAW_PX // max(1, w)))
+            self.render(pyramid, frame, view, display, geom, box=(x, y, w, rows))
+            self.pending = (x, y + rows, w, h - rows) if rows < h else None
 
     def render(self, pyramid: Pyramid | None, frame: Frame | None, view: View, display: Display,
                geom: np.ndarray | None = None, box: tuple[int, int, int, int] | None = None) -> int:

@@ -432,6 +432,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
             view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
             self.canvas.redraw(s.pyramid, self.frame, view, self.display, geom, (s.generation, s.params),
                                force=self.canvas_request)
+            self.refined = self.refined and self.canvas.pending is None  # (a large redraw spreads over frames)
             if self.canvas_request:
                 self.canvas_pixels = self.canvas.read()
                 self.canvas_request = False
