@@ -11,8 +11,11 @@
   pan_ms             mean per frame, 512^2 viewport panned 8 px/frame over 64 frames; pan_speedup = full / pan
   view_ms            a fresh 1024 x 768 view
   dab_ms             a paint dab (48 px brush, 32 dabs along a stroke) until that view is exact again:
-                     Pyramid.update_controls done at once, then the view shown (median, p90)
+                     recorded, its quick look made, settled, then the view shown (median, p90)
   dab_px             level pixels re-synthesized per dab (median)
+  look_ms            from a dab to its quick look made (Pyramid.quick_look, what the editor shows at once),
+                     median (look_max_ms: the largest); label_look_ms, comb_look_ms the same for those dabs;
+                     the times until exact include it, as in the editor
   dab_exact          the painted view equals a fresh synthesis with the final controls
   jump_ms            that view moved 4,500 px (all of it new) until exact, median of 3
   release_ms         a randomness slider released (one level's jitter changed) until the view is exact, median of 3
@@ -99,9 +102,10 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
         def paint(f, k, c):
             new, box = f.painted(c[0], c[1], 24.0, 65535 if (k // 8) % 2 == 0 else 0)
             return new, [box]
-        dabs, controls, px = _stroke_dabs(vp, view, 8 if quick else 32, CanvasField(), paint,
+        dabs, controls, px, looks = _stroke_dabs(vp, view, 8 if quick else 32, CanvasField(), paint,
                                           lambda f: Controls(randomness_canvas=f))
         r.update(dab_ms=statistics.median(dabs), dab_p90_ms=float(np.percentile(dabs, 90)),
+                 look_ms=statistics.median(looks), look_max_ms=max(looks),
                  dab_px=int(statistics.median(px)), dab_exact=_exact(vp, gpu, an, params, controls, view))
         # The whole view replaced: a 4,500 px jump, then a randomness slider released.
         jumps, releases = [], []
@@ -169,19 +173,27 @@ def _stroke(view: Rect, k: int) -> tuple[float, float]:
 
 def _stroke_dabs(vp, view: Rect, count: int, field, dab, controls_of):
     """``count`` dabs along a stroke, each a local update of ``vp`` until ``view`` is
-    exact: ``dab(field, k, centre) -> (new field, changed (x0, y0, x1, y1) boxes)``,
-    ``controls_of(field)`` the controls. Returns (ms per dab, the final controls,
-    level pixels per dab)."""
-    times, px = [], []
+    exact, as the editor does it: recorded, shown as a quick look, then settled:
+    ``dab(field, k, centre) -> (new field, changed (x0, y0, x1, y1) boxes)``,
+    ``controls_of(field)`` the controls. Returns (ms per dab until exact, the final
+    controls, level pixels per dab, ms per dab until its quick look is made)."""
+    times, px, looks = [], [], []
+    pyr = vp.pyramid
     for k in range(count):
         new, boxes = dab(field, k, _stroke(view, k))
         t = time.perf_counter()
-        px.append(vp.pyramid.update_controls(controls_of(new), [Rect(*b) for b in boxes]))
+        pyr.update_controls(controls_of(new), [Rect(*b) for b in boxes], defer=True)
+        pyr.quick_look(vp.synth.L, view)
+        vp.synth.gpu.ctx.finish()
+        looks.append((time.perf_counter() - t) * 1000.0)
+        n0 = pyr.pixels_synthesized
+        pyr.settle()
+        px.append(pyr.pixels_synthesized - n0)
         vp.show(view)
         vp.synth.gpu.ctx.finish()
         times.append((time.perf_counter() - t) * 1000.0)
         field = new
-    return times, controls_of(field), px
+    return times, controls_of(field), px, looks
 
 
 def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
@@ -197,8 +209,9 @@ def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
         def paint(f, k, c):
             new, _ = f.painted(c[0], c[1], 24.0, 1)
             return new, f.changed_rects(new)
-        dabs, final, _ = _stroke_dabs(vp, view, 4 if quick else 16, cl, paint, controls_of)
-        return dict(label_dab_ms=statistics.median(dabs), label_dab_exact=_exact(vp, gpu, an, params, final, view))
+        dabs, final, _, looks = _stroke_dabs(vp, view, 4 if quick else 16, cl, paint, controls_of)
+        return dict(label_dab_ms=statistics.median(dabs), label_look_ms=statistics.median(looks),
+                    label_dab_exact=_exact(vp, gpu, an, params, final, view))
     finally:
         vp.release()
         vp.synth.release()
@@ -214,8 +227,9 @@ def _comb_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
         def brush(f, k, c):
             new, _ = f.edited(int(c[0]) - 24, int(c[1]) - 24, np.full((48, 48), 0.8), comb(20.0 * k))
             return new, f.changed_rects(new)
-        dabs, final, _ = _stroke_dabs(vp, view, 4 if quick else 16, field, brush, lambda f: Controls(direction=f))
-        return dict(comb_dab_ms=statistics.median(dabs), comb_dab_exact=_exact(vp, gpu, an, params, final, view))
+        dabs, final, _, looks = _stroke_dabs(vp, view, 4 if quick else 16, field, brush, lambda f: Controls(direction=f))
+        return dict(comb_dab_ms=statistics.median(dabs), comb_look_ms=statistics.median(looks),
+                    comb_dab_exact=_exact(vp, gpu, an, params, final, view))
     finally:
         vp.release()
         vp.synth.release()
@@ -240,13 +254,13 @@ def run(out_dir: str, quick: bool, presets) -> dict:
         json.dump(res, f, indent=1)
     print(f"renderer  {res['renderer']}")
     print(f"{'preset':<10}{'full':>9}{'/Variety':>10}{'pan':>8}{'pan x':>7}{'view':>9}{'jump':>9}{'release':>9}"
-          f"{'dab':>9}{'dab p90':>9}{'dab px':>9}{'label':>9}{'comb':>9}  exact")
+          f"{'dab':>9}{'dab p90':>9}{'dab px':>9}{'label':>9}{'comb':>9}{'looks':>20}  exact")
     for k, r in res["presets"].items():
         exact = r["dab_exact"] and r["label_dab_exact"] and r["comb_dab_exact"]
         print(f"{k:<10}{r['full_ms']:>7.1f}ms{r.get('over_variety', float('nan')):>9.2f}x{r['pan_ms']:>6.1f}ms"
               f"{r['pan_speedup']:>6.1f}x{r['view_ms']:>7.1f}ms{r['jump_ms']:>7.1f}ms{r['release_ms']:>7.1f}ms"
               f"{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms{r['dab_px']:>9d}{r['label_dab_ms']:>7.1f}ms"
-              f"{r['comb_dab_ms']:>7.1f}ms  {exact}")
+              f"{r['comb_dab_ms']:>7.1f}ms {r['look_ms']:5.1f}/{r['label_look_ms']:5.1f}/{r['comb_look_ms']:5.1f}ms  {exact}")
     for k, r in res["presets"].items():
         print(f"{k:<10}" + "  ".join(f"{name} {SCREENS[name][0]}x{SCREENS[name][1]}: view {r[name + '_view_ms']:.1f} ms, "
                                      f"pan {r[name + '_pan_ms']:.2f} ms, window read back {r[name + '_window_ms']:.1f} ms"
