@@ -56,6 +56,7 @@ def main(argv=None) -> int:
     settled_at: list[bool] = []
     looks_at: list[int] = []
     upd_at: list[float] = []
+    ends: list[float] = []
     orig_gui = ed.gui
     updates: list[int] = []
 
@@ -64,6 +65,7 @@ def main(argv=None) -> int:
     def gui():
         stamps.append(time.perf_counter())
         orig_gui()
+        ends.append(time.perf_counter())
         dabs_at.append(ed.tools[4 if args.labels else 5 if args.comb else 1].dabs)
         pixels_at.append(sum(updates))
         s = ed.session
@@ -174,7 +176,8 @@ def main(argv=None) -> int:
                 seen.append(stamps[j + 1] - stamps[k])
         if os.environ.get("PAINT_DEBUG"):
             for k in range(n0, n1 - 1):
-                print(f"frame {1000 * (stamps[k + 1] - stamps[k]):.1f} update {upd_at[k][0]:.1f} budget {upd_at[k][1]:.1f} look {looks_at[k] - looks_at[k - 1]}")
+                print(f"frame {1000 * (stamps[k + 1] - stamps[k]):.1f} gui {1000 * (ends[k] - stamps[k]):.1f} "
+                      f"update {upd_at[k][0]:.1f} budget {upd_at[k][1]:.1f} look {looks_at[k] - looks_at[k - 1]}")
         lat = sorted(shown)
         vis = sorted(seen)
         frame_s = sorted(f[0] for f in frames)

@@ -188,7 +188,11 @@ class Refiner:
         if pyr.looks_wanted:
             work = sum(pyr.padded(l, r).area * self.cost[l] for l, rects in enumerate(pyr.dirty) for r in rects)
         pixels = pyr.quick_look(frame.level, frame.want, skip=work < 0.5 * budget_s)
-        while time.perf_counter() < deadline:
+        # At least one step; then no new piece of work with less than half a
+        # piece's time left (it would overrun the frame).
+        first = True
+        while first or deadline - time.perf_counter() > 0.5 * pyr.pacer.piece_s:
+            first = False
             missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
             job = pyr.requesting
             if job is not None:

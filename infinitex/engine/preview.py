@@ -21,13 +21,14 @@ pyramid is settled, invalidated, or shown at another level.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Any
 
 from .rect import Rect, merge_rects
 
 PREVIEW_LEVELS = 3  # the finest levels a patch synthesizes again (the coarser ones are taken as held)
-PREVIEW_PIXELS = 40_000  # fewer levels for a larger patch (about 10 ms per 16k px at Balanced on llvmpipe)
+LOOK_S = 0.012  # fewer levels where a patch would take longer (its cost per pixel learned as they are made)
 MAX_PATCHES = 48    # a stroke's patches beyond these are merged into new ones
 
 
@@ -50,6 +51,7 @@ class QuickLooks:
         self._jobs_started = 0
         self._job_seq = 0
         self.looks_made = 0  # patches made so far (benchmarks: when an edit first shows)
+        self._look_cost = 6e-7  # seconds per level pixel of a patch (about 10 ms per 16k px at Balanced on llvmpipe)
 
     def want_look(self, changed: list[Rect], pad: int = 1) -> None:
         """Note finest-level rectangles an edit changed, for the next :meth:`quick_look`."""
@@ -88,13 +90,14 @@ class QuickLooks:
 
     def _make_patch(self, d: int, rect: Rect) -> int:
         """Synthesize level d over ``rect`` again on its PREVIEW_LEVELS finest
-        levels (fewer where that is over PREVIEW_PIXELS), from the coarser ones as
-        held, on buffers of its own. Returns the level pixels synthesized (0:
+        levels (fewer where that would take over LOOK_S), from the coarser ones
+        as held, on buffers of its own. Returns the level pixels synthesized (0:
         the held levels do not cover what it reads; no patch)."""
+        t0 = time.perf_counter()
         plan = None
         for n in range(min(PREVIEW_LEVELS, d), 0, -1):
             plan = self._look_plan(d, rect, n)
-            if plan is not None and sum(self.padded(l, r).area for l, r in plan[0].items()) <= PREVIEW_PIXELS:
+            if plan is not None and sum(self.padded(l, r).area for l, r in plan[0].items()) * self._look_cost <= LOOK_S:
                 break
         if plan is None:
             return 0
@@ -117,6 +120,9 @@ class QuickLooks:
             self.patches.append(Patch(d, rect, made.pop(d), self._jobs_started))
             self.looks_made += 1
             self._touch(d, rect)
+            self.gpu.ctx.finish()  # (shown this frame anyway) timed, to size the next ones
+            cost = (time.perf_counter() - t0) / max(1, pixels)
+            self._look_cost = 0.7 * self._look_cost + 0.3 * cost
         finally:
             for b in made.values():
                 b.release()

@@ -7,9 +7,11 @@ engine/controls/direction.py); the J textures of a region; reading coordinates b
 """
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 
 from .controls.direction import IDENTITY
+from .gpu import set_uniforms
 from .rect import Rect
 
 
@@ -80,18 +82,21 @@ class StateAccess:
         self.end_request()
         if self._job is not None:  # finished first (with what it began with), so what it changed reaches the next level
             self.settle(None, regions=1)
+        prog, vao = self.gpu.program("remap.frag", SUB_S=self.params.subgrid, WIDEN=True)
         for buf in self.buffers:
             if buf is None or buf.channels == 4:
                 continue
-            data = np.frombuffer(buf.fbo.read(viewport=(0, 0, *buf.size), components=2, dtype="i2", alignment=1),
-                                 np.int16).reshape(buf.size[1], buf.size[0], 2)
-            wide = np.zeros((buf.size[1], buf.size[0], 4), np.int16)
-            wide[..., :2] = data
+            tex = self.gpu.int_texture(buf.size, 4)
+            fbo = self.gpu.ctx.framebuffer(color_attachments=[tex])
+            buf.tex.use(0)  # texel for texel, on the GPU
+            set_uniforms(prog, src=0, src_anchor=(0, 0), src_mask=(-1, -1), dest_mask=(-1, -1),
+                         region_g0=(0, 0), region_t0=(0, 0))
+            fbo.use()
+            fbo.viewport = (0, 0, *buf.size)
+            vao.render(moderngl.TRIANGLES)
             buf.fbo.release()
             buf.tex.release()
-            buf.tex = self.gpu.int_texture(buf.size, 4, wide)
-            buf.fbo = self.gpu.ctx.framebuffer(color_attachments=[buf.tex])
-            buf.channels = 4
+            buf.tex, buf.fbo, buf.channels = tex, fbo, 4
         for a, fa, b, fb in self._scratch.values():
             for o in (fa, fb, a, b):
                 o.release()

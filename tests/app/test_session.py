@@ -286,3 +286,28 @@ def test_a_quick_preview_shows_first_then_the_full_analysis(gpu, tmp_path):
     job.wait()
     assert job.preview is None and plain.poll() is job and not plain.previewing
     plain.release()
+
+
+def test_direction_jacobians_after_a_dab_equal_a_fresh_computation(gpu):
+    """The canvas keeps each level's J texture and rewrites only the tiles a
+    comb dab changed; it holds what a fresh computation gives, at every level."""
+    from types import SimpleNamespace
+
+    from infinitex.engine.controls import DirectionField
+    from infinitex.engine.controls.direction import jacobian
+    canvas = Canvas(gpu)
+    field = DirectionField().painted(40.0, 30.0, 20.0, jacobian(30.0, 1.2), 1.0)[0]
+    for k, r in [(0, Rect(-50, -40, 150, 120)), (2, Rect(-20, -15, 40, 30))]:
+        pyr = SimpleNamespace(controls=SimpleNamespace(direction=field), params=SimpleNamespace(period=0))
+        canvas._jacobians(pyr, (k, False), k, r)
+        dabbed = field
+        for cx in (10.0, 70.0, 130.0):
+            dabbed = dabbed.painted(cx, 60.0, 16.0, jacobian(-50.0, 0.8), 0.7)[0]
+        pyr.controls.direction = dabbed
+        tex = canvas._jacobians(pyr, (k, False), k, r)
+        fbo = gpu.ctx.framebuffer([tex])
+        got = np.frombuffer(fbo.read(viewport=(0, 0, r.w, r.h), components=4, dtype="i2", alignment=1), np.int16)
+        fbo.release()
+        assert np.array_equal(got.reshape(r.h, r.w, 4), dabbed.region(k, r.x0, r.y0, r.w, r.h)), k
+        assert not np.array_equal(dabbed.region(k, r.x0, r.y0, r.w, r.h), field.region(k, r.x0, r.y0, r.w, r.h))
+    canvas.release()

@@ -262,20 +262,31 @@ class Canvas:
 
     def _jacobians(self, pyramid: Pyramid, slot: tuple[int, bool], k: int, r: Rect):
         """Level L - k's J over ``r`` as an RGBA16I texture (kept in ``slot``, the
-        level and whether for a quick look, while the field and ``r`` stay)."""
+        level and whether for a quick look, while the field and ``r`` stay; after
+        a dab only the tiles it changed are computed and written again)."""
         from infinitex.engine.controls.direction import IDENTITY
         field = pyramid.controls.direction
         period = pyramid.params.period
         key = (field.key, r, period)
-        cache = self.__dict__.setdefault("_jtex", {})  # slot -> (key, texture)
+        cache = self.__dict__.setdefault("_jtex", {})  # slot -> (key, texture, field)
         held = cache.get(slot)
+        if held is not None and held[0] != key and held[0][1:] == key[1:] and not period:
+            s = 1 << k
+            for x0, y0, x1, y1 in field.changed_rects(held[2]):
+                c = Rect(x0 >> k, y0 >> k, -(-x1 // s), -(-y1 // s)).intersect(r)
+                if not c.empty:
+                    vals = field.region(k, c.x0, c.y0, c.w, c.h, period)
+                    vals = np.broadcast_to(IDENTITY, (c.h, c.w, 4)) if vals is None else vals
+                    held[1].write(np.ascontiguousarray(vals, dtype=np.int16).tobytes(),
+                                  viewport=(c.x0 - r.x0, c.y0 - r.y0, c.w, c.h), alignment=1)
+            cache[slot] = held = (key, held[1], field)
         if held is None or held[0] != key:
             if held is not None:
                 held[1].release()
             vals = field.region(k, r.x0, r.y0, r.w, r.h, period)
             if vals is None:
                 vals = np.broadcast_to(IDENTITY, (r.h, r.w, 4))
-            cache[slot] = held = (key, self.gpu.int_texture((r.w, r.h), 4, vals))
+            cache[slot] = held = (key, self.gpu.int_texture((r.w, r.h), 4, vals), field)
         return held[1]
 
     def _origin(self, view: View, geom: np.ndarray | None) -> tuple[float, float, np.ndarray]:
@@ -339,7 +350,7 @@ class Canvas:
             self.fbo.release()
             self.tex.release()
             self.tex = self.fbo = None
-        for _, tex in self.__dict__.pop("_jtex", {}).values():
+        for _, tex, _ in self.__dict__.pop("_jtex", {}).values():
             tex.release()
 
 

@@ -1,5 +1,5 @@
 // Copy texels between two level buffers with different sizes or wrap masks
-// (a buffer that grows keeps what it held).
+// (a buffer that grows keeps what it held); WIDEN: into a four-component one.
 
 uniform isampler2D src;
 uniform ivec2 src_anchor;
@@ -14,4 +14,7 @@ void main() {
     ivec2 T = ivec2(gl_FragCoord.xy);
     ivec2 g = region_g0 + ((T - region_t0) & dest_mask);
     result = texelFetch(src, (g - src_anchor) & src_mask, 0);
+#ifdef WIDEN
+    result.zw = ivec2(0);  // two components to four: a remainder of 0 (a 2-component fetch gives w = 1)
+#endif
 }
