@@ -30,9 +30,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--seconds", type=float, default=4.0, help="drag duration per slider")
+    ap.add_argument("--exemplar", metavar="IMAGE", help="open this image (default: the editor's default)")
+    ap.add_argument("--mid-shot", metavar="PNG", help="capture the window in the middle of the first drag "
+                                                      "(and beside it, NAME-final.png, once refined after it)")
     args = ap.parse_args(argv)
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
-    ed = Editor(recover=False)
+    ed = Editor(args.exemplar, recover=False)
     stamps: list[float] = []
     orig_gui = ed.gui
 
@@ -70,11 +73,15 @@ def main(argv=None) -> int:
             ctx.mouse_move_to_pos((r.min.x + frac * (r.max.x - r.min.x), y))
             ctx.yield_()
             step += 1
+            if args.mid_shot and not results and step == 30:
+                testing.capture(ctx, args.mid_shot)
         ctx.mouse_up(0)
         frames = [b - a for a, b in zip(stamps[n0:-1], stamps[n0 + 1:])]
         edits = sum(1 for a, b in zip(docs[n0:-1], docs[n0 + 1:]) if a is not b)
         t1 = time.perf_counter()
         wait_refined(ctx, 2000)
+        if args.mid_shot and not results:
+            testing.capture(ctx, os.path.splitext(args.mid_shot)[0] + "-final.png")
         results[name] = {
             "frames": len(frames),
             "frames_with_an_edit": edits,
