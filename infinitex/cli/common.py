@@ -420,9 +420,17 @@ def guarded(run, argv: list[str], input_errors: tuple = ()) -> int:
     """Run a command, turning every expected failure into one line on stderr
     and an exit code (never a traceback)."""
     from infinitex.engine.analysis import AnalysisCancelled
+    from infinitex.engine.controls.lattice import LatticeError
     from infinitex.engine.exemplar import ExemplarError
     from infinitex.engine.gpu import GLUnavailable
+    from infinitex.engine.material import MaterialError
     from infinitex.engine.pyramid import SynthesisError
+    from infinitex.engine.surface import AtlasError, ModelError
+    from infinitex.export import ExportFailed
+    from infinitex.project import ProjectError
+    # One path for every command: what any of them may refuse (a project, a
+    # lattice, a material, a model) is one line whichever command reads it.
+    input_errors = (ProjectError, LatticeError, MaterialError, ModelError, AtlasError, ExportFailed, *input_errors)
     # Decoders' warnings about damaged files (Pillow) would add lines of their
     # own; the one-line error says what matters.
     warnings.filterwarnings("ignore", module=r"PIL(\.|$)")

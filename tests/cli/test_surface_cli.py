@@ -176,3 +176,25 @@ def test_a_project_with_a_model_brings_its_settings_and_its_paint(tmp_path, cube
 def _without(doc, an, controls):
     with Synthesizer(an, doc.params(an.L)) as s:
         return atlas_coords(s, doc.surface.atlas(an.size), controls)
+
+
+def test_a_damaged_project_is_one_line_as_in_export(tmp_path, cube_obj):
+    """Every command refuses what it cannot read the same way (cli/common.py guarded)."""
+    bad = tmp_path / "bad.itex"
+    bad.write_text("not a project")
+    for cmd in (("surface", cube_obj, str(bad), "-o", str(tmp_path / "o.glb")),
+                ("export", str(bad), "-o", str(tmp_path / "o.png"), "--size", "64", "64")):
+        r = infinitex(*cmd)
+        assert r.returncode == 3, (cmd[0], r.stderr)
+        assert r.stderr.count("\n") == 1 and "not an Infinitex project" in r.stderr, (cmd[0], r.stderr)
+        assert "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("up", [("1e300", "1e300", "0"), ("0", "1e-300", "0")])
+def test_any_magnitude_of_up_is_a_direction(tmp_path, cube_obj, up):
+    r = run(cube_obj, BRICK, "-o", str(tmp_path / "o.glb"), "--size", "128", "--fidelity", "variety", "--up", *up, "-q")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    from infinitex.engine.surface.atlas import unit_up
+    assert np.allclose(unit_up([float(v) for v in up]), np.array([1.0, 1.0, 0.0]) / np.sqrt(2) if up[0] != "0"
+                       else [0.0, 1.0, 0.0])

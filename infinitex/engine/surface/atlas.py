@@ -166,6 +166,17 @@ def triangle_jacobians(model: Model, uvpx: np.ndarray, sigma: float, frame: str,
     q[(det < MIN_DET) | ~ok] = [J_ONE, 0, 0, J_ONE]
     return q.astype(np.int16), stretch_clamped
 
+def unit_up(up) -> np.ndarray:
+    """The up direction as a unit vector; AtlasError unless three finite
+    numbers, not all zero. Scaled by its largest component first, so that no
+    magnitude (1e300 or 1e-300) overflows or vanishes on the way."""
+    u = np.asarray(up, np.float64)
+    if u.shape != (3,) or not np.isfinite(u).all() or not np.any(u):
+        raise AtlasError("The up direction must be three finite numbers, not all zero.")
+    u = u / np.abs(u).max()
+    return u / np.linalg.norm(u)
+
+
 def up_field(model: Model, N: np.ndarray, up: np.ndarray) -> np.ndarray:
     """Per triangle, where the exemplar's up points ("up" frame): the world's
     up projected on the surface; on faces turned towards up or down (where
@@ -231,14 +242,12 @@ class AtlasDomain:
             raise AtlasError(f"The tangent frame must be one of {', '.join(FRAMES)}.")
         if not (np.isfinite(sigma) and sigma > 0):
             raise AtlasError("The texture scale must be a positive number.")
-        up = np.asarray(up, np.float64)
-        if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) == 0:
-            raise AtlasError("The up direction must be three numbers, not all zero.")
+        up = unit_up(up)
         self.model = model
         self.size = int(size)
         self.sigma = float(sigma)
         self.frame = frame
-        self.up = up / np.linalg.norm(up)
+        self.up = up
         self.seams = bool(seams)
         self.comb = None  # a direction field combed over the model (combed)
         self._levels: dict[int, dict] = {}  # geometry per level (shared by reframed copies)
@@ -455,10 +464,7 @@ class AtlasDomain:
         if out.frame not in FRAMES or not (np.isfinite(out.sigma) and out.sigma > 0):
             raise AtlasError("The tangent frame or the texture scale is not valid.")
         if up is not None:
-            u = np.asarray(up, np.float64)
-            if u.shape != (3,) or not np.isfinite(u).all() or not np.any(u):
-                raise AtlasError("The up direction must be three numbers, not all zero.")
-            out.up = u / np.linalg.norm(u)
+            out.up = unit_up(up)
         out._jac_levels = {}
         out._feature_copies = {}  # their J follows the frame and scale
         out.jac, out.stretch_clamped = triangle_jacobians(out.model, out.uvpx, out.sigma, out.frame, out.up)
