@@ -363,3 +363,26 @@ def test_a_tile_smaller_than_the_exemplar_ignores_the_field_outside_it(analyses,
     with Synthesizer(an, params, gpu=gpu) as s:
         assert np.array_equal(plain, s.window(Rect(0, 0, n, n), remainder=True))
     assert np.array_equal(tile, oracle.synthesize(an, params, 0, 0, n, n, controls=Controls(direction=inside)))
+
+
+def test_direction_maps_are_read_in_bands_exactly_and_up_to_8192_px(tmp_path):
+    """A map is converted BAND_PIXELS at a time (the float arrays stay small):
+    the result equals converting it whole, and an 8192 x 8192 map fits the
+    import budget (it was refused above about 2,360 px)."""
+    from PIL import Image
+
+    from infinitex.engine.controls.direction import angle_to_jacobians, flow_to_jacobians
+    from infinitex.engine.controls import maps
+    from infinitex.engine.controls.maps import direction_map_cost, load_direction_map
+    from infinitex.engine.exemplar import IMPORT_BUDGET
+    rng = np.random.default_rng(2)
+    h, w = 2 * (maps.BAND_PIXELS // 90) + 37, 90  # three bands
+    rgb = rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8)
+    Image.fromarray(rgb).save(tmp_path / "flow.png")
+    want = flow_to_jacobians(rgb.astype(np.float64) / 255.0, True, 1.5, 1.0)
+    assert np.array_equal(load_direction_map(str(tmp_path / "flow.png"), "flow", True, 1.5), want)
+    gray = rng.integers(0, 65536, size=(h, w), dtype=np.uint16)
+    Image.fromarray(gray).save(tmp_path / "angle.png")
+    want = angle_to_jacobians(gray.astype(np.float64) / 65535.0)
+    assert np.array_equal(load_direction_map(str(tmp_path / "angle.png"), "angle"), want)
+    assert direction_map_cost(8192, 8192, "RGB", 64 << 20) <= IMPORT_BUDGET

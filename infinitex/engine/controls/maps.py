@@ -74,11 +74,17 @@ def fit_field_map(values: np.ndarray, fit: str, m: int) -> np.ndarray:
     return np.clip(np.rint(sq), 0, 65535).astype(np.uint16)
 
 
+BAND_PIXELS = 1 << 18  # pixels of a direction map converted at a time
+
+
 def direction_map_cost(w: int, h: int, mode: str, file_bytes: int) -> int:
-    """Peak bytes reading a w x h direction map needs: the file, the decoded image
-    and the float64 arrays of the conversion (measured: 172 bytes a pixel at the
-    peak for a flow map, 137 for an angle map), plus a margin."""
-    return file_bytes + w * h * 184 + (16 << 20)
+    """Peak bytes reading a w x h direction map needs: the file, the decoded
+    image (Pillow keeps 1, 2 or 4 bytes a pixel by mode), the Q12 Jacobians made
+    of it (8 bytes a pixel) and one band of BAND_PIXELS in float64 (about 200
+    bytes a pixel), plus a margin: an 8192 x 8192 color map fits in the import
+    budget."""
+    decoded = 1 if mode in ("L", "P", "1") else 2 if mode.startswith("I;16") else 4
+    return file_bytes + w * h * (decoded + 8) + min(w * h, BAND_PIXELS + w) * 200 + (16 << 20)
 
 
 def load_direction_map(path: str, kind: str = "auto", y_up: bool = True, scale: float = 1.0,
@@ -93,13 +99,20 @@ def load_direction_map(path: str, kind: str = "auto", y_up: bool = True, scale: 
         gray = img.mode in ("L", "LA", "I", "F") or img.mode.startswith("I;16")
         if kind == "auto":
             kind = "angle" if gray else "flow"
-        if kind == "angle":
-            if img.mode.startswith("I;16") or img.mode == "I":
-                a = np.asarray(img).astype(np.float64) / 65535.0
-            else:
-                a = np.asarray(img.convert("L")).astype(np.float64) / 255.0
-            return angle_to_jacobians(a, scale, aspect)
-        if gray:
+        if kind == "flow" and gray:
             raise ExemplarError(f"{name} is grayscale; a flow map has its direction in red and green.")
-        rgb = np.asarray(img.convert("RGB")).astype(np.float64) / 255.0
-        return flow_to_jacobians(rgb, y_up, scale, aspect)
+        w, h = img.size
+        out = np.empty((h, w, 4), np.int16)
+        rows = max(1, BAND_PIXELS // max(1, w))
+        for y0 in range(0, h, rows):  # a band at a time: the float arrays stay small
+            band = img.crop((0, y0, w, min(h, y0 + rows)))
+            if kind == "angle":
+                if band.mode.startswith("I;16") or band.mode == "I":
+                    a = np.asarray(band).astype(np.float64) / 65535.0
+                else:
+                    a = np.asarray(band.convert("L")).astype(np.float64) / 255.0
+                out[y0:y0 + a.shape[0]] = angle_to_jacobians(a, scale, aspect)
+            else:
+                rgb = np.asarray(band.convert("RGB")).astype(np.float64) / 255.0
+                out[y0:y0 + rgb.shape[0]] = flow_to_jacobians(rgb, y_up, scale, aspect)
+        return out
