@@ -167,9 +167,8 @@ def triangle_jacobians(model: Model, uvpx: np.ndarray, sigma: float, frame: str,
     return q.astype(np.int16), stretch_clamped
 
 def unit_up(up) -> np.ndarray:
-    """The up direction as a unit vector; AtlasError unless three finite
-    numbers, not all zero. Scaled by its largest component first, so that no
-    magnitude (1e300 or 1e-300) overflows or vanishes on the way."""
+    """The up direction as a unit vector (AtlasError unless three finite numbers,
+    not all zero), scaled first so that no magnitude overflows or vanishes."""
     u = np.asarray(up, np.float64)
     if u.shape != (3,) or not np.isfinite(u).all() or not np.any(u):
         raise AtlasError("The up direction must be three finite numbers, not all zero.")
