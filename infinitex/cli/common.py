@@ -266,15 +266,21 @@ def palette_arg(text: str) -> list[str]:
 def palette_document(args, doc, quiet: bool = True):
     """``doc`` (its exemplar or material first) with the --palette files as
     more labels; a file named like a material's map brings its siblings."""
-    from infinitex.engine.material import IMAGE, MaterialError, assign_roles
+    from infinitex.engine.material import IMAGE, MATERIAL_BUDGET, MaterialError, assign_roles
     from infinitex.engine.safeio import ReadError
     from infinitex.project.document import ExemplarSource
     if args.labels_exemplar:
         raise CliError("--palette makes each exemplar a label; it does not go with --labels-exemplar.", EXIT_USAGE)
     entries = [doc.sources()]
     try:
+        # The files together within a material's budget, before any is read.
+        total = sum(len(src.data) for _, src in entries[0])
         for path in args.palette:
             found = assign_roles([path])
+            total += sum(os.stat(p).st_size for p in found.values() if os.path.isfile(p))
+            if total > MATERIAL_BUDGET:
+                raise CliError(f"The palette's files come to {total // 2**20} MB, more than the "
+                               f"{MATERIAL_BUDGET // 2**20} MB it may import; use fewer or smaller ones.", EXIT_INPUT)
             if (IMAGE in found) != (doc.sources()[0][0] == IMAGE):
                 raise CliError(f"{printable(os.path.basename(path))} and the first exemplar are not both single "
                                "images or both materials; a palette's exemplars have the same maps.", EXIT_USAGE)

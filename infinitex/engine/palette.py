@@ -25,9 +25,30 @@ import numpy as np
 from PIL import Image
 
 from .exemplar import MIN_SIZE, Exemplar, ExemplarError, fit_rule
-from .material import Material, MaterialMap, renormalize
+from .material import MATERIAL_BUDGET, Material, MaterialError, MaterialMap, map_costs, renormalize
 
 MAX_ENTRIES = 16  # one label each
+
+
+def check_palette_budget(entries: list[list[tuple[str, bytes]]], fit: str) -> None:
+    """Refuse a palette whose import would need more than MATERIAL_BUDGET at its
+    peak, like one material's: every entry's files (held throughout), the
+    largest single decode and every fitted map, from the headers, before any
+    entry is decoded. ``entries``: per entry, its maps' (name, file bytes)."""
+    peaks, kept, files = [0], 0, 0
+    for entry in entries:
+        for name, data in entry:
+            try:
+                peak, k = map_costs(data, name, fit)
+            except ExemplarError as exc:
+                raise MaterialError(f"The palette's {name}: {exc}") from None
+            peaks.append(peak)
+            kept += k
+            files += len(data)
+    total = files + max(peaks) + kept
+    if total > MATERIAL_BUDGET:
+        raise MaterialError(f"The palette's {len(entries)} exemplars would need about {total // 2**20} MB to import "
+                            f"together, more than the {MATERIAL_BUDGET // 2**20} MB allowed; use fewer or smaller ones.")
 
 
 def grid_side(n: int) -> int:

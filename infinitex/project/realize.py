@@ -26,7 +26,7 @@ from infinitex.engine.exemplar import (
     load_exemplar_bytes,
 )
 from infinitex.engine.material import IMAGE, Material, MaterialError, load_material, single
-from infinitex.engine.palette import PaletteLayout, pack_palette
+from infinitex.engine.palette import PaletteLayout, check_palette_budget, pack_palette
 from infinitex.engine.tileable import tileable_exemplar, tileable_material
 
 from .document import Document
@@ -51,6 +51,7 @@ def material_or_none(doc: Document) -> Material | None:
 def palette_for(doc: Document) -> tuple[Material, PaletteLayout]:
     """A palette document's entries, each decoded and fitted, packed into one
     material (a single-image palette: the one map "image"), and the layout."""
+    check_palette_budget([[(src.name, src.data) for _, src in entry] for entry in doc.entries()], doc.fit)
     entries = []
     for entry in doc.entries():
         if entry[0][0] == IMAGE:

@@ -180,3 +180,27 @@ def test_the_api_packs_a_palette_for_synthesize():
     out = infinitex.synthesize(ex, (64, 64), labels=(lay.labels(), canvas), structure=0)
     gravel = infinitex.synthesize(ex, (64, 64), labels=(lay.labels(), canvas * 0), structure=0)
     assert out.shape[:2] == (64, 64) and not np.array_equal(out, gravel)
+
+
+def test_a_palette_over_the_import_budget_is_refused_before_decoding(tmp_path, monkeypatch):
+    """Like a material, a palette's import (its files, the largest decode, every
+    fitted map) is checked against MATERIAL_BUDGET from the headers, and by the
+    command line from the files' sizes before they are read: one line each."""
+    from infinitex.engine import palette as palette_module
+    from infinitex.engine.material import MaterialError
+    from infinitex.project.document import replace
+    from infinitex.project.realize import palette_for
+    srcs = _sources(tmp_path)
+    doc = replace(Document(srcs[0]), palette=tuple(((("image", s),) for s in srcs[1:])))
+    palette_for(doc)  # within the budget
+    monkeypatch.setattr(palette_module, "MATERIAL_BUDGET", 1 << 20)
+    decoded = []
+    monkeypatch.setattr("infinitex.project.realize.load_exemplar_bytes", lambda *a, **k: decoded.append(1))
+    with pytest.raises(MaterialError, match="palette's 3 exemplars would need"):
+        palette_for(doc)
+    assert not decoded
+    monkeypatch.setattr("infinitex.engine.material.MATERIAL_BUDGET", 20_000)
+    pal = ",".join(os.path.join(ASSETS, f) for f in ("gravel.png", "brick.png"))
+    r = infinitex("synth", os.path.join(ASSETS, "grass.png"), "--palette", pal, "-o", str(tmp_path / "x.png"),
+                  "--size", "32", "32", "-q")
+    assert r.returncode == 3 and "palette's files come to" in r.stderr and r.stderr.count("\n") == 1, r.stderr
