@@ -82,11 +82,21 @@ def _remove(paths) -> None:
 
 @dataclass(frozen=True)
 class Recoverable:
-    """An earlier session's unsaved work: its autosave file, project and time."""
+    """An earlier session's unsaved work: its autosave file, its time, and what
+    the question about it names (its project's origin and exemplar). The file is
+    read whole once at start-up, to set a broken one aside, and not kept: the
+    project is loaded again only when it is recovered (``project``), so a dozen
+    crashed editors' exemplars are never held at once."""
 
     path: str
-    project: Project
     time: float
+    origin: str | None = None
+    name: str = ""
+
+    @property
+    def project(self) -> Project:
+        """The autosaved project, read from its file (ProjectError if it can no longer be)."""
+        return load_project(self.path)
 
 
 def _lock(path: str) -> int | None:
@@ -179,7 +189,8 @@ class Autosave:
                     self._set_aside(path, str(exc))
                 self._release(path)
                 continue
-            found.append(Recoverable(path, proj, mtime))
+            found.append(Recoverable(path, mtime, proj.origin, proj.document.exemplar.name))
+            del proj  # (one at a time: see Recoverable)
         self._found = found
         return list(found)
 

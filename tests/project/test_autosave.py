@@ -159,6 +159,29 @@ def test_several_dead_autosaves_are_offered_oldest_first_and_removed_one_by_one(
     assert not legacy.exists() and not (state / "autosave.lock").exists()
 
 
+
+def test_pending_autosaves_are_read_one_at_a_time_and_not_held(state, doc, monkeypatch):
+    """A dozen crashed editors' autosaves are each read once at start-up (a
+    broken one is set aside) and not kept: what the questions name is held, the
+    project is read again only for the one recovered."""
+    for i in range(3):
+        w, p = start_writer(state, seed=40 + i, wait=False)
+        w.wait()
+    loads = []
+    real = fmt.load_project
+    import infinitex.project.autosave as autosave_module
+    monkeypatch.setattr(autosave_module, "load_project", lambda path, *a, **k: loads.append(path) or real(path, *a, **k))
+    found = Autosave().pending_all()
+    assert len(found) == 3 and len(loads) == 3
+    assert all(set(vars(r) if hasattr(r, "__dict__") else r.__dataclass_fields__) == {"path", "time", "origin", "name"}
+               for r in found)
+    assert all(r.name == doc.exemplar.name for r in found)
+    from infinitex.app.ui.files import recovery_question
+    recovery_question(found[0], 0, 3)
+    assert len(loads) == 3  # the question needs no project
+    assert found[1].project.document.seed == 41 and loads[-1] == found[1].path
+
+
 def test_a_broken_autosave_is_set_aside_and_the_others_are_still_offered(state, doc):
     w, good = start_writer(state, seed=21, wait=False)
     w.wait()

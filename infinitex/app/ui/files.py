@@ -236,7 +236,12 @@ class FilesMixin:
             self.project_path = None
 
     def _recover(self, rec: Recoverable) -> None:
-        self._begin_load("recovered", rec.project.document, rec.project, rec.path)
+        try:
+            proj = rec.project  # read now: only the one being recovered is ever held
+        except ProjectError as exc:
+            self.dialogs.message("Recover unsaved work", f"The autosaved work could not be read ({exc}).")
+            return
+        self._begin_load("recovered", proj.document, proj, rec.path)
 
     def _adopt_autosave(self, path: str | None) -> None:
         """The recovered work goes into this editor's own autosave at once;
@@ -413,7 +418,7 @@ class FilesMixin:
 def recovery_question(rec: Recoverable, i: int = 0, n: int = 1) -> str:
     """The start-up question about one earlier session's unsaved work."""
     t = time.strftime("%Y-%m-%d %H:%M", time.localtime(rec.time))
-    origin, name = rec.project.origin, rec.project.document.exemplar.name
+    origin, name = rec.origin, rec.name
     what = printable(os.path.basename(origin)) if origin else f"untitled ({printable(name)})"
     count = f" ({i + 1} of {n})" if n > 1 else ""
     return (f"An Infinitex session did not close normally. Unsaved work on {what} from {t} was kept{count}.\n"
