@@ -386,3 +386,33 @@ def test_a_dab_near_a_seam_goes_on_in_the_chart_across():
     texel = float(np.linalg.norm(Mc[0]))  # world units per texel along x on face 0
     assert np.linalg.norm(Q - P, axis=-1).max() <= (r + 1.5) * texel
     assert across in (-1, c2) and abs(r2 - r) < 0.5  # the cube's faces share a scale
+
+
+def _glb(path, doc: dict) -> str:
+    """A GLB holding ``doc`` as its JSON chunk and an empty binary chunk."""
+    import json
+    import struct
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    body = struct.pack("<I4s", len(js), b"JSON") + js + struct.pack("<I4s", 0, b"BIN\x00")
+    with open(path, "wb") as f:
+        f.write(b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    return str(path)
+
+
+def test_instanced_scenes_and_external_files_are_checked_before_loading(tmp_path):
+    """A small file may place one mesh in thousands of nodes (the scene is joined:
+    6 GB before); a GLB's external buffer may be a FIFO (a blocking read). Both
+    are refused from the JSON, in one line, before any geometry is built."""
+    from infinitex.engine.surface import ModelError, load_model
+    mesh = {"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}
+    doc = {"asset": {"version": "2.0"}, "accessors": [{"count": 3000}, {"count": 15000}], "meshes": [mesh],
+           "nodes": [{"mesh": 0} for _ in range(12000)], "scenes": [{"nodes": list(range(12000))}]}
+    with pytest.raises(ModelError, match="places over 2,000,000 triangles"):
+        load_model(_glb(tmp_path / "many.glb", doc))
+    nested = dict(doc, nodes=[{"children": list(range(1, 402))}] + [{"mesh": 0}] * 401, scenes=[{"nodes": [0]}])
+    with pytest.raises(ModelError, match="places over 2,000,000 triangles"):  # 401 x 5,000 through a parent
+        load_model(_glb(tmp_path / "nested.glb", dict(nested, accessors=[{"count": 8000}, {"count": 15000}])))
+    os.mkfifo(tmp_path / "fifo.bin")
+    with pytest.raises(ModelError, match="not a regular file"):
+        load_model(_glb(tmp_path / "ext.glb", dict(doc, buffers=[{"uri": "fifo.bin", "byteLength": 12}])))

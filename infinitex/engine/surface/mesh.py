@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -94,17 +95,38 @@ def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model") 
                  meta={"unwrapped": True})
 
 
-def _check_gltf_buffers(path: str, name: str) -> None:
-    """A .gltf's external buffers and images: files beside it (no absolute
-    path, no way out of its folder), within the size limit together."""
+def _gltf_json(path: str, name: str) -> dict:
+    """The JSON of a .gltf, or a .glb's JSON chunk (read from its header: the
+    binary chunk is not read)."""
     import json
+    import struct
     try:
         with open(path, "rb") as f:
-            doc = json.loads(f.read(64 * 1024 * 1024))
+            if path.lower().endswith(".glb"):
+                head = f.read(20)
+                if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
+                    raise ModelError(f"{name} is not a GLB file.")
+                n = struct.unpack("<I", head[12:16])[0]
+                if n > 64 * 1024 * 1024:
+                    raise ModelError(f"{name}'s scene description is {n >> 20} MB; at most 64 MB is read.")
+                raw = f.read(n)
+            else:
+                raw = f.read(64 * 1024 * 1024)
+        doc = json.loads(raw)
     except (OSError, ValueError, RecursionError):
         raise ModelError(f"{name} is not a glTF file (its JSON cannot be read).") from None
     if not isinstance(doc, dict):
         raise ModelError(f"{name} is not a glTF file.")
+    return doc
+
+
+def _check_gltf(path: str, name: str) -> None:
+    """A glTF or GLB checked from its JSON before any geometry is built: its
+    external buffers and images are files beside it (no absolute path, no way
+    out of its folder), within the size limit together; and the triangles and
+    vertices of every mesh instance the scene's nodes place (a mesh used by
+    12,000 nodes counts 12,000 times: the scene is joined) within the limits."""
+    doc = _gltf_json(path, name)
     folder = os.path.dirname(os.path.abspath(path))
     total = 0
     for key in ("buffers", "images"):
@@ -116,12 +138,73 @@ def _check_gltf_buffers(path: str, name: str) -> None:
             if os.path.isabs(uri) or os.path.commonpath([target, os.path.realpath(folder)]) != os.path.realpath(folder):
                 raise ModelError(f"{name} refers to a file outside its folder ({uri[:80]}).")
             try:
-                total += os.path.getsize(target)
+                st = os.stat(target)
             except OSError:
                 raise ModelError(f"{name} refers to {uri[:80]}, which cannot be read.") from None
+            if not stat.S_ISREG(st.st_mode):
+                raise ModelError(f"{name} refers to {uri[:80]}, which is not a regular file.")
+            total += st.st_size
     if total > MAX_MODEL_BYTES:
         raise ModelError(f"{name}'s buffers are {total / 2 ** 20:.0f} MB; models of up to "
                          f"{MAX_MODEL_BYTES >> 20} MB are read.")
+    faces, verts = _instanced_counts(doc)
+    if faces > MAX_FACES:
+        raise ModelError(f"{name} places over {MAX_FACES:,} triangles in its scene (a mesh counts once per node "
+                         "that uses it); that is the limit.")
+    if verts > MAX_VERTICES:
+        raise ModelError(f"{name} places over {MAX_VERTICES:,} vertices in its scene (a mesh counts once per node "
+                         "that uses it); that is the limit.")
+
+
+def _instanced_counts(doc: dict) -> tuple[int, int]:
+    """(triangles, vertices) of every mesh instance the scenes' nodes place,
+    from the accessors' counts; an unreadable entry counts as nothing (the
+    loader then refuses the file)."""
+    def items(key):
+        v = doc.get(key)
+        return v if isinstance(v, list) else []
+    accessors, meshes, nodes = items("accessors"), items("meshes"), items("nodes")
+
+    def count(i) -> int:
+        a = accessors[i] if isinstance(i, int) and 0 <= i < len(accessors) else None
+        c = a.get("count") if isinstance(a, dict) else None
+        return c if isinstance(c, int) and c > 0 else 0
+
+    per_mesh = []
+    for m in meshes:
+        tri = vert = 0
+        for prim in (m.get("primitives") if isinstance(m, dict) else None) or []:
+            if not isinstance(prim, dict):
+                continue
+            attrs = prim.get("attributes") if isinstance(prim.get("attributes"), dict) else {}
+            v = count(attrs.get("POSITION"))
+            n = count(prim["indices"]) if "indices" in prim else v
+            mode = prim.get("mode", 4)
+            tri += n // 3 if mode == 4 else max(0, n - 2) if mode in (5, 6) else 0
+            vert += v
+        per_mesh.append((tri, vert))
+    # Instances: walk each scene's node tree (a node reached twice, or a cycle, is walked once per path,
+    # up to a bound on the walk itself).
+    roots = []
+    for sc in items("scenes"):
+        roots += [r for r in (sc.get("nodes") if isinstance(sc, dict) else None) or [] if isinstance(r, int)]
+    if not items("scenes"):
+        roots = list(range(len(nodes)))
+    tri = vert = steps = 0
+    stack = [(r, 0) for r in roots]
+    while stack and steps < 4 * MAX_FACES:
+        i, depth = stack.pop()
+        steps += 1
+        if not (0 <= i < len(nodes)) or not isinstance(nodes[i], dict) or depth > 64:
+            continue
+        m = nodes[i].get("mesh")
+        if isinstance(m, int) and 0 <= m < len(per_mesh):
+            tri += per_mesh[m][0]
+            vert += per_mesh[m][1]
+            if tri > MAX_FACES:
+                break
+        stack += [(c, depth + 1) for c in nodes[i].get("children") or [] if isinstance(c, int)]
+    return tri, vert
 
 
 def load_model(path, unwrap_missing: bool = False) -> Model:
@@ -137,8 +220,8 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
         raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
     if size > MAX_MODEL_BYTES:
         raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
-    if str(path).lower().endswith(".gltf"):
-        _check_gltf_buffers(str(path), name)
+    if str(path).lower().endswith((".gltf", ".glb")):
+        _check_gltf(str(path), name)
     import trimesh
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
