@@ -198,3 +198,24 @@ def test_any_magnitude_of_up_is_a_direction(tmp_path, cube_obj, up):
     from infinitex.engine.surface.atlas import unit_up
     assert np.allclose(unit_up([float(v) for v in up]), np.array([1.0, 1.0, 0.0]) / np.sqrt(2) if up[0] != "0"
                        else [0.0, 1.0, 0.0])
+
+
+def test_the_files_a_model_names_are_inputs_and_never_fifos(tmp_path):
+    """An OBJ's .mtl and the maps it names are inputs (no output replaces them:
+    ``chair_basecolor.png`` was overwritten, rc 0), and a FIFO among them is
+    refused in one line instead of blocking the loader."""
+    m = cube(n=2)
+    obj = tmp_path / "chair.obj"
+    trimesh.Trimesh(m.positions, m.faces, visual=trimesh.visual.TextureVisuals(uv=m.uvs), process=False).export(obj)
+    text = obj.read_text()
+    obj.write_text("mtllib chair.mtl\n" + "\n".join(l for l in text.splitlines() if not l.startswith("mtllib")) + "\n")
+    (tmp_path / "chair.mtl").write_text("newmtl m\nmap_Kd -s 1 1 1 chair_basecolor.png\n")
+    own = np.full((8, 8, 3), 77, np.uint8)
+    Image.fromarray(own).save(tmp_path / "chair_basecolor.png")
+    r = run(str(obj), BRICK, "-o", str(tmp_path / "chair.glb"), "--size", "128", "--fidelity", "variety", "-q")
+    assert r.returncode == 2 and "chair_basecolor.png" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "chair_basecolor.png")), own)  # untouched
+    os.remove(tmp_path / "chair.mtl")
+    os.mkfifo(tmp_path / "chair.mtl")
+    r = run(str(obj), BRICK, "-o", str(tmp_path / "other.glb"), "--size", "128", "--fidelity", "variety", "-q")
+    assert r.returncode == 3 and "not a regular file" in r.stderr and r.stderr.count("\n") == 1, r.stderr

@@ -18,6 +18,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..safeio import printable
+
 MAX_MODEL_BYTES = 512 * 1024 * 1024
 MAX_FACES = 2_000_000
 MAX_VERTICES = 3_000_000
@@ -207,6 +209,49 @@ def _instanced_counts(doc: dict) -> tuple[int, int]:
     return tri, vert
 
 
+def referenced_files(path: str) -> list[str]:
+    """The files a model names besides itself, where they exist: an OBJ's
+    material libraries and the maps they name, a glTF's or GLB's external
+    buffers and images. What an export must not replace (they are inputs),
+    and what must be regular files before the loader opens any (a FIFO among
+    them would block it): ModelError, one line, otherwise."""
+    import re
+    name = os.path.basename(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    found: list[str] = []
+
+    def add(ref: str) -> str | None:
+        target = os.path.join(folder, ref.strip().strip('"'))
+        try:
+            st = os.stat(target)
+        except OSError:
+            return None  # missing: the loader goes on without it
+        if not stat.S_ISREG(st.st_mode):
+            raise ModelError(f"{name} refers to {printable(ref.strip()[:80])}, which is not a regular file.")
+        found.append(target)
+        return target
+
+    if path.lower().endswith(".obj"):
+        with open(path, "rb") as f:
+            text = f.read(MAX_MODEL_BYTES)
+        for lib in re.findall(rb"^[ \t]*mtllib[ \t]+([^\r\n]+)", text, re.M)[:64]:
+            mtl = add(lib.decode("utf-8", "replace"))
+            if mtl is None:
+                continue
+            with open(mtl, "rb") as f:
+                mtext = f.read(16 * 1024 * 1024)
+            for line in re.findall(rb"^[ \t]*(?:map_\w+|bump|disp|decal|refl|norm)[ \t]+([^\r\n]+)", mtext, re.M)[:256]:
+                add(line.decode("utf-8", "replace").split()[-1])  # the file name ends the line, after options
+    elif path.lower().endswith((".gltf", ".glb")):
+        doc = _gltf_json(path, name)
+        for key in ("buffers", "images"):
+            for entry in doc.get(key) or []:
+                uri = entry.get("uri") if isinstance(entry, dict) else None
+                if isinstance(uri, str) and not uri.startswith("data:"):
+                    add(uri)
+    return found
+
+
 def load_model(path, unwrap_missing: bool = False) -> Model:
     """Read OBJ, glTF or GLB (all meshes of a scene, joined, in world space).
     ``unwrap_missing``: generate texture coordinates when the model has none.
@@ -222,6 +267,10 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
         raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
     if str(path).lower().endswith((".gltf", ".glb")):
         _check_gltf(str(path), name)
+    try:
+        referenced_files(str(path))  # regular files only, before the loader opens any
+    except OSError as exc:
+        raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
     import trimesh
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
