@@ -416,3 +416,20 @@ def test_instanced_scenes_and_external_files_are_checked_before_loading(tmp_path
     os.mkfifo(tmp_path / "fifo.bin")
     with pytest.raises(ModelError, match="not a regular file"):
         load_model(_glb(tmp_path / "ext.glb", dict(doc, buffers=[{"uri": "fifo.bin", "byteLength": 12}])))
+
+
+def test_an_obj_is_counted_before_it_is_parsed_and_a_fifo_is_no_model(tmp_path, monkeypatch):
+    from infinitex.engine.surface import ModelError, load_model
+    from infinitex.engine.surface import mesh as mesh_module
+    obj = tmp_path / "big.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n" + "f 1 2 3\n" * 40)
+    monkeypatch.setattr(mesh_module, "MAX_FACES", 30)
+    parsed = []
+    import trimesh
+    monkeypatch.setattr(trimesh, "load", lambda *a, **k: parsed.append(1))
+    with pytest.raises(ModelError, match="over 30 faces"):
+        load_model(str(obj))
+    assert not parsed
+    os.mkfifo(tmp_path / "pipe.obj")
+    with pytest.raises(ModelError, match="not a regular file"):
+        load_model(str(tmp_path / "pipe.obj"))
