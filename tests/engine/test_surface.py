@@ -433,3 +433,21 @@ def test_an_obj_is_counted_before_it_is_parsed_and_a_fifo_is_no_model(tmp_path, 
     os.mkfifo(tmp_path / "pipe.obj")
     with pytest.raises(ModelError, match="not a regular file"):
         load_model(str(tmp_path / "pipe.obj"))
+
+
+def test_unwrapping_runs_apart_with_limits(tmp_path, monkeypatch):
+    """xatlas cannot be interrupted and some inputs make it spin or grow without
+    end: it runs in a child process with a time and a memory limit, and every
+    failure is one line (here the time limit, made tiny)."""
+    from infinitex.engine.surface import ModelError
+    from infinitex.engine.surface import mesh as mesh_module
+    P = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float64)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    m = mesh_module.unwrap(P, F, "quad")
+    assert m.uvs.shape == (len(m.positions), 2) and len(m.faces) == 2
+    with pytest.raises(ModelError, match="not all finite"):
+        mesh_module.unwrap(np.where(P == 1, np.float64(1e39), P), F, "huge")  # inf in single precision
+    monkeypatch.setattr(mesh_module, "UNWRAP_SECONDS", 0.0)
+    monkeypatch.setattr(mesh_module, "UNWRAP_PER_FACE", 0.0)
+    with pytest.raises(ModelError, match="took over 0 s"):
+        mesh_module.unwrap(P, F, "quad")

@@ -88,13 +88,70 @@ def _from_trimesh(mesh, name: str) -> Model:
     return Model(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(uv), name=name)
 
 
-def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model") -> Model:
+UNWRAP_MEMORY = 3 << 30  # bytes of address space the unwrapping process may take
+UNWRAP_SECONDS = 30.0     # and seconds, plus UNWRAP_PER_FACE a triangle
+UNWRAP_PER_FACE = 60e-6
+
+
+def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model", isolated: bool = True) -> Model:
     """New texture coordinates for a mesh (xatlas, the library made for it):
-    charts cut and packed into [0, 1]^2 with room between them."""
-    import xatlas
-    vmap, idx, uv = xatlas.parametrize(np.asarray(model_positions, np.float32), np.asarray(faces, np.uint32))
+    charts cut and packed into [0, 1]^2 with room between them.
+
+    ``isolated`` (a model read from a file): xatlas runs in a child process
+    with a memory and a time limit, since it cannot be interrupted (a signal
+    does not stop it) and some inputs make it spin or grow without end (an
+    ``inf`` coordinate, a vertex at 1e11: 6 GB); any failure is one line."""
+    with np.errstate(over="ignore"):  # (beyond single precision: inf, refused below)
+        P = np.asarray(model_positions, np.float32)
+    F = np.asarray(faces, np.uint32)
+    if not np.isfinite(P).all():
+        raise ModelError(f"{name}: its positions are not all finite numbers (in single precision).")
+    if not isolated:
+        import xatlas
+        vmap, idx, uv = xatlas.parametrize(P, F)
+    else:
+        vmap, idx, uv = _unwrap_isolated(P, F, name)
     return Model(np.asarray(model_positions)[vmap], idx.astype(np.int64), uv.astype(np.float64), name=name,
                  meta={"unwrapped": True})
+
+
+def _unwrap_child(conn, P, F, limit: int) -> None:
+    try:
+        import resource
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+        import xatlas
+        conn.send(("ok", xatlas.parametrize(P, F)))
+    except MemoryError:
+        conn.send(("memory", None))
+    except Exception as exc:  # one line for the parent
+        conn.send(("error", (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]))
+
+
+def _unwrap_isolated(P: np.ndarray, F: np.ndarray, name: str):
+    import multiprocessing
+    ctx = multiprocessing.get_context("spawn")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_unwrap_child, args=(send, P, F, UNWRAP_MEMORY), daemon=True)
+    proc.start()
+    send.close()
+    limit = UNWRAP_SECONDS + UNWRAP_PER_FACE * len(F)
+    try:
+        if not recv.poll(limit):
+            raise ModelError(f"{name}: generating its texture coordinates took over {limit:.0f} s; gave up.")
+        kind, out = recv.recv()
+    except (EOFError, OSError):
+        kind, out = "memory", None  # the process died (over its memory limit)
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join()
+        recv.close()
+    if kind == "memory":
+        raise ModelError(f"{name}: generating its texture coordinates needed more than "
+                         f"{UNWRAP_MEMORY >> 30} GB; gave up.")
+    if kind != "ok":
+        raise ModelError(f"{name}: xatlas could not generate texture coordinates ({out}).")
+    return out
 
 
 def _gltf_json(path: str, name: str) -> dict:

@@ -111,4 +111,4 @@ def vase(segments: int = 96, rings: int = 64) -> Model:
     P = np.concatenate([P, [[0.0, y[0], 0.0], [0.0, y[-1], 0.0]]])
     F = np.concatenate([F, np.stack([np.full(segments, bottom), (i + 1) % segments, i], -1),
                         np.stack([np.full(segments, top), rings * segments + i, rings * segments + (i + 1) % segments], -1)])
-    return unwrap(P, F, name="vase")
+    return unwrap(P, F, name="vase", isolated=False)  # (our own shape: no child process)
