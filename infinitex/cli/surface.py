@@ -118,10 +118,9 @@ def run_surface(argv: list[str]) -> int:
         doc = replace(doc, structure=args.fidelity)
     if args.seed is not None:
         doc = replace(doc, seed=args.seed)
-    from infinitex.engine.surface.mesh import referenced_files
-    # The files the model names (its .mtl and textures, a glTF's buffers and images) are inputs too.
-    inputs = [args.model, args.source, *doc.input_paths(), *referenced_files(args.model)]
     model = load_model(args.model, unwrap_missing=args.unwrap)
+    # The model's file and those it names (its .mtl and textures, a glTF's buffers and images) are inputs too.
+    inputs = [args.source, *doc.input_paths(), *model.meta["files"]]
     material = material_or_none(doc)
     ex, settings = exemplar_for(doc, None, material)
     if material is None:

@@ -58,8 +58,7 @@ class LocalUpdates:
         self.want_look(changed, b + 1)
         for l in range(L + 1):
             k = L - l
-            self._mark(l, [Rect((r.x0 >> k) - b, (r.y0 >> k) - b, -((-r.x1) >> k) + b, -((-r.y1) >> k) + b)
-                           for r in changed if not r.empty])
+            self._mark(l, [r.coarser(k).pad(b, b, b, b) for r in changed if not r.empty])
         self.pixels_synthesized = 0
         if not defer:
             self.settle()
@@ -113,7 +112,6 @@ class LocalUpdates:
                 pace = None if deadline is None else self.pacer
                 self._job = (l, self._strip_steps(l, r, scratch, None, pace), scratch)
                 self._jobs_started += 1
-                self._job_seq = self._jobs_started
                 self.pixels_synthesized += region.w * region.h
             l, steps, _ = self._job
             try:

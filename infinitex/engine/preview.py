@@ -49,7 +49,6 @@ class QuickLooks:
         self.patches: list[Patch] = []
         self._looks_wanted: list[Rect] = []  # finest-level rectangles edited since the last look
         self._jobs_started = 0
-        self._job_seq = 0
         self.looks_made = 0  # patches made so far (benchmarks: when an edit first shows)
         self._look_cost = 6e-7  # seconds per level pixel of a patch (about 10 ms per 16k px at Balanced on llvmpipe)
 
@@ -76,8 +75,7 @@ class QuickLooks:
         if skip or held is None or level < 1 or self.settled:
             return 0
         k = L - level
-        rects = [Rect(r.x0 >> k, r.y0 >> k, -((-r.x1) >> k), -((-r.y1) >> k)).intersect(want).intersect(held)
-                 for r in wanted]
+        rects = [r.coarser(k).intersect(want).intersect(held) for r in wanted]
         pixels = 0
         for r in merge_rects([r for r in rects if not r.empty]):
             pixels += self._make_patch(level, r)
@@ -158,7 +156,7 @@ class QuickLooks:
 
     def _job_done(self, l: int) -> None:
         """A local-update job of level l ended: drop the patches it accounts for."""
-        seq = self._job_seq
+        seq = self._jobs_started  # the job that just ended (one runs at a time)
         dirty = self.dirty[l]
         self._drop_patches(lambda p: p.level == l and p.seq < seq
                            and not any(not r.intersect(p.rect).empty for r in dirty))

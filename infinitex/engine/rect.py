@@ -46,6 +46,10 @@ class Rect:
         """Smallest enclosing rectangle whose edges are multiples of a."""
         return Rect((self.x0 // a) * a, (self.y0 // a) * a, -((-self.x1) // a) * a, -((-self.y1) // a) * a)
 
+    def coarser(self, k: int) -> "Rect":
+        """The pixels k levels coarser that cover this rectangle (k = 1: :meth:`half`)."""
+        return Rect(self.x0 >> k, self.y0 >> k, -((-self.x1) >> k), -((-self.y1) >> k))
+
     def half(self) -> "Rect":
         """The parent-level pixels whose children cover this rectangle."""
         return Rect(self.x0 // 2, self.y0 // 2, (self.x1 - 1) // 2 + 1, (self.y1 - 1) // 2 + 1)

@@ -271,9 +271,8 @@ class Canvas:
         cache = self.__dict__.setdefault("_jtex", {})  # slot -> (key, texture, field)
         held = cache.get(slot)
         if held is not None and held[0] != key and held[0][1:] == key[1:] and not period:
-            s = 1 << k
-            for x0, y0, x1, y1 in field.changed_rects(held[2]):
-                c = Rect(x0 >> k, y0 >> k, -(-x1 // s), -(-y1 // s)).intersect(r)
+            for box in field.changed_rects(held[2]):
+                c = Rect(*box).coarser(k).intersect(r)
                 if not c.empty:
                     vals = field.region(k, c.x0, c.y0, c.w, c.h, period)
                     vals = np.broadcast_to(IDENTITY, (c.h, c.w, 4)) if vals is None else vals

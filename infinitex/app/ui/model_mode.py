@@ -66,11 +66,6 @@ class ModelModeMixin:
             else:
                 self.dialogs.message("Open model", str(exc))
             return
-        from infinitex.engine.surface.mesh import referenced_files
-        try:  # the model's file and those it names: no export may replace them
-            self.__dict__.setdefault("model_inputs", {})[model.key] = [os.path.abspath(path), *referenced_files(path)]
-        except (ModelError, OSError):
-            pass  # (read just now by load_model: not expected)
         m = self.session.analysis.size
         size = max(m, 1024 if len(model.faces) > 20000 else 512)
         try:
@@ -135,7 +130,8 @@ class ModelModeMixin:
             check_output(path, (".glb",), "export")
             job = ModelExportJob(self.session, s, path, size, self.export_depth)
             writes = Writes(files=[p for _, p, _ in job.outputs])
-            check_own_inputs(writes, self.export_inputs() + self.__dict__.get("model_inputs", {}).get(s.model.key, []))
+            # (a model read from a file this session: it and the files it names, load_model's meta)
+            check_own_inputs(writes, self.export_inputs() + s.model.meta.get("files", []))
             if not confirmed and not self._confirm_replace(
                     writes, self._asked(chosen, path), lambda: self.start_model_export(path, magnify, True)):
                 job.cancel()

@@ -179,7 +179,7 @@ def _gltf_json(path: str, name: str) -> dict:
     return doc
 
 
-def _check_gltf(path: str, name: str) -> None:
+def _check_gltf(path: str, name: str) -> dict:
     """A glTF or GLB checked from its JSON before any geometry is built: its
     external buffers and images are files beside it (no absolute path, no way
     out of its folder), within the size limit together; and the triangles and
@@ -213,6 +213,7 @@ def _check_gltf(path: str, name: str) -> None:
     if verts > MAX_VERTICES:
         raise ModelError(f"{name} places over {MAX_VERTICES:,} vertices in its scene (a mesh counts once per node "
                          "that uses it); that is the limit.")
+    return doc
 
 
 def _instanced_counts(doc: dict) -> tuple[int, int]:
@@ -266,7 +267,7 @@ def _instanced_counts(doc: dict) -> tuple[int, int]:
     return tri, vert
 
 
-def _check_obj(path: str, name: str) -> None:
+def _check_obj(path: str, name: str) -> bytes:
     """An OBJ's faces and vertices counted from its text before it is parsed
     (a 140 MB file of 10 million triangles took 4.3 GB before the limit was
     checked): every face line is at least one triangle."""
@@ -278,14 +279,17 @@ def _check_obj(path: str, name: str) -> None:
         raise ModelError(f"{name} has over {MAX_FACES:,} faces; that is the limit.")
     if verts > MAX_VERTICES:
         raise ModelError(f"{name} has over {MAX_VERTICES:,} vertices; that is the limit.")
+    return text
 
 
-def referenced_files(path: str) -> list[str]:
+def referenced_files(path: str, text: bytes | None = None, doc: dict | None = None) -> list[str]:
     """The files a model names besides itself, where they exist: an OBJ's
     material libraries and the maps they name, a glTF's or GLB's external
-    buffers and images. What an export must not replace (they are inputs),
-    and what must be regular files before the loader opens any (a FIFO among
-    them would block it): ModelError, one line, otherwise."""
+    buffers and images. What an export must not replace (they are inputs;
+    :func:`load_model` keeps them in the model's ``meta["files"]``), and what
+    must be regular files before the loader opens any (a FIFO among them would
+    block it): ModelError, one line, otherwise. ``text`` (an OBJ's) or ``doc``
+    (a glTF's JSON): already read."""
     import re
     name = os.path.basename(path)
     folder = os.path.dirname(os.path.abspath(path))
@@ -303,8 +307,9 @@ def referenced_files(path: str) -> list[str]:
         return target
 
     if path.lower().endswith(".obj"):
-        with open(path, "rb") as f:
-            text = f.read(MAX_MODEL_BYTES)
+        if text is None:
+            with open(path, "rb") as f:
+                text = f.read(MAX_MODEL_BYTES)
         for lib in re.findall(rb"^[ \t]*mtllib[ \t]+([^\r\n]+)", text, re.M)[:64]:
             mtl = add(lib.decode("utf-8", "replace"))
             if mtl is None:
@@ -314,7 +319,7 @@ def referenced_files(path: str) -> list[str]:
             for line in re.findall(rb"^[ \t]*(?:map_\w+|bump|disp|decal|refl|norm)[ \t]+([^\r\n]+)", mtext, re.M)[:256]:
                 add(line.decode("utf-8", "replace").split()[-1])  # the file name ends the line, after options
     elif path.lower().endswith((".gltf", ".glb")):
-        doc = _gltf_json(path, name)
+        doc = _gltf_json(path, name) if doc is None else doc
         for key in ("buffers", "images"):
             for entry in doc.get(key) or []:
                 uri = entry.get("uri") if isinstance(entry, dict) else None
@@ -341,10 +346,10 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
         raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
     try:
         if str(path).lower().endswith((".gltf", ".glb")):
-            _check_gltf(str(path), name)
+            files = referenced_files(str(path), doc=_check_gltf(str(path), name))
         else:
-            _check_obj(str(path), name)
-        referenced_files(str(path))  # regular files only, before the loader opens any
+            files = referenced_files(str(path), text=_check_obj(str(path), name))
+        # (regular files only, before the loader opens any)
     except OSError as exc:
         raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
     import trimesh
@@ -359,8 +364,11 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
         raise ModelError(f"{name} has {len(loaded.faces):,} triangles; the limit is {MAX_FACES:,}.")
     uv = getattr(getattr(loaded, "visual", None), "uv", None)
     if uv is None and unwrap_missing:
-        return unwrap(np.asarray(loaded.vertices), np.asarray(loaded.faces), name)
-    return _from_trimesh(loaded, name)
+        model = unwrap(np.asarray(loaded.vertices), np.asarray(loaded.faces), name)
+    else:
+        model = _from_trimesh(loaded, name)
+    model.meta["files"] = [os.path.abspath(str(path)), *files]  # what no export of it may replace
+    return model
 
 
 def texel_density(model: Model, size: int) -> float:
