@@ -42,7 +42,8 @@ from .common import (
 
 def build_parser() -> Parser:
     p = Parser(prog="infinitex export",
-               description="Export a project's texture (a rectangle, its view, or a toroidal tile).")
+               description="Export a project's texture (a rectangle, its view, a toroidal tile, or a tile set "
+                           "for game engines).")
     p.add_argument("project", help="an .itex project file, or an exemplar image or material (default settings): "
                    "one map of a material (wood_basecolor.png) brings its siblings named by the rule "
                    "(wood_normal.png, wood_height.tif...), a folder holds one material's maps")
@@ -62,6 +63,17 @@ def build_parser() -> Parser:
                    help="canvas rectangle in finest-level pixels")
     g.add_argument("--toroidal", type=integer, metavar="N",
                    help="an N x N tile that wraps seamlessly (N a power of two, 32 to 4096)")
+    g.add_argument("--wang", type=integer, metavar="C",
+                   help="a corner Wang tile set: C corner colours (2: 16 tiles, 3: 81) of --tile px that meet "
+                        "without a seam wherever their corner colours agree, each inside different. Writes the "
+                        "atlas OUT.png (itself a valid arrangement: it tiles), OUT.json (each tile's corner "
+                        "colours nw ne sw se and atlas x y) and OUT_preview.png (8 x 8 tiles at random)")
+    g.add_argument("--variants", type=integer, metavar="K",
+                   help="K tiles (2 to 64) with the borders of one toroidal tile and different insides: any "
+                        "of them fits next to any other. Files as with --wang")
+    p.add_argument("--per-tile", action="store_true",
+                   help="--wang/--variants: also one file per tile, OUT_0110.png (corner colours nw ne sw se) "
+                        "or OUT_v3.png")
     p.add_argument("--size", nargs=2, type=integer, default=None, metavar=("W", "H"),
                    help="without --rect/--toroidal: a W x H window centered on the project's view (default 1024 1024)")
     p.add_argument("--coords", action="store_true",
@@ -73,8 +85,9 @@ def build_parser() -> Parser:
                         "(-o NAME.tif); zarr: a multiscale Zarr pyramid (-o NAME.zarr, OME-NGFF 0.4) whose "
                         "coarser levels are the synthesis's own. tiles, tiff and zarr are streamed in bounded "
                         "memory, up to 2^20 px a side, and resume where an interrupted run stopped")
-    p.add_argument("--tile", type=integer, default=1024, metavar="N",
-                   help="tile size of --format tiles|tiff|zarr: 256, 512, 1024 (default), 2048, 4096 or 8192")
+    p.add_argument("--tile", type=integer, default=None, metavar="N",
+                   help="tile size of --format tiles|tiff|zarr: 256, 512, 1024 (default), 2048, 4096 or 8192; "
+                        "of --wang/--variants: 64 to 2048, a power of two (default 256)")
     p.add_argument("--workers", type=integer, default=0, metavar="N",
                    help="--format tiles|tiff|zarr: render with N worker processes, each with its own GL context "
                         "(0: in this process); with --scheduler, the LocalCluster's size (default: one per "
@@ -110,9 +123,15 @@ def run_export(argv: list[str]) -> int:
         load_project,
     )
     streamed = args.format != "png"
-    if args.size is not None and (args.rect or args.toroidal is not None):
-        raise CliError("--size goes with neither --rect nor --toroidal.", EXIT_USAGE)
-    if args.rect:
+    tileset = _tileset_plan(args)
+    if args.size is not None and (args.rect or args.toroidal is not None or tileset):
+        raise CliError("--size goes with none of --rect, --toroidal, --wang and --variants.", EXIT_USAGE)
+    if streamed and args.tile is None:
+        args.tile = 1024
+    if tileset:
+        cols, rows = tileset.grid
+        w, h = cols * tileset.tile, rows * tileset.tile
+    elif args.rect:
         x, y, w, h = args.rect
         check_window(x, y, w, h, "--rect", streamed)
     elif args.toroidal is not None:
@@ -165,7 +184,7 @@ def run_export(argv: list[str]) -> int:
     # No output may replace a file this export reads (checked again once the maps' depths are known).
     inputs = [args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar, args.features,
               args.labels_exemplar, args.labels_canvas, args.direction_map]
-    size = (args.toroidal, args.toroidal) if args.toroidal is not None else (w, h)
+    size = (args.toroidal, args.toroidal) if args.toroidal is not None else (w, h)  # (a tile set: its atlas)
     if is_project_file(args.project):
         try:
             proj = load_project(args.project, allow_outside=args.allow_outside_exemplar)
@@ -200,7 +219,9 @@ def run_export(argv: list[str]) -> int:
         if args.lattice not in (None, "none") or (doc.lattice is not None and args.lattice is None):
             raise CliError("--make-tileable goes with no lattice (a lattice's block already tiles).", EXIT_USAGE)
         doc = replace(doc, make_tileable=True)
-    if args.rect:
+    if tileset:
+        rect, tor = Rect.of(0, 0, w, h), 0
+    elif args.rect:
         rect, tor = Rect.of(x, y, w, h), 0
     elif args.toroidal is not None:
         n = args.toroidal
@@ -268,6 +289,8 @@ def run_export(argv: list[str]) -> int:
     session = LoadedDocument(gpu)
     try:
         session.install(doc, ex, an, material)
+        if tileset:
+            return _run_tileset(session, tileset, view, roles, args, gpu.renderer)
         if streamed:
             role = roles[0] if roles else ""
             return _run_streamed(session, doc, rect, tor, args, gpu.renderer, args.geometry or geometry, role)
@@ -324,6 +347,13 @@ def check_own_inputs(args, size: tuple[int, int], sources: dict[str, str], input
                              if args.depth or not sources[r].lower().endswith((".tif", ".tiff"))]
         if args.coords:
             writes.files.append(os.path.splitext(args.output)[0] + "_coords.png")
+    plan = _tileset_plan(args)
+    if plan is not None:
+        from infinitex.export.tileset import set_paths, tile_file
+        paths = set_paths(args.output)
+        tiles = plan.tiles() if args.per_tile else []
+        writes.files += [paths["json"], paths["preview"]] + [tile_file(f, t) for f in list(writes.files)
+                                                             for t in tiles]
     try:
         check(writes, inputs)
     except OwnInputError as exc:
@@ -371,6 +401,53 @@ def _run_streamed(session, doc, rect, tor: int, args, renderer: str, geometry: s
                          f"({job.kept} kept from an earlier run) in {time.perf_counter() - t0:.1f} s {on}\n")
         for note in job.notes:  # a parts folder left in place (it holds files the export did not write)
             sys.stderr.write(f"note: {printable(note, 1000)}\n")
+    return 0
+
+
+def _tileset_plan(args):
+    """The tile set asked for (--wang/--variants, --tile, --per-tile), checked
+    before any work (its lattice cell is checked once the document is loaded);
+    None for other exports."""
+    if args.wang is None and args.variants is None:
+        if args.per_tile:
+            raise CliError("--per-tile goes with --wang or --variants.", EXIT_USAGE)
+        return None
+    from infinitex.export.wang import TileSetError, TileSetPlan
+    flag = "--wang" if args.wang is not None else "--variants"
+    if args.format != "png" or args.coords or args.magnify != 1 or args.workers or args.scheduler is not None:
+        raise CliError(f"{flag} writes PNG (or 32-bit TIFF) atlases at 1:1: it goes with none of --format, "
+                       "--coords, --magnify, --workers and --scheduler.", EXIT_USAGE)
+    plan = TileSetPlan(args.wang or 1, 256 if args.tile is None else args.tile, args.variants or 0)
+    try:
+        plan.validate()
+    except TileSetError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
+    return plan
+
+
+def _run_tileset(session, plan, view, roles, args, renderer: str) -> int:
+    """--wang/--variants: the set made from the texture around the project's view."""
+    from infinitex.export.tileset import TileSetJob, plan_for
+    from infinitex.export.wang import TileSetError
+    origin = (int(view.x), int(view.y)) if view else (0, 0)
+    try:
+        plan = plan_for(session, plan.colors, plan.tile, plan.variants, origin)
+    except TileSetError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
+    job = TileSetJob(session, args.output, plan, maps=roles, depth=args.depth, per_tile=args.per_tile)
+    t0 = time.perf_counter()
+    progress = ProgressBar("tile set", args.quiet)
+    try:
+        job.run(progress)
+    except KeyboardInterrupt:
+        job.cancel()
+        raise
+    if not args.quiet:
+        names = ", ".join(printable(os.path.basename(p)) for p in job.writes[:len(job.outputs) + 2])
+        kind = (f"corner Wang, {plan.colors} colours" if plan.colors > 1 else "variants of one toroidal tile")
+        each = ", and each tile's own file" if args.per_tile else ""
+        sys.stderr.write(f"{names}: {plan.count} tiles of {plan.tile} px ({kind}{each}) in "
+                         f"{time.perf_counter() - t0:.1f} s ({renderer})\n")
     return 0
 
 
