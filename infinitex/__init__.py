@@ -24,6 +24,12 @@ labels=None, label_strength=1.0)``
     transparent = free on the canvas) or arrays of label ids.
 ``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice=None, structure="balanced")``
     An n x n toroidal tile (n a power of two, 32 to 4096).
+``tile_set(exemplar, colors=2, n=256, *, variants=0, ...)``
+    A tile set for game engines: (atlas, description). A corner Wang set
+    (2 colours: 16 tiles, 3: 81) whose tiles meet without a seam wherever
+    their corner colours agree, or (colors=1, variants=K) K tiles with the
+    borders of one toroidal tile. ``arrange(atlas, description, cols, rows,
+    seed=0)`` lays them out at random, as an engine would.
 
 Step by step (an analysis and a GL context made once, many windows)::
 
@@ -87,7 +93,7 @@ ASSETS = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "assets")  
 # Names resolved on first use (PEP 562), so ``import infinitex`` and
 # ``infinitex --version`` stay fast and need no GL.
 _EXPORTS = {
-    "synthesize": "api", "tile": "api", "label_controls": "api", "palette": "api",
+    "synthesize": "api", "tile": "api", "tile_set": "api", "arrange": "api", "label_controls": "api", "palette": "api",
     "PaletteLayout": "engine.palette",
     "Exemplar": "engine.exemplar", "ExemplarError": "engine.exemplar", "load_exemplar": "engine.exemplar",
     "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.imagefile",

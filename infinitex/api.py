@@ -187,6 +187,57 @@ def tile(exemplar, n: int = 256, *, seed: int = 0, randomness: float | tuple[flo
         return to_u8(s.colors(s.toroidal(n)))
 
 
+def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed: int = 0,
+             randomness: float | tuple[float, ...] | None = None, controls: Controls = NO_CONTROLS,
+             lattice: Lattice | str | None = None, structure: int | str = DEFAULT_STRUCTURE,
+             origin: tuple[int, int] = (0, 0)) -> tuple[np.ndarray, dict]:
+    """A tile set for game engines: a corner Wang set of ``colors`` corner
+    colours (2: 16 tiles, 3: 81) of n x n (64 to 2048, a power of two) that
+    meet without a seam wherever their corner colours agree; or, with
+    ``colors=1`` and ``variants=K``, K tiles with the borders of one toroidal
+    tile. Returns (atlas uint8 (rows*n, cols*n, C), description): the
+    description's ``tiles`` give each tile's corner colours ``nw`` ``ne``
+    ``sw`` ``se`` and atlas position ``x`` ``y`` (px); a corner set's atlas is
+    itself a valid arrangement. ``arrange(atlas, description, cols, rows)``
+    lays tiles out at random. Other arguments as for :func:`synthesize`; the
+    windows are taken from around ``origin``."""
+    from .export.wang import TileSetBuilder, TileSetPlan
+    ex, lat = _exemplar(exemplar, lattice)
+    an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
+    if lat is not None:
+        from dataclasses import replace
+        controls = replace(controls, lattice=lat)
+    cell = tuple(lat.cell(an.size)) if lat is not None else (1, 1)
+    plan = TileSetPlan(colors, n, variants if colors == 1 else 0, cell, origin)
+    with Synthesizer(an, _params(an.L, seed, randomness, structure), controls=controls) as s:
+        def render(rect):
+            yield
+            return s.window(rect, remainder=False)
+
+        def toroidal():
+            yield
+            return s.toroidal(n)[..., :2]
+        work = TileSetBuilder(plan, render, s.colors, toroidal).build()
+        while True:
+            try:
+                next(work)
+            except StopIteration as stop:
+                coords = stop.value
+                break
+        atlas = to_u8(s.colors(coords))
+    cols, rows = plan.grid
+    return atlas, {"kind": "corner-wang" if colors > 1 else "variants", "colors": colors, "tile": n,
+                   "count": plan.count, "columns": cols, "rows": rows, "tiles": plan.tiles()}
+
+
+def arrange(atlas: np.ndarray, description: dict, cols: int, rows: int, seed: int = 0) -> np.ndarray:
+    """A random valid arrangement of a tile set's tiles (``cols`` x ``rows``), as one image."""
+    from .export.wang import TileSetPlan, assemble
+    d = description
+    plan = TileSetPlan(d["colors"], d["tile"], d["count"] if d["colors"] == 1 else 0)
+    return assemble(atlas, plan, plan.arrangement(cols, rows, seed))
+
+
 def _params(L: int, seed: int, randomness, structure: int | str) -> SynthParams:
     return structure_params(_jitter_params(L, seed, randomness), structure_index(structure))
 

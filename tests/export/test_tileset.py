@@ -208,3 +208,14 @@ def test_cli_writes_a_corner_set(tmp_path):
     again.mkdir()
     r = infinitex("export", GRAVEL, "-o", again / "set.png", "--wang", "2", "--tile", "64", "-q")
     assert r.returncode == 0 and (again / "set.png").read_bytes() == out.read_bytes()
+
+
+def test_api_set_is_the_command_lines(tmp_path):
+    import infinitex as itx
+    r = infinitex("export", GRAVEL, "-o", tmp_path / "set.png", "--variants", "3", "--tile", "64", "-q")
+    assert r.returncode == 0, r.stderr
+    atlas, desc = itx.tile_set(GRAVEL, colors=1, n=64, variants=3)
+    assert np.array_equal(atlas[..., 0], np.asarray(Image.open(tmp_path / "set.png")))  # gravel is grey
+    assert desc["tiles"] == json.loads((tmp_path / "set.json").read_text())["tiles"]
+    shown = itx.arrange(atlas, desc, 3, 2, seed=2)
+    assert shown.shape == (128, 192, 1)

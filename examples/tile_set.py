@@ -1,0 +1,26 @@
+"""A corner Wang tile set for a game engine, from the bundled gravel.
+
+    python examples/tile_set.py [OUT_FOLDER]
+
+16 tiles of 128 px with 2 corner colours: any two tiles whose shared corners
+have the same colours meet without a seam. Writes the atlas, its description
+(each tile's corner colours and place) and a random 8 x 8 arrangement. The
+command line does the same with ``infinitex export gravel.png -o set.png
+--wang 2 --tile 128``.
+"""
+import json
+import os
+import sys
+
+import infinitex as itx
+
+out = sys.argv[1] if len(sys.argv) > 1 else "."
+os.makedirs(out, exist_ok=True)
+atlas, desc = itx.tile_set(os.path.join(itx.ASSETS, "gravel.png"), colors=2, n=128, seed=3)
+itx.write_png(os.path.join(out, "gravel-set.png"), atlas)
+with open(os.path.join(out, "gravel-set.json"), "w", encoding="utf-8") as f:
+    json.dump(desc, f, indent=1)
+itx.write_png(os.path.join(out, "gravel-set-arranged.png"), itx.arrange(atlas, desc, 8, 8, seed=1))
+first = desc["tiles"][0]
+print(f"{desc['count']} tiles of {desc['tile']} px; the first has corners "
+      f"{first['nw']}{first['ne']}/{first['sw']}{first['se']} at ({first['x']}, {first['y']})")
