@@ -434,7 +434,7 @@ def _run_tileset(session, plan, view, roles, args, renderer: str) -> int:
         plan = plan_for(session, plan.colors, plan.tile, plan.variants, origin)
     except TileSetError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    job = TileSetJob(session, args.output, plan, maps=roles, depth=args.depth, per_tile=args.per_tile)
+    job = TileSetJob(session, plan, args.output, maps=roles, depth=args.depth, per_tile=args.per_tile)
     t0 = time.perf_counter()
     progress = ProgressBar("tile set", args.quiet)
     try:

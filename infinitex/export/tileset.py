@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import time
 from dataclasses import replace
 
@@ -52,11 +53,14 @@ def plan_for(session: LoadedDocument, colors: int, tile: int, variants: int = 0,
 
 
 class TileSetJob:
-    """Make and write a tile set, a piece of work per ``step`` within a time
-    budget (editor) or to the end (``run``: CLI, API). ``outputs``: the maps'
-    atlases [(role, path, depth)]; ``writes``: every file written."""
+    """Make a tile set, a piece of work per ``step`` within a time budget
+    (editor) or to the end (``run``: CLI); ``built`` once the set is made
+    (``atlas``: its coordinates). With an output (``set_output``, or
+    ``out_path`` here) it is then written: in a thread of its own by
+    ``step`` (the editor stays live), at once by ``run``. ``outputs``: the
+    maps' atlases [(role, path, depth)]; ``writes``: every file written."""
 
-    def __init__(self, session: LoadedDocument, out_path: str, plan: TileSetPlan, *,
+    def __init__(self, session: LoadedDocument, plan: TileSetPlan, out_path: str | None = None, *,
                  maps: list[str] | None = None, depth: int | None = None, per_tile: bool = False,
                  preview_seed: int = 0):
         if session.synth is None:
@@ -65,16 +69,11 @@ class TileSetJob:
             raise SynthesisError("A tile set follows no direction field: its tiles meet in any order. "
                                  "Turn the direction field off to export one.")
         plan.validate()
-        mat = session.material
-        roles = mat.roles if maps is None else maps
-        try:
-            self.outputs = output_paths(out_path, roles, export_depths(mat, roles, depth, out_path))
-        except MaterialError as exc:
-            raise SynthesisError(str(exc)) from None
-        self.session, self.plan, self.out_path = session, plan, out_path
-        self.per_tile, self.preview_seed = per_tile, preview_seed
-        self.paths = set_paths(out_path)
-        self.material = mat
+        self.session, self.plan, self.material = session, plan, session.material
+        self.out_path: str | None = None
+        self.outputs: list[tuple[str, str, int]] = []
+        if out_path is not None:
+            self.set_output(out_path, maps=maps, depth=depth, per_tile=per_tile, preview_seed=preview_seed)
         self.L = session.analysis.L
         params = session.params
         self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
@@ -90,10 +89,29 @@ class TileSetJob:
         self._work = self.builder.build()
         self._piece = 0.0  # fraction of the current window done
         self.atlas: np.ndarray | None = None
+        self._pixels: dict[str, np.ndarray] = {}
+        self._writer: threading.Thread | None = None
+        self.built = False
         self.done = False
         self.cancelled = False
         self.error: str | None = None
         self.started = time.monotonic()
+
+    def set_output(self, out_path: str, *, maps: list[str] | None = None, depth: int | None = None,
+                   per_tile: bool = False, preview_seed: int = 0) -> None:
+        """Where (and how) the set is written: every map's atlas at ``out_path``
+        (``OUT_ROLE.png`` for a material), its description and preview beside it."""
+        mat = self.material
+        roles = mat.roles if maps is None else maps
+        try:
+            self.outputs = output_paths(out_path, roles, export_depths(mat, roles, depth, out_path))
+        except MaterialError as exc:
+            raise SynthesisError(str(exc)) from None
+        self.out_path, self.per_tile, self.preview_seed = out_path, per_tile, preview_seed
+        self.paths = set_paths(out_path)
+        cols, rows = self.plan.grid
+        self.out_rect = Rect(0, 0, cols * self.plan.tile, rows * self.plan.tile)
+        self.coords_path = None
 
     @property
     def writes(self) -> list[str]:
@@ -102,10 +120,19 @@ class TileSetJob:
             files += [tile_file(p, t) for _, p, _ in self.outputs for t in self.plan.tiles()]
         return files
 
+    def summary(self) -> str:
+        """What was written, for the editor's notice."""
+        p = self.plan
+        kind = f"corner Wang, {p.colors} colours" if p.colors > 1 else "variants"
+        others = ", ".join(os.path.basename(f) for f in (self.paths["json"], self.paths["preview"]))
+        return (f"Exported {p.count} tiles of {p.tile} px ({kind}) to {os.path.abspath(self.out_path)} "
+                f"(and {others})")
+
     @property
     def progress(self) -> float:
         b = self.builder
-        return min(1.0, (b.work_done + self._piece) / max(1, b.work_total)) * 0.95 + (0.05 if self.done else 0.0)
+        part = min(1.0, (b.work_done + self._piece) / max(1, b.work_total))
+        return part if not self.outputs else part * 0.85 + (0.15 if self.done else 0.0)
 
     def _appearance(self, coords: np.ndarray) -> np.ndarray:
         return self.material.lookup(self.material.primary, coords)
@@ -127,40 +154,76 @@ class TileSetJob:
         self._close()
 
     def step(self, budget_s: float = 0.03) -> bool:
-        """Do some work; True when finished (written, failed or cancelled)."""
+        """Do some work; True when finished: built (without an output),
+        written, failed or cancelled. The writing runs in a thread."""
         if self.done or self.cancelled:
             return True
-        t0 = time.perf_counter()
         try:
-            while True:
-                try:
-                    next(self._work)
-                except StopIteration as stop:
-                    self.atlas = stop.value
-                    break
-                if time.perf_counter() - t0 > budget_s:
-                    return False
-            self._close()
-            self._write()
+            if not self.built:
+                t0 = time.perf_counter()
+                while not self._advance():
+                    if time.perf_counter() - t0 > budget_s:
+                        return False
+            if not self.outputs:
+                return True
+            if self._writer is None:
+                self._writer = threading.Thread(target=self._write_safely, name="tile-set-writer", daemon=True)
+                self._writer.start()
+            if self._writer.is_alive():
+                return False
         except (OSError, SynthesisError, TileSetError, ValueError) as exc:
             self.error = str(exc)
         self.done = True
         self._close()
         return True
 
+    def _advance(self) -> bool:
+        """One piece of the build; True once built (the pyramids are then released)."""
+        try:
+            next(self._work)
+            return False
+        except StopIteration as stop:
+            self.atlas = stop.value
+        self.built = True
+        self._close()
+        return True
+
+    def _write_safely(self) -> None:
+        try:
+            self.write()
+        except (OSError, SynthesisError, ValueError) as exc:
+            self.error = str(exc)
+
     def run(self, progress=None) -> None:
-        """Run to the end; ``progress(fraction)`` may raise to cancel."""
-        while not self.step(0.25):
+        """Build and write to the end (CLI); ``progress(fraction)`` may raise to cancel."""
+        while not self.built:
+            t0 = time.perf_counter()
+            while not self._advance() and time.perf_counter() - t0 < 0.25:
+                pass
             if progress:
                 progress(self.progress)
-        if progress and not self.cancelled:
+        if self.outputs:
+            self.write()
+        self.done = True
+        if progress:
             progress(1.0)
-        if self.error:
-            raise SynthesisError(self.error)
 
     def map_pixels(self, role: str) -> np.ndarray:
         """One map's atlas, float32 (H, W, C) in [0, 1]."""
-        return self.material.lookup(role, self.atlas)
+        px = self._pixels.get(role)
+        if px is None:
+            px = self._pixels[role] = self.material.lookup(role, self.atlas)
+        return px
+
+    def arranged(self, seed: int = 0, tiles: int = PREVIEW_TILES, role: str | None = None) -> np.ndarray:
+        """A random valid arrangement of ``tiles`` x ``tiles`` of one map
+        (default: the first), float32, at most PREVIEW_SIDE px a side."""
+        role = role or self.material.primary
+        out = assemble(self.map_pixels(role), self.plan, self.plan.arrangement(tiles, tiles, seed))
+        while max(out.shape[:2]) > PREVIEW_SIDE:
+            h, w = out.shape[0] // 2 * 2, out.shape[1] // 2 * 2
+            out = out[:h, :w].reshape(h // 2, 2, w // 2, 2, -1).mean(axis=(1, 3))
+        return out
 
     def description(self) -> dict:
         p = self.plan
@@ -183,9 +246,9 @@ class TileSetJob:
             "tiles": tiles,
         }
 
-    def _write(self) -> None:
+    def write(self) -> None:
+        """Write every map's atlas (and each tile's file), the preview and the description."""
         p = self.plan
-        primary = None
         for role, path, depth in self.outputs:
             px = self.map_pixels(role)
             rng = self.material.maps[role].exemplar.value_range
@@ -193,14 +256,9 @@ class TileSetJob:
             if self.per_tile:
                 for t in p.tiles():
                     write_image(tile_file(path, t), px[t["y"]:t["y"] + p.tile, t["x"]:t["x"] + p.tile], depth, rng)
-            if primary is None or role == self.material.primary:
-                primary = (px, rng)
-        layout = p.arrangement(PREVIEW_TILES, PREVIEW_TILES, self.preview_seed)
-        preview = assemble(primary[0], p, layout)
-        while max(preview.shape[:2]) > PREVIEW_SIDE:
-            h, w = preview.shape[0] // 2 * 2, preview.shape[1] // 2 * 2
-            preview = preview[:h, :w].reshape(h // 2, 2, w // 2, 2, -1).mean(axis=(1, 3))
-        write_image(self.paths["preview"], preview, 8, primary[1])
+        primary = self.material.primary
+        write_image(self.paths["preview"], self.arranged(self.preview_seed, role=primary), 8,
+                    self.material.maps[primary].exemplar.value_range)
         atomic_write(self.paths["json"], (json.dumps(self.description(), indent=1) + "\n").encode())
 
     def _close(self) -> None:

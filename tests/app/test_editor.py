@@ -106,6 +106,22 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     assert np.array_equal(read_tiles(str(tmp_path / "set.png"), w, h, 256, 1), whole)
 
 
+def test_tile_set_dialog_driven_by_the_test_engine(tmp_path, xdisplay):
+    """File > Export tile set: a preview made while the editor draws, Shuffle,
+    Export... (tests/app/gui_tileset.py). The atlas is the command line's."""
+    import numpy as np
+    from PIL import Image
+
+    from clirun import infinitex
+    _drive("gui_tileset.py", tmp_path, xdisplay, 9)
+    gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
+    (tmp_path / "cli").mkdir()
+    r = infinitex("export", gravel, "-o", tmp_path / "cli" / "set.png", "--wang", "2", "--tile", "64", "-q")
+    assert r.returncode == 0, r.stderr
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "set.png")),
+                          np.asarray(Image.open(tmp_path / "cli" / "set.png")))
+
+
 def test_material_session_driven_by_the_test_engine(tmp_path, xdisplay):
     """Open a material through the menu, reassign a role, switch the shown map,
     light it, export every map through the menu (tests/app/gui_material.py)."""

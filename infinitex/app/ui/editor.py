@@ -466,7 +466,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
                       or (self.estimate is not None and not self.estimate.poll()))
         self._idle_fps = BACKGROUND_FPS if background else IDLE_FPS
         analyzing = self.pending is not None or (self.session is not None and self.session.job is not None)
-        working = self.export_job is not None and not isinstance(self.export_job, StreamedExport)
+        working = (self.export_job is not None and not isinstance(self.export_job, StreamedExport)
+                   or self.panels.tileset.building)
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)
         shown = self.session is not None and self.session.ready and self.doc is not None

@@ -139,6 +139,28 @@ class ExportsMixin:
         except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
 
+    def start_tileset_export(self, path: str, job, per_tile: bool = False, seed: int = 0,
+                             confirmed: bool = False) -> None:
+        """Write a tile set (made, or being made, by ``job``: the tile-set
+        dialog's) to ``path``; it is finished and written while the editor stays live."""
+        chosen = path
+        if not os.path.splitext(path)[1]:
+            single = self.session.material is None or self.session.material.single
+            path += ".tif" if self.export_depth == 32 and single else ".png"
+        try:
+            check_output(path, (".png", ".tif", ".tiff"), "export")
+            job.set_output(path, depth=self.export_depth, per_tile=per_tile, preview_seed=seed)
+            writes = Writes(files=job.writes)
+            check_own_inputs(writes, self.export_inputs())
+            if not confirmed and not self._confirm_replace(
+                    writes, self._asked(chosen, path),
+                    lambda: self.start_tileset_export(path, job, per_tile, seed, True)):
+                return
+            self.export_job = job
+        except (SynthesisError, ValueError, WriteError) as exc:
+            job.cancel()
+            self.dialogs.message("Export", str(exc))
+
     def _poll_export(self) -> None:
         """A streamed export's progress, or a window export's next slice; a notice once it ends."""
         if isinstance(self.export_job, StreamedExport):
@@ -164,6 +186,8 @@ class ExportsMixin:
                 job, self.export_job = self.export_job, None
                 if job.error:
                     self.dialogs.message("Export failed", job.error)
+                elif not job.cancelled and hasattr(job, "summary"):  # a tile set
+                    self.notice = (job.summary(), time.monotonic())
                 elif not job.cancelled:
                     r = job.out_rect
                     names = [os.path.abspath(o) for _, o, _ in job.outputs]

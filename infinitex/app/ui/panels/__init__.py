@@ -3,7 +3,7 @@
 One module per panel: menu (the menu bar, Open dialogs, Open Recent), toolbar,
 brush (the active tool's options), exemplar, material, randomness, synthesis
 (the Advanced section), display, export (and the File menu's view and tile
-exports), status (the status bar, canvas overlay and export progress window);
+exports), tileset (the tile-set dialog), status (the status bar, canvas overlay and export progress window);
 widgets holds what they share (``tip``, ``LAST_TIP``, ``size_combo``). Each
 panel is a function taking the ``Panels`` object below: the editor's one handle
 on them, holding the editor (``p.ed``) and the panels' own small state, and
@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.params import DEFAULT_JITTER
 
-from . import brush, display, exemplar, export, material, menu, model, randomness, status, synthesis, toolbar
+from . import brush, display, exemplar, export, material, menu, model, randomness, status, synthesis, tileset, toolbar
 from .display import MAGNIFY_LABELS, MODE_LABELS, MODE_TIPS
 from .exemplar import FIT_LABELS, PANEL_IMAGE, TOROIDAL_LABELS
 from .export import DEPTH_CHOICES, EXPORT_FORMATS, MAGNIFY_CHOICES, TILE_SIZES
@@ -36,6 +36,7 @@ class Panels:
         self._export_popup = False     # the export progress window is open (read by the GUI tests)
         self._goto_open = False        # View > Go to coordinates was chosen: open its popup
         self._tile_prompt = 0          # File > Export toroidal tile: 1 = open its window, 2 = open
+        self.tileset = tileset.TileSetDialog()  # File > Export tile set: its settings, set and preview
 
     # The panels: each module's function takes this object first, so it serves
     # as a method as it is (``ed.panels.export_view()`` is export.export_view(panels)).
@@ -50,6 +51,7 @@ class Panels:
     export_panel, rectangle_export = export.draw, export.rectangle
     export_view, export_tile, tile_prompt, tile_prompt_window = (export.export_view, export.export_tile,
                                                                  export.tile_prompt, export.tile_prompt_window)
+    tileset_dialog, tileset_window = tileset.open_dialog, tileset.window
     synthesis_panel = synthesis.draw
     status_bar, canvas_overlay, progress_modals = status.status_bar, status.canvas_overlay, status.progress_modals
 

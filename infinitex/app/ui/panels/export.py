@@ -73,6 +73,10 @@ def draw(p: Panels) -> None:
     if imgui.button("Export toroidal tile...", (-1, 0)):
         export_tile(p)
     tip("A square that repeats without a seam (a periodic synthesis of the same look)")
+    if imgui.button("Tile set for game engines...", (-1, 0)):
+        p.tileset_dialog()
+    tip("Tiles that fit together in any valid order (a corner Wang set), so a level never shows the same tile "
+        "twice in a row; previewed before the file is chosen")
     lat = ed.session.controls.lattice if ed.session is not None and ed.session.ready else None
     if lat is not None:
         cx, cy = lat.cell(ed.session.analysis.size)

@@ -80,6 +80,8 @@ def draw(p: Panels) -> None:
             ed.close_model()
         if imgui.menu_item_simple("Export toroidal tile...", enabled=ed.session.ready):
             p.tile_prompt()  # its size first
+        if imgui.menu_item_simple("Export tile set for game engines...", enabled=ed.session.ready):
+            p.tileset_dialog()
         imgui.separator()
         if imgui.menu_item_simple("Quit", "Ctrl+Q"):
             ed.request_quit()

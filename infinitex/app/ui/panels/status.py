@@ -67,6 +67,7 @@ def canvas_overlay(p: Panels, p0, w, h) -> None:
 
 def progress_modals(p: Panels) -> None:
     p.tile_prompt_window()
+    p.tileset_window()
     ed = p.ed
     job = ed.export_job
     name = "Exporting###export"

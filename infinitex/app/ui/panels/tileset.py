@@ -1,0 +1,215 @@
+"""File > Export tile set: a corner Wang set (or variants of the seamless
+tile) for game engines. Its settings and, before any file is chosen, a
+preview of the tiles laid out at random as an engine would (Shuffle for
+another layout); the set is made while the editor stays live (a slice of
+work per frame) and, once a file is chosen, written in the background."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from imgui_bundle import imgui
+
+from infinitex.engine.imagefile import to_u8
+from infinitex.engine.pyramid import SynthesisError
+from infinitex.export.wang import MAX_VARIANTS, WANG_SIZES, TileSetError
+
+from ..dialogs import PNG_FILTER
+from .widgets import size_combo, tip
+
+if TYPE_CHECKING:
+    from . import Panels
+
+FRAME_BUDGET_S = 0.030  # the set's work per frame while the dialog shows its progress
+PREVIEW_PX = 440        # the preview's side in the dialog
+KINDS = [
+    ("wang2", "Corner Wang set, 2 colours (16 tiles)",
+     "16 tiles, every combination of 2 corner colours: two tiles fit side by side wherever their shared corners "
+     "have the same colours, and each is different inside. The engine draws a valid one per cell (at random)"),
+    ("wang3", "Corner Wang set, 3 colours (81 tiles)",
+     "81 tiles with 3 corner colours: less repetition than 16, in an atlas 9 tiles a side"),
+    ("variants", "Variants of one seamless tile",
+     "Tiles with the same borders as one seamless (toroidal) tile and different insides: any of them fits next "
+     "to any other, for engines that only pick which tile to draw"),
+]
+
+
+class TileSetDialog:
+    """The dialog's state: its settings, the set being made (``job``, for the
+    settings and document of ``key``) and the preview's texture."""
+
+    def __init__(self):
+        self.state = 0          # 1: open the window, 2: open
+        self.kind = "wang2"
+        self.size = 256
+        self.variants = 4
+        self.per_tile = False
+        self.job = None
+        self.key = None
+        self.seed = 0
+        self.tex = None
+        self.tex_seed: int | None = None
+        self.error: str | None = None
+
+    @property
+    def building(self) -> bool:
+        return self.state == 2 and self.job is not None and not self.job.built and self.job.error is None
+
+    def drop(self) -> None:
+        if self.job is not None and not self.job.built:
+            self.job.cancel()
+        self.job, self.key = None, None
+        self._release_tex()
+
+    def _release_tex(self) -> None:
+        if self.tex is not None:
+            self.tex.release()
+        self.tex, self.tex_seed = None, None
+
+
+def open_dialog(p: Panels) -> None:
+    p.tileset.state = 1
+
+
+def _plan(p: Panels):
+    from infinitex.export.tileset import plan_for
+    d, ed = p.tileset, p.ed
+    colors = {"wang2": 2, "wang3": 3}.get(d.kind, 1)
+    view = ed.view
+    return plan_for(ed.session, colors, d.size, d.variants, (int(view.x), int(view.y)))
+
+
+def _start(p: Panels, plan) -> None:
+    from infinitex.export.tileset import TileSetJob
+    d, ed = p.tileset, p.ed
+    d.drop()
+    d.key = _key(p)
+    d.job = TileSetJob(ed.session, plan)
+
+
+def _key(p: Panels) -> tuple:
+    d, ed = p.tileset, p.ed
+    return d.kind, d.size, d.variants, id(ed.doc), ed.session.generation
+
+
+def _show_preview(p: Panels) -> None:
+    """Upload the preview (the first map, laid out with the current seed) when it changes."""
+    d = p.tileset
+    if d.tex_seed == d.seed and d.tex is not None:
+        return
+    d._release_tex()
+    img = to_u8(d.job.arranged(d.seed))
+    if img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    if img.shape[2] == 2:  # grey and alpha
+        img = np.concatenate([np.repeat(img[..., :1], 3, axis=2), img[..., 1:]], axis=2)
+    if img.shape[2] == 3:
+        img = np.concatenate([img, np.full(img.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    d.tex = p.ed.session.gpu.ctx.texture((img.shape[1], img.shape[0]), 4, np.ascontiguousarray(img).tobytes())
+    d.tex_seed = d.seed
+
+
+def window(p: Panels) -> None:
+    d, ed = p.tileset, p.ed
+    name = "Export tile set###tileset"
+    if d.state == 1:
+        imgui.open_popup(name)
+        d.state = 2
+    if not d.state:
+        return
+    vp = imgui.get_main_viewport()
+    imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 2), imgui.Cond_.always, (0.5, 0.5))
+    imgui.set_next_window_size((PREVIEW_PX + 30, 0))
+    opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+    if not opened:
+        d.state = 0
+        return
+    keys = [k for k, _, _ in KINDS]
+    imgui.set_next_item_width(-90)
+    changed, i = imgui.combo("Kind", keys.index(d.kind), [label for _, label, _ in KINDS])
+    if changed:
+        d.kind = keys[i]
+    tip(KINDS[keys.index(d.kind)][2])
+    d.size = size_combo("Tile size", WANG_SIZES, d.size)
+    tip("Side of each tile, in texture pixels")
+    if d.kind == "variants":
+        imgui.set_next_item_width(-90)
+        _, d.variants = imgui.slider_int("Variants", d.variants, 2, MAX_VARIANTS)
+        tip("How many tiles: the same borders, different insides")
+    _, d.per_tile = imgui.checkbox("Also one file per tile", d.per_tile)
+    tip("Beside the atlas: NAME_0110.png (corner colours nw ne sw se) or NAME_v3.png; the JSON lists them")
+    problem = None
+    try:
+        plan = _plan(p)
+        if ed.session.controls.directed:
+            problem = "A tile set follows no direction field (its tiles meet in any order): turn it off first."
+    except TileSetError as exc:
+        plan, problem = None, str(exc)
+    if d.job is not None and d.key != _key(p):
+        d.drop()  # other settings or another document: the preview is stale
+    if problem:
+        imgui.push_text_wrap_pos(0)
+        imgui.text_colored((1.0, 0.55, 0.35, 1.0), problem)
+        imgui.pop_text_wrap_pos()
+    _preview_area(p, plan, problem)
+    imgui.begin_disabled(problem is not None)
+    go = imgui.button("Export...", (140, 0))
+    imgui.end_disabled()
+    tip("Choose the file: the atlas (NAME.png; a material: one per map), NAME.json (each tile's corner colours "
+        "and place) and NAME_preview.png (8 x 8 tiles at random)")
+    imgui.same_line()
+    close = imgui.button("Close", (100, 0)) or imgui.is_key_pressed(imgui.Key.escape, False)
+    if go or close:
+        d.state = 0
+        imgui.close_current_popup()
+    imgui.end_popup()
+    if close:
+        d.drop()
+    elif go:
+        if d.job is None:
+            _start(p, plan)
+        job, d.job, d.key = d.job, None, None
+        d._release_tex()
+        per_tile, seed = d.per_tile, d.seed
+        ed.dialogs.ask_path("Export tile set", True, PNG_FILTER,
+                            lambda path: ed.start_tileset_export(path, job, per_tile, seed),
+                            default=f"tileset{d.size}.png")
+
+
+def _preview_area(p: Panels, plan, problem: str | None) -> None:
+    d, ed = p.tileset, p.ed
+    job = d.job
+    if job is not None and not job.built and job.error is None:
+        job.step(FRAME_BUDGET_S)
+        ed.screen_fbo.use()
+    if job is not None and job.error:
+        d.error, d.job = job.error, None
+        job = None
+    if job is not None and job.built:
+        _show_preview(p)
+        imgui.image(imgui.ImTextureRef(d.tex.glo), (PREVIEW_PX, PREVIEW_PX))
+        cols, rows = job.plan.grid
+        n = job.plan.tile
+        imgui.text_disabled(f"{job.plan.count} tiles of {n} px, an atlas of {cols * n} x {rows * n}; "
+                            f"8 x 8 of them at random above")
+        if imgui.button("Shuffle", (140, 0)):
+            d.seed += 1
+        tip("Another random layout of the same tiles (the preview file is written with the one shown)")
+        return
+    imgui.dummy((PREVIEW_PX, 8))
+    if job is not None:
+        imgui.progress_bar(job.progress, (-1, 0), f"Making the set: {job.progress * 100:.0f} %")
+        return
+    if d.error:
+        imgui.push_text_wrap_pos(0)
+        imgui.text_colored((1.0, 0.55, 0.35, 1.0), d.error)
+        imgui.pop_text_wrap_pos()
+    imgui.begin_disabled(problem is not None)
+    if imgui.button("Preview", (140, 0)):
+        d.error = None
+        try:
+            _start(p, plan)
+        except (SynthesisError, ValueError) as exc:
+            d.error = str(exc)
+    imgui.end_disabled()
+    tip("Make the set now and show 8 x 8 of its tiles laid out at random, as an engine would")

@@ -1,0 +1,91 @@
+"""Drive the real editor through a tile-set export (run under Xvfb by
+test_editor.py):
+
+    xvfb-run -a python tests/app/gui_tileset.py OUT_DIR
+
+File > Export tile set: the settings, a preview made while the editor keeps
+drawing frames, Shuffle, then Export... to a typed path; the files written
+and the notice saying where. test_editor.py compares the atlas with the same
+set made by the command line. Writes "ok NAME" / "FAIL NAME: why" lines to
+OUT_DIR/report.txt.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, HERE)
+
+from imgui_bundle.immapp import testing  # noqa: E402
+
+from gui_harness import Harness  # noqa: E402
+
+DIALOG = "//Export tile set###tileset"
+
+
+def main(out: str) -> int:
+    h = Harness(out)
+    ed, check, settle = h.ed, h.check, h.settle
+
+    def wait(ctx, cond, seconds: float) -> bool:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            if cond():
+                return True
+            ctx.yield_()
+            time.sleep(0.01)
+        return cond()
+
+    def test(ctx) -> None:
+        settle(ctx)
+        ctx.set_ref("//Infinitex")
+        ctx.menu_click("File/Export tile set for game engines...")
+        ctx.yield_(3)
+        d = ed.panels.tileset
+        check("the dialog opens", ctx.window_info(DIALOG).window is not None and d.state == 2, str(d.state))
+        ctx.set_ref(DIALOG)
+        ctx.combo_click("Tile size/64")
+        ctx.yield_(2)
+        check("the tile size is chosen", d.size == 64, str(d.size))
+        ctx.item_click("Preview")
+        frames0, t0 = ed.frame_count, time.monotonic()
+        built = wait(ctx, lambda: d.job is not None and d.job.built, 120)
+        elapsed = time.monotonic() - t0
+        frames = ed.frame_count - frames0
+        check("the preview is made while the editor keeps drawing", built and frames >= 5 * elapsed,
+              f"built {built}, {frames} frames in {elapsed:.1f} s, {d.error}")
+        ctx.yield_(3)
+        check("the preview shows 8 x 8 tiles", d.tex is not None and d.tex.size == (512, 512),
+              str(d.tex and d.tex.size))
+        testing.capture(ctx, os.path.join(out, "tileset-dialog.png"))
+        first = d.tex.glo if d.tex is not None else None
+        ctx.item_click("Shuffle")
+        ctx.yield_(3)
+        check("Shuffle lays the tiles out anew", d.seed == 1 and d.tex_seed == 1 and d.tex is not None,
+              f"{d.seed} {d.tex_seed} {first}")
+        ctx.item_click("Export...")
+        ctx.yield_(2)
+        target = os.path.join(out, "set.png")
+        ctx.set_ref("//Infinitex")
+        ctx.item_input_value("//**/##path", target)
+        ctx.yield_(2)
+        done = wait(ctx, lambda: ed.export_job is None, 120)
+        ctx.yield_(2)
+        files = ["set.png", "set.json", "set_preview.png"]
+        check("the set is written", done and all(os.path.isfile(os.path.join(out, f)) for f in files),
+              str(os.listdir(out)))
+        check("the notice says where", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
+              and "16 tiles of 64 px" in ed.notice[0], str(ed.notice))
+        if os.path.isfile(os.path.join(out, "set.json")):
+            desc = json.load(open(os.path.join(out, "set.json"), encoding="utf-8"))
+            check("the description lists 16 tiles", desc["count"] == 16 and len(desc["tiles"]) == 16, str(desc)[:200])
+        check("the dialog's set was handed over", d.job is None and d.state == 0, f"{d.job} {d.state}")
+
+    return h.run(test, watchdog_s=600)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1]))
