@@ -210,7 +210,7 @@ class TileSetBuilder:
     def build(self) -> Iterator:
         p = self.plan
         n = p.tile
-        if p.colors == 1:
+        if p.colors == 1 and self.toroidal is not None:
             self.work_total = p.variants
             frame = yield from self.toroidal()
             self.work_done += 1
