@@ -199,8 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     gpu = Gpu()
     rows, shots = [], []
     print(f"tiles of {N} px; seams (neighbourhoods / colour steps, edge over inside): 8 x 8 tiles at random; "
-          "repetition: 16 x 16, shifts >= {N} px "
-          "(raw / blurred 6 px)")
+          f"repetition: 16 x 16, shifts >= {N} px (raw / blurred 6 px); cuts: neighbourhoods holding a cut "
+          "over those holding a seam of the synthesis")
     print(f"{'exemplar':10s} {'set':10s} {'time':>6s} {'seams':>10s} {'cuts':>5s} {'repeat':>13s} {'exemplar':>13s} "
           f"{'infinite':>13s} {'one tile':>13s} {'inside same':>11s}")
     for path in exemplars:
