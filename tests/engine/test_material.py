@@ -273,6 +273,27 @@ def test_depth_choice_and_naming(session, maps, tmp_path):
     assert _read(job.outputs[0][1]).dtype == np.uint16
 
 
+def test_a_tile_set_gives_every_map_the_same_tiles(session, maps, tmp_path):
+    """A material's tile set: one atlas per map at its own depth, every map
+    through the same coordinates (the height follows the base color's cuts)."""
+    from infinitex.export.tileset import TileSetJob, plan_for
+    job = TileSetJob(session, plan_for(session, 2, 64), str(tmp_path / "set.png"), per_tile=True)
+    job.run()
+    assert job.error is None
+    files = {role: path for role, path, _ in job.outputs}
+    assert sorted(os.path.basename(p) for p in files.values()) == ["set_basecolor.png", "set_height.png",
+                                                                   "set_normal.png"]
+    height = _read(files["height"])
+    assert height.dtype == np.uint16 and height.shape == (256, 256)
+    coords = job.atlas
+    assert np.array_equal(height, _u16(maps["height"][..., 0][coords[..., 1], coords[..., 0]]))
+    assert np.array_equal(_read(files["basecolor"]), _u8(maps["basecolor"][coords[..., 1], coords[..., 0]]))
+    desc = json.loads((tmp_path / "set.json").read_text())
+    first = desc["tiles"][0]
+    assert set(first["files"]) == {"basecolor", "height", "normal"}
+    assert np.array_equal(_read(str(tmp_path / first["files"]["height"])), height[:64, :64])
+
+
 def test_magnified_normals_have_unit_length(session, tmp_path):
     for depth, tol in ((16, 1.0 / 255), (8, 2.0 / 255)):
         job = ExportJob(session, Rect.of(-20, 7, 48, 40), str(tmp_path / f"m{depth}.png"), maps=["normal", "height"],
