@@ -24,3 +24,5 @@ itx.write_png(os.path.join(out, "gravel-set-arranged.png"), itx.arrange(atlas, d
 first = desc["tiles"][0]
 print(f"{desc['count']} tiles of {desc['tile']} px; the first has corners "
       f"{first['nw']}{first['ne']}/{first['sw']}{first['se']} at ({first['x']}, {first['y']})")
+print(f"wrote gravel-set.png {atlas.shape[1]}x{atlas.shape[0]}")
+print("wrote gravel-set-arranged.png 1024x1024")
