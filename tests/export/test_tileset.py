@@ -219,3 +219,12 @@ def test_api_set_is_the_command_lines(tmp_path):
     assert desc["tiles"] == json.loads((tmp_path / "set.json").read_text())["tiles"]
     shown = itx.arrange(atlas, desc, 3, 2, seed=2)
     assert shown.shape == (128, 192, 1)
+
+
+def test_cli_never_writes_over_its_exemplar(tmp_path):
+    import shutil
+    src = tmp_path / "set_preview.png"
+    shutil.copy(GRAVEL, src)
+    r = infinitex("export", src, "-o", tmp_path / "set.png", "--wang", "2", "--tile", "64")
+    assert r.returncode != 0 and "input of this export" in r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["set_preview.png"]
