@@ -445,9 +445,38 @@ def test_unwrapping_runs_apart_with_limits(tmp_path, monkeypatch):
     F = np.array([[0, 1, 2], [0, 2, 3]])
     m = mesh_module.unwrap(P, F, "quad")
     assert m.uvs.shape == (len(m.positions), 2) and len(m.faces) == 2
-    with pytest.raises(ModelError, match="not all finite"):
+    with pytest.raises(ModelError, match="reach 1e"):
         mesh_module.unwrap(np.where(P == 1, np.float64(1e39), P), F, "huge")  # inf in single precision
+    with pytest.raises(ModelError, match="not all finite"):
+        mesh_module.unwrap(np.where(P == 1, np.inf, P), F, "inf")
     monkeypatch.setattr(mesh_module, "UNWRAP_SECONDS", 0.0)
     monkeypatch.setattr(mesh_module, "UNWRAP_PER_FACE", 0.0)
     with pytest.raises(ModelError, match="took over 0 s"):
         mesh_module.unwrap(P, F, "quad")
+
+
+def test_unwrapping_refuses_what_would_spin_or_blow_up_in_one_line(tmp_path):
+    """Checked before xatlas sees them, each refused in one line within seconds:
+    a node scale of 1e38 (spun forever), a vertex at 1e11 beside a unit quad
+    (6 GB), a triangle naming a vertex that does not exist, a mesh of
+    degenerate triangles (once blamed for xatlas's non-finite output)."""
+    import time
+
+    import trimesh
+
+    from infinitex.engine.surface import load_model
+    quad = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]], process=False)
+    scene = trimesh.Scene()
+    scene.add_geometry(quad, transform=np.diag([1e38, 1e38, 1e38, 1.0]))
+    (tmp_path / "scaled.glb").write_bytes(scene.export(file_type="glb"))
+    v = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+    (tmp_path / "far.obj").write_text(v.replace("v 1 1 0", "v 100000000000 1 0") + "f 1 2 3\nf 1 3 4\n")
+    (tmp_path / "index.obj").write_text(v + "f 1 2 3\nf 1 3 9\n")
+    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\nf 3 2 1\n")
+    cases = {"scaled.glb": "reach 1e\\+38", "far.obj": "too thin", "flat.obj": "degenerate",
+             "index.obj": "vertex that does not exist|not a model"}
+    for name, message in cases.items():
+        t = time.monotonic()
+        with pytest.raises(ModelError, match=message) as err:
+            load_model(str(tmp_path / name), unwrap_missing=True)
+        assert "\n" not in str(err.value) and time.monotonic() - t < 5, name

@@ -25,6 +25,7 @@ MAX_FACES = 2_000_000
 MAX_VERTICES = 3_000_000
 MODEL_SUFFIXES = (".obj", ".glb", ".gltf")
 MAX_UV = 64.0  # texture coordinates beyond +-64 (far outside the atlas) are refused
+MAX_POSITION = 1e12  # and positions beyond +-1e12 (after the scene's transforms)
 
 
 class ModelError(ValueError):
@@ -57,7 +58,7 @@ class Model:
             raise ModelError(f"{self.name}: a triangle refers to a vertex that does not exist.")
         if not (np.isfinite(p).all() and np.isfinite(uv).all()):
             raise ModelError(f"{self.name} has positions or texture coordinates that are not finite numbers.")
-        if np.abs(uv).max() > MAX_UV or np.abs(p).max() > 1e12:
+        if np.abs(uv).max() > MAX_UV or np.abs(p).max() > MAX_POSITION:
             raise ModelError(f"{self.name} has texture coordinates or positions far out of range.")
         object.__setattr__(self, "positions", p)
         object.__setattr__(self, "faces", f)
@@ -88,6 +89,7 @@ def _from_trimesh(mesh, name: str) -> Model:
     return Model(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(uv), name=name)
 
 
+THIN_AREA = 1e-10         # twice a triangle's area in the unit cube below which xatlas cannot lay it out
 UNWRAP_MEMORY = 3 << 30  # bytes of address space the unwrapping process may take
 UNWRAP_SECONDS = 30.0     # and seconds, plus UNWRAP_PER_FACE a triangle
 UNWRAP_PER_FACE = 60e-6
@@ -101,18 +103,55 @@ def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model", 
     with a memory and a time limit, since it cannot be interrupted (a signal
     does not stop it) and some inputs make it spin or grow without end (an
     ``inf`` coordinate, a vertex at 1e11: 6 GB); any failure is one line."""
-    with np.errstate(over="ignore"):  # (beyond single precision: inf, refused below)
-        P = np.asarray(model_positions, np.float32)
-    F = np.asarray(faces, np.uint32)
-    if not np.isfinite(P).all():
-        raise ModelError(f"{name}: its positions are not all finite numbers (in single precision).")
+    P, F = _unwrappable(model_positions, faces, name)
     if not isolated:
         import xatlas
         vmap, idx, uv = xatlas.parametrize(P, F)
     else:
         vmap, idx, uv = _unwrap_isolated(P, F, name)
+    if not np.isfinite(uv).all():  # xatlas's, not the model's: say what made it so
+        raise ModelError(f"{name}: xatlas could not lay out its texture coordinates ({int(_thin(P, F).sum()):,} of "
+                         f"its {len(F):,} triangles are degenerate or too thin for the model's size); remove "
+                         f"them and try again.")
     return Model(np.asarray(model_positions)[vmap], idx.astype(np.int64), uv.astype(np.float64), name=name,
                  meta={"unwrapped": True})
+
+
+def _thin(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Triangles of a mesh in the unit cube too small or thin for single
+    precision (twice their area under THIN_AREA)."""
+    P = P.astype(np.float64)
+    return np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]), axis=-1) < THIN_AREA
+
+
+def _unwrappable(positions, faces, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh as xatlas gets it, checked first (xatlas cannot be stopped
+    once it runs): triangles that refer to vertices that exist, finite
+    positions of sane magnitude (a node scale of 1e38 spun forever), not
+    every triangle degenerate or too thin for single precision once the mesh
+    is moved and scaled into the unit cube (a vertex at 1e11 beside a unit
+    quad took 6 GB); the unit cube's positions are what xatlas gets (the
+    layout does not depend on size)."""
+    P = np.asarray(positions, np.float64)
+    F = np.asarray(faces)
+    if P.ndim != 2 or P.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or not len(F):
+        raise ModelError(f"{name} holds no triangle mesh to unwrap.")
+    if F.min() < 0 or F.max() >= len(P):
+        raise ModelError(f"{name}: a triangle refers to a vertex that does not exist.")
+    if not np.isfinite(P).all():
+        raise ModelError(f"{name}: its positions are not all finite numbers.")
+    used = P[np.unique(F)]
+    biggest = float(np.abs(used).max())
+    if biggest > MAX_POSITION:
+        raise ModelError(f"{name}: its positions reach {biggest:.3g} (after the scene's transforms); models "
+                         f"within +-{MAX_POSITION:.0e} are read.")
+    lo = used.min(axis=0)
+    extent = float((used.max(axis=0) - lo).max())
+    unit = (P - lo) / extent if extent > 0 else P - lo
+    if _thin(unit, F).all():
+        raise ModelError(f"{name}: every triangle is degenerate or too thin for the model's size (a vertex far "
+                         f"from the rest?); there is nothing to unwrap.")
+    return unit.astype(np.float32), F.astype(np.uint32)
 
 
 def _unwrap_child(conn, P, F, limit: int) -> None:
