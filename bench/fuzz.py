@@ -1,8 +1,8 @@
 """Long fuzz runs of every untrusted input, with figures.
 
-    .venv/bin/python -m bench.fuzz [--cases 10000] [--targets import,project,cli,parts] [--seed S] [--json OUT]
+    .venv/bin/python -m bench.fuzz [--cases 10000] [--targets import,project,cli,parts,model] [--seed S] [--json OUT]
 
-Runs the targets of tests/fuzzing.py (the same generators and checks as the
+Runs the targets of tests/fuzzing.py and tests/fuzz_models.py (the same generators and checks as the
 test suite's fuzz tests), each in its own process, and counts per target:
 inputs accepted, refused with the program's own error, crashes (any broken
 promise: a foreign exception, a subprocess, a read outside what the user
@@ -25,7 +25,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-TARGETS = ("import", "project", "cli", "parts")
+TARGETS = ("import", "project", "cli", "parts", "model")
 
 
 def run_target(target: str, cases: int, seed: int, timeout: float) -> dict:
@@ -36,11 +36,13 @@ def run_target(target: str, cases: int, seed: int, timeout: float) -> dict:
     from hypothesis import HealthCheck, Phase, given, settings
     from hypothesis import seed as hseed
 
+    import fuzz_models as FM
     import fuzzing as F
 
-    root = {"project": F.project_sandbox, "cli": F.cli_sandbox, "parts": F.parts_sandbox}.get(target, lambda: None)()
+    root = {"project": F.project_sandbox, "cli": F.cli_sandbox, "parts": F.parts_sandbox,
+            "model": FM.model_sandbox}.get(target, lambda: None)()
     strategy = {"import": F.image_files(), "project": F.project_files(), "cli": F.command_lines(),
-                "parts": F.parts_folders()}[target]
+                "parts": F.parts_folders(), "model": FM.model_cases()}[target]
     counts = {"accepted": 0, "refused": 0, "crash": 0, "hang": 0}
     times: list[float] = []
     failures: list[dict] = []
@@ -54,6 +56,8 @@ def run_target(target: str, cases: int, seed: int, timeout: float) -> dict:
                 out = F.run_project(x, root, timeout)
             elif target == "parts":
                 out = F.run_parts(x, root, timeout)
+            elif target == "model":
+                out = FM.run_model(x, root, timeout)
             else:
                 out = F.run_cli(x, root, timeout)
             counts[out] += 1

@@ -480,3 +480,23 @@ def test_unwrapping_refuses_what_would_spin_or_blow_up_in_one_line(tmp_path):
         with pytest.raises(ModelError, match=message) as err:
             load_model(str(tmp_path / name), unwrap_missing=True)
         assert "\n" not in str(err.value) and time.monotonic() - t < 5, name
+
+
+def test_what_a_model_names_is_read_safely(tmp_path):
+    """Found by the model fuzz target: a material library name holding a NUL
+    byte (a ValueError, not a refusal), a texture that is a link out of the
+    model's folder (read before), an OBJ that is not UTF-8 (trimesh reached
+    for a module we do not ship). Each is one line, or loads."""
+    from infinitex.engine.surface import load_model
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
+    (tmp_path / "nul.obj").write_bytes(b"mtllib a\0b.mtl\n" + quad.encode())
+    assert len(load_model(str(tmp_path / "nul.obj")).faces) == 2
+    outside = tmp_path.parent / "outside.png"
+    outside.write_bytes(b"\x89PNG")
+    (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd tex.png\n")
+    os.symlink(outside, tmp_path / "tex.png")
+    (tmp_path / "link.obj").write_text("mtllib m.mtl\nusemtl a\n" + quad)
+    with pytest.raises(ModelError, match="outside the model's folder"):
+        load_model(str(tmp_path / "link.obj"))
+    (tmp_path / "latin.obj").write_bytes("# caf\xe9 mod\xe8le\n".encode("latin-1") + quad.encode())
+    assert len(load_model(str(tmp_path / "latin.obj")).faces) == 2

@@ -1,6 +1,7 @@
 """Property-based fuzzing of every untrusted input (tests/fuzzing.py holds the
-targets): exemplar images, project and autosave files, command lines, the
-working folders of resumable exports (OUT.parts, tampered with). Each
+targets, tests/fuzz_models.py the models'): exemplar images, project and
+autosave files, command lines, the working folders of resumable exports
+(OUT.parts, tampered with), model files (OBJ, glTF, GLB). Each
 input must be accepted with a valid result or refused with the program's own
 one-line error: no other exception, no hang, no subprocess, no read outside
 what the user chose, no damaged or replaced file.
@@ -13,6 +14,7 @@ import shutil
 import pytest
 from hypothesis import given
 
+import fuzz_models as FM
 import fuzzing as F
 
 
@@ -37,6 +39,21 @@ def parts_root():
     shutil.rmtree(root, ignore_errors=True)
 
 
+@pytest.fixture(scope="module")
+def model_root():
+    root = FM.model_sandbox()
+    yield root
+    shutil.rmtree(root, ignore_errors=True)
+
+
+@given(case=FM.model_cases())
+def test_fuzz_model_files(model_root, case):
+    """OBJ (with its .mtl and texture), glTF (with its buffers) and GLB files,
+    mutated, with hostile numbers and tampered references, loaded with and
+    without --unwrap (tests/fuzz_models.py)."""
+    FM.run_model(case, model_root)
+
+
 @given(data=F.image_files())
 def test_fuzz_exemplar_import(data):
     F.run_import(data)
@@ -58,7 +75,7 @@ def test_fuzz_export_working_folders(parts_root, case):
     F.run_parts(case, parts_root)
 
 
-def test_the_targets_reach_both_outcomes(project_root, cli_root, parts_root):
+def test_the_targets_reach_both_outcomes(project_root, cli_root, parts_root, model_root):
     """The generators are not degenerate: each target sees inputs it accepts and
     inputs it refuses (a fuzzer that only makes garbage tests nothing)."""
     import io
@@ -78,3 +95,11 @@ def test_the_targets_reach_both_outcomes(project_root, cli_root, parts_root):
     assert F.run_parts(clean, parts_root) == "accepted"
     assert F.run_parts(dict(clean, parts="link-folder"), parts_root) == "refused"
     assert Image  # imported for the PNG above
+    for kind in FM.KINDS:
+        files = FM._bases()[kind]
+        main = next(n for n in files if n.startswith("model."))
+        others = sorted(n for n in files if n != main)
+        case = dict(kind=kind, main=main, files=files, tamper="none", how="clean", victim=None, unwrap=True)
+        assert FM.run_model(case, model_root) == "accepted"
+        bad = dict(case, tamper="fifo", victim=others[0]) if others else dict(case, files={main: files[main][:40]})
+        assert FM.run_model(bad, model_root) == "refused"

@@ -326,22 +326,29 @@ def referenced_files(path: str, text: bytes | None = None, doc: dict | None = No
     material libraries and the maps they name, a glTF's or GLB's external
     buffers and images. What an export must not replace (they are inputs;
     :func:`load_model` keeps them in the model's ``meta["files"]``), and what
-    must be regular files before the loader opens any (a FIFO among them would
-    block it): ModelError, one line, otherwise. ``text`` (an OBJ's) or ``doc``
+    must be regular files inside the model's folder (links resolved) before
+    the loader opens any (a FIFO among them would block it): ModelError, one
+    line, otherwise. ``text`` (an OBJ's) or ``doc``
     (a glTF's JSON): already read."""
     import re
     name = os.path.basename(path)
     folder = os.path.dirname(os.path.abspath(path))
     found: list[str] = []
 
+    top = os.path.realpath(folder)
+
     def add(ref: str) -> str | None:
         target = os.path.join(folder, ref.strip().strip('"'))
         try:
             st = os.stat(target)
-        except OSError:
-            return None  # missing: the loader goes on without it
+            real = os.path.realpath(target)
+        except (OSError, ValueError):  # missing, or a name no file can have: the loader goes on without it
+            return None
         if not stat.S_ISREG(st.st_mode):
             raise ModelError(f"{name} refers to {printable(ref.strip()[:80])}, which is not a regular file.")
+        if os.path.commonpath([top, real]) != top:
+            raise ModelError(f"{name} refers to {printable(ref.strip()[:80])}, which is outside the model's "
+                             f"folder; copy it beside the model.")
         found.append(target)
         return target
 
@@ -383,17 +390,27 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
     size = st.st_size
     if size > MAX_MODEL_BYTES:
         raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
+    text = None
     try:
         if str(path).lower().endswith((".gltf", ".glb")):
             files = referenced_files(str(path), doc=_check_gltf(str(path), name))
         else:
-            files = referenced_files(str(path), text=_check_obj(str(path), name))
+            text = _check_obj(str(path), name)
+            files = referenced_files(str(path), text=text)
         # (regular files only, before the loader opens any)
     except OSError as exc:
         raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
     import trimesh
     try:
-        loaded = trimesh.load(str(path), force="mesh", process=False)
+        if text is None:
+            loaded = trimesh.load(str(path), force="mesh", process=False)
+        else:  # the text as read and checked, as UTF-8 (trimesh would guess other encodings with a module we lack)
+            import io
+
+            from trimesh.resolvers import FilePathResolver
+            clean = text.decode("utf-8", "replace").encode("utf-8")
+            loaded = trimesh.load(io.BytesIO(clean), file_type="obj", force="mesh", process=False,
+                                  resolver=FilePathResolver(str(path)))
     except Exception as exc:  # trimesh raises many kinds on damaged files
         msg = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
         raise ModelError(f"{name} is not a model trimesh can read ({msg}).") from None

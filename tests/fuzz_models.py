@@ -1,0 +1,186 @@
+"""Fuzzing target for model files (OBJ with its .mtl and texture, glTF with
+its buffer and image, GLB), shared by tests/reliability/test_fuzz.py and
+bench/fuzz.py, built like the targets of fuzzing.py.
+
+A case starts from a small valid model of one kind (with or without texture
+coordinates), then mutates the model file's bytes, swaps numbers in its text
+for hostile ones (1e38, nan, a vertex at 1e11, an index past the end, a huge
+count), tampers with the files it refers to (missing, a FIFO, a folder, a
+link out of the sandbox, garbage), and loads it with or without ``--unwrap``
+(xatlas). Each must be accepted with a valid model or refused with one
+ModelError line, within the time limit, reading nothing outside the sandbox
+but the libraries.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import sys
+import tempfile
+
+import numpy as np
+from hypothesis import strategies as st
+
+from fuzzing import Crash, mutations, time_limit, watch
+
+KINDS = ("obj", "obj-nouv", "gltf", "glb")
+HOSTILE = ["1e38", "-1e38", "nan", "inf", "-inf", "1e11", "0", "-1", "99999999", "1e308", "4294967295",
+           "2147483648", "1" + "0" * 40, "0x10", ""]
+TAMPERS = ["none", "none", "none", "missing", "fifo", "folder", "link-out", "garbage", "empty"]
+_BASES: dict[str, dict[str, bytes]] = {}
+
+
+def _bases() -> dict[str, dict[str, bytes]]:
+    """{kind: {file name: bytes}}: a textured box of each kind, made once (trimesh)."""
+    if _BASES:
+        return _BASES
+    import trimesh
+    from PIL import Image
+    box = trimesh.creation.box()
+    box = trimesh.Trimesh(box.vertices, box.faces, process=False)
+    uv = (box.vertices[:, :2] + 0.5).clip(0, 1)
+    tex = Image.fromarray((np.indices((8, 8)).sum(0) % 2 * 255).astype(np.uint8)).convert("RGB")
+    textured = trimesh.Trimesh(box.vertices, box.faces, process=False,
+                               visual=trimesh.visual.TextureVisuals(uv=uv, image=tex))
+    with tempfile.TemporaryDirectory() as d:
+        textured.export(os.path.join(d, "model.obj"))
+        _BASES["obj"] = {n: open(os.path.join(d, n), "rb").read() for n in os.listdir(d)}
+    _BASES["obj-nouv"] = {"model.obj": box.export(file_type="obj").encode()}
+    files = textured.export(file_type="gltf")
+    _BASES["gltf"] = {("model.gltf" if n.endswith(".gltf") else n): v for n, v in files.items()}
+    _BASES["glb"] = {"model.glb": textured.export(file_type="glb")}
+    return _BASES
+
+
+FLOATS = [1e38, -1e38, float("nan"), float("inf"), 1e11, 0.0, 3.4e38]
+INTS = [0xFFFFFFFF, 0x7FFFFFFF, 65535, 12, 0]
+
+
+def _swap(text: bytes, draw) -> bytes:
+    """One or two numbers of a text swapped for hostile ones."""
+    for _ in range(draw(st.integers(1, 2))):
+        numbers = list(re.finditer(rb"-?\d+(\.\d+)?(e-?\d+)?", text))
+        if not numbers:
+            break
+        m = numbers[draw(st.integers(0, len(numbers) - 1))]
+        text = text[:m.start()] + draw(st.sampled_from(HOSTILE)).encode() + text[m.end():]
+    return text
+
+
+def _glb_parts(data: bytes) -> tuple[bytes, bytes]:
+    import struct
+    n = struct.unpack_from("<I", data, 12)[0]
+    js = data[20:20 + n]
+    rest = data[20 + n:]
+    return js, rest[8:] if len(rest) >= 8 else b""
+
+
+def _glb(js: bytes, binary: bytes) -> bytes:
+    import struct
+    js += b" " * (-len(js) % 4)
+    binary += b"\0" * (-len(binary) % 4)
+    body = struct.pack("<I4s", len(js), b"JSON") + js + struct.pack("<I4s", len(binary), b"BIN\x00") + binary
+    return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+
+
+def _poke(binary: bytes, draw) -> bytes:
+    """A float32 or uint32 of a binary buffer replaced by a hostile value."""
+    import struct
+    if len(binary) < 4:
+        return binary
+    at = draw(st.integers(0, len(binary) // 4 - 1)) * 4
+    if draw(st.booleans()):
+        value = struct.pack("<f", np.float32(draw(st.sampled_from(FLOATS))))
+    else:
+        value = struct.pack("<I", draw(st.sampled_from(INTS)))
+    return binary[:at] + value + binary[at + 4:]
+
+
+@st.composite
+def model_cases(draw) -> dict:
+    kind = draw(st.sampled_from(KINDS))
+    files = dict(_bases()[kind])
+    main = next(n for n in files if n.startswith("model."))
+    data = files[main]
+    how = draw(st.sampled_from(["bytes", "numbers", "numbers", "poke", "poke", "clean"]))
+    if how == "bytes":
+        data = draw(mutations(data))
+    elif kind == "glb" and how in ("numbers", "poke"):
+        js, binary = _glb_parts(data)
+        data = _glb(_swap(js, draw), binary) if how == "numbers" else _glb(js, _poke(binary, draw))
+    elif how == "poke" and kind == "gltf":
+        buf = draw(st.sampled_from(sorted(n for n in files if n.endswith(".bin"))))
+        files[buf] = _poke(files[buf], draw)
+    elif how in ("numbers", "poke"):
+        data = _swap(data, draw)
+    files[main] = data
+    others = [n for n in files if n != main]
+    tamper = draw(st.sampled_from(TAMPERS)) if others else "none"
+    return {"kind": kind, "main": main, "files": files, "tamper": tamper, "how": how,
+            "victim": draw(st.sampled_from(others)) if others else None, "unwrap": draw(st.booleans())}
+
+
+def model_sandbox() -> str:
+    root = tempfile.mkdtemp(prefix="infinitex-fuzz-models-")
+    _bases()
+    return root
+
+
+def _write_case(case: dict, folder: str, outside: str) -> str:
+    for name, data in case["files"].items():
+        with open(os.path.join(folder, name), "wb") as f:
+            f.write(data)
+    victim = case["victim"]
+    if victim is not None and case["tamper"] != "none":
+        path = os.path.join(folder, victim)
+        os.remove(path)
+        how = case["tamper"]
+        if how == "fifo":
+            os.mkfifo(path)
+        elif how == "folder":
+            os.mkdir(path)
+        elif how == "link-out":
+            os.symlink(outside, path)
+        elif how == "garbage":
+            with open(path, "wb") as f:
+                f.write(os.urandom(64))
+        elif how == "empty":
+            open(path, "wb").close()
+    return os.path.join(folder, case["main"])
+
+
+def check_model(m) -> None:
+    p, f, uv = m.positions, m.faces, m.uvs
+    if not (np.isfinite(p).all() and np.isfinite(uv).all() and len(f) and f.min() >= 0 and f.max() < len(p)):
+        raise Crash("an accepted model with bad arrays")
+
+
+def run_model(case: dict, root: str, timeout: float = 60.0) -> str:
+    """Load one case's model; 'accepted' or 'refused' (raises Crash or Hang)."""
+    from infinitex.engine.surface import ModelError, load_model
+    folder = tempfile.mkdtemp(dir=root)
+    outside = os.path.join(tempfile.gettempdir(), "infinitex-fuzz-outside.bin")
+    if not os.path.exists(outside):
+        with open(outside, "wb") as f:
+            f.write(b"\0" * 64)
+    try:
+        path = _write_case(case, folder, outside)
+        allowed = (os.path.realpath(root), os.path.realpath(sys.prefix), os.path.realpath(sys.base_prefix))
+        with watch(allowed) as violations, time_limit(timeout):
+            try:
+                m = load_model(path, unwrap_missing=case["unwrap"])
+            except ModelError as exc:
+                if "\n" in str(exc):
+                    raise Crash(f"multi-line error: {str(exc)[:200]!r}") from None
+                outcome = "refused"
+            except Exception as exc:
+                raise Crash(f"{type(exc).__name__}: {str(exc)[:200]}") from exc
+            else:
+                check_model(m)
+                outcome = "accepted"
+        if violations:
+            raise Crash("; ".join(violations))
+        return outcome
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
