@@ -9,7 +9,7 @@ count), tampers with the files it refers to (missing, a FIFO, a folder, a
 link out of the sandbox, garbage), and loads it with or without ``--unwrap``
 (xatlas). Each must be accepted with a valid model or refused with one
 ModelError line, within the time limit, reading nothing outside the sandbox
-but the libraries.
+but the libraries, letting no warning out.
 """
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ import re
 import shutil
 import sys
 import tempfile
+import warnings
 
 import numpy as np
 from hypothesis import strategies as st
@@ -167,7 +168,8 @@ def run_model(case: dict, root: str, timeout: float = 60.0) -> str:
     try:
         path = _write_case(case, folder, outside)
         allowed = (os.path.realpath(root), os.path.realpath(sys.prefix), os.path.realpath(sys.base_prefix))
-        with watch(allowed) as violations, time_limit(timeout):
+        with watch(allowed) as violations, time_limit(timeout), warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
             try:
                 m = load_model(path, unwrap_missing=case["unwrap"])
             except ModelError as exc:
@@ -181,6 +183,8 @@ def run_model(case: dict, root: str, timeout: float = 60.0) -> str:
                 outcome = "accepted"
         if violations:
             raise Crash("; ".join(violations))
+        if said:  # the command line would print it under its one line
+            raise Crash(f"a warning escaped: {said[0].category.__name__}: {str(said[0].message)[:160]}")
         return outcome
     finally:
         shutil.rmtree(folder, ignore_errors=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import signal
 import stat
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -91,8 +92,8 @@ def _from_trimesh(mesh, name: str) -> Model:
 
 THIN_AREA = 1e-10         # twice a triangle's area in the unit cube below which xatlas cannot lay it out
 UNWRAP_MEMORY = 3 << 30  # bytes of address space the unwrapping process may take
-UNWRAP_SECONDS = 30.0     # and seconds, plus UNWRAP_PER_FACE a triangle
-UNWRAP_PER_FACE = 60e-6
+UNWRAP_SECONDS = 10.0     # and seconds, plus UNWRAP_PER_FACE a triangle (158k triangles: 8.5 s here)
+UNWRAP_PER_FACE = 100e-6
 
 
 def unwrap(model_positions: np.ndarray, faces: np.ndarray, name: str = "model", isolated: bool = True) -> Model:
@@ -148,9 +149,11 @@ def _unwrappable(positions, faces, name: str) -> tuple[np.ndarray, np.ndarray]:
     lo = used.min(axis=0)
     extent = float((used.max(axis=0) - lo).max())
     unit = (P - lo) / extent if extent > 0 else P - lo
-    if _thin(unit, F).all():
-        raise ModelError(f"{name}: every triangle is degenerate or too thin for the model's size (a vertex far "
-                         f"from the rest?); there is nothing to unwrap.")
+    thin = int(_thin(unit, F).sum())
+    if 2 * thin > len(F):  # (a box with one vertex at 2e9: 7 of 12, and xatlas spun)
+        raise ModelError(f"{name}: {'every' if thin == len(F) else f'{thin:,} of its {len(F):,}'} triangles are "
+                         f"degenerate or too thin for the model's size (a vertex far from the rest?); xatlas "
+                         f"cannot lay them out.")
     return unit.astype(np.float32), F.astype(np.uint32)
 
 
@@ -179,13 +182,17 @@ def _unwrap_isolated(P: np.ndarray, F: np.ndarray, name: str):
             raise ModelError(f"{name}: generating its texture coordinates took over {limit:.0f} s; gave up.")
         kind, out = recv.recv()
     except (EOFError, OSError):
-        kind, out = "memory", None  # the process died (over its memory limit)
+        kind, out = "died", None  # the process ended without an answer
     finally:
         if proc.is_alive():
             proc.kill()
         proc.join()
         recv.close()
-    if kind == "memory":
+    if kind == "died" and proc.exitcode is not None and proc.exitcode < 0 \
+            and -proc.exitcode in (signal.SIGSEGV, signal.SIGBUS, signal.SIGABRT, signal.SIGILL, signal.SIGFPE):
+        raise ModelError(f"{name}: xatlas crashed on this mesh ({signal.Signals(-proc.exitcode).name}); unwrap it "
+                         f"in a modelling tool (e.g. Blender's Smart UV Project) and open it again.")
+    if kind in ("memory", "died"):
         raise ModelError(f"{name}: generating its texture coordinates needed more than "
                          f"{UNWRAP_MEMORY >> 30} GB; gave up.")
     if kind != "ok":
@@ -401,19 +408,22 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
     except OSError as exc:
         raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
     import trimesh
-    try:
-        if text is None:
-            loaded = trimesh.load(str(path), force="mesh", process=False)
-        else:  # the text as read and checked, as UTF-8 (trimesh would guess other encodings with a module we lack)
-            import io
+    import warnings
+    with warnings.catch_warnings(), np.errstate(all="ignore"):  # what trimesh says of a damaged file: not ours to print
+        warnings.simplefilter("ignore")
+        try:
+            if text is None:
+                loaded = trimesh.load(str(path), force="mesh", process=False)
+            else:  # the text as read and checked, as UTF-8 (trimesh would guess other encodings with a module we lack)
+                import io
 
-            from trimesh.resolvers import FilePathResolver
-            clean = text.decode("utf-8", "replace").encode("utf-8")
-            loaded = trimesh.load(io.BytesIO(clean), file_type="obj", force="mesh", process=False,
-                                  resolver=FilePathResolver(str(path)))
-    except Exception as exc:  # trimesh raises many kinds on damaged files
-        msg = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
-        raise ModelError(f"{name} is not a model trimesh can read ({msg}).") from None
+                from trimesh.resolvers import FilePathResolver
+                clean = text.decode("utf-8", "replace").encode("utf-8")
+                loaded = trimesh.load(io.BytesIO(clean), file_type="obj", force="mesh", process=False,
+                                      resolver=FilePathResolver(str(path)))
+        except Exception as exc:  # trimesh raises many kinds on damaged files
+            msg = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+            raise ModelError(f"{name} is not a model trimesh can read ({msg}).") from None
     if not hasattr(loaded, "faces") or loaded.faces is None or len(loaded.faces) == 0:
         raise ModelError(f"{name} holds no triangle mesh.")
     if len(loaded.faces) > MAX_FACES:
