@@ -6,8 +6,9 @@ and sleeping as it does for a user), each outcome checked exactly.
 
 Each round, after the editor has gone idle (more than 3 s without input, so
 it sleeps between frames): a 750 px right-button flick released at once must
-pan exactly 750 px; a 10 ms Ctrl+O must open the file chooser; Escape in an
-open menu must close it, and the next tool key must choose the tool.
+pan exactly 750 px; a 10 ms Ctrl+O must open the file chooser; a 5 ms Ctrl+Z
+must undo one step, and two quick Ctrl+Z while the view refines two; Escape
+in an open menu must close it, and the next tool key must choose the tool.
 Writes "ok NAME" / "FAIL NAME: why" lines to OUT_DIR/report.txt.
 """
 from __future__ import annotations
@@ -138,6 +139,48 @@ class Driver:
         except RuntimeError as exc:
             self.check(f"round {n}: Escape closes the file chooser", False, str(exc))
 
+    def command(self, text: str) -> None:
+        tmp = self.state_path + ".cmd.tmp"
+        with open(tmp, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, self.state_path + ".cmd")
+
+    def chord(self, key: str, times: int = 1) -> None:
+        """Ctrl held for ``times`` taps of ``key``, about 5 ms a tap."""
+        self.key("Control_L", True)
+        time.sleep(0.002)
+        for _ in range(times):
+            self.tap(key)
+            time.sleep(0.002)
+        self.key("Control_L", False)
+
+    def undo(self, n: int) -> None:
+        """A 5 ms Ctrl+Z from idle undoes one step; two quick Ctrl+Z while the
+        view refines undo two (each an undo step of its own, in order)."""
+        base = 1000 * (n + 1)
+        self.command(" ".join(f"seed {base + k}" for k in range(1, 5)))
+        self.wait(lambda s: s.get("seed") == base + 4, 10, "the edits")
+        self.idle()
+        self.chord("z")
+        try:
+            self.wait(lambda s: s.get("seed") == base + 3, 2.0, "one undo")
+            self.check(f"round {n}: a 5 ms Ctrl+Z after idling undoes one step", True)
+        except RuntimeError as exc:
+            self.check(f"round {n}: a 5 ms Ctrl+Z after idling undoes one step", False, str(exc))
+            return
+        refining = not self.state().get("refined")
+        self.chord("z", 2)
+        try:
+            self.wait(lambda s: s.get("seed") == base + 1, 3.0, "two more undos")
+            time.sleep(0.5)
+            seed = self.state().get("seed")
+            self.check(f"round {n}: two quick Ctrl+Z while refining undo two steps", refining and seed == base + 1,
+                       f"refining {refining}, seed {seed}")
+        except RuntimeError as exc:
+            self.check(f"round {n}: two quick Ctrl+Z while refining undo two steps", False, str(exc))
+        self.command("saved 1")  # the next Ctrl+O asks nothing about unsaved changes
+        self.wait(lambda s: not s.get("modals"), 5, "no question")
+
     def escape_menu(self, n: int) -> None:
         ox, oy = self.window_origin()
         self.idle()
@@ -182,7 +225,7 @@ def main(out: str, rounds: int) -> int:
     drv = Driver(out)
     try:
         for n in range(rounds):
-            for scenario in (drv.flick, drv.ctrl_o, drv.escape_menu):
+            for scenario in (drv.flick, drv.ctrl_o, drv.undo, drv.escape_menu):
                 try:
                     scenario(n)
                 except RuntimeError as exc:  # a wait timed out: that scenario failed, the others still run

@@ -54,10 +54,11 @@ def test_editor_driven_by_the_test_engine(tmp_path, xdisplay):
 def test_fast_input_is_never_lost(tmp_path, xdisplay):
     """Real X events (XTest) sent to the editor as a user's hand sends them,
     after it has gone idle: a 750 px flick released at once pans exactly 750 px,
-    a 10 ms Ctrl+O opens the file chooser (Escape closes it), Escape closes an
-    open menu and the next tool key chooses the tool; three rounds
-    (tests/app/gui_fast_input.py; the issue's target, 20 rounds, is run by hand)."""
-    _drive("gui_fast_input.py", tmp_path, xdisplay, 15, "3")
+    a 10 ms Ctrl+O opens the file chooser (Escape closes it), a 5 ms Ctrl+Z
+    undoes one step and two quick Ctrl+Z while the view refines undo two,
+    Escape closes an open menu and the next tool key chooses the tool; three
+    rounds (tests/app/gui_fast_input.py; the issue's target, 20 rounds, is run by hand)."""
+    _drive("gui_fast_input.py", tmp_path, xdisplay, 21, "3")
 
 
 def test_lattice_tool_driven_by_the_test_engine(tmp_path, xdisplay):

@@ -27,6 +27,7 @@ class ReportingEditor(Editor):
         self._last_state = None
 
     def gui(self) -> None:
+        self._commands()
         super().gui()
         r = None
         if getattr(self, "_canvas_rect", None) is not None:
@@ -43,6 +44,7 @@ class ReportingEditor(Editor):
             "popup_open": bool(imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id | imgui.PopupFlags_.any_popup_level)),
             "canvas": r,
             "mouse": [imgui.get_io().mouse_pos.x, imgui.get_io().mouse_pos.y],
+            "seed": self.doc.seed if self.doc is not None else None,
         }
         if state != self._last_state:
             self._last_state = state
@@ -52,6 +54,22 @@ class ReportingEditor(Editor):
             with open(tmp, "w") as fh:
                 json.dump(state, fh)
             os.replace(tmp, self.state_path)
+
+    def _commands(self) -> None:
+        """Edits a driver asks for (STATE.json.cmd: "seed N" pairs, each its own
+        undo step, so there is something to undo; "saved 1": mark it saved)."""
+        path = self.state_path + ".cmd"
+        if self.doc is None or self.history is None or not os.path.exists(path):
+            return
+        with open(path) as fh:
+            lines = fh.read().split()
+        os.remove(path)
+        from dataclasses import replace
+        for i in range(0, len(lines) - 1, 2):
+            if lines[i] == "seed":
+                self.edit(replace(self.doc, seed=int(lines[i + 1])), f"Seed {lines[i + 1]}")
+            elif lines[i] == "saved":  # nothing unsaved: Ctrl+O asks no question
+                self.history.mark_saved()
 
     def _canvas(self) -> None:
         p0 = imgui.get_cursor_screen_pos()
