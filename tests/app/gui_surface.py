@@ -217,6 +217,9 @@ def main(out: str) -> int:
         glb = os.path.join(out, "cube_gravel.glb")
         ctx.menu_click("File/Export model...")
         ctx.yield_(2)
+        req = ed.dialogs.path_request
+        check("Export model proposes a file name", req is not None and os.path.basename(req.default)
+              == os.path.splitext(ed.doc.surface.model.name)[0] + "_textured.glb", str(req and req.default))
         ctx.item_input_value("//**/##path", glb)
         ctx.yield_(3)
         while ed.export_job is not None:

@@ -186,7 +186,7 @@ def test_model_view_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     export a GLB, close it (tests/app/gui_surface.py); the atlas the editor
     showed is the engine's for each project it saved (as opened, with the
     feature, combed)."""
-    _drive("gui_surface.py", tmp_path, xdisplay, 23)
+    _drive("gui_surface.py", tmp_path, xdisplay, 24)
     import numpy as np
 
     from infinitex.engine.analysis import analyze

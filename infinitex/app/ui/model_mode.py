@@ -115,7 +115,9 @@ class ModelModeMixin:
         self.edit(replace(self.doc, surface=s), label, group)
 
     def export_model_dialog(self) -> None:
-        self.dialogs.ask_path("Export model", True, ["glTF binary (*.glb)", "*.glb"], self.start_model_export)
+        stem = os.path.splitext(self.doc.surface.model.name)[0] or "model"
+        self.dialogs.ask_path("Export model", True, ["glTF binary (*.glb)", "*.glb"], self.start_model_export,
+                              default=f"{stem}_textured.glb")
 
     def start_model_export(self, path: str, magnify: int | None = None, confirmed: bool = False) -> None:
         from infinitex.export.surface import ModelExportJob
