@@ -126,6 +126,15 @@ def main(out: str) -> int:
               and abs(((cell.origin[0] - a[0]) / cell.t1[0]) - round((cell.origin[0] - a[0]) / cell.t1[0])) < 0.05
               and abs(((cell.origin[1] - a[1]) / cell.t2[1]) - round((cell.origin[1] - a[1]) / cell.t2[1])) < 0.05,
               str(cell))
+        # What the tool said of this document goes with it: another document opens clean.
+        ed.tool.message = "a message about this document's lattice"
+        ed.history.mark_saved()
+        ed.open_path(os.path.join(HERE, "infinitex", "assets", "gravel.png"))
+        settle(ctx)
+        tool = next(t for t in ed.tools if t.name == "lattice")
+        check("another document's panel starts without the last one's message",
+              ed.doc.exemplar.name == "gravel.png" and tool.message == "" and tool.detection is None,
+              f"{ed.doc.exemplar.name} / {tool.message!r}")
         check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
 
     return h.run(test)

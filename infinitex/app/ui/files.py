@@ -222,6 +222,8 @@ class FilesMixin:
             self.edit(doc, getattr(self, "pending_label", "Load exemplar"))
             return
         self.history = History(doc)
+        for tool in self.tools:  # what a tool held of the last document (a lattice message...) goes
+            tool.new_document()
         self.autosave.clear()  # a new document: the autosave of the one it replaces goes
         if kind == "project":
             self.view, self.display = proj.view, proj.display

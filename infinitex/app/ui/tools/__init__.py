@@ -25,6 +25,10 @@ class Tool:
     def release(self) -> None:
         pass
 
+    def new_document(self) -> None:
+        """Another document was opened: forget what belonged to the last one
+        (messages, selections, drafts); the tool's own settings stay."""
+
     def options(self) -> None:
         """Tool options, drawn in the Tools panel."""
 

@@ -51,6 +51,9 @@ class FeatureTool(Tool):
         self._start: Feature | None = None
         self.preview: Feature | None = None   # the selected feature as dragged, committed on release
 
+    def new_document(self) -> None:
+        self.selected, self.preview = None, None
+
     # -- document helpers -------------------------------------------------
 
     @property

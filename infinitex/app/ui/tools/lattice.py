@@ -59,6 +59,12 @@ class LatticeTool(Tool):
         self._preview_tex = None
         self.preview_pixels: np.ndarray | None = None  # the rectified block shown
 
+    def new_document(self) -> None:
+        self.draft, self.handle, self.cell = None, -1, None
+        self.detection, self.message = None, ""
+        self._fitted = self._preview_key = None
+        self.preview_pixels = None
+
     # -- data -----------------------------------------------------------------
 
     def image(self) -> np.ndarray | None:
