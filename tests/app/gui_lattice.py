@@ -126,6 +126,30 @@ def main(out: str) -> int:
               and abs(((cell.origin[0] - a[0]) / cell.t1[0]) - round((cell.origin[0] - a[0]) / cell.t1[0])) < 0.05
               and abs(((cell.origin[1] - a[1]) / cell.t2[1]) - round((cell.origin[1] - a[1]) / cell.t2[1])) < 0.05,
               str(cell))
+        # One brick marked by hand: the rows are staggered (running bond), and the
+        # panel offers their offset; one click gives the bricks' own lattice.
+        handles = ed.tool._handles(cell)
+        corners = [(lat.origin[0] + i * lat.t1[0] + j * lat.t2[0], lat.origin[1] + j * lat.t2[1])
+                   for j in (2, 3, 4) for i in (1, 2, 3)]
+        b = next(p for p in corners if 0 <= p[0] and p[0] + 40 < W and p[1] + 18 < H
+                 and min(abs(p[0] - hx) + abs(p[1] - hy) for hx, hy in handles) * z > 30)
+        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + b[0] * z, r.min.y + b[1] * z))
+        ctx.mouse_down(0)
+        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + (b[0] + 40) * z, r.min.y + (b[1] + 18) * z))
+        ctx.yield_(2)
+        ctx.mouse_up(0)
+        settle(ctx)
+        offer = ed.tool.proposal
+        check("a marked brick offers the rows' offset", offer is not None and abs(offer.t2[0] - 20) <= 1.5
+              and abs(offer.t2[1] - 18) < 1.0 and "staggered" in ed.tool.message, f"{offer} / {ed.tool.message!r}")
+        if offer is not None:
+            ctx.item_click(f"//**/Offset the rows by {offer.t2[0]:.0f} px")
+            settle(ctx)
+        staggered = ed.doc.lattice
+        check("one click gives staggered rows, one undo step", staggered is not None
+              and abs(staggered.t2[0] - 20) <= 1.5 and ed.history.undo_label() == "Offset lattice rows",
+              f"{staggered} / {ed.history.undo_label()}")
+
         # What the tool said of this document goes with it: another document opens clean.
         ed.tool.message = "a message about this document's lattice"
         ed.history.mark_saved()

@@ -64,7 +64,7 @@ def test_fast_input_is_never_lost(tmp_path, xdisplay):
 def test_lattice_tool_driven_by_the_test_engine(tmp_path, xdisplay):
     """Auto-detect places the handles on generated bricks; dragging a handle
     changes the rectified preview; undo restores it (tests/app/gui_lattice.py)."""
-    _drive("gui_lattice.py", tmp_path, xdisplay, 13)
+    _drive("gui_lattice.py", tmp_path, xdisplay, 15)
 
 
 def test_everyday_use_driven_by_the_test_engine(tmp_path, xdisplay):

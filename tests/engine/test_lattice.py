@@ -417,3 +417,21 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == f"lattice: {lat.to_text()}"
     assert np.array_equal(np.asarray(Image.open(tmp_path / "cli.png")), np.asarray(Image.open(tmp_path / "view.png")))
+
+
+def test_a_marked_cell_finds_the_rows_offset():
+    """A cell marked by hand over one running-bond brick (stack-bond vectors):
+    the rows' offset is found from the image; stacked tiles and a stochastic
+    image propose none."""
+    from lattice_gen import bricks, stochastic, tiles
+
+    from infinitex.engine.controls.lattice import row_offset
+    rng = np.random.default_rng(5)
+    img, _, _ = bricks(rng, side=256, bw=40, bh=18)
+    found = row_offset(img, 40, 18)
+    assert found is not None and abs(found[0] - 20) <= 1 and found[1] > found[2] + 0.1
+    img, _, _ = bricks(rng, side=256, bw=36, bh=16)
+    assert abs(row_offset(img, 36, 16)[0] - 18) <= 1
+    img, _, _ = tiles(rng, side=256, cell=32)
+    assert row_offset(img, 32, 32) is None
+    assert row_offset(stochastic(rng, side=256), 30, 20) is None

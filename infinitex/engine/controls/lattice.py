@@ -264,6 +264,36 @@ def autocorrelation_at(img: np.ndarray, v) -> float:
     return float((p * b).sum() / den) if den > 1e-12 else 0.0
 
 
+def row_offset(img: np.ndarray, w: float, h: float, margin: float = 0.1) -> tuple[float, float, float] | None:
+    """For a hand-marked cell w x h (px): the offset s of the next row that
+    makes the image most like itself shifted by (s, h), when it beats
+    stacked rows (s = 0) by ``margin`` in correlation: staggered rows
+    (running-bond bricks, shingles). (s, its correlation, the stacked rows')
+    or None. One FFT autocorrelation of the whole image, overlap-normalized."""
+    a = np.asarray(img, dtype=np.float64)
+    if a.ndim == 3:
+        a = a[:, :, :3].mean(axis=2) if a.shape[2] >= 3 else a[:, :, 0]
+    H, W = a.shape
+    hy = int(round(h))
+    if not 2 <= hy < H // 2 or w < 2 or w >= W // 2:
+        return None
+    a = a - a.mean()
+    size = (2 * H, 2 * W)
+    f = np.fft.rfft2(a, s=size)
+    ac = np.fft.irfft2(f * np.conj(f), s=size)
+    ones = np.fft.rfft2(np.ones((H, W)), s=size)
+    overlap = np.fft.irfft2(ones * np.conj(ones), s=size)
+    ac = ac / np.maximum(overlap, 1.0) / max(ac[0, 0] / (H * W), 1e-12)
+    row = ac[-hy % size[0]]  # shifts (s, h): the image below matches the one above moved by s
+    shifts = np.arange(int(np.ceil(w)))
+    values = row[-shifts % size[1]]
+    best = int(np.argmax(values))
+    stacked = float(values[0])
+    if best in (0, len(shifts) - 1) or values[best] < stacked + margin:
+        return None
+    return float(best), float(values[best]), stacked
+
+
 # -- back to the input's geometry ------------------------------------------------
 
 

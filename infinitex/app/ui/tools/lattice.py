@@ -23,6 +23,7 @@ from infinitex.engine.controls.lattice import (
     MIN_VECTOR,
     Lattice,
     LatticeError,
+    row_offset,
 )
 from infinitex.engine.controls.lattice_block import choose_block, fit_block
 from infinitex.engine.controls.lattice_detect import Detection, detect
@@ -58,10 +59,11 @@ class LatticeTool(Tool):
         self._preview_key = None
         self._preview_tex = None
         self.preview_pixels: np.ndarray | None = None  # the rectified block shown
+        self.proposal: Lattice | None = None  # staggered rows found after a cell was marked (a button offers it)
 
     def new_document(self) -> None:
         self.draft, self.handle, self.cell = None, -1, None
-        self.detection, self.message = None, ""
+        self.detection, self.message, self.proposal = None, "", None
         self._fitted = self._preview_key = None
         self.preview_pixels = None
 
@@ -137,6 +139,29 @@ class LatticeTool(Tool):
         old = self.ed.doc.lattice
         return fit_block((round(x0, 2), round(y0, 2)), (w, 0.0), (0.0, h), img.shape[1], img.shape[0],
                          levels=old.levels if old is not None else None)
+
+    def propose_offset(self, lat: Lattice) -> None:
+        """After a cell is marked: when the image's rows are staggered (the next
+        row matches this one shifted sideways: running-bond bricks, shingles),
+        propose that offset (a button in the panel) and say so."""
+        img = self.image()
+        w, h = lat.t1[0], lat.t2[1]
+        found = row_offset(img, w, h) if img is not None and lat.t1[1] == 0 and lat.t2[0] == 0 else None
+        self.proposal = None
+        if found is None:
+            return
+        s, staggered, stacked = found
+        old = self.ed.doc.lattice
+        self.proposal = fit_block(lat.origin, lat.t1, (s, h), img.shape[1], img.shape[0],
+                                  levels=old.levels if old is not None else None)
+        if self.proposal is not None:
+            self.message = (f"The rows look staggered: each row matches the one above shifted {s:.0f} px "
+                            f"(correlation {staggered:.2f}, against {stacked:.2f} stacked).")
+
+    def use_offset(self) -> None:
+        lat, self.proposal = self.proposal, None
+        if lat is not None:
+            self._commit(lat, "Offset lattice rows")
 
     def auto_detect(self) -> None:
         img = self.image()
@@ -242,6 +267,12 @@ class LatticeTool(Tool):
             imgui.push_text_wrap_pos(0)
             imgui.text_colored((1.0, 0.6, 0.4, 1.0), self.message)
             imgui.pop_text_wrap_pos()
+        if self.proposal is not None and self.proposal != ed.doc.lattice:
+            if imgui.button(f"Offset the rows by {self.proposal.t2[0]:.0f} px", (-1, 0)):
+                self.use_offset()
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Staggered rows (running bond, shingles): each row of cells starts half a cell "
+                                  "(or what the image shows) further along; one undo step")
         imgui.push_text_wrap_pos(0)
         imgui.text_disabled("In the Lattice window: drag a rectangle over one cell, or drag the handles "
                             "(the block shrinks to what fits).")
@@ -293,6 +324,7 @@ class LatticeTool(Tool):
                                 "that fits in the image.")
                 return
             self._commit(lat, "Mark lattice cell")
+            self.propose_offset(lat)
             return
         if self.draft is not None and self.draft != self.ed.doc.lattice:
             lat, self.draft = self.draft, None
