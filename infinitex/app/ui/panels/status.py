@@ -104,6 +104,10 @@ def progress_modals(p: Panels) -> None:
                 imgui.text_disabled(f"Starting {job.workers} worker{'s' * (job.workers > 1)}...")
         else:
             imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
+            if 0.02 < job.progress < 1.0 and elapsed > 2.0:  # time left, from the rate so far
+                imgui.text(f"About {duration_text(elapsed * (1.0 - job.progress) / job.progress)} left")
+            else:
+                imgui.text_disabled("Estimating the time left...")
         if streamed and job.cancelling:
             imgui.text_disabled("Stopping after the tiles being rendered...")
         elif imgui.button("Cancel", (120, 0)):
