@@ -39,6 +39,17 @@ def main(out: str) -> int:
         ctx.mouse_move("**/All levels")
         ctx.yield_(40)
         check("a tooltip explains the randomness", "every scale" in panels.LAST_TIP[0], panels.LAST_TIP[0])
+        # Dragging the slider hides its tooltip (it would cover the canvas being tuned).
+        from infinitex.app.ui.panels import widgets
+        ctx.mouse_down(0)
+        at = imgui.get_io().mouse_pos
+        ctx.mouse_move_to_pos(imgui.ImVec2(at.x + 30, at.y))  # along the slider, still over it
+        ctx.yield_(40)
+        shown_while_dragging = widgets.TIP_FRAME[0] >= imgui.get_frame_count() - 2
+        ctx.mouse_up(0)
+        ed.undo()
+        ctx.yield_(2)
+        check("no tooltip while a slider is dragged", not shown_while_dragging, "the tooltip stayed")
         for header in ("Randomness", "Exemplar", "Display"):  # make room: Advanced is the last section
             ctx.item_close(f"**/{header}")
         ctx.item_open("**/Advanced")

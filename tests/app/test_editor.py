@@ -72,7 +72,7 @@ def test_everyday_use_driven_by_the_test_engine(tmp_path, xdisplay):
     zoom keys, F1, tile mode,
     Open Recent, images as new documents, Make tileable, the title, Save before losing edits,
     the in-window file browser, the export notice (tests/app/gui_everyday.py)."""
-    _drive("gui_everyday.py", tmp_path, xdisplay, 30)
+    _drive("gui_everyday.py", tmp_path, xdisplay, 31)
     # On exit the editor kept the window size, the open side-panel sections and
     # the recent files for the next run.
     import json
