@@ -107,6 +107,105 @@ class StreamedExport:
         return self.finished
 
 
+def _window_export_worker(project_json: str, rect: tuple, out_path: str, options: dict, progress, cancel,
+                          answer) -> None:
+    """A window export in a process of its own (BackgroundExport): the
+    document loaded on its own GL context (the analysis from the disk
+    cache), then ExportJob to the end; ``progress`` a shared fraction,
+    ``cancel`` an event, ``answer`` a pipe for (kind, detail)."""
+    from infinitex.engine.gpu import Gpu
+    from infinitex.project import parse_project_json, project_from_json
+
+    from .loaded import LoadedDocument
+    from .window import ExportJob
+    gpu = session = None
+    try:
+        doc = project_from_json(parse_project_json(project_json.encode("utf-8"))).document
+        gpu = Gpu()
+        session = LoadedDocument(gpu)
+        session.load_now(doc)
+        job = ExportJob(session, Rect(*rect), out_path, **options)
+        while not job.step(0.2):
+            progress.value = job.progress
+            if cancel.is_set():
+                job.cancel()
+                answer.send(("cancelled", None))
+                return
+        answer.send(("error", job.error) if job.error else ("ok", None))
+    except Exception as exc:  # noqa: BLE001 - one line for the editor
+        answer.send(("error", (str(exc).strip().splitlines() or [type(exc).__name__])[0]))
+    finally:
+        if session is not None:
+            session.release()
+        if gpu is not None:
+            gpu.release()
+
+
+class BackgroundExport:
+    """A window export (the view, a rectangle, a toroidal tile: one image or
+    one file a map) run in a process of its own with its own GL context, so
+    the editor stays live (the canvas pans and paints meanwhile). Checked
+    first in the editor (``checked``: the ExportJob made there, released at
+    once: its outputs and rectangle); the UI polls ``progress``,
+    ``finished``, ``error``; ``cancel`` stops it (nothing is written)."""
+
+    def __init__(self, doc: Document, checked, options: dict):
+        self.outputs, self.out_rect, self.out_path = checked.outputs, checked.out_rect, checked.out_path
+        self.coords_path = checked.coords_path
+        ctx = multiprocessing.get_context("spawn")
+        self._progress = ctx.Value("d", 0.0, lock=False)
+        self._cancel = ctx.Event()
+        self._recv, send = ctx.Pipe(duplex=False)
+        project = json.dumps(project_to_json(Project(doc), embed=True))
+        r = checked.out_rect
+        self.proc = ctx.Process(target=_window_export_worker, daemon=True,
+                                args=(project, (r.x0, r.y0, r.x1, r.y1), self.out_path, options, self._progress,
+                                      self._cancel, send))
+        self._send = send
+        self.started = time.monotonic()
+        self.finished = self.cancelled = self.done = False
+        self.error: str | None = None
+        self.thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        """Start the process (an export waiting in the editor's queue starts later)."""
+        self.started = time.monotonic()
+        self.proc.start()
+        self._send.close()
+        self.thread = threading.Thread(target=self._wait, name="background-export", daemon=True)
+        self.thread.start()
+
+    def _wait(self) -> None:
+        try:
+            kind, detail = self._recv.recv()
+        except (EOFError, OSError):
+            kind, detail = "error", "the export's process ended without finishing"
+        self.proc.join()
+        if kind == "cancelled":
+            self.cancelled = True
+        elif kind == "error":
+            self.error = detail or "The export failed."
+        self.finished = self.done = True
+
+    @property
+    def progress(self) -> float:
+        return 1.0 if self.finished and not self.error else float(self._progress.value)
+
+    def seconds_left(self) -> float | None:
+        p, elapsed = self.progress, time.monotonic() - self.started
+        return elapsed * (1.0 - p) / p if 0.02 < p < 1.0 and elapsed > 2.0 else None
+
+    def cancel(self) -> None:
+        self._cancel.set()
+        if self.thread is None:  # never started
+            self.cancelled = self.finished = self.done = True
+
+    def wait(self, timeout: float | None = None) -> bool:
+        if self.thread is not None:
+            self.thread.join(timeout)
+        return self.finished
+
+
 class ExportEstimate:
     """The size and time of a streamed export, estimated before it starts:
     one worker process (as the export uses) renders and encodes a tile, in

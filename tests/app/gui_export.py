@@ -26,6 +26,7 @@ from gui_harness import Harness  # noqa: E402
 
 TIFF_RECT = [-300, 1000, 1000, 700]
 TILES_RECT = [4000, -2000, 1280, 1024]
+APART_RECTS = ([500, 500, 1280, 1024], [-700, 300, 256, 192])  # PNG exports in processes of their own
 
 
 def choose(ctx, combo: str, item: str) -> None:
@@ -128,6 +129,33 @@ def main(out: str) -> int:
         ed.export_rect = [0, 0, 20000, 100]
         ctx.yield_(3)
         check("too large for one PNG is said, not attempted", ed.export_format == "png", ed.export_format)
+
+        # A PNG export runs in a process of its own: the canvas stays live (a
+        # pan refines meanwhile) and a second export waits in the queue.
+        from infinitex.project import View
+        names = [os.path.join(out, f"apart{i}.png") for i in (1, 2)]
+        for rect, name in zip(APART_RECTS, names):
+            ed.export_rect = list(rect)
+            ctx.yield_(2)
+            ctx.item_click("**/Export rectangle...")
+            ctx.yield_(2)
+            ctx.item_input_value("//**/##path", name)
+            ctx.yield_(2)
+        check("a PNG export runs in a process of its own", type(ed.export_job).__name__ == "BackgroundExport",
+              repr(ed.export_job))
+        check("a second export waits in the queue", len(ed.export_queue) == 1, str(ed.export_queue))
+        v0 = ed.view
+        ed.view = View(v0.x + 400, v0.y, v0.zoom)
+        frames0, t0 = ed.frame_count, time.monotonic()
+        refined = wait(ctx, lambda: ed.refined, 120)
+        busy = ed.export_job is not None
+        check("the canvas refines a pan while the export runs", refined and busy,
+              f"refined {refined}, still exporting {busy}, {ed.frame_count - frames0} frames in "
+              f"{time.monotonic() - t0:.1f} s")
+        done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 300)
+        check("both exports are written, in order", done and all(os.path.isfile(n) for n in names)
+              and os.path.getmtime(names[0]) <= os.path.getmtime(names[1]) and ed.notice is not None
+              and os.path.abspath(names[1]) in ed.notice[0], f"{done} {ed.notice}")
 
     return h.run(test, watchdog_s=900)
 

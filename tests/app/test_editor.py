@@ -87,7 +87,7 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     (tests/app/gui_export.py). The files equal the one-piece render."""
     import numpy as np
     import tifffile
-    from gui_export import TIFF_RECT, TILES_RECT
+    from gui_export import APART_RECTS, TIFF_RECT, TILES_RECT
 
     from infinitex.engine.analysis import analyze
     from infinitex.engine.exemplar import load_exemplar
@@ -96,7 +96,7 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     from infinitex.engine.synth import Synthesizer
     from infinitex.export import read_tiles
     from infinitex.project import Document, ExemplarSource
-    _drive("gui_export.py", tmp_path, xdisplay, 10)
+    _drive("gui_export.py", tmp_path, xdisplay, 14)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     an = analyze(load_exemplar(gravel))
     synth = Synthesizer(an, Document(ExemplarSource.from_file(gravel)).params(an.L), gpu=gpu)  # the editor's
@@ -105,6 +105,10 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     x, y, w, h = TILES_RECT
     whole = to_u8(synth.colors(synth.window(Rect.of(x, y, w, h))))
     assert np.array_equal(read_tiles(str(tmp_path / "set.png"), w, h, 256, 1), whole)
+    from PIL import Image
+    for i, rect in enumerate(APART_RECTS, 1):  # the PNG exports made in processes of their own
+        one = to_u8(synth.colors(synth.window(Rect.of(*rect))))[..., 0]
+        assert np.array_equal(np.asarray(Image.open(tmp_path / f"apart{i}.png")), one)
 
 
 def test_tile_set_dialog_driven_by_the_test_engine(tmp_path, xdisplay):

@@ -29,7 +29,7 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 from infinitex.engine.gpu import GLUnavailable, Gpu
 from infinitex.engine.pyramid import SynthesisError
 from infinitex.engine.safeio import WriteError, printable
-from infinitex.export.jobs import ExportEstimate, StreamedExport
+from infinitex.export.jobs import BackgroundExport, ExportEstimate, StreamedExport
 from infinitex.export.window import ExportJob
 from infinitex.project import Autosave, Display, Document, History, View
 
@@ -112,7 +112,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
             self.dialogs.last_dir = os.path.dirname(self.settings.recent[0])
         self.autosave = Autosave()
         self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
-        self.export_job: ExportJob | StreamedExport | None = None
+        self.export_job: ExportJob | StreamedExport | BackgroundExport | None = None
+        self.export_queue: list[BackgroundExport] = []  # window exports waiting for the running one
         self.export_rect = [0, 0, 2048, 2048]
         self.export_format = "png"       # png (one image, in memory) | tiles (UDIM PNG set) | tiff (BigTIFF)
         self.stream_tile = 1024          # tile size of the streamed formats
@@ -462,11 +463,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
         self._update_title()
         # Worker processes doing the work (a streamed export, an estimate) need
         # the cores more than a full frame rate: a few frames a second show progress.
-        background = (isinstance(self.export_job, StreamedExport)
+        background = (self.exporting_apart()
                       or (self.estimate is not None and not self.estimate.poll()))
         self._idle_fps = BACKGROUND_FPS if background else IDLE_FPS
         analyzing = self.pending is not None or (self.session is not None and self.session.job is not None)
-        working = (self.export_job is not None and not isinstance(self.export_job, StreamedExport)
+        working = (self.export_job is not None and not self.exporting_apart()
                    or self.panels.tileset.building)
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)

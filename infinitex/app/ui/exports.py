@@ -17,7 +17,7 @@ from infinitex.engine.material import export_depths, map_path, output_paths
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.export import check_zarr_output, udim_name
-from infinitex.export.jobs import StreamedExport
+from infinitex.export.jobs import BackgroundExport, StreamedExport
 from infinitex.export.window import (
     ExportJob,
     Writes,
@@ -97,15 +97,13 @@ class ExportsMixin:
                         writes, self._asked(chosen, path), lambda: self.start_export(path, rect, toroidal, True)):
                     return
             geometry = "original" if self.geometry() is not None else "rectified"  # what the canvas shows
-            job = ExportJob(self.session, rect, path, toroidal=toroidal, coords_path=coords,
-                            geometry=geometry, depth=self.export_depth, magnify=1 if coords else self.export_magnify)
-            try:
-                for _, out, _ in job.outputs:
-                    check_output(out, (".png", ".tif"), "export")
-            except WriteError:
-                job.cancel()
-                raise
-            self.export_job = job
+            options = dict(toroidal=toroidal, coords_path=coords, geometry=geometry, depth=self.export_depth,
+                           magnify=1 if coords else self.export_magnify)
+            job = ExportJob(self.session, rect, path, **options)
+            job.cancel()  # it checked the export; the export itself runs in a process of its own
+            for _, out, _ in job.outputs:
+                check_output(out, (".png", ".tif"), "export")
+            self.queue_export(BackgroundExport(self.doc, job, options))
         except (SynthesisError, ValueError, WriteError) as exc:  # OwnInputError, MaterialError are ValueErrors
             self.dialogs.message("Export", str(exc))
 
@@ -161,9 +159,45 @@ class ExportsMixin:
             job.cancel()
             self.dialogs.message("Export", str(exc))
 
+    def exporting_apart(self) -> bool:
+        """The running export works in other processes (the editor stays live)."""
+        return isinstance(self.export_job, (StreamedExport, BackgroundExport))
+
+    def queue_export(self, job: BackgroundExport) -> None:
+        """Start a window export now, or after the ones before it."""
+        if self.export_job is None:
+            job.start()
+            self.export_job = job
+        else:
+            self.export_queue.append(job)
+            self.notice = (f"Export queued ({len(self.export_queue)} waiting): "
+                           f"{os.path.basename(job.out_path)}", time.monotonic())
+
+    def _next_export(self) -> None:
+        if self.export_job is None and self.export_queue:
+            job = self.export_queue.pop(0)
+            job.start()
+            self.export_job = job
+
     def _poll_export(self) -> None:
         """A streamed export's progress, or a window export's next slice; a notice once it ends."""
-        if isinstance(self.export_job, StreamedExport):
+        self._next_export()
+        if isinstance(self.export_job, BackgroundExport):
+            job = self.export_job
+            if job.finished:
+                self.export_job = None
+                if job.error:
+                    self.dialogs.message("Export failed", job.error)
+                elif job.cancelled:
+                    self.notice = (f"Export of {os.path.basename(job.out_path)} cancelled", time.monotonic())
+                else:
+                    r = job.out_rect
+                    names = [os.path.abspath(o) for _, o, _ in job.outputs]
+                    where = names[0] if len(names) == 1 else f"{len(names)} maps ({', '.join(names)})"
+                    extra = f" and {os.path.abspath(job.coords_path)}" if job.coords_path else ""
+                    self.notice = (f"Exported {r.w}x{r.h} to {where}{extra}", time.monotonic())
+                self._next_export()
+        elif isinstance(self.export_job, StreamedExport):
             job = self.export_job
             if job.finished:
                 self.export_job = None
@@ -197,9 +231,13 @@ class ExportsMixin:
 
     def _stop_exports(self) -> None:
         """On exit: cancel the running export and close the estimate's workers."""
+        for job in self.export_queue:
+            job.cancel()
         if self.export_job is not None:
             self.export_job.cancel()
             if isinstance(self.export_job, StreamedExport):
                 self.export_job.wait(120)  # the tiles being rendered finish; every finished one is kept
+            elif isinstance(self.export_job, BackgroundExport):
+                self.export_job.wait(30)
         if self.estimate is not None:
             self.estimate.close(wait=10.0)

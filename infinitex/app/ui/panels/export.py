@@ -158,7 +158,7 @@ def rectangle(p: Panels) -> None:
         imgui.push_text_wrap_pos(0)
         imgui.text_colored((1.0, 0.55, 0.35, 1.0), problem)
         imgui.pop_text_wrap_pos()
-    imgui.begin_disabled(problem is not None or ed.export_job is not None)
+    imgui.begin_disabled(problem is not None or (ed.export_job is not None and (streamed or not ed.exporting_apart())))
     if imgui.button("Export rectangle...", (-1, 0)):
         r = Rect.of(x, y, w, h)
         if streamed:

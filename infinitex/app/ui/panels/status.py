@@ -66,18 +66,33 @@ def canvas_overlay(p: Panels, p0, w, h) -> None:
 
 
 def progress_modals(p: Panels) -> None:
+    """The tile dialogs, and the running export's progress: a modal window
+    while it runs in the editor's own frames (a model export), a window of
+    its own beside the canvas while it runs in other processes (the canvas
+    stays live)."""
     p.tile_prompt_window()
     p.tileset_window()
     ed = p.ed
     job = ed.export_job
     name = "Exporting###export"
-    if job is None:
-        if p._export_popup:  # the export ended: close its window
+    apart = job is not None and ed.exporting_apart()
+    if job is None or apart:
+        if p._export_popup:  # the modal export ended: close its window
             opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
             if opened:
                 imgui.close_current_popup()
                 imgui.end_popup()
             p._export_popup = False
+        if apart:
+            vp = imgui.get_main_viewport()
+            imgui.set_next_window_pos((vp.pos.x + vp.size.x - 16, vp.pos.y + vp.size.y - 40), imgui.Cond_.always,
+                                      (1.0, 1.0))
+            imgui.set_next_window_size((420, 0))
+            flags = (imgui.WindowFlags_.no_saved_settings | imgui.WindowFlags_.no_collapse
+                     | imgui.WindowFlags_.no_focus_on_appearing | imgui.WindowFlags_.no_move)
+            if imgui.begin(name, None, flags)[0]:
+                _progress(ed, job)
+            imgui.end()
         return
     if not p._export_popup:
         imgui.open_popup(name)
@@ -87,35 +102,48 @@ def progress_modals(p: Panels) -> None:
     imgui.set_next_window_size((420, 0))
     opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
     if opened:
-        imgui.text(f"{os.path.basename(job.out_path)}: {job.out_rect.w} x {job.out_rect.h}")
-        elapsed = time.monotonic() - job.started
-        streamed = hasattr(job, "done_tiles")
-        if streamed:
-            total = job.job.total
-            label = f"{job.done_tiles} / {total} tiles  ({elapsed:.0f} s)"
-            imgui.progress_bar(job.progress, (-1, 0), label)
-            rate, left = job.rate(), job.seconds_left()
-            if job.kept:
-                imgui.text_disabled(f"{job.kept} tiles kept from an earlier run")
-            if rate is not None:
-                imgui.text(f"{rate / 1e6:.2f} Mpixel/s with {job.workers} worker{'s' * (job.workers > 1)}, "
-                           f"{'?' if left is None else duration_text(left)} left")
-            else:
-                imgui.text_disabled(f"Starting {job.workers} worker{'s' * (job.workers > 1)}...")
-        else:
-            imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
-            if 0.02 < job.progress < 1.0 and elapsed > 2.0:  # time left, from the rate so far
-                imgui.text(f"About {duration_text(elapsed * (1.0 - job.progress) / job.progress)} left")
-            else:
-                imgui.text_disabled("Estimating the time left...")
-        if streamed and job.cancelling:
-            imgui.text_disabled("Stopping after the tiles being rendered...")
-        elif imgui.button("Cancel", (120, 0)):
-            job.cancel()
-            if not streamed:
-                ed.export_job = None
-                imgui.close_current_popup()
-        if streamed and not job.cancelling:
-            tip("Stops after the tiles being rendered; they and every finished tile are kept, and the "
-                "same export continues from them")
+        if _progress(ed, job):
+            ed.export_job = None
+            imgui.close_current_popup()
         imgui.end_popup()
+
+
+def _progress(ed, job) -> bool:
+    """An export's name, progress, time left and Cancel; True when an export
+    running in the editor's frames was cancelled (it ends at once)."""
+    imgui.text(f"{os.path.basename(job.out_path)}: {job.out_rect.w} x {job.out_rect.h}")
+    elapsed = time.monotonic() - job.started
+    streamed = hasattr(job, "done_tiles")
+    apart = ed.exporting_apart()
+    if streamed:
+        total = job.job.total
+        label = f"{job.done_tiles} / {total} tiles  ({elapsed:.0f} s)"
+        imgui.progress_bar(job.progress, (-1, 0), label)
+        rate, left = job.rate(), job.seconds_left()
+        if job.kept:
+            imgui.text_disabled(f"{job.kept} tiles kept from an earlier run")
+        if rate is not None:
+            imgui.text(f"{rate / 1e6:.2f} Mpixel/s with {job.workers} worker{'s' * (job.workers > 1)}, "
+                       f"{'?' if left is None else duration_text(left)} left")
+        else:
+            imgui.text_disabled(f"Starting {job.workers} worker{'s' * (job.workers > 1)}...")
+    else:
+        imgui.progress_bar(job.progress, (-1, 0), f"{job.progress * 100:.0f} %  ({elapsed:.0f} s)")
+        if 0.02 < job.progress < 1.0 and elapsed > 2.0:  # time left, from the rate so far
+            imgui.text(f"About {duration_text(elapsed * (1.0 - job.progress) / job.progress)} left")
+        else:
+            imgui.text_disabled("Estimating the time left..." if job.progress < 1.0 else "Writing...")
+    if ed.export_queue:
+        imgui.text_disabled(f"{len(ed.export_queue)} more export{'s' * (len(ed.export_queue) > 1)} waiting")
+    if streamed and job.cancelling:
+        imgui.text_disabled("Stopping after the tiles being rendered...")
+        return False
+    if imgui.button("Cancel", (120, 0)):
+        job.cancel()
+        return not apart
+    if streamed:
+        tip("Stops after the tiles being rendered; they and every finished tile are kept, and the "
+            "same export continues from them")
+    elif apart:
+        tip("The export runs in a process of its own: the canvas stays live meanwhile. Cancel writes nothing")
+    return False
