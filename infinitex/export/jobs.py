@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import multiprocessing
+import os
 import shutil
 import threading
 import time
@@ -119,6 +120,10 @@ def _window_export_worker(project_json: str, rect: tuple, out_path: str, options
     from .loaded import LoadedDocument
     from .window import ExportJob
     gpu = session = None
+    try:
+        os.nice(19)  # the editor's frames first: the export takes what the cores have left
+    except (AttributeError, OSError):
+        pass
     try:
         doc = project_from_json(parse_project_json(project_json.encode("utf-8"))).document
         gpu = Gpu()
