@@ -65,6 +65,9 @@ ANALYSIS_FPS = 8.0    # while only the analysis thread works (nothing to refine)
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
 
 
+TYPING_BUDGET_S = 0.004  # the refinement's share of a frame while the user types
+
+
 class FramePacer:
     """Learns what a busy frame costs besides the synthesis (drawing, the UI,
     an edit), so that the refinement's budget keeps frames near FRAME_S."""
@@ -82,7 +85,10 @@ class FramePacer:
 
     @property
     def budget_s(self) -> float:
-        """The synthesis budget of this frame."""
+        """The synthesis budget of this frame; the least while a text field
+        takes keys (a file name typed in the chooser: every key shows at once)."""
+        if imgui.get_io().want_text_input:
+            return TYPING_BUDGET_S
         return min(REST_BUDGET_S, max(0.006, FRAME_S - self._other_s))
 
 
