@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 import numpy as np
 
@@ -230,10 +231,10 @@ def main(out: str) -> int:
         ctx.yield_(2)
         tile_path = os.path.join(out, "tile.png")
         ctx.item_input_value("//**/##path", tile_path)
-        for _ in range(2000):
+        t0 = time.monotonic()  # the export runs in a process of its own: seconds to start on a busy machine
+        while ed.export_job is not None and time.monotonic() - t0 < 180:
             ctx.yield_()
-            if ed.export_job is None:
-                break
+            time.sleep(0.01)
         ctx.yield_(3)
         ok = os.path.isfile(tile_path) and os.path.isfile(os.path.join(out, "tile_coords.png"))
         check("toroidal tile exported", ok, "missing files")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
@@ -200,10 +201,11 @@ def main(out: str) -> int:
         ctx.menu_click("File/Export view as PNG...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
-        for _ in range(600):
+        t0 = time.monotonic()  # the export runs in a process of its own: seconds to start on a busy machine
+        while ed.export_job is not None and time.monotonic() - t0 < 180:
             ctx.yield_()
-            if ed.export_job is None:
-                break
+            time.sleep(0.01)
+        ctx.yield_(2)
         check("an export says where it wrote", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
               and os.path.isfile(target), str(ed.notice))
         testing.capture(ctx, os.path.join(out, "everyday.png"))

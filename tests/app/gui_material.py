@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
@@ -112,10 +113,10 @@ def main(out: str) -> int:
         ctx.menu_click("File/Export view as PNG...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
-        for _ in range(2000):
+        t0 = time.monotonic()  # the export runs in a process of its own: seconds to start on a busy machine
+        while ed.export_job is not None and time.monotonic() - t0 < 180:
             ctx.yield_()
-            if ed.export_job is None:
-                break
+            time.sleep(0.01)
         names = sorted(n for n in os.listdir(out) if n.startswith("view"))
         check("File > Export view writes every map", names == ["view_basecolor.png", "view_height.png",
                                                                "view_normal.png"]

@@ -350,6 +350,7 @@ def FakeEditor(doc, project_path=None):
     ed = Ed()
     ed.history, ed.view, ed.display, ed.project_path = History(doc), View(), Display(), project_path
     ed.dialogs, ed.autosave, ed.settings, ed.pending = FakeDialogs(), Autosave(), Settings(), None
+    ed.tools = []  # (the canvas tools: none without a window)
     return ed
 
 
