@@ -41,6 +41,19 @@ def main(out: str) -> int:
 
     def test(ctx) -> None:
         settle(ctx)
+        # A large PNG export first (in a process of its own): the tile set will wait behind it.
+        ctx.set_ref("//Infinitex")
+        for header in ("Randomness", "Exemplar", "Display"):
+            ctx.item_close(f"**/{header}")
+        ctx.item_open("**/Export")
+        ctx.yield_(2)
+        ed.export_rect = [0, 0, 2048, 2048]
+        ctx.yield_(2)
+        ctx.item_click("**/Export rectangle...")
+        ctx.yield_(2)
+        ctx.item_input_value("//**/##path", os.path.join(out, "big.png"))
+        ctx.yield_(2)
+        check("a large export runs apart", type(ed.export_job).__name__ == "BackgroundExport", repr(ed.export_job))
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Export tile set for game engines...")
         ctx.yield_(3)
@@ -72,9 +85,11 @@ def main(out: str) -> int:
         ctx.set_ref("//Infinitex")
         ctx.item_input_value("//**/##path", target)
         ctx.yield_(2)
-        done = wait(ctx, lambda: ed.export_job is None, 120)
+        check("the tile set waits behind the running export", len(ed.export_queue) == 1
+              and type(ed.export_job).__name__ == "BackgroundExport", f"{ed.export_job} {ed.export_queue}")
+        done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 300)
         ctx.yield_(2)
-        files = ["set.png", "set.json", "set_preview.png"]
+        files = ["big.png", "set.png", "set.json", "set_preview.png"]
         check("the set is written", done and all(os.path.isfile(os.path.join(out, f)) for f in files),
               str(os.listdir(out)))
         check("the notice says where", ed.notice is not None and os.path.abspath(target) in ed.notice[0]

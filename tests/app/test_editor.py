@@ -118,7 +118,7 @@ def test_tile_set_dialog_driven_by_the_test_engine(tmp_path, xdisplay):
     from PIL import Image
 
     from clirun import infinitex
-    _drive("gui_tileset.py", tmp_path, xdisplay, 9)
+    _drive("gui_tileset.py", tmp_path, xdisplay, 11)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     (tmp_path / "cli").mkdir()
     r = infinitex("export", gravel, "-o", tmp_path / "cli" / "set.png", "--wang", "2", "--tile", "64", "-q")

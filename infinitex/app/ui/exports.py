@@ -154,7 +154,7 @@ class ExportsMixin:
                     writes, self._asked(chosen, path),
                     lambda: self.start_tileset_export(path, job, per_tile, seed, True)):
                 return
-            self.export_job = job
+            self.queue_export(job)
         except (SynthesisError, ValueError, WriteError) as exc:
             job.cancel()
             self.dialogs.message("Export", str(exc))
@@ -163,10 +163,11 @@ class ExportsMixin:
         """The running export works in other processes (the editor stays live)."""
         return isinstance(self.export_job, (StreamedExport, BackgroundExport))
 
-    def queue_export(self, job: BackgroundExport) -> None:
-        """Start a window export now, or after the ones before it."""
+    def queue_export(self, job) -> None:
+        """Start an export now, or after the ones before it (a window export's
+        process starts then; a tile set or a model export is stepped then)."""
         if self.export_job is None:
-            job.start()
+            getattr(job, "start", lambda: None)()
             self.export_job = job
         else:
             self.export_queue.append(job)
@@ -176,7 +177,7 @@ class ExportsMixin:
     def _next_export(self) -> None:
         if self.export_job is None and self.export_queue:
             job = self.export_queue.pop(0)
-            job.start()
+            getattr(job, "start", lambda: None)()
             self.export_job = job
 
     def _poll_export(self) -> None:

@@ -143,7 +143,7 @@ class ModelModeMixin:
                 job.cancel()  # its synthesis's GL textures
             self.dialogs.message("Export model", str(exc))
             return
-        self.export_job = job
+        self.queue_export(job)
 
     # -- the canvas ---------------------------------------------------------------
 
