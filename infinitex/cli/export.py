@@ -435,35 +435,35 @@ def _run_tileset(session, plan, view, roles, args, renderer: str) -> int:
     except TileSetError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     job = TileSetJob(session, plan, args.output, maps=roles, depth=args.depth, per_tile=args.per_tile)
-    t0 = time.perf_counter()
-    progress = ProgressBar("tile set", args.quiet)
-    try:
-        job.run(progress)
-    except KeyboardInterrupt:
-        job.cancel()
-        raise
+    seconds = _run_job(job, "tile set", args.quiet)
     if not args.quiet:
-        names = ", ".join(printable(os.path.basename(p)) for p in job.writes[:len(job.outputs) + 2])
+        files = [p for _, p, _ in job.outputs] + [job.paths["json"], job.paths["preview"]]
+        names = ", ".join(printable(os.path.basename(p)) for p in files)
         kind = (f"corner Wang, {plan.colors} colours" if plan.colors > 1 else "variants of one toroidal tile")
         each = ", and each tile's own file" if args.per_tile else ""
         sys.stderr.write(f"{names}: {plan.count} tiles of {plan.tile} px ({kind}{each}) in "
-                         f"{time.perf_counter() - t0:.1f} s ({renderer})\n")
+                         f"{seconds:.1f} s ({renderer})\n")
     return 0
 
 
-def _run(job, args, rect, renderer: str) -> int:
+def _run_job(job, label: str, quiet: bool) -> float:
+    """Run an in-memory export job to the end with a progress bar (Ctrl+C
+    cancels it); its seconds."""
     t0 = time.perf_counter()
-    progress = ProgressBar("export", args.quiet)
-
     try:
-        job.run(progress)
+        job.run(ProgressBar(label, quiet))
     except KeyboardInterrupt:
         job.cancel()
         raise
+    return time.perf_counter() - t0
+
+
+def _run(job, args, rect, renderer: str) -> int:
+    seconds = _run_job(job, "export", args.quiet)
     if not args.quiet:
         names = ", ".join(printable(os.path.basename(p)) for _, p, _ in job.outputs)
         scale = f", magnified {args.magnify}x" if args.magnify > 1 else ""
-        sys.stderr.write(f"{names}: {rect.w}x{rect.h}{scale} in {time.perf_counter() - t0:.1f} s ({renderer})\n")
+        sys.stderr.write(f"{names}: {rect.w}x{rect.h}{scale} in {seconds:.1f} s ({renderer})\n")
     return 0
 
 

@@ -14,11 +14,11 @@ from dataclasses import replace
 import numpy as np
 
 from infinitex.engine.imagefile import write_image
-from infinitex.engine.material import MaterialError, export_depths, output_paths
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import atomic_write
 
 from .loaded import LoadedDocument
+from .window import export_outputs
 from .wang import TileSetBuilder, TileSetError, TileSetPlan, assemble
 
 PREVIEW_TILES = 8       # the preview: a random valid arrangement of 8 x 8 tiles
@@ -101,12 +101,7 @@ class TileSetJob:
                    per_tile: bool = False, preview_seed: int = 0) -> None:
         """Where (and how) the set is written: every map's atlas at ``out_path``
         (``OUT_ROLE.png`` for a material), its description and preview beside it."""
-        mat = self.material
-        roles = mat.roles if maps is None else maps
-        try:
-            self.outputs = output_paths(out_path, roles, export_depths(mat, roles, depth, out_path))
-        except MaterialError as exc:
-            raise SynthesisError(str(exc)) from None
+        self.outputs = export_outputs(self.material, out_path, maps, depth)
         self.out_path, self.per_tile, self.preview_seed = out_path, per_tile, preview_seed
         self.paths = set_paths(out_path)
         cols, rows = self.plan.grid

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -184,6 +185,15 @@ class TileSetBuilder:
         self.work_total = 1
         self.work_done = 0
 
+    @cached_property
+    def _grid(self) -> tuple[np.ndarray, ...]:
+        """A tile's pixel rows y, columns x, distances to the nearer side
+        edge, to the nearer top or bottom edge, and to the nearest edge."""
+        n = self.plan.tile
+        y, x = np.mgrid[:n, :n]
+        lr, tb = np.minimum(x, n - 1 - x), np.minimum(y, n - 1 - y)
+        return y, x, lr, tb, np.minimum(lr, tb)
+
     # -- windows of the canvas ---------------------------------------------------
 
     def _window(self, rel: Rect) -> Iterator:
@@ -269,8 +279,7 @@ class TileSetBuilder:
         n, m, r = self.plan.tile, self.plan.margin, self.reach
         top, bottom = strips["h", nw, ne][r:], strips["h", sw, se][:r]
         left, right = strips["v", nw, sw][:, r:], strips["v", ne, se][:, :r]
-        y, x = np.mgrid[:n, :n]
-        lr, tb = np.minimum(x, n - 1 - x), np.minimum(y, n - 1 - y)
+        y, x, lr, tb, _ = self._grid
         use_v = (lr < m) | ((lr < r) & (lr < tb) & (tb >= m))
         use_h = ~use_v & (tb < r)
         out = np.zeros((n, n, top.shape[2]), np.int32)
@@ -288,8 +297,7 @@ class TileSetBuilder:
         least-cost cut in the ring between margin and margin + band."""
         n, m, bw = self.plan.tile, self.plan.margin, self.plan.band
         inner = yield from self._window(Rect(0, 0, n, n))
-        y, x = np.mgrid[:n, :n]
-        d = np.minimum(np.minimum(y, x), np.minimum(n - 1 - y, n - 1 - x))
+        y, x, _, _, d = self._grid
         ring = d < m + bw
         looks = self.appearance(frame[ring][None])[0], self.appearance(inner[ring][None])[0]
         fa, ia = (np.zeros((n, n, look.shape[-1]), np.float32) for look in looks)

@@ -35,6 +35,16 @@ def colors_u8(stack: np.ndarray, coords: np.ndarray, level: int, wrap: bool = Tr
     return sample(stack[level], coords, wrap)
 
 
+def export_outputs(material, out_path: str, maps: list[str] | None, depth: int | None) -> list[tuple[str, str, int]]:
+    """[(role, path, depth)] an export of ``maps`` (default every map) to
+    ``out_path`` writes; SynthesisError (one sentence) when it cannot."""
+    roles = material.roles if maps is None else maps
+    try:
+        return output_paths(out_path, roles, export_depths(material, roles, depth, out_path))
+    except MaterialError as exc:
+        raise SynthesisError(str(exc)) from None
+
+
 class ExportJob:
     """Synthesize a rectangle (or a toroidal tile) tile by tile, within a time
     budget per ``step`` so the editor stays live; then write PNGs atomically.
@@ -54,11 +64,7 @@ class ExportJob:
             raise SynthesisError(f"Magnification is one of {', '.join(map(str, MAGNIFY_FACTORS))}, not {magnify}.")
         self.magnify = magnify
         mat = session.material
-        roles = mat.roles if maps is None else maps
-        try:
-            self.outputs = output_paths(out_path, roles, export_depths(mat, roles, depth, out_path))
-        except MaterialError as exc:
-            raise SynthesisError(str(exc)) from None
+        self.outputs = export_outputs(mat, out_path, maps, depth)
         if magnify > 1:
             if coords_path:
                 raise SynthesisError("The coordinate map is exported at 1:1 (without magnification).")

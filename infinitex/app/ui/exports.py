@@ -192,11 +192,7 @@ class ExportsMixin:
                 elif job.cancelled:
                     self.notice = (f"Export of {os.path.basename(job.out_path)} cancelled", time.monotonic())
                 else:
-                    r = job.out_rect
-                    names = [os.path.abspath(o) for _, o, _ in job.outputs]
-                    where = names[0] if len(names) == 1 else f"{len(names)} maps ({', '.join(names)})"
-                    extra = f" and {os.path.abspath(job.coords_path)}" if job.coords_path else ""
-                    self.notice = (f"Exported {r.w}x{r.h} to {where}{extra}", time.monotonic())
+                    self.notice = (_written(job), time.monotonic())
                 self._next_export()
         elif isinstance(self.export_job, StreamedExport):
             job = self.export_job
@@ -224,11 +220,7 @@ class ExportsMixin:
                 elif not job.cancelled and hasattr(job, "summary"):  # a tile set
                     self.notice = (job.summary(), time.monotonic())
                 elif not job.cancelled:
-                    r = job.out_rect
-                    names = [os.path.abspath(o) for _, o, _ in job.outputs]
-                    where = names[0] if len(names) == 1 else f"{len(names)} maps ({', '.join(names)})"
-                    extra = f" and {os.path.abspath(job.coords_path)}" if job.coords_path else ""
-                    self.notice = (f"Exported {r.w}x{r.h} to {where}{extra}", time.monotonic())
+                    self.notice = (_written(job), time.monotonic())
 
     def _stop_exports(self) -> None:
         """On exit: cancel the running export and close the estimate's workers."""
@@ -242,3 +234,12 @@ class ExportsMixin:
                 self.export_job.wait(30)
         if self.estimate is not None:
             self.estimate.close(wait=10.0)
+
+
+def _written(job) -> str:
+    """Where a finished window (or model) export went, for the status bar."""
+    r = job.out_rect
+    names = [os.path.abspath(o) for _, o, _ in job.outputs]
+    where = names[0] if len(names) == 1 else f"{len(names)} maps ({', '.join(names)})"
+    extra = f" and {os.path.abspath(job.coords_path)}" if job.coords_path else ""
+    return f"Exported {r.w}x{r.h} to {where}{extra}"

@@ -12,7 +12,7 @@ from imgui_bundle import imgui
 from infinitex.engine.pyramid import Rect
 
 from ..dialogs import PNG_FILTER, TIFF_FILTER, ZARR_FILTER
-from .widgets import size_combo, tip
+from .widgets import modal_prompt, size_combo, tip
 
 if TYPE_CHECKING:
     from . import Panels
@@ -198,18 +198,8 @@ def tile_prompt(p: Panels) -> None:
 
 def tile_prompt_window(p: Panels) -> None:
     ed = p.ed
-    name = "Export toroidal tile###tileprompt"
-    if p._tile_prompt == 1:
-        imgui.open_popup(name)
-        p._tile_prompt = 2
+    p._tile_prompt = modal_prompt("Export toroidal tile###tileprompt", p._tile_prompt, 380)
     if not p._tile_prompt:
-        return
-    vp = imgui.get_main_viewport()
-    imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 3), imgui.Cond_.always, (0.5, 0.5))
-    imgui.set_next_window_size((380, 0))
-    opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
-    if not opened:
-        p._tile_prompt = 0
         return
     ed.tile_size = size_combo("Tile size", TILE_SIZES, ed.tile_size)
     tip("Side of the seamless tile, in pixels")

@@ -15,7 +15,7 @@ from infinitex.engine.pyramid import SynthesisError
 from infinitex.export.wang import MAX_VARIANTS, WANG_SIZES, TileSetError
 
 from ..dialogs import PNG_FILTER
-from .widgets import size_combo, tip
+from .widgets import modal_prompt, size_combo, tip
 
 if TYPE_CHECKING:
     from . import Panels
@@ -111,18 +111,8 @@ def _show_preview(p: Panels) -> None:
 
 def window(p: Panels) -> None:
     d, ed = p.tileset, p.ed
-    name = "Export tile set###tileset"
-    if d.state == 1:
-        imgui.open_popup(name)
-        d.state = 2
+    d.state = modal_prompt("Export tile set###tileset", d.state, PREVIEW_PX + 30, 1 / 2)
     if not d.state:
-        return
-    vp = imgui.get_main_viewport()
-    imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y / 2), imgui.Cond_.always, (0.5, 0.5))
-    imgui.set_next_window_size((PREVIEW_PX + 30, 0))
-    opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
-    if not opened:
-        d.state = 0
         return
     keys = [k for k, _, _ in KINDS]
     imgui.set_next_item_width(-90)

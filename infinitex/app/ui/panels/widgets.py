@@ -35,6 +35,23 @@ def tip(text: str) -> None:
         TIP_FRAME[0] = imgui.get_frame_count()
 
 
+def modal_prompt(name: str, state: int, width: float, height_frac: float = 1 / 3) -> int:
+    """A centred modal window with a state kept by its panel (1: open it
+    now, 2: open, 0: closed). Begins it when open (the caller draws it and
+    calls ``imgui.end_popup()``); returns the new state."""
+    if state == 1:
+        imgui.open_popup(name)
+        state = 2
+    if not state:
+        return 0
+    vp = imgui.get_main_viewport()
+    imgui.set_next_window_pos((vp.pos.x + vp.size.x / 2, vp.pos.y + vp.size.y * height_frac), imgui.Cond_.always,
+                              (0.5, 0.5))
+    imgui.set_next_window_size((width, 0))
+    opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
+    return 2 if opened else 0
+
+
 def size_combo(label: str, sizes, value: int) -> int:
     """A combo box of sizes (px); returns the one chosen."""
     imgui.set_next_item_width(-90)
