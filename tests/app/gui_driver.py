@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -26,7 +25,7 @@ from infinitex.engine.params import DEFAULT_STRUCTURE
 
 def main(out: str) -> int:
     h = Harness(out, window_size=(1000, 700))
-    ed, check, settle, canvas = h.ed, h.check, h.settle, h.canvas
+    ed, check, settle, canvas, wait = h.ed, h.check, h.settle, h.canvas, h.wait
 
     def test(ctx) -> None:
         settle(ctx)
@@ -231,10 +230,7 @@ def main(out: str) -> int:
         ctx.yield_(2)
         tile_path = os.path.join(out, "tile.png")
         ctx.item_input_value("//**/##path", tile_path)
-        t0 = time.monotonic()  # the export runs in a process of its own: seconds to start on a busy machine
-        while ed.export_job is not None and time.monotonic() - t0 < 180:
-            ctx.yield_()
-            time.sleep(0.01)
+        wait(ctx, lambda: ed.export_job is None, 180)  # an export in a process of its own
         ctx.yield_(3)
         ok = os.path.isfile(tile_path) and os.path.isfile(os.path.join(out, "tile_coords.png"))
         check("toroidal tile exported", ok, "missing files")

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 
 HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
@@ -30,7 +29,7 @@ BRICK = os.path.join(HERE, "infinitex", "assets", "brick.png")
 
 def main(out: str) -> int:
     h = Harness(out)
-    ed, check, settle, canvas = h.ed, h.check, h.settle, h.canvas
+    ed, check, settle, canvas, wait = h.ed, h.check, h.settle, h.canvas, h.wait
 
     def test(ctx) -> None:
         settle(ctx)
@@ -201,10 +200,7 @@ def main(out: str) -> int:
         ctx.menu_click("File/Export view as PNG...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
-        t0 = time.monotonic()  # the export runs in a process of its own: seconds to start on a busy machine
-        while ed.export_job is not None and time.monotonic() - t0 < 180:
-            ctx.yield_()
-            time.sleep(0.01)
+        wait(ctx, lambda: ed.export_job is None, 180)  # an export in a process of its own
         ctx.yield_(2)
         check("an export says where it wrote", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
               and os.path.isfile(target), str(ed.notice))

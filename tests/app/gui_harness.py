@@ -40,6 +40,18 @@ class Harness:
                 return
         raise RuntimeError("the editor did not settle")
 
+    @staticmethod
+    def wait(ctx, cond, seconds: float) -> bool:
+        """Frames until ``cond()`` holds or ``seconds`` pass (an export in a
+        process of its own takes seconds to start on a busy machine); whether it held."""
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < seconds:
+            if cond():
+                return True
+            ctx.yield_()
+            time.sleep(0.01)
+        return cond()
+
     def canvas(self, ctx):
         """The canvas read back exactly (RGB), by the editor itself during a frame."""
         self.settle(ctx)

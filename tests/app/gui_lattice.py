@@ -107,16 +107,23 @@ def main(out: str) -> int:
         check("the shrunk block fits", shrunk is not None and shrunk.validate(W, H) is None, str(shrunk))
         check("one undo step for the move", ed.history.undo_label() == "Move lattice origin", ed.history.undo_label())
 
+        def off_handles(points, lattice):
+            """The first point farther than 30 screen px from every handle."""
+            handles = ed.tool._handles(lattice)
+            return next(p for p in points if min(abs(p[0] - hx) + abs(p[1] - hy) for hx, hy in handles) * z > 30)
+
+        def mark(a, w, h):
+            """Drag a rectangle w x h image px from a (one cell marked by hand)."""
+            ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + a[0] * z, r.min.y + a[1] * z))
+            ctx.mouse_down(0)
+            ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + (a[0] + w) * z, r.min.y + (a[1] + h) * z))
+            ctx.yield_(2)
+            ctx.mouse_up(0)
+            settle(ctx)
+
         # A rectangle dragged over one cell defines the lattice.
-        handles = ed.tool._handles(shrunk)
-        a = next(p for p in [(W * f, H * g) for f in (0.1, 0.3, 0.6) for g in (0.1, 0.3)]
-                 if min(abs(p[0] - hx) + abs(p[1] - hy) for hx, hy in handles) * z > 30)
-        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + a[0] * z, r.min.y + a[1] * z))
-        ctx.mouse_down(0)
-        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + (a[0] + 30) * z, r.min.y + (a[1] + 24) * z))
-        ctx.yield_(2)
-        ctx.mouse_up(0)
-        settle(ctx)
+        a = off_handles([(W * f, H * g) for f in (0.1, 0.3, 0.6) for g in (0.1, 0.3)], shrunk)
+        mark(a, 30, 24)
         cell = ed.doc.lattice
         check("a rectangle over one cell defines the lattice", cell is not None
               and abs(cell.t1[0] - 30) < 1.0 and cell.t1[1] == 0 and cell.t2[0] == 0 and abs(cell.t2[1] - 24) < 1.0
@@ -128,17 +135,9 @@ def main(out: str) -> int:
               str(cell))
         # One brick marked by hand: the rows are staggered (running bond), and the
         # panel offers their offset; one click gives the bricks' own lattice.
-        handles = ed.tool._handles(cell)
         corners = [(lat.origin[0] + i * lat.t1[0] + j * lat.t2[0], lat.origin[1] + j * lat.t2[1])
                    for j in (2, 3, 4) for i in (1, 2, 3)]
-        b = next(p for p in corners if 0 <= p[0] and p[0] + 40 < W and p[1] + 18 < H
-                 and min(abs(p[0] - hx) + abs(p[1] - hy) for hx, hy in handles) * z > 30)
-        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + b[0] * z, r.min.y + b[1] * z))
-        ctx.mouse_down(0)
-        ctx.mouse_move_to_pos(imgui.ImVec2(r.min.x + (b[0] + 40) * z, r.min.y + (b[1] + 18) * z))
-        ctx.yield_(2)
-        ctx.mouse_up(0)
-        settle(ctx)
+        mark(off_handles([p for p in corners if 0 <= p[0] and p[0] + 40 < W and p[1] + 18 < H], cell), 40, 18)
         offer = ed.tool.proposal
         check("a marked brick offers the rows' offset", offer is not None and abs(offer.t2[0] - 20) <= 1.5
               and abs(offer.t2[1] - 18) < 1.0 and "staggered" in ed.tool.message, f"{offer} / {ed.tool.message!r}")

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 
 HERE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, HERE)
@@ -41,7 +40,7 @@ def main(out: str) -> int:
         paths[role] = os.path.join(out, f"pebbles_{role}.png")
         write_image(paths[role], maps[role], depth)
     h = Harness(out)
-    ed, check, settle, canvas = h.ed, h.check, h.settle, h.canvas
+    ed, check, settle, canvas, wait = h.ed, h.check, h.settle, h.canvas, h.wait
 
     def test(ctx) -> None:
         settle(ctx)
@@ -113,10 +112,7 @@ def main(out: str) -> int:
         ctx.menu_click("File/Export view as PNG...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
-        t0 = time.monotonic()  # the export runs in a process of its own: seconds to start on a busy machine
-        while ed.export_job is not None and time.monotonic() - t0 < 180:
-            ctx.yield_()
-            time.sleep(0.01)
+        wait(ctx, lambda: ed.export_job is None, 180)  # an export in a process of its own
         names = sorted(n for n in os.listdir(out) if n.startswith("view"))
         check("File > Export view writes every map", names == ["view_basecolor.png", "view_height.png",
                                                                "view_normal.png"]

@@ -30,14 +30,7 @@ def main(out: str) -> int:
     h = Harness(out)
     ed, check, settle = h.ed, h.check, h.settle
 
-    def wait(ctx, cond, seconds: float) -> bool:
-        t0 = time.monotonic()
-        while time.monotonic() - t0 < seconds:
-            if cond():
-                return True
-            ctx.yield_()
-            time.sleep(0.01)
-        return cond()
+    wait = h.wait
 
     def test(ctx) -> None:
         settle(ctx)
