@@ -526,3 +526,18 @@ def test_xatlas_failures_name_their_cause(tmp_path):
         assert "crashed on this mesh" in str(exc) and "GB" not in str(exc)
     else:
         assert len(m.faces) == len(ico.faces)
+
+
+def test_what_a_model_names_is_bounded_in_size(tmp_path, monkeypatch):
+    """An OBJ's material library names textures the loader decodes: together
+    they are held to the model's size limit, refused before anything is read."""
+    from infinitex.engine.surface import load_model
+    from infinitex.engine.surface import mesh as mesh_module
+    (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd big.png\nmap_Bump big2.png\n")
+    (tmp_path / "big.png").write_bytes(b"\0" * 600)
+    (tmp_path / "big2.png").write_bytes(b"\0" * 600)
+    (tmp_path / "q.obj").write_text("mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                    "f 1/1 2/2 3/3\n")
+    monkeypatch.setattr(mesh_module, "MAX_MODEL_BYTES", 1000)
+    with pytest.raises(ModelError, match="refers to are"):
+        load_model(str(tmp_path / "q.obj"))

@@ -341,7 +341,7 @@ def referenced_files(path: str, text: bytes | None = None, doc: dict | None = No
     name = os.path.basename(path)
     folder = os.path.dirname(os.path.abspath(path))
     found: list[str] = []
-
+    sizes: list[int] = []
     top = os.path.realpath(folder)
 
     def add(ref: str) -> str | None:
@@ -356,7 +356,12 @@ def referenced_files(path: str, text: bytes | None = None, doc: dict | None = No
         if os.path.commonpath([top, real]) != top:
             raise ModelError(f"{name} refers to {printable(ref.strip()[:80])}, which is outside the model's "
                              f"folder; copy it beside the model.")
-        found.append(target)
+        if target not in found:
+            found.append(target)
+            sizes.append(st.st_size)
+            if sum(sizes) > MAX_MODEL_BYTES:  # the loader reads them all (an OBJ's textures too)
+                raise ModelError(f"The files {name} refers to are {sum(sizes) / 2 ** 20:.0f} MB together; "
+                                 f"models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
         return target
 
     if path.lower().endswith(".obj"):
