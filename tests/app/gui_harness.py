@@ -21,6 +21,9 @@ class Harness:
     def __init__(self, out: str, path: str | None = None, window_size=(1280, 800)):
         os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
         os.environ["INFINITEX_PATH_PROMPT"] = "1"  # the drivers type paths (gui_everyday also opens the browser)
+        # New documents start on the 128 px gravel (a quarter of the shipped
+        # default's analysis and levels; test_editor's screenshot test opens that).
+        os.environ.setdefault("INFINITEX_DEFAULT_EXEMPLAR", os.path.join(HERE, "infinitex", "assets", "gravel.png"))
         self.out = out
         self.ed = Editor(path, recover=False, window_size=window_size)
         self.report: list[str] = []
