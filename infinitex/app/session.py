@@ -144,22 +144,43 @@ class Refiner:
         return Rect(want.x0, max(want.y0, valid.y0 - n), want.x1, min(want.y1, valid.y1))
 
     def preview(self, frame: Frame, budget_s: float, min_level: int = 2) -> int:
-        """While the user drags a control: complete whole levels, coarse to fine,
-        as long as the next one fits in the budget (no bands: a preview is
-        consistent everywhere). Returns the finest complete level."""
+        """While a change is previewed: complete whole levels, coarse to fine
+        (no bands: a preview is consistent everywhere), a piece of a draw at a
+        time for about ``budget_s``, carried on over frames (a level of a large
+        view can cost more than a frame on a CPU). Levels up to ``min_level``
+        are made at once. Returns the finest level complete over the frame."""
         t0 = time.perf_counter()
-        plan = self.pyramid.plan(frame.level, frame.want)
+        deadline = t0 + budget_s
+        pyr = self.pyramid
+        plan = pyr.plan(frame.level, frame.want)
         pixels = 0
-        done = -1
-        for l, want in enumerate(plan):
-            if not self.holds(l, want):
-                spent = time.perf_counter() - t0
-                if l > min_level and spent + self._missing(l, want) * self.cost[l] > budget_s:
+        while True:
+            missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
+            job = pyr.requesting
+            if job is not None and (missing is None or job != (missing, plan[missing])):
+                pyr.end_request()  # the view moved, or a refinement's band: whole levels here
+                job = None
+            if missing is None:
+                break
+            if job is None:
+                if missing <= min_level:
+                    pixels += self._request(missing, plan[missing])
+                    continue
+                if deadline - time.perf_counter() < 0.5 * pyr.pacer.piece_s:
                     break
-                pixels += self._request(l, want)
-            done = l
+                pyr.start_request(missing, plan[missing])
+                self._job_s = 0.0
+            t = time.perf_counter()
+            before = pyr.request_pixels
+            done = pyr.advance_request(deadline)
+            self._job_s += time.perf_counter() - t
+            pixels += pyr.request_pixels - before
+            if done and pyr.request_pixels > 256:
+                self.cost[missing] = 0.5 * self.cost[missing] + 0.5 * self._job_s / pyr.request_pixels
+            if not done:
+                break
         self._done(t0, pixels)
-        return done
+        return len(plan) - 1 if missing is None else missing - 1
 
     def _start(self, l: int, want: Rect) -> None:
         """Start the request for level l: all it misses, or a band of about

@@ -63,6 +63,14 @@ class Harness:
             ctx.yield_()
         return self.ed.canvas_pixels
 
+    def peek(self, ctx):
+        """What the canvas shows now (RGB), read back in a frame without
+        waiting for the refinement or forcing a redraw."""
+        self.ed.canvas_peek = True
+        while self.ed.canvas_peek:
+            ctx.yield_()
+        return self.ed.canvas_pixels
+
     def run(self, test, watchdog_s: float = 600.0) -> int:
         """Run ``test(ctx)`` in the editor; write the report; 0 when every check passed.
         The test engine stops a test running longer than ``watchdog_s`` (its own

@@ -61,6 +61,13 @@ def test_fast_input_is_never_lost(tmp_path, xdisplay):
     _drive("gui_fast_input.py", tmp_path, xdisplay, 21, "3")
 
 
+def test_a_dragged_slider_shows_texture_like_the_result(tmp_path, xdisplay):
+    """While "All levels" is dragged and after a Structure preset is picked, every
+    picture the canvas shows is within 2x of the settled result's neighbourhood
+    energy, and the drag's pictures follow it (tests/app/gui_preview.py)."""
+    _drive("gui_preview.py", tmp_path, xdisplay, 5)
+
+
 def test_lattice_tool_driven_by_the_test_engine(tmp_path, xdisplay):
     """Auto-detect places the handles on generated bricks; dragging a handle
     changes the rectified preview; undo restores it (tests/app/gui_lattice.py)."""

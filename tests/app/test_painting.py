@@ -229,7 +229,7 @@ def test_every_local_edit_is_refined_locally(doc):
     """A paint dab, a label dab, a feature move and a comb dab are re-synthesized
     in place (and shown at once as quick looks), not by the coarse preview a
     dragged slider gets; a change of a global setting is not local."""
-    from infinitex.app.ui.editor import local_edit
+    from infinitex.app.ui.canvas_preview import local_edit
     from infinitex.engine.controls import DirectionField
     from infinitex.engine.controls.direction import jacobian
     field, _ = CanvasField().painted(10.0, 10.0, 8.0, 0)

@@ -133,6 +133,14 @@ class Canvas:
         self.fbo = self.gpu.ctx.framebuffer([self.tex])
         self.size = (w, h)
 
+    def shows(self, frame: Frame, view: View, display: Display, geom: np.ndarray | None,
+              size: tuple[int, int]) -> bool:
+        """Whether the texture holds a full drawing of this view (of whatever
+        source): what is kept while a change's preview is not presentable."""
+        key = self.shown_key
+        return (key is not None and self.pending is None and tuple(size) == tuple(self.size)
+                and key[1:] == (frame, view, display, self.size, None if geom is None else tuple(np.ravel(geom))))
+
     def redraw(self, pyramid: Pyramid, frame: Frame, view: View, display: Display, geom: np.ndarray | None,
                source: tuple, force: bool = False) -> None:
         """Bring the texture up to date for this frame: drawn whole when the view,

@@ -13,7 +13,6 @@ the tools, the overlays) and shortcuts.py (the keys and their F1 list).
 """
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
@@ -27,11 +26,10 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 )
 
 from infinitex.engine.gpu import GLUnavailable, Gpu
-from infinitex.engine.pyramid import SynthesisError
 from infinitex.engine.safeio import WriteError, printable
 from infinitex.export.jobs import BackgroundExport, ExportEstimate, StreamedExport
 from infinitex.export.window import ExportJob
-from infinitex.project import Autosave, Display, Document, History, View
+from infinitex.project import Autosave, Display, History, View
 
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay, LabelOverlay
@@ -39,6 +37,7 @@ from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir, load_settings, save_settings
 from . import panels
 from .canvas_input import CanvasInputMixin
+from .canvas_preview import CanvasPreviewMixin
 from .dialogs import Dialogs
 from .exports import ExportsMixin
 from .files import DEFAULT_EXEMPLAR, FilesMixin
@@ -50,8 +49,6 @@ __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EX
 
 REST_BUDGET_S = 0.020        # synthesis per frame while refining, at most: with drawing, a frame takes about 33 ms
 FRAME_S = 0.027              # the frame the refinement's budget aims at (what the rest of a frame leaves)
-PREVIEW_BUDGET_S = 0.012     # while a control is dragged: a complete coarse preview per frame
-INTERACTIVE_S = 0.25         # seconds after the last edit that still count as dragging
 PANEL_WIDTH = 340
 # The editor spawns worker processes (streamed exports, their estimate) while
 # GL and the UI threads run. CPython's vfork() path for that (multiprocessing
@@ -92,7 +89,7 @@ class FramePacer:
         return min(REST_BUDGET_S, max(0.006, FRAME_S - self._other_s))
 
 
-class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelModeMixin):
+class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, ShortcutsMixin, ModelModeMixin):
     def __init__(self, path: str | None = None, *, screenshot: str | None = None, frames: int = 10,
                  window_size: tuple[int, int] | None = None, recover: bool = True):
         self.start_path = path
@@ -148,8 +145,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
         self._close_requested = False
         self.canvas_request = False
         self.canvas_pixels = None      # last canvas read back on request (tests)
-        self._last_doc = None
-        self._last_edit = 0.0
+        self._init_canvas_preview()
         self._init_model_mode()
         self.panels = panels.Panels(self)
         self.tools = make_tools(self)
@@ -372,7 +368,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
         elif job is not None and job.error:
             self.dialogs.message("Analysis failed", job.error)
         if self.doc is not None and (self.pending is None or s.job is None):
-            s.sync(self.doc)
+            s.sync(self.session_doc())
         if s.ready:
             self._show_maps()
         self._poll_export()
@@ -406,43 +402,13 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
         hovered = self._canvas_input(p0, w, h)
         if s.ready and self.doc is not None:
             s.period = self.tile_period()
-            s.sync(self.doc)  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
+            s.sync(self.session_doc())  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
             level = None
             if self.display.mode == "level":
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
             geom = self.geometry()
             self.frame = frame_for(self.view, w, h, s.L, level, geom)
-            if self.doc is not self._last_doc:
-                prev, self._last_doc = self._last_doc, self.doc
-                if not local_edit(prev, self.doc):
-                    self._last_edit = time.monotonic()
-            interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
-            t0 = time.perf_counter()
-            scale = 1
-            try:
-                if interactive:
-                    # A control is being dragged: a complete coarser preview every
-                    # frame, drawn at its own resolution, keeps the editor fluid.
-                    c = s.refiner.preview(self.frame, PREVIEW_BUDGET_S)
-                    self.refined = False
-                    texel_px = self.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
-                    if self.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
-                        scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
-                else:
-                    self.refined = s.refine(self.frame, self.frame_pacer.budget_s)
-            except SynthesisError as exc:
-                self.view = View(0, 0, self.view.zoom)
-                self.dialogs.message("Synthesis", str(exc))
-            self.update_ms = (time.perf_counter() - t0) * 1000.0
-            self.pixels = s.refiner.last_pixels if s.refiner else 0
-            self.canvas.ensure_size(w // scale, h // scale)
-            view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-            self.canvas.redraw(s.pyramid, self.frame, view, self.display, geom, (s.generation, s.params),
-                               force=self.canvas_request)
-            self.refined = self.refined and self.canvas.pending is None  # (a large redraw spreads over frames)
-            if self.canvas_request:
-                self.canvas_pixels = self.canvas.read()
-                self.canvas_request = False
+            self._refine_and_draw(s, geom)
         else:
             self.canvas.ensure_size(w, h)
             self.canvas.render(None, None, self.view, self.display)
@@ -490,17 +456,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, ShortcutsMixin, ModelMo
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)
                                 or self.frame_count >= self.min_frames + 3000):
             self.params.app_shall_exit = True
-
-
-def local_edit(prev: Document | None, doc: Document) -> bool:
-    """Whether ``doc`` differs from ``prev`` only in what is re-synthesized
-    locally and exactly (canvas paint, canvas labels, features, the direction
-    field): no coarse preview for those."""
-    if prev is None:
-        return False
-    labels = prev.labels if None in (prev.labels, doc.labels) else replace(prev.labels, canvas=doc.labels.canvas)
-    return replace(prev, randomness_canvas=doc.randomness_canvas, features=doc.features, labels=labels,
-                   direction=doc.direction) == doc
 
 
 def probe_gl() -> str | None:
