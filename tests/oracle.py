@@ -274,6 +274,7 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
     n = params.level_period(level)
     gmx, gmy = (gx & (n - 1), gy & (n - 1)) if n else (gx, gy)
     direct = directed(controls)
+    J = direction_values(controls, an, params, level, gx, gy) if direct else None
     if parent is None:
         ux = np.full(gx.shape, m // 2, dtype=np.int64)
         uy = ux.copy()
@@ -291,7 +292,6 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         px, py = qx - parent_origin[0], qy - parent_origin[1]
         assert px.min() >= 0 and py.min() >= 0 and px.max() < parent.shape[1] and py.max() < parent.shape[0]
         if direct:  # F_{l-1}[floor(p/2)] + floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1
-            J = direction_values(controls, an, params, level, gx, gy)
             vx, vy = h * (2 * (gmx & 1) - 1), h * (2 * (gmy & 1) - 1)
             half = Q8 // 2 if h == 1 else 0
             Fp = _full(parent[py, px].astype(np.int64))
@@ -311,9 +311,12 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         cx, cy = 1 << shift[0], 1 << shift[1]
         jx = np.vectorize(lambda j: cx * ((2 * j + cx) // (2 * cx)))(jx) if cx > 1 else jx
         jy = np.vectorize(lambda j: cy * ((2 * j + cy) // (2 * cy)))(jy) if cy > 1 else jy
-    if direct:  # + 256 Jit_l(p), then (nearest texel, remainder)
-        tx, rx = _q8_split(Fx + Q8 * jx, m)
-        ty, ry = _q8_split(Fy + Q8 * jy, m)
+    if direct:  # + floor(J_l(p) Jit_l(p) / 16) (the jitter through J; none grown past the exemplar's pixels)
+        beyond = _beyond_exemplar(J, h)
+        if beyond is not None:
+            jx, jy = np.where(beyond, 0, jx), np.where(beyond, 0, jy)
+        tx, rx = _q8_split(Fx + np.floor_divide(J[..., 0] * jx + J[..., 1] * jy, 16), m)
+        ty, ry = _q8_split(Fy + np.floor_divide(J[..., 2] * jx + J[..., 3] * jy, 16), m)
         S = np.stack([tx, ty, rx, ry], axis=-1)
     else:
         S = np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)
@@ -526,6 +529,24 @@ def _phase_pixels(S: np.ndarray, phase, origin, an: Analysis, params: SynthParam
     return ys, xs, direct, J, atlas_links(controls, an, level, origin[0], origin[1], W, H)
 
 
+def _beyond_exemplar(J: np.ndarray | None, h: int) -> np.ndarray | None:
+    """Where a level is grown past the exemplar's pixels (common.glsl
+    beyond_exemplar): both axes' steps h J e under one pixel. None: nowhere."""
+    if J is None or h > 2:
+        return None
+    J = J.astype(np.int64)
+    c = np.maximum(J[..., 0] ** 2 + J[..., 2] ** 2, J[..., 1] ** 2 + J[..., 3] ** 2)
+    return c < (1 << 24) // (h * h)
+
+
+def _keep_beyond(S: np.ndarray, out: np.ndarray, ys, xs, J, h: int) -> np.ndarray:
+    """``out`` with the pixels of a level grown past the exemplar kept as in ``S`` (upsampling alone)."""
+    keep = _beyond_exemplar(J, h)
+    if keep is not None and keep.any():
+        out[ys[keep], xs[keep]] = S[ys[keep], xs[keep]]
+    return out
+
+
 def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
                     params: SynthParams, level: int, controls: Controls = NO_CONTROLS, subpass: int = 0) -> np.ndarray:
     lv = an.levels[level]
@@ -613,7 +634,7 @@ def correct_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, in
             R >>= 1  # (the walk keeps the best's remainder)
     out = S.copy()
     out[ys, xs] = np.concatenate([best_u, best_r], axis=1) if direct else best_u
-    return out
+    return _keep_beyond(S, out, ys, xs, J, h)
 
 
 def _fidelity_space(an: Analysis, level: int, direct: bool):
@@ -720,7 +741,7 @@ def fidelity_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, i
                 break
             ox, oy = fixed.walk_offsets(gx, gy, level, fseed, t, radius)
             consider(inside(best_u + one * np.stack([ox, oy], axis=1)))
-    return _with_fidelity_result(S, ys, xs, best_u, direct, m)
+    return _keep_beyond(S, _with_fidelity_result(S, ys, xs, best_u, direct, m), ys, xs, J, h)
 
 
 def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[int, int], an: Analysis,
@@ -778,7 +799,7 @@ def fidelity_vote_subpass(S: np.ndarray, phase: tuple[int, int], origin: tuple[i
         better = ok & (votes > most)
         most = np.where(better, votes, most)
         best_u = np.where(better[:, None], u, best_u)
-    return _with_fidelity_result(S, ys, xs, best_u, direct, m)
+    return _keep_beyond(S, _with_fidelity_result(S, ys, xs, best_u, direct, m), ys, xs, J, h)
 
 
 def fidelity_stage(S: np.ndarray, origin: tuple[int, int], an: Analysis, params: SynthParams, level: int,

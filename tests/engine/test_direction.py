@@ -31,7 +31,8 @@ SHEAR = np.array([4096, 2048, 0, 4096], np.int16)  # x' = x + y / 2
 
 def mixed_jacobians(w: int, h: int, seed: int = 0) -> np.ndarray:
     """A (h, w, 4) Q12 map whose J changes within a few pixels, in 4 x 2 blocks:
-    a 30 degree rotation, a 1.6x scale, a -60 degree 1.5 aspect, 45 degrees
+    a 30 degree rotation, a 2.5x scale (grown past the exemplar's pixels on the
+    two finest levels: upsampling alone there), a -60 degree 1.5 aspect, 45 degrees
     (J^-1 d with zero components: the appearance model's sign rule), a 0.7x
     scale at 120 degrees, a smoothly turning band, a per-pixel checkerboard of
     opposite directions (20 and 200 degrees: their 2 x 2 means cancel, so the
@@ -41,7 +42,7 @@ def mixed_jacobians(w: int, h: int, seed: int = 0) -> np.ndarray:
     out = np.empty((h, w, 4), np.int16)
     block = (4 * xs) // w + 4 * ((2 * ys) // h)  # 0..7
     out[block == 0] = jacobian(30.0)
-    out[block == 1] = jacobian(0.0, 1.6)
+    out[block == 1] = jacobian(0.0, 2.5)
     out[block == 2] = jacobian(-60.0, 1.0, 1.5)
     out[block == 3] = jacobian(45.0)
     out[block == 4] = jacobian(120.0, 0.7)
@@ -147,6 +148,31 @@ def test_gl_matches_oracle_with_a_field_and_the_fidelity_stage(direction_analyse
     gl = window(an, params, controls, gpu, x, y, w, h)
     ref = oracle.synthesize(an, params, x, y, w, h, controls=controls)
     assert np.array_equal(gl, ref), (name, x, y, int((gl != ref).any(-1).sum()))
+
+
+@pytest.mark.parametrize("scale, levels", [(4.0, 2), (2.0, 1)])
+def test_grown_past_the_exemplar_is_magnified(direction_analyses, gpu, scale, levels):
+    """Grown s times, the levels whose texels step under one exemplar pixel are
+    upsampled alone (no jitter, correction or fidelity stage: synthesis
+    magnification): within each block of 2^levels pixels that one coarser texel
+    covers, the coordinate steps by exactly 256 / s per pixel (in 1/256 px)."""
+    an = direction_analyses["torus-appearance-k0"]
+    m = an.size
+    x, y, w, h = -37, 21, 48, 40
+    field = DirectionField.uniform(0.0, scale, 1.0, x - 64, y - 64, x + w + 64, y + h + 64)
+    params = structure_params(SynthParams.default(an.L, seed=2), 2)
+    st = window(an, params, Controls(direction=field), gpu, x, y, w, h).astype(np.int64)
+    F = st[..., :2] * 256 + st[..., 2:]
+    b = 1 << levels
+    step = int(256 / scale)
+    dx = np.mod(F[:, 1:, 0] - F[:, :-1, 0], 256 * m)
+    dy = np.mod(F[1:, :, 1] - F[:-1, :, 1], 256 * m)
+    inside_x = ((np.arange(x, x + w - 1) + 1) % b) != 0  # x and x + 1 under one coarser texel
+    inside_y = ((np.arange(y, y + h - 1) + 1) % b) != 0
+    assert np.all(dx[:, inside_x] == step) and np.all(dy[inside_y, :] == step)
+    assert np.all(np.mod(F[:, 1:, 1] - F[:, :-1, 1], 256 * m)[:, inside_x] == 0)
+    # The level above them is synthesized: its blocks do not continue each other everywhere.
+    assert np.any(dx[:, ~inside_x] != step)
 
 
 def test_gl_matches_oracle_near_the_coordinate_limit(direction_analyses, gpu):

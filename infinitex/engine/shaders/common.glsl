@@ -126,6 +126,17 @@ ivec2 jmul(ivec4 J, ivec2 d, int h) {
     return floor_shift(ivec4(h * (J.x * d.x + J.y * d.y), h * (J.z * d.x + J.w * d.y), 0, 0), 4).xy;
 }
 
+// A level grown past the exemplar's resolution (a direction field's scale):
+// both axes' texel steps through J, h J e_x and h J e_y, are under one exemplar
+// pixel. Such a level is upsampled only (synthesis magnification, LH05 5): the
+// correction and the fidelity stage leave it, having no finer exemplar detail to
+// match. |J e|^2 in Q24 is under 2^29 (entries within 2^14), h at most 2 here.
+bool beyond_exemplar(ivec4 J, int h) {
+    if (h > 2) return false;
+    int c = max(J.x * J.x + J.z * J.z, J.y * J.y + J.w * J.w);
+    return c < (h == 1 ? 16777216 : 4194304);
+}
+
 // floor(a / b) for b > 0.
 int floor_div(int a, int b) {
     return a >= 0 ? a / b : -((b - 1 - a) / b);

@@ -225,6 +225,10 @@ void main() {
     PVEC hi = PVEC(0);
 #ifdef DIRECTION
     Jp = texelFetch(dfield, p, 0);
+    if (beyond_exemplar(Jp, h)) {  // grown past the exemplar's pixels: upsampling alone
+        result = here;
+        return;
+    }
     for (int j = 0; j < 9; ++j) {
         F9[j] = j == 4 ? full_q8(here) : fetch_f(p, ivec2(j % 3 - 1, j / 3 - 1));
     }

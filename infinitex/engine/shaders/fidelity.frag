@@ -276,6 +276,10 @@ void main() {
 #endif
 #ifdef DIRECTION
     Jp = texelFetch(dfield, p, 0);
+    if (beyond_exemplar(Jp, h)) {  // grown past the exemplar's pixels: upsampling alone
+        result = here;
+        return;
+    }
     ivec2 self = full_q8(here);
     if (border < 0) self = keep_c(self);  // wrapped like the predictions (a stored texel 0 may hold F < 0)
 #else
@@ -404,6 +408,10 @@ void main() {
     }
 #ifdef DIRECTION
     Jp = texelFetch(dfield, p, 0);
+    if (beyond_exemplar(Jp, h)) {  // grown past the exemplar's pixels: upsampling alone
+        result = here;
+        return;
+    }
     col0 = h * Jp.xz;
     col1 = h * Jp.yw;
     best_u = full_q8(here);  // a coordinate in 1/256 px

@@ -17,6 +17,8 @@ import numpy as np
 from imgui_bundle import imgui
 
 from infinitex.engine.controls.direction import (
+    MAX_STRETCH,
+    MIN_STRETCH,
     DirectionField,
     comb,
     decompose,
@@ -39,6 +41,12 @@ MODES = (("comb", "Comb", "Drag the way the texture should run"),
 MAP_FILTER = ["Direction maps", "*.png *.tif *.tiff *.webp *.bmp"]
 MAX_GUIDE_AREA = 2048 * 2048  # canvas pixels a guide's box may cover (about a second of work)
 MAX_BRUSH = 512.0  # canvas pixels: a brush zoomed far out still edits a bounded area
+
+
+# What the exemplar can give, said in the panel (engine/controls/direction.py limits).
+GROW_NOTE = (f"Up to {MAX_STRETCH:g}x. Past the exemplar's own pixels the finest scales are magnified "
+             "(softer, as when zooming in), never invented or blurred.")
+SHRINK_NOTE = f"Down to 1/{1 / MIN_STRETCH:g}: smaller would read the exemplar too sparsely."
 
 
 class DirectionTool(Tool):
@@ -236,6 +244,7 @@ class DirectionTool(Tool):
                 _, self.rate = imgui.slider_float("Rate", self.rate, 1.05, 4.0, "%.2fx")
                 if imgui.is_item_hovered():
                     imgui.set_tooltip("How much larger (or smaller) a stroke over a spot makes the texture")
+                imgui.text_wrapped(GROW_NOTE if self.mode == "grow" else SHRINK_NOTE)
             imgui.pop_item_width()
             b = self.brush
             imgui.push_item_width(-110)
