@@ -123,6 +123,15 @@ def main(out: str) -> int:
         check("the stroke paints randomness in the atlas", field is not None and not field.neutral, "nothing painted")
         diff = np.any(painted != first, axis=-1) if painted is not None else np.zeros(1, bool)
         check("the stroke changes the texture", diff.sum() > 50, f"{diff.sum()} texels")
+        # "Show painted" (on since the paint tool was chosen) shows the stroke as on the plane: rough is red.
+        with_heat = canvas(ctx).astype(int)
+        ed.show_fields = False
+        plain = canvas(ctx).astype(int)
+        ed.show_fields = True
+        heat = np.abs(with_heat - plain).sum(-1) > 30
+        redder = (with_heat[..., 0] - with_heat[..., 2] > plain[..., 0] - plain[..., 2])[heat]
+        check("Show painted shows the stroke on the model, rough in red", heat.sum() > 200 and redder.mean() > 0.9,
+              f"{heat.sum()} pixels, {redder.mean() if heat.any() else 0:.2f} redder")
         ed.show_seams = True
         settle(ctx)
         testing.capture(ctx, os.path.join(out, "model-editor.png"))
@@ -164,13 +173,19 @@ def main(out: str) -> int:
             check("the wheel over a feature resizes it", g.outer > f.outer and g.canvas == f.canvas,
                   f"{f.outer} -> {g.outer}")
             steps = len(ed.history.undo_stack)
-            ctx.mouse_move_to_pos((cx + 10, cy + 10))
+            # A press inside the inner circle, well off the centre dot, grabs the feature too.
+            w, h = ed.canvas_size
+            handles = ed.model_features._handles(w, h)
+            _, hx, hy, ri, _ = handles[0] if handles else (0, cx + 10 - r.min.x, cy + 10 - r.min.y, 0.0, 0.0)
+            px, py = r.min.x + hx + 0.6 * ri, r.min.y + hy
+            check("the inner circle is large enough to press off its centre", ri >= 15, f"inner {ri:.1f} px")
+            ctx.mouse_move_to_pos((px, py))
             ctx.mouse_down(0)
             for i in range(1, 5):
-                ctx.mouse_move_to_pos((cx + 10 + 8 * i, cy + 10))
+                ctx.mouse_move_to_pos((px + 8 * i, py))
             ctx.mouse_up(0)
             moved = ed.doc.features
-            check("dragging a feature's centre moves it on the surface (one undo step)",
+            check("dragging a feature from inside its inner circle moves it on the surface (one undo step)",
                   len(moved) == 1 and moved[0].canvas != g.canvas and len(ed.history.undo_stack) == steps + 1,
                   f"{g.canvas} -> {moved[0].canvas if moved else None}")
             for _ in range(3):

@@ -37,6 +37,8 @@ uniform vec3 eye_dir;    // towards the eye, world space
 uniform int mode;        // 0 lit texture, 1 texture coordinates (picking)
 uniform int marks;       // mark the chart borders (seams)
 uniform sampler2D seams; // 1 where a texel is a chart border texel
+uniform int has_overlay; // a heat map over the atlas (painted randomness), blended in
+uniform sampler2D overlay;
 // Synthesis magnification (LH05 5, LH06 6): the atlas's coordinates (texel x,
 // y, remainder x, y in 1/256 px; off the charts, the texels across the seam),
 // J per texel (Q12) and the exemplar (its hi-res copy when there is one).
@@ -111,6 +113,10 @@ void main() {
     vec3 h = normalize(normalize(light) + normalize(eye_dir));
     float spec = pow(max(dot(n3, h), 0.0), 40.0) * 0.12;
     vec3 lit = c * (0.28 + 0.8 * diff) + spec;
+    if (has_overlay != 0) {
+        vec4 o = texture(overlay, uv);
+        lit = mix(lit, o.rgb, o.a);
+    }
     if (marks != 0 && texture(seams, uv).r > 0.5) lit = mix(lit, vec3(1.0, 0.15, 0.1), 0.75);
     color = vec4(lit, 1.0);
 }
@@ -204,6 +210,7 @@ class ModelView:
         self.positions = np.asarray(positions)
         self.texture = None
         self.seam_texture = None
+        self.overlay_texture = None
         self._fbo = None
         self._synthesis = None  # set_synthesis: (coords, J, exemplar textures, m, toroidal)
         self.magnify = True     # draw by synthesis magnification once it is set
@@ -283,6 +290,23 @@ class ModelView:
             self.seam_texture = self.ctx.texture((m.shape[1], m.shape[0]), 1, m.tobytes())
             self.seam_texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
 
+    def set_overlay(self, rgba: np.ndarray | None) -> None:
+        """A heat map over the atlas (uint8 (N, N, 4), alpha blended over the lit
+        texture, e.g. the painted randomness); None: none."""
+        if rgba is None:
+            if self.overlay_texture is not None:
+                self.overlay_texture.release()
+                self.overlay_texture = None
+            return
+        a = np.ascontiguousarray(rgba, np.uint8)
+        if self.overlay_texture is None or self.overlay_texture.size != (a.shape[1], a.shape[0]):
+            if self.overlay_texture is not None:
+                self.overlay_texture.release()
+            self.overlay_texture = self.ctx.texture((a.shape[1], a.shape[0]), 4, a.tobytes())
+            self.overlay_texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        else:
+            self.overlay_texture.write(a.tobytes())
+
     def draw(self, camera: OrbitCamera, viewport: tuple[int, int, int, int], mode: int = 0) -> None:
         x, y, w, h = viewport
         view, proj = camera.matrices(w / max(1, h))
@@ -302,6 +326,10 @@ class ModelView:
         if self.seam_texture is not None:
             self.seam_texture.use(1)
             self._set("seams", 1)
+        self._set("has_overlay", int(self.overlay_texture is not None and mode != 1))
+        if self.overlay_texture is not None:
+            self.overlay_texture.use(5)
+            self._set("overlay", 5)
         if mag:
             coords, jac, ex, m, toroidal = self._synthesis
             for unit, t in ((2, coords), (3, jac), (4, ex)):
@@ -342,6 +370,6 @@ class ModelView:
 
     def release(self) -> None:
         self.set_synthesis(None)
-        for o in (*self.vaos, self.vbo, *self.programs, self.texture, self.seam_texture, self._fbo):
+        for o in (*self.vaos, self.vbo, *self.programs, self.texture, self.seam_texture, self.overlay_texture, self._fbo):
             if o is not None:
                 o.release()

@@ -27,9 +27,10 @@ from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.engine.surface import AtlasError, ModelError, load_model
 from infinitex.engine.surface.features import across_seams
 from infinitex.project import ProjectError
-from infinitex.project.surface import SIZES, SurfaceSettings, default_repeats
+from infinitex.project.surface import SurfaceSettings, default_repeats
 
 from ..render.model_view import ModelView, OrbitCamera
+from ..render.overlays import heat_rgba
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 from .tools.direction_model import ModelComb
 from .tools.feature_model import ModelFeatures
@@ -157,6 +158,7 @@ class ModelModeMixin:
         self._model_uv = None  # (camera, size, uv image) of the last pick
         self.show_seams = False
         self._seams_key = None
+        self._model_overlay_key = None
         self._model_tex_version = -1
         self._stroke_last = None
         self._stroke_group: object = None
@@ -165,6 +167,18 @@ class ModelModeMixin:
         self.atlas_read = None
         self.model_features = ModelFeatures(self)
         self.model_comb = ModelComb(self)
+
+    def _model_overlay(self, mv, pv):
+        """With "Show painted" on, the randomness painted on the model as a heat
+        map over its texture (calm blue, rough red, as on the plane); the key of what is shown."""
+        field = self.doc.randomness_canvas
+        n = pv.atlas.size if pv.atlas is not None else 0
+        key = (field.key, n) if self.show_fields and field is not None and not field.neutral and n else None
+        if key != self._model_overlay_key:
+            vals = field.region(0, 0, 0, n, n) if key is not None else None
+            mv.set_overlay(heat_rgba(vals) if vals is not None else None)
+            self._model_overlay_key = key
+        return key
 
     def _model_canvas(self, p0, w: int, h: int) -> None:
         s = self.session
@@ -178,6 +192,7 @@ class ModelModeMixin:
             self._model_view_key = model.key
             self._model_tex_version = -1
             self._seams_key = None
+            self._model_overlay_key = None
         hovered = self._model_input(p0, w, h)
         pv = s.model
         pv.sync(s, self.doc)
@@ -202,6 +217,7 @@ class ModelModeMixin:
                 border &= own >= 0
             mv.set_seams(border if self.show_seams else None)
             self._seams_key = seams_key
+        overlay_key = self._model_overlay(mv, pv)
         fbo = self._model_fbo
         if fbo is None or fbo.size != (w, h):
             if fbo is not None:
@@ -214,7 +230,7 @@ class ModelModeMixin:
         # follows the hand); at rest, synthesis magnification. A picture that would
         # not change is not drawn again (magnification costs llvmpipe 150 ms a frame).
         magnify = mv.magnify and self._canvas_button < 0
-        drawn = (self.camera, w, h, self._model_tex_version, self.show_seams, magnify, pv.image is None)
+        drawn = (self.camera, w, h, self._model_tex_version, self.show_seams, magnify, pv.image is None, overlay_key)
         if drawn != self._model_drawn or self.canvas_request:
             fbo.use()
             fbo.clear(0.16, 0.17, 0.19, 1.0, depth=1.0)

@@ -102,11 +102,14 @@ void main() {
         ivec2 half_cell = (ivec2(1) << lattice_shift) >> 1;
         J = (((J + half_cell + SHIFT_BIAS) >> lattice_shift) - (ivec2(SHIFT_BIAS) >> lattice_shift)) << lattice_shift;
     }
-#if defined(ATLAS)
-    result = apply_features_atlas(g, split_q8(F + J * 256, m), h, m, reader);
-#elif defined(DIRECTION)
+#ifdef DIRECTION
     ivec4 Jh = texelFetch(dfield, local, 0);
-    ivec4 q = split_q8(F + (beyond_exemplar(Jh, h) ? ivec2(0) : jmul(Jh, J, 1)), m);  // the jitter through J
+    ivec2 Fj = F + (beyond_exemplar(Jh, h) ? ivec2(0) : jmul(Jh, J, 1));  // the jitter through J
+#endif
+#if defined(ATLAS)
+    result = apply_features_atlas(g, split_q8(Fj, m), h, m, reader);
+#elif defined(DIRECTION)
+    ivec4 q = split_q8(Fj, m);
     bool hit = false;
     ivec2 s = apply_features_hit(g, q.xy, h, m, period, hit);
     result = ivec4(s, hit ? ivec2(0) : q.zw);
