@@ -40,7 +40,7 @@ def main(out: str) -> int:
             ctx.item_close(f"**/{header}")
         ctx.item_open("**/Export")
         ctx.yield_(2)
-        ed.export_rect = [0, 0, 2048, 2048]
+        ed.export_rect = [0, 0, 1536, 1536]
         ctx.yield_(2)
         ctx.item_click("**/Export rectangle...")
         ctx.yield_(2)
@@ -80,7 +80,7 @@ def main(out: str) -> int:
         ctx.yield_(2)
         check("the tile set waits behind the running export", len(ed.export_queue) == 1
               and type(ed.export_job).__name__ == "BackgroundExport", f"{ed.export_job} {ed.export_queue}")
-        done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 300)
+        done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 540)  # (a loaded machine: minutes)
         ctx.yield_(2)
         files = ["big.png", "set.png", "set.json", "set_preview.png"]
         check("the set is written", done and all(os.path.isfile(os.path.join(out, f)) for f in files),
@@ -92,7 +92,7 @@ def main(out: str) -> int:
             check("the description lists 16 tiles", desc["count"] == 16 and len(desc["tiles"]) == 16, str(desc)[:200])
         check("the dialog's set was handed over", d.job is None and d.state == 0, f"{d.job} {d.state}")
 
-    return h.run(test, watchdog_s=600)
+    return h.run(test, watchdog_s=900)
 
 
 if __name__ == "__main__":

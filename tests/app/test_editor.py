@@ -23,10 +23,10 @@ def _run(args, tmp_path, display: str, timeout=600):
     return subprocess.run([sys.executable, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
 
 
-def _drive(script: str, tmp_path, display: str, min_checks: int, *args: str) -> None:
+def _drive(script: str, tmp_path, display: str, min_checks: int, *args: str, timeout: int = 600) -> None:
     """Run a GUI driver (tests/app/gui_*.py, see tests/app/gui_harness.py) and require
     every one of its checks, at least ``min_checks`` of them, to pass."""
-    proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path, display)
+    proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path, display, timeout)
     report_path = tmp_path / "report.txt"
     if not report_path.exists() and "CrashHandler" in proc.stdout + proc.stderr:
         # The imgui test engine itself aborted before any check was written (seen
@@ -36,7 +36,7 @@ def _drive(script: str, tmp_path, display: str, min_checks: int, *args: str) -> 
         print(proc.stdout[-2000:] + proc.stderr[-2000:], file=sys.stderr)
         for entry in tmp_path.iterdir():
             shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
-        proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path, display)
+        proc = _run([os.path.join(HERE, script), str(tmp_path), *args], tmp_path, display, timeout)
     assert report_path.exists(), proc.stdout[-3000:] + proc.stderr[-3000:]
     report = report_path.read_text().splitlines()
     failures = [r for r in report if not r.startswith("ok")]
@@ -125,7 +125,7 @@ def test_tile_set_dialog_driven_by_the_test_engine(tmp_path, xdisplay):
     from PIL import Image
 
     from clirun import infinitex
-    _drive("gui_tileset.py", tmp_path, xdisplay, 11)
+    _drive("gui_tileset.py", tmp_path, xdisplay, 11, timeout=960)  # (behind a 1536^2 export: minutes on a loaded machine)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     (tmp_path / "cli").mkdir()
     r = infinitex("export", gravel, "-o", tmp_path / "cli" / "set.png", "--wang", "2", "--tile", "64", "-q")

@@ -20,6 +20,10 @@ from imgui_bundle import imgui  # noqa: E402
 from infinitex.app.ui.editor import Editor  # noqa: E402
 
 
+# New documents start on the 128 px gravel, as in the imgui drivers (gui_harness.py).
+os.environ.setdefault("INFINITEX_DEFAULT_EXEMPLAR", os.path.join(HERE, "infinitex", "assets", "gravel.png"))
+
+
 class ReportingEditor(Editor):
     def __init__(self, state_path: str, path: str | None):
         super().__init__(path, recover=False, window_size=(1270, 780))

@@ -20,6 +20,8 @@ result:
   then the newest document is taken. On a GPU that is every frame; on llvmpipe,
   a few times a second.
 
+The same holds when the full analysis replaces the quick preview shown while
+an image opens: the preview stays until the final texture is presentable.
 Local edits (paint, labels, features, direction) never wait: they have their
 own exact local updates and quick looks.
 """
@@ -72,6 +74,16 @@ class PreviewHold:
         self.synced, self.waiting, self._since = doc, True, time.monotonic()
         return doc
 
+    def hold_picture(self) -> None:
+        """Keep the picture shown until the texture is presentable (the full
+        analysis replacing the quick preview: the same view, a new texture)."""
+        self.waiting, self._since = True, time.monotonic()
+
+    def expire(self) -> None:
+        """A safety net: nothing waits longer than HOLD_MAX_S."""
+        if self.waiting and time.monotonic() - self._since >= HOLD_MAX_S:
+            self.waiting = False
+
     def reached(self, level: int, target: int) -> None:
         """The preview is complete to ``level``; presentable from ``target``."""
         if level >= target:
@@ -84,6 +96,7 @@ class CanvasPreviewMixin:
     def _init_canvas_preview(self) -> None:
         self.hold = PreviewHold()
         self.canvas_peek = False  # a test asks for what this frame shows (no refinement forced)
+        self._was_previewing = False
         self._last_doc = None
         self._last_edit = 0.0
 
@@ -99,6 +112,10 @@ class CanvasPreviewMixin:
                 self._last_edit = time.monotonic()
         interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
         hold = self.hold
+        was, self._was_previewing = self._was_previewing, s.previewing
+        if was and not s.previewing and s.key == self.doc.analysis_key():
+            hold.hold_picture()  # the full analysis replaces the quick preview: no coarse levels meanwhile
+        hold.expire()
         frame = self.frame
         t0 = time.perf_counter()
         scale = 1
