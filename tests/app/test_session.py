@@ -172,6 +172,31 @@ def test_preview_completes_whole_levels(session):
     assert session.refiner.holds(2, session.pyramid.plan(frame.level, frame.want)[2])
 
 
+def test_the_canvas_never_draws_levels_magnified_past_8x(session, gpu):
+    """Levels coarser than the view's less PREVIEW_MAX_K stay undrawn (the
+    canvas's background) where nothing finer is held: a strip a pan uncovers
+    shows no melted coarse texture; from that level on the texture shows."""
+    from infinitex.app.render.canvas import PREVIEW_MAX_K
+    canvas = Canvas(gpu)
+    canvas.set_exemplar(session.stack, session.analysis.toroidal, None, session.generation)
+    W, H = 96, 64
+    canvas.ensure_size(W, H)
+    view = View(5000.0, -7000.0, 1.0)
+    frame = frame_for(view, W, H, session.L)
+    session.pyramid.invalidate(0)
+    plan = session.pyramid.plan(frame.level, frame.want)
+    coarse = frame.level - PREVIEW_MAX_K - 1
+    for l in range(coarse + 1):
+        session.pyramid.request(l, plan[l])
+    canvas.render(session.pyramid, frame, view, Display())
+    empty = canvas.read()
+    assert (empty == empty[0, 0]).all()  # nothing but the background
+    session.pyramid.request(coarse + 1, plan[coarse + 1])
+    canvas.render(session.pyramid, frame, view, Display())
+    assert canvas.read().std() > 5  # the level magnified 8x: texture
+    canvas.release()
+
+
 def test_export_is_independent_of_tiles_and_matches_the_window(session, tmp_path):
     rect = Rect.of(-70, 33, 150, 97)
     a = ExportJob(session, rect, str(tmp_path / "a.png"), tile=64, coords_path=str(tmp_path / "a_coords.png"))

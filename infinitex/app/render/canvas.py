@@ -27,6 +27,7 @@ MODES = {"color": 0, "coords": 1, "patches": 2, "level": 3, "relief": 4, "lit": 
 SHAPE_KINDS = {"normal": 0, "height": 1}
 MAX_HIRES = 4096
 REDRAW_PX = 160_000  # canvas pixels redrawn a frame where the synthesis changed texels (redraw)
+PREVIEW_MAX_K = 3  # the coarsest level drawn: the view's less this many (texels at most 8 screen px)
 FEATHER_TEXELS = 6.0  # a quick look's patch blends in over this many texels from its edges
 
 
@@ -198,7 +199,11 @@ class Canvas:
         M = G / view.zoom  # screen pixel -> finest-level canvas pixel
         want_box = frame.want if box is None else self._level_box(box, frame.level, L, tlx, tly, M)
         levels = []
-        for l in range(frame.level, -1, -1):
+        # Levels coarser than the view's less PREVIEW_MAX_K are never drawn: magnified
+        # 16x and more they show melted elements and smears, not the texture. Where
+        # none finer is held yet (a strip a fast pan uncovers, a view just opened),
+        # the canvas stays empty for the few frames until one is.
+        for l in range(frame.level, max(-1, frame.level - PREVIEW_MAX_K - 1), -1):
             buf = pyramid.buffers[l]
             if buf is None or buf.valid is None:
                 continue

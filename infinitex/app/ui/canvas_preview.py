@@ -34,7 +34,8 @@ from dataclasses import replace
 from infinitex.engine.pyramid import SynthesisError
 from infinitex.project import Document, View
 
-PREVIEW_MAX_K = 3     # a change shows once the view's level less this many is complete (texels <= 8 px)
+from ..render.canvas import PREVIEW_MAX_K  # a change shows once the view's level less this many is complete
+
 INTERACTIVE_S = 0.25  # seconds after the last edit that still count as dragging
 HOLD_MAX_S = 4.0      # a change waits no longer than this for the one in progress (a safety net)
 
