@@ -108,6 +108,11 @@ class Refiner:
         valid = self._valid(level)
         return valid is not None and valid.contains(rect)
 
+    def complete_level(self, frame: Frame) -> int:
+        """The finest level complete over the frame, with every coarser one (-1: none)."""
+        plan = self.pyramid.plan(frame.level, frame.want)
+        return next((l - 1 for l, want in enumerate(plan) if not self.holds(l, want)), len(plan) - 1)
+
     def _missing(self, level: int, want: Rect) -> int:
         """Pixels of ``want`` the level does not hold yet."""
         valid = self._valid(level)
@@ -143,19 +148,29 @@ class Refiner:
             return Rect(want.x0, max(want.y0, valid.y0), want.x1, min(want.y1, valid.y1 + n))
         return Rect(want.x0, max(want.y0, valid.y0 - n), want.x1, min(want.y1, valid.y1))
 
-    def preview(self, frame: Frame, budget_s: float, min_level: int = 2) -> int:
+    def preview(self, frame: Frame, budget_s: float, min_level: int = 2, max_level: int | None = None) -> int:
         """While a change is previewed: complete whole levels, coarse to fine
         (no bands: a preview is consistent everywhere), a piece of a draw at a
         time for about ``budget_s``, carried on over frames (a level of a large
         view can cost more than a frame on a CPU). Levels up to ``min_level``
-        are made at once. Returns the finest level complete over the frame."""
+        are made at once; past ``max_level``, a whole level only when its
+        estimated cost fits in what is left of the budget (a GPU: the view's
+        own level every frame). Returns the finest level complete over the frame."""
         t0 = time.perf_counter()
         deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
+        top = len(plan) - 1 if max_level is None else max_level
         pixels = 0
         while True:
             missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
+            if missing is not None and missing > top:
+                # Past max_level: a whole level at once only when it fits in what is left.
+                if time.perf_counter() - t0 + self._missing(missing, plan[missing]) * self.cost[missing] > budget_s:
+                    break
+                pyr.end_request()
+                pixels += self._request(missing, plan[missing])
+                continue
             job = pyr.requesting
             if job is not None and (missing is None or job != (missing, plan[missing])):
                 pyr.end_request()  # the view moved, or a refinement's band: whole levels here
@@ -180,7 +195,7 @@ class Refiner:
             if not done:
                 break
         self._done(t0, pixels)
-        return len(plan) - 1 if missing is None else missing - 1
+        return self.complete_level(frame) if missing is None or missing > top else missing - 1
 
     def _start(self, l: int, want: Rect) -> None:
         """Start the request for level l: all it misses, or a band of about

@@ -238,3 +238,26 @@ def test_every_local_edit_is_refined_locally(doc):
     assert local_edit(doc, replace(doc, direction=combed))
     assert not local_edit(doc, replace(doc, seed=doc.seed + 1))
     assert not local_edit(None, doc)
+
+
+def test_a_dragged_control_previews_one_change_at_a_time(doc):
+    """While a control is held, a change waits for the one in progress to be
+    presentable (PreviewHold); released, the newest is taken at once and the
+    picture kept until it is presentable; local edits never wait."""
+    from infinitex.app.ui.canvas_preview import PreviewHold
+    h = PreviewHold()
+    a, b, c = doc, replace(doc, seed=doc.seed + 1), replace(doc, seed=doc.seed + 2)
+    assert h.doc(a) is a and not h.waiting
+    assert h.doc(b) is b and h.waiting  # a change: shown once presentable
+    assert h.doc(c) is b  # the next waits while b's preview is coarse
+    h.reached(3, 4)
+    assert h.doc(c) is b and h.waiting
+    h.reached(4, 4)
+    assert not h.waiting and h.doc(c) is c and h.waiting
+    d = replace(doc, seed=doc.seed + 3)
+    assert h.doc(d, dragging=False) is d and h.waiting  # released: at once, the picture kept
+    field, _ = CanvasField().painted(10.0, 10.0, 8.0, 0)
+    e = replace(d, randomness_canvas=field)
+    assert h.doc(e) is e and not h.waiting  # a dab: its own exact local update
+    f = replace(e, seed=e.seed + 1)
+    assert h.doc(f, holding=False) is f and not h.waiting  # a model shown: no hold

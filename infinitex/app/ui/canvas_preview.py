@@ -31,6 +31,8 @@ import math
 import time
 from dataclasses import replace
 
+from imgui_bundle import imgui
+
 from infinitex.engine.pyramid import SynthesisError
 from infinitex.project import Document, View
 
@@ -60,9 +62,11 @@ class PreviewHold:
         self.waiting = False                 # its change is not presentable yet
         self._since = 0.0
 
-    def doc(self, doc: Document, holding: bool = True) -> Document:
+    def doc(self, doc: Document, holding: bool = True, dragging: bool = True) -> Document:
         """The document to give the session this frame, for the editor's ``doc``.
-        ``holding`` False (a model is shown: no preview of the flat canvas) passes it on."""
+        ``holding`` False (a model is shown: no preview of the flat canvas) passes
+        it on; ``dragging`` False (no control held: a click, the release) takes
+        it at once, the picture kept until it is presentable."""
         held = self.synced
         if doc is held:
             return doc
@@ -70,7 +74,7 @@ class PreviewHold:
                 or held.analysis_key() != doc.analysis_key():
             self.synced, self.waiting = doc, False
             return doc
-        if self.waiting and time.monotonic() - self._since < HOLD_MAX_S:
+        if self.waiting and dragging and time.monotonic() - self._since < HOLD_MAX_S:
             return held
         self.synced, self.waiting, self._since = doc, True, time.monotonic()
         return doc
@@ -103,7 +107,7 @@ class CanvasPreviewMixin:
 
     def session_doc(self) -> Document:
         """The document the session shows this frame (see :class:`PreviewHold`)."""
-        return self.hold.doc(self.doc, holding=not self.model_mode)
+        return self.hold.doc(self.doc, holding=not self.model_mode, dragging=imgui.is_any_item_active())
 
     def _refine_and_draw(self, s, geom) -> None:
         """Synthesize for this frame and bring the canvas texture up to date."""
@@ -124,8 +128,9 @@ class CanvasPreviewMixin:
             if (interactive or hold.waiting) and not self.canvas_request:
                 # A control is being dragged, or a change is not presentable
                 # yet: whole levels, coarse to fine, a piece at a time.
-                c = s.refiner.preview(frame, self.frame_pacer.budget_s)
-                hold.reached(c, frame.level - PREVIEW_MAX_K)
+                target = frame.level - PREVIEW_MAX_K
+                c = s.refiner.preview(frame, self.frame_pacer.budget_s, max_level=target)
+                hold.reached(c, target)
                 self.refined = False
                 texel_px = self.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
                 if self.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
