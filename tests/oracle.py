@@ -311,12 +311,20 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         cx, cy = 1 << shift[0], 1 << shift[1]
         jx = np.vectorize(lambda j: cx * ((2 * j + cx) // (2 * cx)))(jx) if cx > 1 else jx
         jy = np.vectorize(lambda j: cy * ((2 * j + cy) // (2 * cy)))(jy) if cy > 1 else jy
-    if direct:  # + floor(J_l(p) Jit_l(p) / 16) (the jitter through J; none grown past the exemplar's pixels)
+    if direct:  # + the jitter scaled with the texture (common.glsl jitter_q8; none grown past the exemplar's pixels)
+        Jl = J.astype(np.int64)
+        det = Jl[..., 0] * Jl[..., 3] - Jl[..., 1] * Jl[..., 2]
+        qx, qy = Q8 * np.asarray(jx, np.int64), Q8 * np.asarray(jy, np.int64)
+        scale = [(det < 2097152, lambda q: q >> 2), (det < 8388608, lambda q: q >> 1),
+                 (det > 134217728, lambda q: q * 4), (det > 33554432, lambda q: q * 2)]
+        ox, oy = qx.copy(), qy.copy()
+        for cond, f in reversed(scale):  # the first rule that holds wins (as the shader's ifs)
+            ox, oy = np.where(cond, f(qx), ox), np.where(cond, f(qy), oy)
         beyond = _beyond_exemplar(J, h)
         if beyond is not None:
-            jx, jy = np.where(beyond, 0, jx), np.where(beyond, 0, jy)
-        tx, rx = _q8_split(Fx + np.floor_divide(J[..., 0] * jx + J[..., 1] * jy, 16), m)
-        ty, ry = _q8_split(Fy + np.floor_divide(J[..., 2] * jx + J[..., 3] * jy, 16), m)
+            ox, oy = np.where(beyond, 0, ox), np.where(beyond, 0, oy)
+        tx, rx = _q8_split(Fx + ox, m)
+        ty, ry = _q8_split(Fy + oy, m)
         S = np.stack([tx, ty, rx, ry], axis=-1)
     else:
         S = np.stack([(ux + jx) & (m - 1), (uy + jy) & (m - 1)], axis=-1)

@@ -137,6 +137,20 @@ bool beyond_exemplar(ivec4 J, int h) {
     return c < (h == 1 ? 16777216 : 4194304);
 }
 
+// A level's jitter Jit (whole exemplar pixels) in 1/256 px under a direction
+// field: scaled with the texture by the power of two nearest its area scale
+// (det J in Q24): grown s times, it jitters about s times less in exemplar
+// pixels, as much in its own texels; a turn or a stretch leaves it whole.
+ivec2 jitter_q8(ivec4 J, ivec2 jit) {
+    int det = J.x * J.w - J.y * J.z;
+    ivec2 q = jit * 256;
+    if (det < 2097152) return floor_shift(ivec4(q, 0, 0), 2).xy;  // s > 2^1.5
+    if (det < 8388608) return floor_shift(ivec4(q, 0, 0), 1).xy;  // s > 2^0.5
+    if (det > 134217728) return q * 4;                             // s < 2^-1.5
+    if (det > 33554432) return q * 2;                              // s < 2^-0.5
+    return q;
+}
+
 // floor(a / b) for b > 0.
 int floor_div(int a, int b) {
     return a >= 0 ? a / b : -((b - 1 - a) / b);

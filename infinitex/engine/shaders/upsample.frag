@@ -9,11 +9,12 @@
 // With a period n_l (toroidal output), jitter and child offsets use p mod n_l.
 // On lattice levels (near-regular exemplars) J is quantized to whole cells.
 // DIRECTION (anisometric, LH06 5; engine/controls/direction.py): in 1/256 px,
-//   F_l[p] = F_{l-1}[floor(p/2)] + child_offset_q8(J_l(p), D, h) + floor(J_l(p) Jit_l(p) / 16),
+//   F_l[p] = F_{l-1}[floor(p/2)] + child_offset_q8(J_l(p), D, h) + jitter_q8(J_l(p), Jit_l(p)),
 // the child offset floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1 (with J = I
-// exactly the integer rule); the jitter goes through J like a child offset (the
-// texture grown s times jitters s times less in exemplar pixels: as much in its
-// own texels), and none where the level is grown past the exemplar's pixels
+// exactly the integer rule); the jitter is scaled with the texture by a power of
+// two (common.glsl jitter_q8: grown s times, about s times less in exemplar
+// pixels, as much in its own texels; a turn leaves it as it is), and none where
+// the level is grown past the exemplar's pixels
 // (common.glsl beyond_exemplar: magnification adds no detail); the randomness over the exemplar is read at the
 // nearest texel of the upsampled coordinate; a placed feature sets a whole texel.
 // ATLAS (a mesh's texture atlas, LH06 6): the parent texel floor(p/2) is read
@@ -104,7 +105,7 @@ void main() {
     }
 #ifdef DIRECTION
     ivec4 Jh = texelFetch(dfield, local, 0);
-    ivec2 Fj = F + (beyond_exemplar(Jh, h) ? ivec2(0) : jmul(Jh, J, 1));  // the jitter through J
+    ivec2 Fj = F + (beyond_exemplar(Jh, h) ? ivec2(0) : jitter_q8(Jh, J));  // scaled with the texture
 #endif
 #if defined(ATLAS)
     result = apply_features_atlas(g, split_q8(Fj, m), h, m, reader);
