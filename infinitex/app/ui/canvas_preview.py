@@ -145,7 +145,8 @@ class CanvasPreviewMixin:
         self.pixels = s.refiner.last_pixels if s.refiner else 0
         w, h = self.canvas_size
         view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-        if hold.waiting and self.canvas.shows(frame, view, self.display, geom, (w // scale, h // scale)):
+        if hold.waiting and not self.canvas_request and self.canvas.shows(frame, view, self.display, geom,
+                                                                          (w // scale, h // scale)):
             self._peek()
             return  # the last presentable texture stays until this change's is
         self.canvas.ensure_size(w // scale, h // scale)
