@@ -39,7 +39,8 @@ from infinitex.project import Document, View
 from ..render.canvas import PREVIEW_MAX_K  # a change shows once the view's level less this many is complete
 
 INTERACTIVE_S = 0.25  # seconds after the last edit that still count as dragging
-HOLD_MAX_S = 4.0      # a change waits no longer than this for the one in progress (a safety net)
+HOLD_MAX_S = 10.0     # a change waits no longer than this for the one in progress (a safety net: a 4K
+                      # canvas on llvmpipe takes seconds to reach a presentable level)
 
 
 def local_edit(prev: Document | None, doc: Document) -> bool:
