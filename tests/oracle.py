@@ -314,12 +314,12 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
     if direct:  # + the jitter scaled with the texture (common.glsl jitter_q8; none grown past the exemplar's pixels)
         Jl = J.astype(np.int64)
         det = Jl[..., 0] * Jl[..., 3] - Jl[..., 1] * Jl[..., 2]
-        qx, qy = Q8 * np.asarray(jx, np.int64), Q8 * np.asarray(jy, np.int64)
-        scale = [(det < 2097152, lambda q: q >> 2), (det < 8388608, lambda q: q >> 1),
-                 (det > 134217728, lambda q: q * 4), (det > 33554432, lambda q: q * 2)]
-        ox, oy = qx.copy(), qy.copy()
-        for cond, f in reversed(scale):  # the first rule that holds wins (as the shader's ifs)
-            ox, oy = np.where(cond, f(qx), ox), np.where(cond, f(qy), oy)
+        conds = [det < 2097152, det < 8388608, det > 134217728, det > 33554432]  # the first that holds wins
+
+        def scaled(q):
+            q = Q8 * np.asarray(q, np.int64)
+            return np.select(conds, [q >> 2, q >> 1, q * 4, q * 2], q)
+        ox, oy = scaled(jx), scaled(jy)
         beyond = _beyond_exemplar(J, h)
         if beyond is not None:
             ox, oy = np.where(beyond, 0, ox), np.where(beyond, 0, oy)

@@ -108,9 +108,8 @@ class Refiner:
         valid = self._valid(level)
         return valid is not None and valid.contains(rect)
 
-    def complete_level(self, frame: Frame) -> int:
-        """The finest level complete over the frame, with every coarser one (-1: none)."""
-        plan = self.pyramid.plan(frame.level, frame.want)
+    def _complete(self, plan: list[Rect]) -> int:
+        """The finest level complete over ``plan`` (a frame's), with every coarser one (-1: none)."""
         return next((l - 1 for l, want in enumerate(plan) if not self.holds(l, want)), len(plan) - 1)
 
     def _missing(self, level: int, want: Rect) -> int:
@@ -168,8 +167,7 @@ class Refiner:
                 # Past max_level: a whole level at once only when it fits in what is left.
                 if time.perf_counter() - t0 + self._missing(missing, plan[missing]) * self.cost[missing] > budget_s:
                     break
-                pyr.end_request()
-                pixels += self._request(missing, plan[missing])
+                pixels += self._request(missing, plan[missing])  # (drops a request in progress)
                 continue
             job = pyr.requesting
             if job is not None and (missing is None or job != (missing, plan[missing])):
@@ -185,17 +183,24 @@ class Refiner:
                     break
                 pyr.start_request(missing, plan[missing])
                 self._job_s = 0.0
-            t = time.perf_counter()
-            before = pyr.request_pixels
-            done = pyr.advance_request(deadline)
-            self._job_s += time.perf_counter() - t
-            pixels += pyr.request_pixels - before
-            if done and pyr.request_pixels > 256:
-                self.cost[missing] = 0.5 * self.cost[missing] + 0.5 * self._job_s / pyr.request_pixels
+            done, n = self._advance(missing, deadline)
+            pixels += n
             if not done:
                 break
         self._done(t0, pixels)
-        return self.complete_level(frame) if missing is None or missing > top else missing - 1
+        return self._complete(plan) if missing is None or missing > top else missing - 1
+
+    def _advance(self, level: int, deadline: float) -> tuple[bool, int]:
+        """Carry the request in progress (of ``level``) on until ``deadline``;
+        learn the level's cost per pixel when it ends. (done, pixels synthesized)."""
+        pyr = self.pyramid
+        t = time.perf_counter()
+        before = pyr.request_pixels
+        done = pyr.advance_request(deadline)
+        self._job_s += time.perf_counter() - t
+        if done and pyr.request_pixels > 256:
+            self.cost[level] = 0.5 * self.cost[level] + 0.5 * self._job_s / pyr.request_pixels
+        return done, pyr.request_pixels - before
 
     def _start(self, l: int, want: Rect) -> None:
         """Start the request for level l: all it misses, or a band of about
@@ -236,13 +241,7 @@ class Refiner:
                 if missing is None or level >= len(plan) or rect.intersect(plan[level]).empty:
                     pyr.end_request()  # the view moved away from it
                     continue
-                t = time.perf_counter()
-                before = pyr.request_pixels
-                done = pyr.advance_request(deadline)
-                self._job_s += time.perf_counter() - t
-                pixels += pyr.request_pixels - before
-                if done and pyr.request_pixels > 256:
-                    self.cost[level] = 0.5 * self.cost[level] + 0.5 * self._job_s / pyr.request_pixels
+                pixels += self._advance(level, deadline)[1]
                 continue
             if not pyr.settled and (missing is None or pyr.updating):
                 # A paint dab or a feature move: shown next. When the view also

@@ -140,7 +140,11 @@ class Canvas:
         source): what is kept while a change's preview is not presentable."""
         key = self.shown_key
         return (key is not None and self.pending is None and tuple(size) == tuple(self.size)
-                and key[1:] == (frame, view, display, self.size, None if geom is None else tuple(np.ravel(geom))))
+                and key[1:] == self._view_key(frame, view, display, geom))
+
+    def _view_key(self, frame: Frame, view: View, display: Display, geom: np.ndarray | None) -> tuple:
+        """What a drawing depends on besides its source."""
+        return (frame, view, display, self.size, None if geom is None else tuple(np.ravel(geom)))
 
     def redraw(self, pyramid: Pyramid, frame: Frame, view: View, display: Display, geom: np.ndarray | None,
                source: tuple, force: bool = False) -> None:
@@ -150,7 +154,7 @@ class Canvas:
         of the view's level is cheap; the whole canvas magnified is not: about
         25 ms on llvmpipe, so a redraw of more than REDRAW_PX canvas pixels is
         spread over frames, that many a frame, the rest kept in ``pending``)."""
-        key = (source, frame, view, display, self.size, None if geom is None else tuple(np.ravel(geom)))
+        key = (source, *self._view_key(frame, view, display, geom))
         touched = pyramid.take_touched()
         if key != self.shown_key or force or touched is None:
             self.render(pyramid, frame, view, display, geom)

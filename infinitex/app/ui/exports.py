@@ -183,33 +183,28 @@ class ExportsMixin:
     def _poll_export(self) -> None:
         """A streamed export's progress, or a window export's next slice; a notice once it ends."""
         self._next_export()
-        if isinstance(self.export_job, BackgroundExport):
-            job = self.export_job
-            if job.finished:
-                self.export_job = None
-                if job.error:
-                    self.dialogs.message("Export failed", job.error)
-                elif job.cancelled:
-                    self.notice = (f"Export of {os.path.basename(job.out_path)} cancelled", time.monotonic())
-                else:
-                    self.notice = (_written(job), time.monotonic())
+        job = self.export_job
+        if isinstance(job, (BackgroundExport, StreamedExport)):  # in processes of their own
+            if not job.finished:
+                return
+            self.export_job = None
+            if job.error:
+                self.dialogs.message("Export failed", job.error)
+            elif isinstance(job, BackgroundExport):
+                self.notice = (f"Export of {os.path.basename(job.out_path)} cancelled" if job.cancelled
+                               else _written(job), time.monotonic())
+            elif job.cancelled:
+                self.notice = (f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
+                               f"export continues from them", time.monotonic())
+            else:
+                r = job.rect
+                where = " and ".join(os.path.abspath(o) for o in job.job.outputs())
+                kept = f" ({job.kept} tiles kept from an earlier run)" if job.kept else ""
+                self.notice = (f"Exported {r.w}x{r.h} to {where}{kept}", time.monotonic())
+                if job.job.notes:  # e.g. a parts folder left in place because it held foreign files
+                    self.dialogs.message("Export finished", "\n".join(job.job.notes))
+            if isinstance(job, BackgroundExport):
                 self._next_export()
-        elif isinstance(self.export_job, StreamedExport):
-            job = self.export_job
-            if job.finished:
-                self.export_job = None
-                if job.error:
-                    self.dialogs.message("Export failed", job.error)
-                elif job.cancelled:
-                    self.notice = (f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
-                                   f"export continues from them", time.monotonic())
-                else:
-                    r = job.rect
-                    where = " and ".join(os.path.abspath(o) for o in job.job.outputs())
-                    kept = f" ({job.kept} tiles kept from an earlier run)" if job.kept else ""
-                    self.notice = (f"Exported {r.w}x{r.h} to {where}{kept}", time.monotonic())
-                    if job.job.notes:  # e.g. a parts folder left in place because it held foreign files
-                        self.dialogs.message("Export finished", "\n".join(job.job.notes))
         elif self.export_job is not None:
             self.export_job.step(FRAME_BUDGET_S)
             self.screen_fbo.use()
