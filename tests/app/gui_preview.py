@@ -5,7 +5,8 @@ after a change must look like the result, never the coarse levels magnified.
     xvfb-run -a python tests/app/gui_preview.py OUT_DIR
 
 Opens the bundled bricks, drags the "All levels" randomness slider by the mouse
-for about two seconds and reads back what each frame shows; then picks another
+for 2.5 s (longer on a loaded machine, until the canvas changed three times)
+and reads back what each frame shows; then picks another
 Structure preset and reads every frame until the view settles. Each frame read
 is compared with the exemplar by the neighbourhood energy (bench.measures) of
 its centre: at most twice the settled canvas's. Writes "ok NAME" / "FAIL NAME:
@@ -52,12 +53,15 @@ def main(out: str) -> int:
         x = r.min.x + 0.6 * (r.max.x - r.min.x)
         ctx.mouse_move_to_pos(imgui.ImVec2(x, y))
         ctx.mouse_down(0)
-        shown = []
+        shown, changes = [], 0
         t0 = time.monotonic()
-        while time.monotonic() - t0 < 2.5:
-            x -= 1.5
+        # At least 2.5 s, and on a loaded machine (a few frames a second) until the
+        # canvas has changed three times or 20 s have passed.
+        while time.monotonic() - t0 < 2.5 or (changes < 3 and time.monotonic() - t0 < 20):
+            x -= 1.5 if x > r.min.x + 0.25 * (r.max.x - r.min.x) else 0.0  # (stops at about 0.25)
             ctx.mouse_move_to_pos(imgui.ImVec2(x, y))
             img = h.peek(ctx)
+            changes += bool(shown) and not np.array_equal(img, shown[-1])
             shown.append(img.copy())
         ctx.mouse_up(0)
         dragged = abs(ed.doc.jitter_for(ed.session.L)[0] - 0.6) > 0.1
