@@ -37,6 +37,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "tests"))
 SHARED = os.path.join(os.path.dirname(HERE), "shared", "exemplars")
 
+import lattice_scenes  # noqa: E402
 import near_regular as real_set  # noqa: E402
 from lattice_gen import (  # noqa: E402
     bricks,
@@ -141,6 +142,37 @@ def real_images_accuracy() -> dict:
     return {"lattices_found": int(sum(r["correct"] for r in lat)), "lattices": len(lat),
             "stochastic_false_positives": int(sum(not r["correct"] for r in none)), "stochastic": len(none),
             "images": out}
+
+
+def split_accuracy() -> dict:
+    """The second development set, split before tuning: photo-like scenes
+    (tests/lattice_scenes.py) and the Cube 2 textures (tests/data/lattice_cube2.json),
+    each in a tuned half (even places) and an untouched half (odd places)."""
+    out = {}
+    try:
+        cube2 = real_set.fetch(real_set.CUBE2)
+    except real_set.Unavailable as e:
+        print(f"  Cube 2 textures: not measured ({e})")
+        cube2 = []
+    for half, parity in (("tune", 0), ("held", 1)):
+        cases = [(e, img) for img, e in lattice_scenes.scenes(half)]
+        cases += [(dict(e, index=i), real_set.load(p)) for i, (e, p) in enumerate(cube2) if i % 2 == parity]
+        found = lat = fp = none = 0
+        misses = []
+        for e, img in cases:
+            d = detect(img)
+            ok = bool(real_set.correct(e, d))
+            if e["kind"] == "none":
+                none += 1
+                fp += not ok
+            else:
+                lat += 1
+                found += ok
+            if not ok:
+                misses.append(f"{e['what']} #{e.get('index')}")
+        out[half] = {"lattices_found": found, "lattices": lat, "stochastic_false_positives": fp,
+                     "stochastic": none, "missed": misses}
+    return out
 
 
 def lattice_for(img: np.ndarray):
@@ -268,6 +300,12 @@ def main() -> int:
         for r in real["images"]:
             if not r["correct"]:
                 print(f"    missed: {r['image']} ({r['what']}): truth {r['truth']}, found {r['found']}")
+    split = split_accuracy()
+    for half, r in split.items():
+        print(f"  second set, {'tuned' if half == 'tune' else 'untouched'} half: {r['lattices_found']}/{r['lattices']} "
+              f"lattices found ({100 * r['lattices_found'] / max(1, r['lattices']):.0f}%); "
+              f"{r['stochastic_false_positives']}/{r['stochastic']} stochastic images given a lattice; "
+              f"missed: {', '.join(r['missed']) or 'none'}")
     rows = []
     print("\nLattice regularity: autocorrelation at t1, t2, output over exemplar (1.0 = as regular)")
     print(f"  {'case':34s} {'conf':>5s} {'cells':>7s} {'without lattice':>16s} {'with lattice':>14s}")
@@ -284,6 +322,7 @@ def main() -> int:
     mean_lat = float(np.mean([min(r["lattice"]) for r in gen]))
     print(f"\n  generated set, mean of the weaker axis: without {mean_plain:.2f}, with {mean_lat:.2f}")
     result = {"detection_seconds": {str(k): v for k, v in times.items()}, "accuracy": acc, "real": real,
+              "split": split,
               "regularity": rows, "generated_mean_weaker_axis": {"plain": mean_plain, "lattice": mean_lat}}
     os.makedirs(os.path.dirname(args.json), exist_ok=True)
     atomic_write(args.json, json.dumps(result, indent=1).encode())

@@ -31,7 +31,13 @@ import numpy as np
 
 from lattice_gen import lattice_error
 
-MANIFEST = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "near_regular.json")
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data")
+MANIFEST = os.path.join(DATA, "near_regular.json")
+# A second set from another source (the Cube 2 game's textures, CC-BY-3.0; the
+# files lie in the package directly): 13 lattices (grids, hexagons, diamond
+# plate, courses and shingles) and 19 stochastic images, split by their place in
+# the list (even: tuned on, odd: only reported; bench.lattice).
+CUBE2 = os.path.join(DATA, "lattice_cube2.json")
 TOLERANCE = 0.03  # the issue's target: within 3% of the true vectors
 
 
@@ -39,8 +45,8 @@ class Unavailable(RuntimeError):
     """The image set could not be fetched (no network, package gone)."""
 
 
-def manifest() -> dict:
-    with open(MANIFEST, encoding="utf-8") as f:
+def manifest(path: str = MANIFEST) -> dict:
+    with open(path, encoding="utf-8") as f:
         return json.load(f)
 
 
@@ -80,25 +86,30 @@ def _download(pkg: dict, into: str) -> str:
     return deb
 
 
-def _archive_from_deb(deb: str, member: str) -> bytes:
-    """One file of a .deb's data archive (through dpkg-deb, which knows every
+def _members_from_deb(deb: str, members: list[str]) -> dict[str, bytes]:
+    """Files of a .deb's data archive (through dpkg-deb, which knows every
     compression a .deb may use)."""
     if not shutil.which("dpkg-deb"):
         raise Unavailable("dpkg-deb is needed to unpack the image set's package")
     tar_bytes = subprocess.run(["dpkg-deb", "--fsys-tarfile", deb], capture_output=True, check=True).stdout
+    out = {}
     with tarfile.open(fileobj=io.BytesIO(tar_bytes)) as tar:
-        for name in (member, "./" + member):
-            try:
-                return tar.extractfile(name).read()
-            except KeyError:
-                continue
-    raise Unavailable(f"{member} is not in {os.path.basename(deb)}")
+        for m in members:
+            for name in (m, "./" + m):
+                try:
+                    out[m] = tar.extractfile(name).read()
+                    break
+                except KeyError:
+                    continue
+            else:
+                raise Unavailable(f"{m} is not in {os.path.basename(deb)}")
+    return out
 
 
-def fetch() -> list[tuple[dict, str]]:
+def fetch(path: str = MANIFEST) -> list[tuple[dict, str]]:
     """(entry, path of the cached image) for every image of the set, fetching
     the package first if any image is missing. Raises Unavailable."""
-    m = manifest()
+    m = manifest(path)
     root = cache_dir()
     os.makedirs(root, exist_ok=True)
     out = [(e, os.path.join(root, _cached_name(e))) for e in m["images"]]
@@ -106,15 +117,19 @@ def fetch() -> list[tuple[dict, str]]:
     if missing:
         with tempfile.TemporaryDirectory(dir=root) as tmp:
             deb = _download(m["package"], tmp)
-            with zipfile.ZipFile(io.BytesIO(_archive_from_deb(deb, m["package"]["archive"]))) as pk3:
-                for e, p in missing:
-                    data = pk3.read(e["path"])
-                    if hashlib.sha256(data).hexdigest() != e["sha256"]:
-                        raise Unavailable(f"{e['path']} does not match its recorded SHA-256")
-                    part = p + ".part"
-                    with open(part, "wb") as f:
-                        f.write(data)
-                    os.replace(part, p)
+            if "archive" in m["package"]:  # the images lie in a zip inside the package
+                with zipfile.ZipFile(io.BytesIO(_members_from_deb(deb, [m["package"]["archive"]])[m["package"]["archive"]])) as pk3:
+                    read = {e["path"]: pk3.read(e["path"]) for e, _ in missing}
+            else:
+                read = _members_from_deb(deb, [e["path"] for e, _ in missing])
+            for e, p in missing:
+                data = read[e["path"]]
+                if hashlib.sha256(data).hexdigest() != e["sha256"]:
+                    raise Unavailable(f"{e['path']} does not match its recorded SHA-256")
+                part = p + ".part"
+                with open(part, "wb") as f:
+                    f.write(data)
+                os.replace(part, p)
     return out
 
 

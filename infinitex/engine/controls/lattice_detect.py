@@ -138,10 +138,11 @@ def detect(pixels: np.ndarray) -> Detection:
     if grid is None and rows is None:
         return replace(none, seconds=time.perf_counter() - t0)
     # Rows win when the grid only cuts them into arbitrary cells (and they are
-    # confident), or when there is no confident grid.
+    # confident), or when there is no confident grid; rows whose cells repeat
+    # along them too (bricks, shingles, staggered or not) are that grid.
     if rows is not None and (grid is None or (_along(ac, (hy, hx), rows[3], grid[0], grid[1])
                                               and rows[2] >= MIN_CONFIDENCE) or grid[2] < min(MIN_CONFIDENCE, rows[2])):
-        t1, t2, conf = rows[:3]
+        t1, t2, conf = _cells_along(gray, (hy, hx), rows, reach, lobe) or rows[:3]
     else:
         t1, t2, conf = grid
     t1, t2 = t1 * f, t2 * f
@@ -242,31 +243,109 @@ def _candidate_peaks(vec: np.ndarray, vals: np.ndarray, length: np.ndarray):
 
 def _primitive(ac: np.ndarray, center, t1, t2, lobe: float):
     """The finest lattice the basis is a coarser version of: while a fraction
-    of a lattice vector (t/k for k up to 8, or (t1+t2)/2) and all its multiples
-    up to t correlate as much as the basis itself, that fraction is a lattice
-    vector too (a grid of thin lines otherwise comes out as cells of several
-    grid cells)."""
+    of a lattice vector (t/k for k up to 8) or of the cell ((i t1 + j t2)/k with
+    i or j = 1, k up to 4: the half-way point of a centred cell, the third of a
+    hexagonal one) and all its multiples up to the lattice correlate as much as
+    the basis itself, that fraction is a lattice vector too (a grid of thin
+    lines otherwise comes out as cells of several grid cells, a hexagonal
+    pattern as a cell three times too large)."""
     a, b = np.asarray(t1, float), np.asarray(t2, float)
+    floor = max(lobe, MIN_VECTOR)
     for _ in range(6):
         level = 0.85 * float(_sample(ac, np.stack([a, b]), center).min())
         found = None
         for v, keep in ((a, b), (b, a)):
             for k in range(2, 9):
                 h = v / k
-                if math.hypot(*h) < max(lobe, MIN_VECTOR):
+                if math.hypot(*h) < floor:
                     break
                 if float(_sample(ac, np.outer(np.arange(1, k), h), center).min()) >= level:
                     found = (h, keep)
                     break
             if found:
                 break
-        mid = 0.5 * (a + b)
-        if found is None and math.hypot(*mid) >= max(lobe, MIN_VECTOR) and float(_sample(ac, mid[None, :], center)[0]) >= level:
-            found = (mid, a)
+        if found is None:
+            found = _cell_fraction(ac, center, a, b, level, floor)
         if found is None:
             break
         a, b = gauss_reduce(*found)
     return a, b
+
+
+def _cell_fraction(ac: np.ndarray, center, a, b, level: float, floor: float):
+    """(h, w): a fraction h = (i a + j b)/k of the cell (i or j = 1, k <= 4)
+    whose multiples, each taken to its shortest copy modulo the lattice,
+    correlate at least ``level``; w the basis vector that spans the finer
+    lattice with it. None if there is none."""
+    B = np.stack([a, b], axis=1)
+    for k in (2, 3, 4):
+        for i in range(k):
+            for j in range(k):
+                if (i != 1 and j != 1) or math.gcd(math.gcd(i, j), k) != 1:
+                    continue
+                h = (i * a + j * b) / k
+                pts = []
+                for m in range(1, k):
+                    p = m * h
+                    p = p - B @ np.rint(np.linalg.solve(B, p))  # its shortest copy, about
+                    copies = [p + B @ np.array(n) for n in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1))]
+                    pts.append(min(copies, key=lambda q: math.hypot(*q)))
+                if min(math.hypot(*q) for q in pts) < floor:
+                    continue
+                if float(_sample(ac, np.stack(pts), center).min()) >= level:
+                    return h, (b if i == 1 else a)
+    return None
+
+
+def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
+    """Rows whose cells also repeat along them (bricks in running bond,
+    shingles, tiles in courses): the period w along the rows and the shift o
+    from one row to the next give the grid t1 = w d, t2 = P n + o d. Found when
+    the correlation along the rows (lags k w d) and along the next row (lags
+    P n + (o + k w) d) each stand clearly above its value half-way between (a
+    random bond's rows correlate about evenly all along). The correlation is
+    that of the change along the rows (the joints between cells; the lines
+    between rows, which correlate at any lag along them, drop out). Returns
+    (t1, t2, confidence) or None."""
+    t1r, t2r, conf, d = rows
+    d = np.asarray(d, float)
+    gy, gx = np.gradient(ndimage.gaussian_filter(gray, 1.0))
+    ac = _autocorrelation(np.abs(gx * d[0] + gy * d[1]))
+    across = np.asarray(t2r, float) if abs(float(np.asarray(t2r, float) @ d)) < abs(float(np.asarray(t1r, float) @ d)) \
+        else np.asarray(t1r, float)
+    step = 0.25
+    smax = reach
+    s = np.arange(0.0, smax + 1.0, step)
+    on_row = ndimage.maximum_filter1d(_sample(ac, s[:, None] * d[None, :], center), size=5, mode="nearest")
+    periods = np.arange(max(2.0 * lobe, MIN_VECTOR, 0.75 * math.hypot(*across)), smax - 1.0, step)
+    if periods.size == 0:
+        return None
+    def at(prof, x):
+        return prof[np.minimum(np.rint(np.asarray(x) / step).astype(int), len(prof) - 1)]
+    score = at(on_row, periods) - at(on_row, 0.5 * periods)  # a multiple of the period scores about nothing
+    if score.max() <= 0.05:
+        return None
+    i = int(np.nonzero(score >= 0.8 * score.max())[0][0])
+    while i + 1 < len(score) and score[i + 1] >= score[i]:
+        i += 1
+    w = float(periods[i])
+    half = float(at(on_row, 0.5 * w))
+    contrast_row = (float(at(on_row, w)) - half) / max(1e-6, 1.0 - half)
+    # The next row: its best shift within one period.
+    o = np.arange(0.0, w, step)
+    nxt = _sample(ac, across[None, :] + o[:, None] * d[None, :], center)
+    k = int(np.argmax(nxt))
+    opposite = float(_sample(ac, (across + ((o[k] + 0.5 * w) % w) * d)[None, :], center)[0])
+    contrast_next = (float(nxt[k]) - opposite) / max(1e-6, 1.0 - opposite)
+    if min(contrast_row, contrast_next) < CELLS_ALONG_MIN or max(contrast_row, contrast_next) < MIN_CONFIDENCE:
+        return None
+    t1, t2 = _refine(ac, w * d, across + float(o[k]) * d, center)
+    t1, t2 = canonical_basis(t1, t2)
+    return t1, t2, min(conf, max(contrast_row, contrast_next))
+
+
+CELLS_ALONG_MIN = 0.25  # rows: the contrast along them (and along the next row) that makes them a grid,
+                        # both at least this, one at least MIN_CONFIDENCE (chosen on the tune halves)
 
 
 RIDGE_MIN = 0.5  # rows: the median correlation along their direction
