@@ -7,7 +7,9 @@ lattice mode keeps the lattice.
    (median of 9; target under 1 s at 512^2), and accuracy on 100 generated
    images (both vectors and the cell area within 2%) and 30 stochastic ones
    (should be "no lattice"); rows (planks, stripes, straight or bent) and grids of
-   thin lines (the period within 3%).
+   thin lines (the period within 3%); the real game textures of
+   tests/near_regular.py; a second set split before tuning (photo-like scenes
+   and Cube 2 textures): its tuned half and its untouched half.
 2. Lattice regularity: the autocorrelation of the output at the lattice
    vectors t1 and t2 (the cell's sides in the rectified geometry) over the
    exemplar's, for a 384^2 window synthesized with and without lattice mode
