@@ -9,20 +9,21 @@ same whatever the window, its order or the machine. One call::
     img = itx.synthesize("gravel.png", size=(512, 512), origin=(10_000, -3_000), seed=7)
     itx.write_png("gravel-512.png", img)           # uint8 (H, W, C)
     tile = itx.tile("gravel.png", 256)              # a seamless 256 x 256 tile
-    bricks = itx.synthesize("bricks.png", size=(512, 512), lattice="auto")  # rows kept
+    bricks = itx.synthesize("bricks.png", size=(512, 512))  # its lattice found: rows kept
 
 ``synthesize(exemplar, size=(W, H), origin=(X, Y), *, seed=0, randomness=None,
-controls=NO_CONTROLS, lattice=None, geometry="original", structure="balanced",
+controls=NO_CONTROLS, lattice="auto", geometry="original", structure="balanced",
 labels=None, label_strength=1.0)``
     ``exemplar`` is an image path, a float array in [0, 1] or an ``Exemplar``.
     ``randomness``: r for every level, or one per level coarse to fine
     (default 0.6). ``controls``: painted randomness and placed features
-    (``Controls``). ``lattice``: a ``Lattice``, ``"auto"`` or None.
+    (``Controls``). ``lattice``: ``"auto"`` (an image showing a lattice,
+    found with confidence, is synthesized on it), a ``Lattice``, or None.
     ``structure``: the Structure / Variety preset, 0-4 or "variety" ... "maximum".
     ``labels``: texture by numbers, (exemplar label map, canvas label map[,
     origin]): paths or color images (each distinct color a label,
     transparent = free on the canvas) or arrays of label ids.
-``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice=None, structure="balanced")``
+``tile(exemplar, n=256, *, seed=0, randomness=None, controls=NO_CONTROLS, lattice="auto", structure="balanced")``
     An n x n toroidal tile (n a power of two, 32 to 4096).
 ``tile_set(exemplar, colors=2, n=256, *, variants=0, ...)``
     A tile set for game engines: (atlas, description). A corner Wang set

@@ -31,8 +31,10 @@ from .engine.synth import Synthesizer
 
 
 def _exemplar(source, lattice: Lattice | str | None) -> tuple[Exemplar, Lattice | None]:
-    """An exemplar from a path, an array or an Exemplar; with a lattice, its rectified block."""
-    if lattice is None:
+    """An exemplar from a path, an array or an Exemplar; with a lattice, its
+    rectified block ("auto": the lattice detection finds, if it is confident;
+    an Exemplar is taken as it is)."""
+    if lattice is None or (isinstance(lattice, str) and isinstance(source, Exemplar)):
         if isinstance(source, Exemplar):
             return source, None
         if isinstance(source, (str, os.PathLike)):
@@ -49,6 +51,20 @@ def _exemplar(source, lattice: Lattice | str | None) -> tuple[Exemplar, Lattice 
         if lattice is None:
             return _exemplar(source, None)
     return rectified_exemplar(image, lattice), lattice
+
+
+def _whole_cells(source, lattice, controls: Controls, n: int) -> tuple[Exemplar, Lattice | None]:
+    """As _exemplar, for tiles of n px: a lattice found by "auto" whose cells
+    do not divide n (or beside exemplar maps in ``controls``) is not used."""
+    auto = isinstance(lattice, str)
+    if auto and controls is not NO_CONTROLS:
+        lattice = None
+    ex, lat = _exemplar(source, lattice)
+    if auto and lat is not None:
+        cx, cy = lat.cell(ex.size)
+        if n % cx or n % cy:
+            return _exemplar(source, None)
+    return ex, lat
 
 
 def _label_map(source, what: str) -> tuple[np.ndarray, bool]:
@@ -134,7 +150,7 @@ def palette(exemplars, fit: str = "resize") -> tuple[Exemplar, PaletteLayout]:
 
 def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, int] = (0, 0), *,
                seed: int = 0, randomness: float | tuple[float, ...] | None = None,
-               controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = None,
+               controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = "auto",
                geometry: str = "original", structure: int | str = DEFAULT_STRUCTURE,
                labels: tuple | None = None, label_strength: float = 1.0) -> np.ndarray:
     """A ``size`` = (W, H) window of the exemplar's infinite texture at canvas
@@ -144,8 +160,9 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
     :class:`~infinitex.engine.exemplar.Exemplar`. ``randomness``: one r for
     every level or one per level, coarse to fine (default 0.6). ``controls``:
     painted randomness and placed features (:class:`Controls`). ``lattice``:
-    a :class:`Lattice`, ``"auto"`` (detected; no lattice mode when none is
-    found) or None; with a lattice, ``geometry`` is ``"original"`` (the
+    ``"auto"`` (the default: an image or array showing a lattice, found with
+    confidence, is synthesized on it; none is found on stochastic images), a
+    :class:`Lattice`, or None (never); with a lattice, ``geometry`` is ``"original"`` (the
     input's geometry, origin and size in input pixels) or ``"rectified"``.
     ``structure``: the Structure / Variety preset, 0 to 4 or its name
     ("variety" ... "maximum"; default "balanced", as in the editor and the
@@ -153,6 +170,8 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
     canvas label map) or (..., canvas origin) as for :func:`label_controls`,
     followed with ``label_strength``. Windows of the same arguments agree bit
     for bit wherever they overlap."""
+    if lattice == "auto" and (labels is not None or controls is not NO_CONTROLS):
+        lattice = None  # maps in the exemplar's pixels, and labels, go without a lattice
     ex, lat = _exemplar(exemplar, lattice)
     if labels is not None:
         controls = label_controls(ex, labels[0], labels[1], tuple(labels[2]) if len(labels) > 2 else (0, 0),
@@ -173,12 +192,13 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
 
 
 def tile(exemplar, n: int = 256, *, seed: int = 0, randomness: float | tuple[float, ...] | None = None,
-         controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = None,
+         controls: Controls = NO_CONTROLS, lattice: Lattice | str | None = "auto",
          structure: int | str = DEFAULT_STRUCTURE) -> np.ndarray:
     """An n x n seamless (toroidal) tile, uint8 (n, n, C); n a power of two
     from 32 to 4096. With a lattice the tile is rectified, whole cells.
-    ``structure`` as for :func:`synthesize`."""
-    ex, lat = _exemplar(exemplar, lattice)
+    ``structure`` as for :func:`synthesize`; a lattice found by ``"auto"``
+    is used only where its cells divide n."""
+    ex, lat = _whole_cells(exemplar, lattice, controls, n)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
     if lat is not None:
         from dataclasses import replace
@@ -189,7 +209,7 @@ def tile(exemplar, n: int = 256, *, seed: int = 0, randomness: float | tuple[flo
 
 def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed: int = 0,
              randomness: float | tuple[float, ...] | None = None, controls: Controls = NO_CONTROLS,
-             lattice: Lattice | str | None = None, structure: int | str = DEFAULT_STRUCTURE,
+             lattice: Lattice | str | None = "auto", structure: int | str = DEFAULT_STRUCTURE,
              origin: tuple[int, int] = (0, 0)) -> tuple[np.ndarray, dict]:
     """A tile set for game engines: a corner Wang set of ``colors`` corner
     colours (2: 16 tiles, 3: 81) of n x n (64 to 2048, a power of two) that
@@ -202,7 +222,7 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
     lays tiles out at random. Other arguments as for :func:`synthesize`; the
     windows are taken from around ``origin``."""
     from .export.wang import TileSetBuilder, TileSetPlan
-    ex, lat = _exemplar(exemplar, lattice)
+    ex, lat = _whole_cells(exemplar, lattice, controls, n)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
     if lat is not None:
         from dataclasses import replace

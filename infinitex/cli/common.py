@@ -140,8 +140,10 @@ def add_lattice_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--lattice", metavar="auto|none|OX,OY,T1X,T1Y,T2X,T2Y,NX,NY",
                    help="synthesize on the lattice: 'auto' detects it; or give the origin, the two "
                         "translation vectors (input-image pixels) and the block of NX x NY cells "
-                        "(1, 2, 4, 8 or 16); 'none' turns a project's lattice off. The lattice used is "
-                        "printed on stdout as 'lattice: ...' (or 'lattice: none')")
+                        "(1, 2, 4, 8 or 16); 'none' synthesizes without one (and turns a project's off). "
+                        "Without this option an image is searched for a lattice and synthesized on it when "
+                        "one is found with confidence. The lattice used is printed on stdout as "
+                        "'lattice: ...' (or 'lattice: none')")
     g.add_argument("--lattice-levels", type=integer, default=None, metavar="K",
                    help="number of coarse levels synthesized on the lattice (default: down to a quarter cell)")
     g.add_argument("--geometry", choices=("original", "rectified"), default=None,
@@ -177,6 +179,22 @@ def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None):
     sys.stdout.write(f"lattice: {lat.to_text() if lat else 'none'}\n")
     sys.stdout.flush()
     return lat
+
+
+def finds_lattice(args) -> bool:
+    """Whether synth looks for a lattice without being asked (no --lattice):
+    a single image whose other options all go with a lattice (not a palette,
+    labels, a direction map, Make tileable, a toroidal setting for the
+    exemplar, maps or features placed in the exemplar's pixels, the
+    random-walk search, or coordinates in the original geometry)."""
+    if getattr(args, "lattice", None) is not None:
+        return False
+    off = (getattr(args, name, None) for name in (
+        "palette", "labels_exemplar", "labels_canvas", "direction_map", "make_tileable",
+        "randomness_exemplar", "avoid_exemplar", "features"))
+    if any(off) or getattr(args, "exemplar_toroidal", "auto") != "auto" or getattr(args, "k", 2) == 0:
+        return False
+    return not (getattr(args, "coords", None) and args.geometry != "rectified" and not args.toroidal)
 
 
 def check_lattice_args(args) -> None:

@@ -36,6 +36,7 @@ from .common import (
     label_maps,
     palette_document,
     randomness_controls,
+    finds_lattice,
     resolve_lattice,
 )
 
@@ -185,7 +186,8 @@ def run_export(argv: list[str]) -> int:
     inputs = [args.randomness_exemplar, args.randomness_canvas, args.avoid_exemplar, args.features,
               args.labels_exemplar, args.labels_canvas, args.direction_map]
     size = (args.toroidal, args.toroidal) if args.toroidal is not None else (w, h)  # (a tile set: its atlas)
-    if is_project_file(args.project):
+    project = is_project_file(args.project)
+    if project:
         try:
             proj = load_project(args.project, allow_outside=args.allow_outside_exemplar)
         except ExemplarOutside as exc:
@@ -239,7 +241,7 @@ def run_export(argv: list[str]) -> int:
     from infinitex.export.window import ExportJob
     from infinitex.project.realize import exemplar_for, material_or_none
     check_lattice_args(args)
-    image = None
+    image = found = None
     if args.lattice and doc.maps:
         raise CliError("A lattice works on a single image, not on a material.", EXIT_USAGE)
     if args.lattice:  # replaces the project's lattice ('none' removes it)
@@ -248,8 +250,30 @@ def run_export(argv: list[str]) -> int:
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
     elif doc.lattice is not None:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
+    elif not project and not doc.maps and finds_lattice(args) \
+            and not (streamed and not tor and (args.geometry or geometry) != "rectified"):
+        # An image is searched for a lattice (regular textures right by default).
+        from infinitex.engine.exemplar import decode_full
+        from infinitex.project.realize import with_found_lattice
+        image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        doc, found = with_found_lattice(doc, image)
     material = material_or_none(doc)
     ex, settings = exemplar_for(doc, image, material)
+    if found is not None and doc.lattice is not None:
+        cx, cy = doc.lattice.cell(ex.size)
+        whole = tor or (tileset.tile if tileset else 0)  # a tile of whole cells
+        if whole and (whole % cx or whole % cy):
+            if not args.quiet:
+                sys.stderr.write(f"note: the exemplar shows a lattice, but its cells ({cx}x{cy} px rectified) "
+                                 f"do not divide {whole}: exported without it\n")
+            doc = replace(doc, lattice=None)
+            ex, settings = exemplar_for(doc, None, material)
+        else:
+            sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
+            if not args.quiet:
+                sys.stderr.write(f"note: a lattice was found in the exemplar (cells {doc.lattice.describe()}, "
+                                 f"confidence {found.confidence:.2f}): rows and columns stay straight; "
+                                 "--lattice none turns it off\n")
     del image
     if material is not None:
         roles = parse_maps(args.maps, material)

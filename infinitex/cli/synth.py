@@ -45,6 +45,7 @@ from .common import (
     palette_document,
     passes_arg,
     randomness_controls,
+    finds_lattice,
     resolve_lattice,
 )
 
@@ -126,19 +127,28 @@ def run_synth(argv: list[str]) -> int:
     except OwnInputError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     check_lattice_args(args)
-    if args.coords and args.lattice and args.geometry != "rectified" and not args.toroidal:
+    asked = args.lattice is not None and args.lattice.strip().lower() != "none"
+    if args.coords and asked and args.geometry != "rectified" and not args.toroidal:
         raise CliError("--coords needs --geometry rectified: in the original geometry each pixel blends "
                        "four synthesized texels.", EXIT_USAGE)
-    if args.make_tileable and (args.lattice or args.exemplar_toroidal != "auto"):
+    if args.make_tileable and (asked or args.exemplar_toroidal != "auto"):
         raise CliError("--make-tileable goes with neither --lattice (a lattice's block already tiles) nor "
                        "--exemplar-toroidal (the result tiles).", EXIT_USAGE)
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
     lattice = image = None
+    found = None  # the lattice found without being asked for (regular textures right by default)
     if args.lattice:
         from infinitex.engine.controls.lattice import rectified_exemplar
         from infinitex.engine.exemplar import load_full
         image = load_full(args.exemplar)
         lattice = resolve_lattice(args.lattice, image, args.lattice_levels)
+    elif finds_lattice(args):
+        from infinitex.engine.controls.lattice import rectified_exemplar
+        from infinitex.engine.controls.lattice_detect import detect
+        from infinitex.engine.exemplar import load_full
+        image = load_full(args.exemplar)
+        found = detect(image)
+        lattice = found.lattice
     palette = None
     if args.palette:
         if lattice is not None or args.make_tileable:
@@ -154,7 +164,20 @@ def run_synth(argv: list[str]) -> int:
         palette = replace(doc.labels, exemplar=doc.labels.exemplar.scaled(ex.size))
     elif lattice is not None:
         ex = rectified_exemplar(image, lattice, source=args.exemplar)
-    else:
+        if found is not None:
+            cx, cy = lattice.cell(ex.size)
+            if args.toroidal and (w % cx or w % cy):  # a tile of whole cells would need another size
+                if not args.quiet:
+                    sys.stderr.write(f"note: the exemplar shows a lattice, but its cells ({cx}x{cy} px rectified) "
+                                     f"do not divide {w}: synthesized without it\n")
+                lattice = None
+            else:
+                sys.stdout.write(f"lattice: {lattice.to_text()}\n")
+                if not args.quiet:
+                    sys.stderr.write(f"note: a lattice was found in the exemplar (cells {lattice.describe()}, confidence "
+                                     f"{found.confidence:.2f}): rows and columns stay straight; "
+                                     "--lattice none turns it off\n")
+    if lattice is None and palette is None:
         ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
         from infinitex.engine.tileable import recommended, tileable_exemplar
         if args.make_tileable:

@@ -57,16 +57,19 @@ class LoadedDocument:
 
     # -- documents ----------------------------------------------------------
 
-    def load(self, doc: Document, preview: bool | None = None) -> AnalysisJob:
+    def load(self, doc: Document, preview: bool | None = None, find_lattice: bool = False) -> AnalysisJob:
         """Start analyzing ``doc``'s exemplar (cancelling a job for another key);
         ``preview`` (default: the class's QUICK_PREVIEW): install a quick
-        preview analysis first (see ``poll``)."""
+        preview analysis first (see ``poll``); ``find_lattice``: first look for
+        a lattice in a single image (project.realize.with_found_lattice; the
+        job's ``doc`` becomes the document with it)."""
         key = doc.analysis_key()
         if self.job is not None and not self.job.done:
-            if self.job.key == key:
+            if self.job.asked_key == key and self.job.find_lattice == find_lattice:
                 return self.job
             self.job.cancel()
-        self.job = AnalysisJob(doc, self.cache_dir, preview=self.QUICK_PREVIEW if preview is None else preview)
+        self.job = AnalysisJob(doc, self.cache_dir, preview=self.QUICK_PREVIEW if preview is None else preview,
+                               find_lattice=find_lattice)
         return self.job
 
     def doc_params(self, doc: Document, L: int | None = None) -> SynthParams:

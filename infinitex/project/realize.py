@@ -19,6 +19,7 @@ from infinitex.engine.analysis import (
     search_k,
 )
 from infinitex.engine.controls.lattice import LatticeError, rectified_exemplar
+from infinitex.engine.controls.lattice_detect import Detection, detect
 from infinitex.engine.exemplar import (
     Exemplar,
     ExemplarError,
@@ -29,7 +30,7 @@ from infinitex.engine.material import IMAGE, Material, MaterialError, load_mater
 from infinitex.engine.palette import PaletteLayout, check_palette_budget, pack_palette
 from infinitex.engine.tileable import tileable_exemplar, tileable_material
 
-from .document import Document
+from .document import Document, ProjectError
 
 
 def material_for(doc: Document) -> Material:
@@ -94,12 +95,44 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
     return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid, feature_weight=doc.feature_weight)
 
 
+def with_found_lattice(doc: Document, image: np.ndarray | None = None) -> tuple[Document, Detection | None]:
+    """Regular textures right by default: a single image without a lattice
+    that shows one (lattice detection, confident: engine.controls.lattice's
+    MIN_CONFIDENCE, chosen so that no stochastic image of the development sets
+    gets one) is synthesized on it, where a lattice goes with the rest of the
+    document (not with Make tileable, texture by numbers, a direction field, a
+    model, a material or the random-walk search). Returns the document (with
+    the lattice, or as it was) and the detection (None when none ran).
+    ``image``: the exemplar file decoded whole, if at hand."""
+    if doc.lattice is not None or doc.maps or doc.palette or doc.make_tileable or doc.k == 0:
+        return doc, None
+    if image is None:
+        image = decode_full(doc.exemplar.data, doc.exemplar.name)
+    found = detect(image)
+    if found.lattice is None:
+        return doc, found
+    on = replace(doc, lattice=found.lattice)
+    try:
+        on.validate()
+    except ProjectError:
+        return doc, found
+    return on, found
+
+
 class AnalysisJob:
     """Decode the exemplar and analyze it on a worker thread (numpy and scipy
     release the GIL for the heavy parts); poll ``done``; ``cancel()`` stops it."""
 
-    def __init__(self, doc: Document, cache_dir: str | None = None, preview: bool = False):
+    def __init__(self, doc: Document, cache_dir: str | None = None, preview: bool = False,
+                 find_lattice: bool = False):
         self.doc = doc
+        # ``find_lattice``: an image opened as a new document (or replacing the
+        # exemplar) is first searched for a lattice (with_found_lattice); then
+        # ``doc`` and ``key`` become the document with it, ``asked_key`` stays
+        # the key asked for, and ``found`` holds the detection.
+        self.find_lattice = find_lattice
+        self.found: Detection | None = None
+        self.asked_key = doc.analysis_key()
         # ``preview``: before the full analysis, a quick one without similarity
         # sets (TBN10's random-walk search needs none: about a tenth of the
         # time), so the editor shows a texture at once. Only where the full
@@ -155,8 +188,15 @@ class AnalysisJob:
     def _run(self) -> None:
         d = self.doc
         try:
+            image = None
+            if self.find_lattice and not d.maps and not d.palette and d.lattice is None:
+                self.message = "Looking for a lattice"
+                image = decode_full(d.exemplar.data, d.exemplar.name)
+                d, self.found = with_found_lattice(d, image)
+                if d is not self.doc:
+                    self.doc, self.key = d, d.analysis_key()
             material = material_or_none(d)
-            ex, settings = exemplar_for(d, material=material)
+            ex, settings = exemplar_for(d, image if d.lattice is not None else None, material=material)
             if self.want_preview and (material is None or material.single) and self._needs_preview(ex, settings):
                 self._progress(0.0, "Quick preview (random-walk search)")
                 quick = analyze(ex, replace(settings, k=0), progress=self._progress)

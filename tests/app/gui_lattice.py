@@ -3,8 +3,9 @@
 
     xvfb-run -a python tests/app/gui_lattice.py OUT_DIR
 
-Opens generated running-bond bricks, auto-detects the lattice, drags a
-handle with the mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
+Opens generated running-bond bricks (their lattice found on opening), turns
+it off in the Exemplar panel, auto-detects it again, drags a handle with the
+mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
 to OUT_DIR/report.txt and a screenshot to OUT_DIR/lattice.png.
 """
 from __future__ import annotations
@@ -40,6 +41,20 @@ def main(out: str) -> int:
 
     def test(ctx) -> None:
         settle(ctx)
+        found = ed.doc.lattice
+        check("opening the image finds its lattice", found is not None and abs(found.t1[0] - 40) < 0.5
+              and abs(abs(found.t2[0]) - 20) < 0.5 and abs(found.t2[1] - 18) < 0.5, str(found))
+        check("the Exemplar panel says it was found", ed.found_lattice is not None
+              and ed.found_lattice.lattice == found, str(ed.found_lattice))
+        on_open = canvas(ctx)
+        ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
+        ctx.item_open("Exemplar")
+        ctx.item_click("Turn off##lattice-off")
+        ctx.item_close("Exemplar")
+        ctx.scroll_to_top(imgui.test_engine.TestRef(ctx.window_info("//Infinitex/Panels").window.id_))
+        ctx.set_ref("//Infinitex")
+        settle(ctx)
+        check("Turn off synthesizes without it", ed.doc.lattice is None, str(ed.doc.lattice))
         plain = canvas(ctx)
         ctx.item_click("//**/Lattice (L)##tool-lattice")
         ctx.yield_(3)
@@ -54,6 +69,8 @@ def main(out: str) -> int:
         on_lattice = canvas(ctx)
         check("the canvas changes to lattice synthesis", not np.array_equal(plain, on_lattice) and on_lattice.std() > 5,
               "same canvas")
+        check("the same lattice gives the same texture as on opening", np.array_equal(on_open, on_lattice),
+              "differs")
         before = preview(ctx)
         # The handles sit on the detected lattice: drag the end of t1 by the mouse.
         info = ctx.item_info("//Lattice/**/lattice-handles")

@@ -69,9 +69,11 @@ def test_a_dragged_slider_shows_texture_like_the_result(tmp_path, xdisplay):
 
 
 def test_lattice_tool_driven_by_the_test_engine(tmp_path, xdisplay):
-    """Auto-detect places the handles on generated bricks; dragging a handle
-    changes the rectified preview; undo restores it (tests/app/gui_lattice.py)."""
-    _drive("gui_lattice.py", tmp_path, xdisplay, 15)
+    """Opening generated bricks finds their lattice (the Exemplar panel says
+    so; Turn off works); Auto-detect places the handles on them again, the same
+    texture as on opening; dragging a handle changes the rectified preview;
+    undo restores it (tests/app/gui_lattice.py)."""
+    _drive("gui_lattice.py", tmp_path, xdisplay, 19)
 
 
 def test_everyday_use_driven_by_the_test_engine(tmp_path, xdisplay):

@@ -115,6 +115,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             self.dialogs.last_dir = os.path.dirname(self.settings.recent[0])
         self.autosave = Autosave()
         self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
+        self.found_lattice = None  # the Detection that put the open image on its lattice (Exemplar panel)
         self.export_job: ExportJob | StreamedExport | BackgroundExport | None = None
         self.export_queue: list[BackgroundExport] = []  # window exports waiting for the running one
         self.export_rect = [0, 0, 2048, 2048]
@@ -363,7 +364,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         s = self.session
         self._open_dropped()
         job = s.poll()
-        if job is not None and self.pending is not None and job.key == self.pending[1].analysis_key():
+        if job is not None and self.pending is not None and job.asked_key == self.pending[1].analysis_key():
             self._finish_load(job)
         elif job is not None and job.error:
             self.dialogs.message("Analysis failed", job.error)

@@ -211,11 +211,15 @@ class FilesMixin:
         document, or with kind "exemplar" an edit named ``label``)."""
         self.pending = (kind, doc, proj, path)
         self.pending_label = label
-        self.session.load(doc)
+        # An image opened (or replacing the exemplar) is synthesized on the
+        # lattice it shows, when one is found (the Exemplar panel says so).
+        self.session.load(doc, find_lattice=kind in ("image", "exemplar", "new"))
 
     def _finish_load(self, job) -> None:
         kind, doc, proj, path = self.pending
+        doc = getattr(job, "doc", doc)  # with the lattice found, if one was
         self.pending = None
+        self.found_lattice = getattr(job, "found", None) if doc.lattice is not None else None
         if job.error or job.cancelled:
             if job.error:
                 self.dialogs.message("Could not open", job.error)

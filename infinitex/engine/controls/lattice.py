@@ -137,6 +137,12 @@ class Lattice:
     def cross(self) -> float:
         return self.t1[0] * self.t2[1] - self.t1[1] * self.t2[0]
 
+    def describe(self) -> str:
+        """The cell as people name it, in input pixels: its width along t1 by
+        the spacing of its rows ("31 x 11 px"; staggered rows too)."""
+        w = math.hypot(*self.t1)
+        return f"{w:.0f} x {abs(self.cross) / max(w, 1e-9):.0f} px"
+
     def corners(self) -> list[tuple[float, float]]:
         """The block parallelogram: origin, +nx t1, +nx t1 + ny t2, +ny t2."""
         ox, oy = self.origin

@@ -337,15 +337,18 @@ def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
     k = int(np.argmax(nxt))
     opposite = float(_sample(ac, (across + ((o[k] + 0.5 * w) % w) * d)[None, :], center)[0])
     contrast_next = (float(nxt[k]) - opposite) / max(1e-6, 1.0 - opposite)
-    if min(contrast_row, contrast_next) < CELLS_ALONG_MIN or max(contrast_row, contrast_next) < MIN_CONFIDENCE:
+    if min(contrast_row, contrast_next) < CELLS_ALONG_MIN or max(contrast_row, contrast_next) < CELLS_ALONG_CLEAR:
         return None
     t1, t2 = _refine(ac, w * d, across + float(o[k]) * d, center)
     t1, t2 = canonical_basis(t1, t2)
     return t1, t2, min(conf, max(contrast_row, contrast_next))
 
 
-CELLS_ALONG_MIN = 0.25  # rows: the contrast along them (and along the next row) that makes them a grid,
-                        # both at least this, one at least MIN_CONFIDENCE (chosen on the tune halves)
+# Rows are a grid when the contrast along them and along the next row are both
+# at least CELLS_ALONG_MIN and one at least CELLS_ALONG_CLEAR (chosen on the
+# tuned halves and the generated rows: aliased joints of turned planks reach 0.35).
+CELLS_ALONG_MIN = 0.25
+CELLS_ALONG_CLEAR = 0.45
 
 
 RIDGE_MIN = 0.5  # rows: the median correlation along their direction

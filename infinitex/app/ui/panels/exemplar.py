@@ -54,10 +54,11 @@ def draw(p: Panels) -> None:
                           "File > Open makes a new document.")
     if not lattice:
         _palette(ed, doc)
+    if doc.lattice is not None:
+        lattice_line(ed, doc)
     if lattice:
         imgui.push_text_wrap_pos(0)
-        imgui.text_disabled("The exemplar is the lattice's block of cells, rectified (it tiles); "
-                            "the Lattice tool (L) sets it.")
+        imgui.text_disabled("The exemplar is the lattice's block of cells, rectified (it tiles).")
         imgui.pop_text_wrap_pos()
     else:
         _fit_options(ed, doc, ex)
@@ -66,6 +67,26 @@ def draw(p: Panels) -> None:
         imgui.progress_bar(job.progress, (-1, 0), f"Analysis: {job.message}")
         if imgui.button("Cancel analysis"):
             job.cancel()
+
+
+def lattice_line(ed, doc) -> None:
+    """What the document is synthesized on: the lattice's cell and block,
+    whether it was found in the image (and how sure), one click to turn it off
+    or to adjust it with the Lattice tool."""
+    lat = doc.lattice
+    found = ed.found_lattice
+    imgui.push_text_wrap_pos(0)
+    imgui.text_colored((0.55, 0.85, 1.0, 1.0), f"On a lattice: cells {lat.describe()}, a block of {lat.nx} x {lat.ny}")
+    if found is not None and found.lattice is not None and replace(found.lattice, levels=lat.levels) == lat:
+        imgui.text_disabled(f"Found in the image (confidence {found.confidence:.2f}): rows and columns stay straight.")
+    imgui.pop_text_wrap_pos()
+    if imgui.button("Turn off##lattice-off"):
+        ed.edit(replace(doc, lattice=None), "Lattice off")
+    tip("Synthesize the image as a stochastic texture, without its lattice (undoable)")
+    imgui.same_line()
+    if imgui.button("Adjust (L)##lattice-adjust"):
+        ed.set_tool("lattice")
+    tip("The Lattice tool: drag the cell's handles over the image, or mark one cell with a rectangle")
 
 
 def _palette(ed, doc) -> None:
