@@ -6,7 +6,8 @@
 Opens generated running-bond bricks (their lattice found on opening), turns
 it off in the Exemplar panel, auto-detects it again, drags a handle with the
 mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
-to OUT_DIR/report.txt and a screenshot to OUT_DIR/lattice.png.
+to OUT_DIR/report.txt and screenshots to OUT_DIR/found.png (the Exemplar
+panel on opening) and OUT_DIR/lattice.png.
 """
 from __future__ import annotations
 
@@ -49,6 +50,9 @@ def main(out: str) -> int:
         on_open = canvas(ctx)
         ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
         ctx.item_open("Exemplar")
+        ctx.scroll_to_item_y("Turn off##lattice-off")
+        ctx.yield_(2)
+        testing.capture(ctx, os.path.join(out, "found.png"))  # docs/lattice-found.png
         ctx.item_click("Turn off##lattice-off")
         ctx.item_close("Exemplar")
         ctx.scroll_to_top(imgui.test_engine.TestRef(ctx.window_info("//Infinitex/Panels").window.id_))
