@@ -340,7 +340,13 @@ def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
     if min(contrast_row, contrast_next) < CELLS_ALONG_MIN or max(contrast_row, contrast_next) < CELLS_ALONG_CLEAR:
         return None
     t1, t2 = _refine(ac, w * d, across + float(o[k]) * d, center)
-    t1, t2 = canonical_basis(t1, t2)
+    if abs(t1[1]) <= math.sin(math.radians(3)) * math.hypot(*t1):
+        # Rows along x: t1 along them (a long brick's row is no reduced vector), t2 to the next row.
+        t1 = t1 if t1[0] > 0 else -t1
+        t2 = t2 if t1[0] * t2[1] - t1[1] * t2[0] > 0 else -t2
+        t2 = t2 - round(float(t2 @ t1) / float(t1 @ t1)) * t1
+    else:
+        t1, t2 = canonical_basis(t1, t2)
     return t1, t2, min(conf, max(contrast_row, contrast_next))
 
 
