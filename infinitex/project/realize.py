@@ -101,10 +101,12 @@ def with_found_lattice(doc: Document, image: np.ndarray | None = None) -> tuple[
     MIN_CONFIDENCE, chosen so that no stochastic image of the development sets
     gets one) is synthesized on it, where a lattice goes with the rest of the
     document (not with Make tileable, texture by numbers, a direction field, a
-    model, a material or the random-walk search). Returns the document (with
+    model, a material, the random-walk search, or maps and features placed in
+    the exemplar's pixels, which a rectified block would move). Returns the document (with
     the lattice, or as it was) and the detection (None when none ran).
     ``image``: the exemplar file decoded whole, if at hand."""
-    if doc.lattice is not None or doc.maps or doc.palette or doc.make_tileable or doc.k == 0:
+    if doc.lattice is not None or doc.maps or doc.palette or doc.make_tileable or doc.k == 0 \
+            or doc.randomness_exemplar is not None or doc.avoid_exemplar is not None or doc.features:
         return doc, None
     if image is None:
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
