@@ -197,6 +197,24 @@ def finds_lattice(args) -> bool:
     return not (getattr(args, "coords", None) and args.geometry != "rectified" and not args.toroidal)
 
 
+def keep_found_lattice(lattice, found, m: int, whole: int, quiet: bool, verb: str) -> bool:
+    """Whether a lattice found without being asked is used for an m x m
+    rectified exemplar: not when ``whole`` (a toroidal tile's or a tile set's
+    size, 0 for none) is no whole number of its cells. Says which on stdout
+    (the ``lattice: ...`` line) and stderr (a note, unless ``quiet``)."""
+    cx, cy = lattice.cell(m)
+    if whole and (whole % cx or whole % cy):
+        if not quiet:
+            sys.stderr.write(f"note: the exemplar shows a lattice, but its cells ({cx}x{cy} px rectified) "
+                             f"do not divide {whole}: {verb} without it\n")
+        return False
+    sys.stdout.write(f"lattice: {lattice.to_text()}\n")
+    if not quiet:
+        sys.stderr.write(f"note: a lattice was found in the exemplar (cells {lattice.describe()}, confidence "
+                         f"{found.confidence:.2f}): rows and columns stay straight; --lattice none turns it off\n")
+    return True
+
+
 def check_lattice_args(args) -> None:
     if args.lattice_levels is not None and not 0 <= args.lattice_levels <= 10:
         raise CliError("--lattice-levels must be between 0 and 10.", EXIT_USAGE)

@@ -37,6 +37,7 @@ from .common import (
     palette_document,
     randomness_controls,
     finds_lattice,
+    keep_found_lattice,
     resolve_lattice,
 )
 
@@ -259,21 +260,11 @@ def run_export(argv: list[str]) -> int:
         doc, found = with_found_lattice(doc, image)
     material = material_or_none(doc)
     ex, settings = exemplar_for(doc, image, material)
-    if found is not None and doc.lattice is not None:
-        cx, cy = doc.lattice.cell(ex.size)
-        whole = tor or (tileset.tile if tileset else 0)  # a tile of whole cells
-        if whole and (whole % cx or whole % cy):
-            if not args.quiet:
-                sys.stderr.write(f"note: the exemplar shows a lattice, but its cells ({cx}x{cy} px rectified) "
-                                 f"do not divide {whole}: exported without it\n")
-            doc = replace(doc, lattice=None)
-            ex, settings = exemplar_for(doc, None, material)
-        else:
-            sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
-            if not args.quiet:
-                sys.stderr.write(f"note: a lattice was found in the exemplar (cells {doc.lattice.describe()}, "
-                                 f"confidence {found.confidence:.2f}): rows and columns stay straight; "
-                                 "--lattice none turns it off\n")
+    whole = tor or (tileset.tile if tileset else 0)  # a tile of whole cells
+    if found is not None and doc.lattice is not None \
+            and not keep_found_lattice(doc.lattice, found, ex.size, whole, args.quiet, "exported"):
+        doc = replace(doc, lattice=None)
+        ex, settings = exemplar_for(doc, None, material)
     del image
     if material is not None:
         roles = parse_maps(args.maps, material)

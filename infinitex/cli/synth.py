@@ -46,6 +46,7 @@ from .common import (
     passes_arg,
     randomness_controls,
     finds_lattice,
+    keep_found_lattice,
     resolve_lattice,
 )
 
@@ -164,19 +165,9 @@ def run_synth(argv: list[str]) -> int:
         palette = replace(doc.labels, exemplar=doc.labels.exemplar.scaled(ex.size))
     elif lattice is not None:
         ex = rectified_exemplar(image, lattice, source=args.exemplar)
-        if found is not None:
-            cx, cy = lattice.cell(ex.size)
-            if args.toroidal and (w % cx or w % cy):  # a tile of whole cells would need another size
-                if not args.quiet:
-                    sys.stderr.write(f"note: the exemplar shows a lattice, but its cells ({cx}x{cy} px rectified) "
-                                     f"do not divide {w}: synthesized without it\n")
-                lattice = None
-            else:
-                sys.stdout.write(f"lattice: {lattice.to_text()}\n")
-                if not args.quiet:
-                    sys.stderr.write(f"note: a lattice was found in the exemplar (cells {lattice.describe()}, confidence "
-                                     f"{found.confidence:.2f}): rows and columns stay straight; "
-                                     "--lattice none turns it off\n")
+        if found is not None and not keep_found_lattice(lattice, found, ex.size, w if args.toroidal else 0,
+                                                        args.quiet, "synthesized"):
+            lattice = None
     if lattice is None and palette is None:
         ex = load_exemplar(args.exemplar, fit=args.fit, toroidal=tor)
         from infinitex.engine.tileable import recommended, tileable_exemplar

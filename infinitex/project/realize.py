@@ -95,6 +95,12 @@ def exemplar_for(doc: Document, image: np.ndarray | None = None,
     return ex, AnalysisSettings(model=doc.model, k=doc.k, lattice=grid, feature_weight=doc.feature_weight)
 
 
+def may_find_lattice(doc: Document) -> bool:
+    """Whether :func:`with_found_lattice` looks at all (before any decoding)."""
+    return not (doc.lattice is not None or doc.maps or doc.palette or doc.make_tileable or doc.k == 0
+                or doc.randomness_exemplar is not None or doc.avoid_exemplar is not None or doc.features)
+
+
 def with_found_lattice(doc: Document, image: np.ndarray | None = None) -> tuple[Document, Detection | None]:
     """Regular textures right by default: a single image without a lattice
     that shows one (lattice detection, confident: engine.controls.lattice's
@@ -105,8 +111,7 @@ def with_found_lattice(doc: Document, image: np.ndarray | None = None) -> tuple[
     the exemplar's pixels, which a rectified block would move). Returns the document (with
     the lattice, or as it was) and the detection (None when none ran).
     ``image``: the exemplar file decoded whole, if at hand."""
-    if doc.lattice is not None or doc.maps or doc.palette or doc.make_tileable or doc.k == 0 \
-            or doc.randomness_exemplar is not None or doc.avoid_exemplar is not None or doc.features:
+    if not may_find_lattice(doc):
         return doc, None
     if image is None:
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
@@ -191,7 +196,7 @@ class AnalysisJob:
         d = self.doc
         try:
             image = None
-            if self.find_lattice and not d.maps and not d.palette and d.lattice is None:
+            if self.find_lattice and may_find_lattice(d):
                 self.message = "Looking for a lattice"
                 image = decode_full(d.exemplar.data, d.exemplar.name)
                 d, self.found = with_found_lattice(d, image)
