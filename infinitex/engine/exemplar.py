@@ -42,6 +42,7 @@ from PIL import Image, UnidentifiedImageError
 from .imagefile import to_u8
 from .safeio import ReadError, printable, read_limited
 from .tiffinfo import block_bytes, is_tiff, loses_precision, quiet_libtiff
+from .wrap import guess_toroidal, seams_like_an_edge
 
 MIN_SIZE = 32
 SMALL_MIN = 4                        # seamless patterns from this size up are repeated to MIN_SIZE
@@ -111,34 +112,6 @@ class Exemplar:
 
 def _is_pow2(n: int) -> bool:
     return n > 0 and (n & (n - 1)) == 0
-
-
-def guess_toroidal(pixels: np.ndarray, tolerance: float = 1.6) -> bool:
-    """True when the wrap-around seams differ no more than interior neighbors.
-
-    Compares the mean absolute difference across the left/right and top/bottom
-    seams with the mean difference between adjacent interior columns/rows.
-    """
-    p = pixels.astype(np.float64)
-    inner_x = np.abs(np.diff(p, axis=1)).mean()
-    inner_y = np.abs(np.diff(p, axis=0)).mean()
-    seam_x = np.abs(p[:, 0] - p[:, -1]).mean()
-    seam_y = np.abs(p[0, :] - p[-1, :]).mean()
-    eps = 1e-6
-    return bool(seam_x <= tolerance * inner_x + eps and seam_y <= tolerance * inner_y + eps)
-
-
-def seams_like_an_edge(pixels: np.ndarray, tolerance: float = 1.05) -> bool:
-    """True when each wrap-around seam differs no more than the most different
-    pair of adjacent interior columns (rows): for small patterns, whose seam may
-    fall on one of their own edges (a grid line at the border), which the
-    mean-based :func:`guess_toroidal` refuses; a cut photo's seam stands out."""
-    p = pixels.astype(np.float64).reshape(pixels.shape[0], pixels.shape[1], -1)
-    if min(p.shape[:2]) < 2:
-        return False
-    cols, rows = np.abs(np.diff(p, axis=1)).mean(axis=(0, 2)), np.abs(np.diff(p, axis=0)).mean(axis=(1, 2))
-    seam_x, seam_y = np.abs(p[:, 0] - p[:, -1]).mean(), np.abs(p[0, :] - p[-1, :]).mean()
-    return bool(seam_x <= tolerance * cols.max() + 1e-6 and seam_y <= tolerance * rows.max() + 1e-6)
 
 
 def fit_rule(fit: str) -> tuple[str, int]:

@@ -27,7 +27,8 @@ from dataclasses import replace
 import numpy as np
 from scipy import ndimage
 
-from .exemplar import Exemplar, guess_toroidal
+from .exemplar import Exemplar
+from .wrap import guess_toroidal
 from .material import Material, MaterialMap, renormalize
 
 DEFAULT_BAND = 1 / 8  # of the side

@@ -11,9 +11,9 @@ from PIL import Image
 from infinitex.engine.exemplar import (
     ExemplarError,
     from_array,
-    guess_toroidal,
     load_exemplar,
 )
+from infinitex.engine.wrap import guess_toroidal, seam_ratios
 
 
 def _save(tmp_path, name, img, **kw):
@@ -89,6 +89,23 @@ def test_toroidal_guess_and_override():
     assert not guess_toroidal(ramp)
     ex = from_array(ramp, toroidal=True)
     assert ex.toroidal and not ex.toroidal_guess
+
+
+def test_a_cut_photo_with_fine_detail_is_not_taken_for_tiling(tmp_path):
+    """Fine detail (noise) over a shading that does not wrap: its seams pass at
+    the pixel scale, as a grass or dirt photo's do, but the shading jumps at
+    them, which a synthesis would copy as straight lines; the same detail
+    over a shading that wraps is still taken for tiling."""
+    m = 128
+    fine = 0.4 * np.random.default_rng(2).random((m, m, 3))
+    cut = 0.6 * periodic_noise(2 * m)[40:40 + m, 70:70 + m] + fine
+    tiles = 0.6 * periodic_noise(m) + fine
+    pixel_scale = np.abs(cut[:, 0] - cut[:, -1]).mean() / np.abs(np.diff(cut, axis=1)).mean()
+    assert pixel_scale < 1.6  # the pixel test alone would take it for tiling
+    assert max(seam_ratios(cut)) > 2 and not guess_toroidal(cut)
+    assert max(seam_ratios(tiles)) < 1.4 and guess_toroidal(tiles)
+    png = Image.fromarray((np.clip(cut, 0, 1) * 255).astype(np.uint8))
+    assert not load_exemplar(_save(tmp_path, "cut.png", png)).toroidal
 
 
 def _png_claiming_size(path, w, h):
