@@ -36,6 +36,10 @@ whole command in a fresh process with a cold analysis cache), with
 ``peer / ours`` ratios. Writes a contact sheet (exemplar | ours | tiled | peer |
 ours in lattice mode).
 
+``default`` is what the default path makes: ours in lattice mode where the
+lattice is detected with confidence (an image opened or synthesized without
+``--lattice``), else ours; the summary gives its medians and ratios too.
+
 Near-regular exemplars (a lattice detected, or the best guess for the shared
 brick and reptile skin) are also synthesized in lattice mode (engine/controls/lattice.py,
 in the input's geometry, brought to the exemplar's scale) and every method gets
@@ -84,8 +88,10 @@ NEAR_REGULAR = ("brick", "reptile_skin")  # below the detector's threshold: the 
 
 
 def lattice_case(path: str, name: str, fitted_size: int):
-    """(lattice, image, scale) for a near-regular exemplar, else None. ``scale``
-    is fitted-exemplar pixels per input pixel (the resize fit rule)."""
+    """(lattice, image, scale, found) for a near-regular exemplar, else None.
+    ``scale`` is fitted-exemplar pixels per input pixel (the resize fit rule);
+    ``found``: the default path uses it (detected with confidence), else it is
+    the detector's best guess."""
     img = load_full(path)
     d = detect(img)
     lat = d.lattice
@@ -93,14 +99,14 @@ def lattice_case(path: str, name: str, fitted_size: int):
         lat = choose_block(d.t1, d.t2, img.shape[1], img.shape[0])
     if lat is None:
         return None
-    return lat, img, fitted_size / min(img.shape[:2])
+    return lat, img, fitted_size / min(img.shape[:2]), d.lattice is not None
 
 
-def lattice_output(lat, img, n: int, scale: float) -> np.ndarray:
+def lattice_output(lat, img, n: int, scale: float, structure: int) -> np.ndarray:
     """n x n of lattice mode in the input's geometry, at the fitted exemplar's scale."""
     ex = rectified_exemplar(img, lat)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny)))
-    synth = Synthesizer(an, controls=Controls(lattice=lat))
+    synth = Synthesizer(an, structure_params(SynthParams.default(an.L), structure), controls=Controls(lattice=lat))
     w = int(round(n / scale))
     x0, y0 = ORIGIN[0] // 4, ORIGIN[1] // 4
     box = original_geometry_box(lat, an.size, x0, y0, w, w)
@@ -181,7 +187,8 @@ def main(argv=None) -> int:
         entry = {"size": m, "channels": ex.channels}
         case = lattice_case(path, name, m)
         if case is not None:
-            lat, full, scale = case
+            lat, full, scale, found = case
+            entry["lattice_found"] = found
             vectors = [(lat.t1[0] * scale, lat.t1[1] * scale), (lat.t2[0] * scale, lat.t2[1] * scale)]
             entry["lattice"] = lat.to_text()
         for n in args.sizes:
@@ -215,10 +222,12 @@ def main(argv=None) -> int:
             }
             lat_out = None
             if case is not None:
-                lat_out = lattice_output(lat, full, n, scale)
+                lat_out = lattice_output(lat, full, n, scale, args.fidelity)
                 row["lattice"] = all_measures(ex.pixels, lat_out, ps=ps)
                 for method, img in (("ours", ours), ("tiled", tiled), ("peer", peer), ("lattice", lat_out)):
                     row[method]["lattice_regularity"] = regularity(ex.pixels, img, vectors)
+            # What the default path makes: the lattice where it is found with confidence.
+            row["default"] = row["lattice"] if case is not None and found else row["ours"]
             entry[str(n)] = row
             print(f"{name:<13}{n:>5}  ours {ours_warm * 1000:7.0f} ms  peer {peer_warm * 1000:7.0f} ms  "
                   f"(cold {ours_cold:5.1f} s / {peer_cold:5.1f} s)", flush=True)
@@ -256,14 +265,15 @@ def summarize(results: dict) -> dict:
         s: dict = {"exemplars": len(rows)}
         for meas in SUMMARY_MEASURES:
             per = {}
-            for method in ("ours", "peer", "tiled"):
-                vals = [r[method][meas] for r in rows if meas in r[method]]
+            for method in ("ours", "default", "peer", "tiled"):
+                vals = [r[method][meas] for r in rows if method in r and meas in r[method]]
                 if vals:
                     per[method] = float(np.median(vals))
-            if "ours" in per and "peer" in per:
-                per["ours_over_peer"] = per["ours"] / per["peer"] if per["peer"] else float("inf")
-                per["ours_wins"] = int(sum(r["ours"][meas] < r["peer"][meas] for r in rows
-                                           if meas in r["ours"] and meas in r["peer"]))
+            for method in ("ours", "default"):
+                if method in per and "peer" in per:
+                    per[f"{method}_over_peer"] = per[method] / per["peer"] if per["peer"] else float("inf")
+                    per[f"{method}_wins"] = int(sum(r[method][meas] < r["peer"][meas] for r in rows
+                                                    if method in r and meas in r[method] and meas in r["peer"]))
             s[meas] = per
         out[str(n)] = s
     return out
@@ -279,6 +289,9 @@ def _print_summary(summary: dict) -> None:
             peer = f"peer {d['peer']:.5f}  ours/peer {d['ours_over_peer']:.2f}  ours wins {d['ours_wins']}/{s['exemplars']}" \
                 if "peer" in d else ""
             print(f"{n:>5} {meas:<17} ours {d['ours']:.5f}  {peer}")
+            if "default_over_peer" in d:
+                print(f"{'':>5} {'':<17} default (the lattice where found) {d['default']:.5f}  "
+                      f"default/peer {d['default_over_peer']:.2f}  wins {d['default_wins']}/{s['exemplars']}")
 
 
 def _print_table(results: dict) -> None:
