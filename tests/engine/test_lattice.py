@@ -23,7 +23,7 @@ from infinitex.engine.controls.lattice import (
     autocorrelation_at,
     rectified_exemplar,
 )
-from infinitex.engine.controls.lattice_block import choose_block, fit_block
+from infinitex.engine.controls.lattice_block import choose_block, exact_block, fit_block
 from infinitex.engine.controls.lattice_detect import detect
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
@@ -133,6 +133,31 @@ def test_cell_edges_are_put_on_the_grout():
     assert not all((v % cell) < grout for v in centred.origin)  # the test means something
     assert all((v % cell) < grout for v in lat.origin), lat.origin
     assert (lat.nx, lat.ny) == (centred.nx, centred.ny)
+
+
+def test_a_whole_pixel_lattice_is_copied_exactly():
+    """Staggered cells of whole pixels (32 x 16, each row shifted by 16): the
+    block becomes their axis-aligned supercell at a whole-pixel origin, so
+    the rectified exemplar is the image's own pixels, not a sheared resample;
+    vectors off whole pixels keep their block."""
+    rng = np.random.default_rng(4)
+    motif = rng.uniform(0.2, 0.8, (16, 32, 3))
+    motif[:2], motif[:, :2] = 0.95, 0.95
+    y, x = np.mgrid[0:200, 0:200]
+    img = motif[y % 16, (x + 16 * (y // 16)) % 32] + rng.normal(0, 0.01, (200, 200, 3))
+    img = np.clip(img, 0, 1).astype(np.float32)
+    d = detect(img)
+    lat = d.lattice
+    assert lat is not None and lat.t1 == (32.0, 0.0) and lat.t2 == (0.0, 32.0)
+    assert all(float(v).is_integer() for v in lat.origin)
+    side = lat.nx * 32
+    assert side == lat.ny * 32 and lat.exemplar_size() == side
+    x0, y0 = int(lat.origin[0]), int(lat.origin[1])
+    ex = rectified_exemplar(img, lat)
+    assert np.abs(ex.pixels - img[y0:y0 + side, x0:x0 + side]).max() < 1e-5
+    # Off whole pixels (a photo's): the block as it was.
+    shear = Lattice((20.3, 30.1), (32.4, 0.2), (16.1, 16.3), 2, 2)
+    assert exact_block(shear, 200, 200) is shear
 
 
 @pytest.mark.parametrize("text, message", [

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from .lattice import MAX_CELLS, Lattice
+from .lattice import MAX_CELLS, Lattice, _pow2
 
 COUNTS = (1, 2, 4, 8, 16)
 MAX_SHIFT = 256  # whole cells a block may move to fit (cells of 3 px in a 768 px image)
@@ -128,3 +128,64 @@ def seam_phase(image: np.ndarray, lat: Lattice) -> Lattice:
     if moved is None or (moved.nx, moved.ny) != (lat.nx, lat.ny):
         return lat
     return moved
+
+
+EXACT_TOLERANCE = 0.05  # px: vectors this close to whole pixels are taken as whole
+MAX_INDEX = 4           # a supercell of at most this many cells
+
+
+def exact_block(lat: Lattice, width: int, height: int) -> Lattice:
+    """``lat`` described so that its rectification copies pixels exactly,
+    where the image allows: vectors within EXACT_TOLERANCE of whole pixels
+    (a game texture's or a drawn pattern's), an axis-aligned cell of w x h
+    whole pixels spanned by small combinations of them (a staggered or
+    diagonal lattice's rectangular supercell, at most MAX_INDEX cells), and
+    nx w = ny h a power of two: the block is then the image's own pixels at
+    a whole-pixel origin, with no shear and no resampling (a slanted block is
+    resampled twice, into the exemplar and back, which softens it). The
+    block is the largest such that fits, if it holds at least as many of the
+    detected cells as ``lat``'s; ``lat`` itself otherwise."""
+    t1, t2 = np.asarray(lat.t1, float), np.asarray(lat.t2, float)
+    r1, r2 = np.rint(t1), np.rint(t2)
+    if np.abs(t1 - r1).max() > EXACT_TOLERANCE or np.abs(t2 - r2).max() > EXACT_TOLERANCE:
+        return lat
+    best = None
+    span = range(-MAX_INDEX, MAX_INDEX + 1)
+    for i in span:
+        for j in span:
+            a = i * r1 + j * r2
+            if a[1] != 0 or a[0] <= 0:
+                continue
+            for k in span:
+                for m in span:
+                    b = k * r1 + m * r2
+                    if b[0] != 0 or b[1] <= 0:
+                        continue
+                    index = abs(i * m - j * k)
+                    if 1 <= index <= MAX_INDEX and (best is None or index < best[0]):
+                        best = (index, int(a[0]), int(b[1]))
+    if best is None:
+        return lat
+    index, w, h = best
+    for side in (512, 256, 128, 64, 32):
+        nx, ny = side // w, side // h
+        if nx * w != side or ny * h != side or not (_pow2(nx) and _pow2(ny)) or max(nx, ny) > MAX_CELLS:
+            continue
+        if nx * ny * index < lat.nx * lat.ny:
+            break  # fewer of the detected cells than the resampled block holds: less variety
+        if side > width or side > height:
+            continue
+        # The cells where the detected ones are (their phase), at a whole
+        # pixel, the block as near the image's centre as fits.
+        o = np.rint(np.asarray(lat.origin, float))
+        start = []
+        for c, cell, room in ((o[0], w, width - side), (o[1], h, height - side)):
+            lo, hi = math.ceil(-c / cell), math.floor((room - c) / cell)
+            if lo > hi:
+                break
+            start.append(c + cell * min(hi, max(lo, round((room / 2 - c) / cell))))
+        if len(start) < 2:
+            continue
+        x0, y0 = start
+        return Lattice((float(x0), float(y0)), (float(w), 0.0), (0.0, float(h)), nx, ny, lat.levels)
+    return lat

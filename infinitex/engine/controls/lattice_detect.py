@@ -12,7 +12,7 @@ import numpy as np
 from scipy import ndimage
 
 from .lattice import DETECT_SIDE, MIN_CONFIDENCE, MIN_REPEATS, MIN_SINE, MIN_VECTOR, Lattice
-from .lattice_block import choose_block, seam_phase
+from .lattice_block import choose_block, exact_block, seam_phase
 
 
 @dataclass(frozen=True)
@@ -154,7 +154,7 @@ def detect(pixels: np.ndarray) -> Detection:
     if conf >= MIN_CONFIDENCE:
         lat = choose_block(b1, b2, W, H)
         if lat is not None:
-            lat = seam_phase(pixels, lat)
+            lat = exact_block(seam_phase(pixels, lat), W, H)
     return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
 
 
