@@ -9,7 +9,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from .lattice import MAX_CELLS, Lattice, _pow2
+from .lattice import MAX_CELLS, Lattice
 
 COUNTS = (1, 2, 4, 8, 16)
 MAX_SHIFT = 256  # whole cells a block may move to fit (cells of 3 px in a 768 px image)
@@ -169,7 +169,7 @@ def exact_block(lat: Lattice, width: int, height: int) -> Lattice:
     index, w, h = best
     for side in (512, 256, 128, 64, 32):
         nx, ny = side // w, side // h
-        if nx * w != side or ny * h != side or not (_pow2(nx) and _pow2(ny)) or max(nx, ny) > MAX_CELLS:
+        if nx * w != side or ny * h != side or nx & (nx - 1) or ny & (ny - 1) or max(nx, ny) > MAX_CELLS:
             continue
         if nx * ny * index < lat.nx * lat.ny:
             break  # fewer of the detected cells than the resampled block holds: less variety
