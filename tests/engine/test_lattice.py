@@ -23,7 +23,7 @@ from infinitex.engine.controls.lattice import (
     autocorrelation_at,
     rectified_exemplar,
 )
-from infinitex.engine.controls.lattice_block import choose_block, exact_block, fit_block
+from infinitex.engine.controls.lattice_block import exact_block, fit_block
 from infinitex.engine.controls.lattice_detect import detect
 from infinitex.engine.params import DEFAULT_STRUCTURE, SynthParams, structure_params
 from infinitex.engine.pyramid import Rect
@@ -114,25 +114,6 @@ def test_a_page_of_text_is_not_a_lattice():
             draw.text((x, y), w, fill=20, font=font)
             x += draw.textlength(w + " ", font=font)
     assert detect(np.asarray(img, np.float32)[..., None] / 255.0).lattice is None
-
-
-def test_cell_edges_are_put_on_the_grout():
-    """Tiles of different colours with grout between them: the block's cells
-    start in the grout (where copies of whole cells meet unseen), not where
-    centring the block in the image would put them (mid-tile here)."""
-    rng = np.random.default_rng(3)
-    side, cell, grout = 200, 16, 3
-    colors = rng.uniform(0.2, 0.8, (side // cell + 2, side // cell + 2, 3))
-    y, x = np.mgrid[0:side, 0:side]
-    img = colors[y // cell, x // cell] + rng.normal(0, 0.02, (side, side, 3))
-    img[((x % cell) < grout) | ((y % cell) < grout)] = 0.95
-    d = detect(np.clip(img, 0, 1).astype(np.float32))
-    lat = d.lattice
-    assert lat is not None and abs(lat.t1[0] - cell) < 0.2 and abs(lat.t2[1] - cell) < 0.2
-    centred = choose_block(d.t1, d.t2, side, side)
-    assert not all((v % cell) < grout for v in centred.origin)  # the test means something
-    assert all((v % cell) < grout for v in lat.origin), lat.origin
-    assert (lat.nx, lat.ny) == (centred.nx, centred.ny)
 
 
 def test_a_whole_pixel_lattice_is_copied_exactly():

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
 
 from .lattice import MAX_CELLS, Lattice
 
@@ -90,44 +89,6 @@ def fit_block(origin, t1, t2, width: int, height: int, most: tuple[int, int] = (
     return Lattice((round(float(start[0]), 3), round(float(start[1]), 3)),
                    (round(float(a[0]), 3), round(float(a[1]), 3)), (round(float(b[0]), 3), round(float(b[1]), 3)),
                    nx, ny, levels)
-
-
-def seam_phase(image: np.ndarray, lat: Lattice) -> Lattice:
-    """``lat`` with its cells' edges moved to where the cells agree most.
-
-    Lattice mode copies whole cells, so wherever two neighbouring cells come
-    from different places their common edge is a seam, and a straight one
-    between rows or columns of cells. Its cost at an in-cell position is the
-    spread of the colours found there over all cells of the block (the
-    variance: twice it is the expected squared jump across the seam). The
-    edge along each side is moved, by less than a cell, to the line of least
-    summed spread: onto the grout, the mortar, the gap between elements,
-    which look alike in every cell. A detected origin is otherwise where
-    centring the block puts it. The same cells, the same block; unchanged
-    when the moved block no longer fits with as many cells or there is only
-    one cell along a side."""
-    if lat.nx * lat.ny < 4 or min(lat.nx, lat.ny) < 2:
-        return lat
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim == 2:
-        img = img[:, :, None]
-    img = img[:, :, :3]
-    cx = cy = max(8, min(32, lat.exemplar_size() // max(lat.nx, lat.ny)))
-    side = cx * max(lat.nx, lat.ny)
-    block = lat.rectify(img, side)
-    # Cells of cx x cy texels ((side / nx) x (side / ny), resampled to a common size).
-    px = ndimage.zoom(block, (cy * lat.ny / side, cx * lat.nx / side, 1), order=1, grid_mode=True, mode="grid-wrap")
-    cells = px.reshape(lat.ny, cy, lat.nx, cx, -1)
-    spread = ndimage.gaussian_filter(cells.var(axis=(0, 2)).sum(axis=-1), 0.75, mode="wrap")
-    sx = int(np.argmin(spread.sum(axis=0)))  # the column of texels (along t2) where the cells agree most
-    sy = int(np.argmin(spread.sum(axis=1)))
-    fx, fy = (sx + 0.5) / cx, (sy + 0.5) / cy  # the edge through the middle of those texels, in cells
-    origin = (lat.origin[0] + fx * lat.t1[0] + fy * lat.t2[0], lat.origin[1] + fx * lat.t1[1] + fy * lat.t2[1])
-    H, W = img.shape[:2]
-    moved = fit_block(origin, lat.t1, lat.t2, W, H, most=(lat.nx, lat.ny), levels=lat.levels)
-    if moved is None or (moved.nx, moved.ny) != (lat.nx, lat.ny):
-        return lat
-    return moved
 
 
 EXACT_TOLERANCE = 0.05  # px: vectors this close to whole pixels are taken as whole

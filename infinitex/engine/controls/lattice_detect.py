@@ -12,7 +12,7 @@ import numpy as np
 from scipy import ndimage
 
 from .lattice import DETECT_SIDE, MIN_CONFIDENCE, MIN_REPEATS, MIN_SINE, MIN_VECTOR, Lattice
-from .lattice_block import choose_block, exact_block, seam_phase
+from .lattice_block import choose_block, exact_block
 
 
 @dataclass(frozen=True)
@@ -112,8 +112,8 @@ def detect(pixels: np.ndarray) -> Detection:
     lattice (confidence below MIN_CONFIDENCE, or fewer than two independent
     peaks): an answer, not an error. The block is the largest power-of-two
     count of cells per side that fits in the image with a rectified aspect
-    within 2:1, centred in the image, its cells' edges then moved onto the
-    lines where the cells agree most (lattice_block.seam_phase)."""
+    within 2:1, centred in the image (a whole-pixel lattice's as its
+    axis-aligned supercell at a whole-pixel origin: lattice_block.exact_block)."""
     t0 = time.perf_counter()
     img = np.asarray(pixels, dtype=np.float64)
     if img.ndim == 3:
@@ -154,7 +154,7 @@ def detect(pixels: np.ndarray) -> Detection:
     if conf >= MIN_CONFIDENCE:
         lat = choose_block(b1, b2, W, H)
         if lat is not None:
-            lat = exact_block(seam_phase(pixels, lat), W, H)
+            lat = exact_block(lat, W, H)
     return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
 
 
