@@ -101,8 +101,8 @@ def _subpixel(ac: np.ndarray, y: int, x: int) -> tuple[float, float]:
     return (off(ac[y - 1, x], ac[y, x], ac[y + 1, x]), off(ac[y, x - 1], ac[y, x], ac[y, x + 1]))
 
 
-def _sample(ac: np.ndarray, pts: np.ndarray, center: tuple[int, int]) -> np.ndarray:
-    return ndimage.map_coordinates(ac, [pts[:, 1] + center[0], pts[:, 0] + center[1]], order=1, mode="constant")
+def _sample(ac: np.ndarray, pts: np.ndarray, center: tuple[int, int], mode: str = "constant") -> np.ndarray:
+    return ndimage.map_coordinates(ac, [pts[:, 1] + center[0], pts[:, 0] + center[1]], order=1, mode=mode)
 
 
 def detect(pixels: np.ndarray) -> Detection:
@@ -136,7 +136,8 @@ def detect(pixels: np.ndarray) -> Detection:
     rows = _rows(ac, (hy, hx))
     if rows is None and grid is not None:
         rows = _rows_of_grid(ac, (hy, hx), grid)
-    if grid is not None and _at_vectors(ac, grid[:2], (hy, hx)) < GRID_MIN_CORRELATION:
+    # (A vector at the largest lag lies on the array's edge: read there.)
+    if grid is not None and _sample(ac, np.stack(grid[:2]), (hy, hx), "nearest").min() < GRID_MIN_CORRELATION:
         grid = None  # the image hardly repeats at its vectors: strokes of text, not cells
     if grid is None and rows is None:
         return replace(none, seconds=time.perf_counter() - t0)
@@ -156,14 +157,6 @@ def detect(pixels: np.ndarray) -> Detection:
         if lat is not None:
             lat = exact_block(lat, W, H)
     return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
-
-
-def _at_vectors(ac: np.ndarray, vectors, center: tuple[int, int]) -> float:
-    """The least autocorrelation at the vectors (one at the largest lag, on
-    the array's edge, read there)."""
-    pts = np.stack(vectors)
-    return float(ndimage.map_coordinates(ac, [pts[:, 1] + center[0], pts[:, 0] + center[1]],
-                                         order=1, mode="nearest").min())
 
 
 def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f: int):
