@@ -28,11 +28,15 @@ def _patches(img: np.ndarray, step: int = 1) -> np.ndarray:
     return w.reshape(w.shape[0] * w.shape[1], -1)
 
 
-def _down(img: np.ndarray, s: int, mode: str = "reflect") -> np.ndarray:
+def _phases(img: np.ndarray, s: int, mode: str) -> list[np.ndarray]:
+    """The image Gaussian-filtered for scale ``s`` and subsampled by ``s`` at
+    each of the s^2 phases: together they hold every neighborhood of taps ``s``
+    apart, so an image and a copy of it shifted by any pixel offset have the
+    same neighborhoods at every scale."""
     if s == 1:
-        return img
+        return [img]
     blurred = ndimage.gaussian_filter(img, sigma=(s / 2, s / 2, 0), mode=mode)
-    return blurred[::s, ::s]
+    return [blurred[i::s, j::s] for i in range(s) for j in range(s)]
 
 
 def neighborhood_energy(exemplar: np.ndarray, output: np.ndarray, scales=(1, 2, 4),
@@ -40,20 +44,29 @@ def neighborhood_energy(exemplar: np.ndarray, output: np.ndarray, scales=(1, 2, 
     """(energy, completeness): mean squared distance per value of output
     neighborhoods to their nearest exemplar neighborhood, and of exemplar
     neighborhoods to their nearest output neighborhood, averaged over scales
-    (Gaussian-filtered and subsampled by 1, 2, 4); 5x5 neighborhoods, matched
+    (Gaussian-filtered, taps 1, 2, 4 px apart); 5x5 neighborhoods, matched
     in their 10 leading PCA dimensions (outputs over 300^2 use every other
-    neighborhood as match candidates for completeness)."""
+    neighborhood as match candidates for completeness).
+
+    At scales over 1 the neighborhoods of both images are taken at every
+    position (all s^2 subsampling phases): an output that copies the exemplar
+    shifted by an odd number of pixels scores 0 like one copied in phase.
+    (Until December 2026 only phase 0 was read: an exact copy of a sharp,
+    fine-grained exemplar at another phase scored like a poor match, by
+    chance of where its copies fell; figures before then used that reading.)"""
     ex, out = _chan(exemplar), _chan(output)
     rng = np.random.default_rng(seed)
     energy, complete = [], []
+    mode = "wrap" if periodic else "reflect"  # how images are extended for the blur
+    big = out.shape[0] * out.shape[1] > 300 ** 2
     for s in scales:
-        mode = "wrap" if periodic else "reflect"  # how images are extended for the blur
-        e, o = _down(ex, s, mode), _down(out, s, mode)
+        es, os_ = _phases(ex, s, mode), _phases(out, s, mode)
         if periodic:  # the exemplar's neighborhoods include those across its wrap
-            e = np.pad(e, ((0, PATCH - 1), (0, PATCH - 1), (0, 0)), mode="wrap")
-        if min(e.shape[:2]) < PATCH + 2 or min(o.shape[:2]) < PATCH + 2:
+            es = [np.pad(e, ((0, PATCH - 1), (0, PATCH - 1), (0, 0)), mode="wrap") for e in es]
+        if min(es[0].shape[:2]) < PATCH + 2 or min(os_[0].shape[:2]) < PATCH + 2:
             continue
-        pe, po = _patches(e), _patches(o, step=1 if o.shape[0] * o.shape[1] <= 300 ** 2 else 2)
+        pe = np.concatenate([_patches(e) for e in es])
+        po = np.concatenate([_patches(o, step=2 if big else 1) for o in os_])
         d = pe.shape[1]
         # Search in the exemplar patches' leading PCA dimensions (kd-trees are
         # slow in 75-D), then measure the true distance to the match found.

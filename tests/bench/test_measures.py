@@ -34,6 +34,17 @@ def test_tiled_exemplar_has_near_zero_energy_and_maximal_repetition():
     assert repetition(shuffled) < 0.1
 
 
+def test_a_copy_shifted_by_an_odd_offset_also_has_near_zero_energy():
+    # Coarse scales read every subsampling phase: a copy of the exemplar one
+    # pixel off (a lattice cell placed at an odd offset) is still a copy.
+    from conftest import periodic_noise
+    ex = periodic_noise(64, channels=1, seed=3)[..., 0]
+    shifted = np.roll(np.tile(ex, (4, 4)), (1, 3), axis=(0, 1))
+    for s in (2, 4):
+        energy, complete = neighborhood_energy(ex, shifted, scales=(s,), periodic=True)
+        assert energy < 1e-6 and complete < 1e-6
+
+
 def test_pixel_shuffle_has_high_energy_but_the_same_histogram():
     ex = _gravel()
     shuffled = np.random.default_rng(1).permutation(ex.ravel()).reshape(ex.shape)
