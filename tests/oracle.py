@@ -301,7 +301,7 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         else:
             ux = parent[py, px, 0] + fixed.child_offset(gmx & 1, h)
             uy = parent[py, px, 1] + fixed.child_offset(gmy & 1, h)
-    rq = fixed.jitter_q(params.jitter[level])
+    rq = fixed.jitter_q(controls.jitter_at(params, m, level))
     if controls.randomness_exemplar is not None or controls.randomness_canvas is not None:
         E, C = field_values(controls, an, params, level, ux, uy, gx, gy)
         rq = modulated_rq(rq, E, C)

@@ -382,7 +382,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
                 uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
             lshift = self.controls.lattice_shift(an.size, l)
             uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, bstride=bstride, boff=boff, h=h,
-                       m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(p.jitter[l]),
+                       m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(self.controls.jitter_at(p, an.size, l)),
                        period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
                        cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi,
                        **(dict(dfield=11) if dtex is not None else {}),

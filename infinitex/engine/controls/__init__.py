@@ -72,6 +72,12 @@ from .direction import DirectionField
 from .labels import MAX_LABELS, CanvasLabels, ExemplarLabels
 from .lattice import Lattice
 
+# Lattice mode: the randomness of the levels finer than the lattice levels, as a
+# fraction of the document's (0.6 -> 0.3 by default). Over 48 near-regular
+# images, half the randomness there gave lower neighborhood energy on 47 and
+# straighter grid lines (docs/benchmarks.md, "Lattice mode's finer scales").
+LATTICE_FINE_JITTER = 0.5
+
 __all__ = [
     "Controls", "NO_CONTROLS", "NEUTRAL", "TILE", "CanvasField", "CanvasLabels", "DirectionField", "ExemplarArray",
     "ExemplarField",
@@ -130,6 +136,16 @@ class Controls:
         map) and the label strength: a change of any reaches the whole canvas."""
         return (self.randomness_exemplar, self.avoid, self.labels_exemplar,
                 float(self.label_strength) if self.labels_exemplar is not None else None)
+
+    def jitter_at(self, params, m: int, level: int) -> float:
+        """r_l as the passes use it: the document's randomness on ``level``,
+        times LATTICE_FINE_JITTER on the levels finer than a lattice's lattice
+        levels (their jitter is not whole cells, and at full strength it moves
+        parts of a cell out of step with its neighbors: grid lines kink)."""
+        r = float(params.jitter[level])
+        if self.lattice is not None and self.lattice.quant_shift(m, level) is None:
+            r *= LATTICE_FINE_JITTER
+        return r
 
     def lattice_shift(self, m: int, level: int) -> tuple[int, int] | None:
         """(log2 cx, log2 cy) when ``level`` is a lattice level: jitter is
