@@ -22,7 +22,7 @@ from .engine.controls.lattice import (
     render_original,
 )
 from .engine.controls.lattice_detect import detect
-from .engine.exemplar import Exemplar, load_exemplar, load_full
+from .engine.exemplar import Exemplar, from_array, load_exemplar, load_full, unit_values
 from .engine.imagefile import to_u8
 from .engine.palette import PaletteLayout
 from .engine.params import DEFAULT_STRUCTURE, SynthParams, structure_index, structure_params
@@ -39,9 +39,8 @@ def _exemplar(source, lattice: Lattice | str | None) -> tuple[Exemplar, Lattice 
             return source, None
         if isinstance(source, (str, os.PathLike)):
             return load_exemplar(source), None
-        from .engine.exemplar import from_array
-        return from_array(np.asarray(source, dtype=np.float32)), None
-    image = load_full(source) if isinstance(source, (str, os.PathLike)) else np.asarray(source, np.float32)
+        return from_array(source), None
+    image = load_full(source) if isinstance(source, (str, os.PathLike)) else unit_values(source)
     if image.ndim == 2:
         image = image[:, :, None]
     if isinstance(lattice, str):
@@ -156,7 +155,8 @@ def synthesize(exemplar, size: tuple[int, int] = (256, 256), origin: tuple[int, 
     """A ``size`` = (W, H) window of the exemplar's infinite texture at canvas
     position ``origin``, as uint8 (H, W, C).
 
-    ``exemplar``: an image path, a float array (H, W[, C]) in [0, 1], or an
+    ``exemplar``: an image path, an array (H, W[, C]) of floats in [0, 1] or
+    of uint8 / uint16 (read on their full range), or an
     :class:`~infinitex.engine.exemplar.Exemplar`. ``randomness``: one r for
     every level or one per level, coarse to fine (default 0.6). ``controls``:
     painted randomness and placed features (:class:`Controls`). ``lattice``:

@@ -219,10 +219,31 @@ def small_pattern(px: np.ndarray, toroidal: bool | None) -> np.ndarray:
     return np.ascontiguousarray(np.clip(np.stack(planes, axis=2), 0.0, 1.0), dtype=np.float32)
 
 
+def unit_values(arr) -> np.ndarray:
+    """An image array as float32 in [0, 1]: unsigned integers are read on
+    their type's full range (uint8 / 255, uint16 / 65535), floats as they are
+    (values a little outside [0, 1] are clipped later). Floats far outside
+    [0, 1], usually 8-bit values in a float array, raise ExemplarError rather
+    than come out white."""
+    a = np.asarray(arr)
+    if a.dtype == np.bool_ or (a.dtype.kind == "i" and a.size and (a.min() < 0 or a.max() > 1)):
+        raise ExemplarError(f"An exemplar array of {a.dtype} is ambiguous: pass uint8 (0-255), uint16 "
+                            "(0-65535) or floats in [0, 1].")
+    if a.dtype.kind == "u":
+        return (a.astype(np.float64) / np.iinfo(a.dtype).max).astype(np.float32)
+    a = a.astype(np.float32)
+    finite = a[np.isfinite(a)]
+    if finite.size and (finite.max() > 1.5 or finite.min() < -0.5):
+        raise ExemplarError(f"An exemplar array of floats must hold values in [0, 1]; this one goes from "
+                            f"{finite.min():g} to {finite.max():g} (8-bit values? divide by 255 or pass uint8).")
+    return a
+
+
 def from_array(arr: np.ndarray, *, fit: str = "resize", toroidal: bool | None = None,
                source: str = "<array>") -> Exemplar:
-    """Build an exemplar from a float array (H, W) or (H, W, C) in [0, 1]."""
-    arr = np.asarray(arr, dtype=np.float32)
+    """Build an exemplar from an array (H, W) or (H, W, C): floats in [0, 1],
+    or unsigned integers on their type's range (:func:`unit_values`)."""
+    arr = unit_values(arr)
     if arr.ndim == 2:
         arr = arr[:, :, None]
     if arr.ndim != 3 or arr.shape[2] not in (1, 2, 3, 4):

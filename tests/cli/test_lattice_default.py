@@ -66,6 +66,20 @@ def test_the_api_default_is_auto(brick_png):
     assert np.array_equal(itx.synthesize(GRAVEL, size=(48, 48)), itx.synthesize(GRAVEL, size=(48, 48), lattice=None))
 
 
+def test_the_api_reads_8_bit_arrays_on_their_range(brick_png):
+    # An 8-bit array is what Pillow gives: it must not be clipped to white.
+    u8 = np.asarray(Image.open(brick_png))
+    unit = u8.astype(np.float32) / 255.0
+    for lattice in ("auto", None):
+        got = itx.synthesize(u8, size=(48, 48), lattice=lattice)
+        assert np.array_equal(got, itx.synthesize(unit, size=(48, 48), lattice=lattice))
+        assert got.std() > 10
+    with pytest.raises(ValueError, match="divide by 255"):
+        itx.synthesize(u8.astype(np.float32), size=(48, 48))
+    with pytest.raises(ValueError, match="ambiguous"):
+        itx.synthesize(u8.astype(np.int64) - 1, size=(48, 48), lattice=None)
+
+
 def test_an_opened_image_gets_its_lattice(brick_png):
     doc = Document(ExemplarSource.from_file(brick_png))
     job = AnalysisJob(doc, find_lattice=True)
