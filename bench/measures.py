@@ -28,7 +28,7 @@ def _patches(img: np.ndarray, step: int = 1) -> np.ndarray:
     return w.reshape(w.shape[0] * w.shape[1], -1)
 
 
-def _phases(img: np.ndarray, s: int, mode: str) -> list[np.ndarray]:
+def _phases(img: np.ndarray, s: int, mode: str, every: bool = True) -> list[np.ndarray]:
     """The image Gaussian-filtered for scale ``s`` and subsampled by ``s`` at
     each of the s^2 phases: together they hold every neighborhood of taps ``s``
     apart, so an image and a copy of it shifted by any pixel offset have the
@@ -36,11 +36,12 @@ def _phases(img: np.ndarray, s: int, mode: str) -> list[np.ndarray]:
     if s == 1:
         return [img]
     blurred = ndimage.gaussian_filter(img, sigma=(s / 2, s / 2, 0), mode=mode)
-    return [blurred[i::s, j::s] for i in range(s) for j in range(s)]
+    return [blurred[i::s, j::s] for i in range(s if every else 1) for j in range(s if every else 1)]
 
 
 def neighborhood_energy(exemplar: np.ndarray, output: np.ndarray, scales=(1, 2, 4),
-                        samples: int = 4000, seed: int = 0, periodic: bool = False) -> tuple[float, float]:
+                        samples: int = 4000, seed: int = 0, periodic: bool = False,
+                        every_phase: bool = True) -> tuple[float, float]:
     """(energy, completeness): mean squared distance per value of output
     neighborhoods to their nearest exemplar neighborhood, and of exemplar
     neighborhoods to their nearest output neighborhood, averaged over scales
@@ -53,14 +54,15 @@ def neighborhood_energy(exemplar: np.ndarray, output: np.ndarray, scales=(1, 2, 
     shifted by an odd number of pixels scores 0 like one copied in phase.
     (Until December 2026 only phase 0 was read: an exact copy of a sharp,
     fine-grained exemplar at another phase scored like a poor match, by
-    chance of where its copies fell; figures before then used that reading.)"""
+    chance of where its copies fell; figures before then used that reading,
+    which ``every_phase=False`` gives.)"""
     ex, out = _chan(exemplar), _chan(output)
     rng = np.random.default_rng(seed)
     energy, complete = [], []
     mode = "wrap" if periodic else "reflect"  # how images are extended for the blur
     big = out.shape[0] * out.shape[1] > 300 ** 2
     for s in scales:
-        es, os_ = _phases(ex, s, mode), _phases(out, s, mode)
+        es, os_ = _phases(ex, s, mode, every_phase), _phases(out, s, mode, every_phase)
         if periodic:  # the exemplar's neighborhoods include those across its wrap
             es = [np.pad(e, ((0, PATCH - 1), (0, PATCH - 1), (0, 0)), mode="wrap") for e in es]
         if min(es[0].shape[:2]) < PATCH + 2 or min(os_[0].shape[:2]) < PATCH + 2:
