@@ -30,13 +30,14 @@ def _patches(img: np.ndarray, step: int = 1) -> np.ndarray:
 
 def _phases(img: np.ndarray, s: int, mode: str, every: bool = True) -> list[np.ndarray]:
     """The image Gaussian-filtered for scale ``s`` and subsampled by ``s`` at
-    each of the s^2 phases: together they hold every neighborhood of taps ``s``
-    apart, so an image and a copy of it shifted by any pixel offset have the
-    same neighborhoods at every scale."""
+    each of the s^2 phases (``every``; else at phase 0 only): together they
+    hold every neighborhood of taps ``s`` apart, so an image and a copy of it
+    shifted by any pixel offset have the same neighborhoods at every scale."""
     if s == 1:
         return [img]
     blurred = ndimage.gaussian_filter(img, sigma=(s / 2, s / 2, 0), mode=mode)
-    return [blurred[i::s, j::s] for i in range(s if every else 1) for j in range(s if every else 1)]
+    n = s if every else 1
+    return [blurred[i::s, j::s] for i in range(n) for j in range(n)]
 
 
 def neighborhood_energy(exemplar: np.ndarray, output: np.ndarray, scales=(1, 2, 4),
