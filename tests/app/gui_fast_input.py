@@ -8,7 +8,13 @@ Each round, after the editor has gone idle (more than 3 s without input, so
 it sleeps between frames): a 750 px right-button flick released at once must
 pan exactly 750 px; a 10 ms Ctrl+O must open the file chooser; a 5 ms Ctrl+Z
 must undo one step, and two quick Ctrl+Z while the view refines two; Escape
-in an open menu must close it, and the next tool key must choose the tool.
+in an open menu must close it, and the next tool key must choose the tool;
+Ctrl+O, Ctrl+S and Ctrl+Z as 1 ms chords (the four events sent at once, Ctrl
+released before the letter, as ``xdotool key ctrl+o`` sends them) and as 10 ms
+ones must each act once, and a file name typed at once after Ctrl+O ("lt")
+must neither choose a tool nor turn tile mode on.
+INFINITEX_IDLE_S sets how long each round waits once the editor is idle
+(default 3.5 s: the editor then sleeps between frames).
 Writes "ok NAME" / "FAIL NAME: why" lines to OUT_DIR/report.txt.
 """
 from __future__ import annotations
@@ -23,7 +29,8 @@ from Xlib import XK, X, display
 from Xlib.ext import xtest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-IDLE_S = 3.5  # the runner sleeps between frames 3 s after the last input
+# The editor sleeps between frames (up to 4 s a sleep) 0.5 s after the last input.
+IDLE_S = float(os.environ.get("INFINITEX_IDLE_S", "3.5"))
 
 
 class Driver:
@@ -84,6 +91,27 @@ class Driver:
         code = self.d.keysym_to_keycode(XK.string_to_keysym(name))
         xtest.fake_input(self.d, X.KeyPress if down else X.KeyRelease, code)
         self.d.sync()
+
+    def burst(self, events: list[tuple[str, bool]]) -> None:
+        """Key events sent together, one flush (they reach the editor in one batch)."""
+        for name, down in events:
+            code = self.d.keysym_to_keycode(XK.string_to_keysym(name))
+            xtest.fake_input(self.d, X.KeyPress if down else X.KeyRelease, code)
+        self.d.sync()
+
+    def fast_chord(self, key: str, ms: int, then: str = "") -> None:
+        """Ctrl+``key`` in about ``ms`` ms. 1 ms: the four events at once, Ctrl up
+        before the letter (xdotool's order), then the letters of ``then``."""
+        if ms <= 1:
+            self.burst([("Control_L", True), (key, True), ("Control_L", False), (key, False)]
+                       + [(c, d) for c in then for d in (True, False)])
+            return
+        step = ms / 4000.0
+        for name, down in (("Control_L", True), (key, True), (key, False), ("Control_L", False)):
+            self.key(name, down)
+            time.sleep(step)
+        for c in then:
+            self.tap(c)
 
     def tap(self, name: str) -> None:
         self.key(name, True)
@@ -211,6 +239,40 @@ class Driver:
         except RuntimeError as exc:
             self.check(f"round {n}: the tool key after Escape chooses the tool", False, str(exc))
 
+    def fast_chords(self, n: int) -> None:
+        """From idle: 1 ms and 10 ms Ctrl+O (a file name typed at once after it),
+        Ctrl+S and Ctrl+Z each act exactly once."""
+        for ms in (1, 10):
+            for key in ("o", "s"):
+                self.command("saved 1")
+                self.idle()
+                before = self.state()
+                self.fast_chord(key, ms, then="lt" if key == "o" else "")
+                name = f"round {n}: a {ms} ms Ctrl+{key.upper()} after idling opens the file chooser"
+                try:
+                    s = self.wait(lambda s: s.get("path_request"), 2.0, "the file chooser")
+                    time.sleep(0.2)
+                    s = self.state()
+                    self.check(name, s.get("tool") == before.get("tool") and s.get("tile_mode") == before.get("tile_mode"),
+                               f"typing after it changed the tool to {s.get('tool')} / tile mode {s.get('tile_mode')}")
+                except RuntimeError as exc:
+                    self.check(name, False, str(exc))
+                self.tap("Escape")
+                self.wait(lambda s: not s.get("path_request"), 3.0, "the chooser to close")
+            base = 1000 * (n + 1) + 500 + ms
+            self.command(f"seed {base} seed {base + 1} saved 1")
+            self.wait(lambda s: s.get("seed") == base + 1, 10, "the edits")
+            self.idle()
+            self.fast_chord("z", ms)
+            name = f"round {n}: a {ms} ms Ctrl+Z after idling undoes one step"
+            try:
+                self.wait(lambda s: s.get("seed") == base, 2.0, "one undo")
+                time.sleep(0.3)
+                self.check(name, self.state().get("seed") == base, f"seed {self.state().get('seed')}")
+            except RuntimeError as exc:
+                self.check(name, False, str(exc))
+            self.command("saved 1")
+
     def close(self) -> None:
         self.proc.terminate()
         try:
@@ -225,7 +287,7 @@ def main(out: str, rounds: int) -> int:
     drv = Driver(out)
     try:
         for n in range(rounds):
-            for scenario in (drv.flick, drv.ctrl_o, drv.undo, drv.escape_menu):
+            for scenario in (drv.flick, drv.ctrl_o, drv.undo, drv.escape_menu, drv.fast_chords):
                 try:
                     scenario(n)
                 except RuntimeError as exc:  # a wait timed out: that scenario failed, the others still run

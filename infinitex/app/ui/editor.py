@@ -41,6 +41,7 @@ from .canvas_preview import CanvasPreviewMixin
 from .dialogs import Dialogs
 from .exports import ExportsMixin
 from .files import DEFAULT_EXEMPLAR, FilesMixin
+from .keylog import KeyLog
 from .model_mode import ModelModeMixin
 from .shortcuts import ShortcutsMixin
 from .tools import make_tools
@@ -166,6 +167,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self._idle_fps = IDLE_FPS
         self._last_input = 0.0           # monotonic time of the last input event seen
         self._last_frame_t = 0.0
+        self.keys = KeyLog()             # this frame's key presses, each with its own modifiers
 
     # -- running ------------------------------------------------------------
 
@@ -242,6 +244,12 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
                           "on Linux install libgl1 and a Mesa driver.")
             return
         self._install_drop_callback()
+        if not getattr(self.params, "use_imgui_test_engine", False):  # (its keys go to imgui, not the window)
+            try:
+                from imgui_bundle import glfw_utils
+                self.keys.install(glfw_utils.glfw_window_hello_imgui())
+            except Exception:
+                pass  # no glfw window: imgui's own key state serves
         self._open_first_document()
 
     def _save_window_size(self) -> None:
@@ -335,8 +343,14 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         this frame handles them; and while events are queued or came recently
         (imgui spreads fast input over frames: a press and release of one key,
         a move and a release), the editor does not sleep at all."""
+        try:
+            self._sleep_until_input()
+        finally:
+            self.keys.new_frame()  # the presses delivered until now are this frame's
+
+    def _sleep_until_input(self) -> None:
         now = time.monotonic()
-        queue = len(imgui.get_current_context().input_events_queue)
+        queue = len(imgui.get_current_context().input_events_queue) + self.keys.waiting
         if queue:
             self._last_input = now
         if (not self._may_idle or queue or now - self._last_input < ACTIVE_AFTER_INPUT_S
@@ -350,7 +364,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             glfw.wait_events_timeout(timeout)  # releases the GIL: the analysis thread runs meanwhile
         except Exception:
             return
-        if len(imgui.get_current_context().input_events_queue):
+        if len(imgui.get_current_context().input_events_queue) or self.keys.waiting:
             self._last_input = time.monotonic()
 
     def _tick_fps(self) -> None:

@@ -30,48 +30,59 @@ class ShortcutsMixin:
     """The editor's keys, read once a frame, and their list (F1)."""
 
     def _shortcuts(self) -> None:
+        """This frame's key presses, in the order they came, each with the
+        modifiers held when it went down (keylog.py): a chord as short as the
+        window system can make is seen, and a letter typed with Ctrl held is
+        never a tool key. Once a press opens a dialog, the presses after it
+        are the dialog's, not shortcuts."""
+        keys = self.keys
         if self.dialogs.busy or imgui.get_io().want_text_input:
+            keys.drop()
             return
         if imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id | imgui.PopupFlags_.any_popup_level):
             # An open menu (or other popup) takes the keys; Escape closes it, as
             # everywhere else, and the next key acts again.
             if imgui.is_key_pressed(imgui.Key.escape, False):
                 imgui.internal.close_popups_except_modals()
+            keys.drop()
             return
-        ctrl = imgui.Key.mod_ctrl
-        if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.z) or imgui.is_key_chord_pressed(ctrl | imgui.Key.y):
+        K = imgui.Key
+        for _ in range(keys.take(K.z, ctrl=True, shift=True) + keys.take(K.y, ctrl=True)):
             self.redo()
-        elif imgui.is_key_chord_pressed(ctrl | imgui.Key.z):
+        for _ in range(keys.take(K.z, ctrl=True)):
             self.undo()
-        if imgui.is_key_chord_pressed(ctrl | imgui.Key.s):
+        if keys.take(K.s, ctrl=True):
             self.save()
-        if imgui.is_key_chord_pressed(ctrl | imgui.Key.mod_shift | imgui.Key.s):
+        if keys.take(K.s, ctrl=True, shift=True):
             self.save_as()
-        if imgui.is_key_chord_pressed(ctrl | imgui.Key.o):
+        if keys.take(K.o, ctrl=True):
             self.panels.open_dialog()
-        if imgui.is_key_chord_pressed(ctrl | imgui.Key.q):
+        if keys.take(K.q, ctrl=True):
             self.request_quit()
-        io = imgui.get_io()
-        if imgui.is_key_pressed(imgui.Key.f1, False) or (
-                imgui.is_key_pressed(imgui.Key.slash, False) and io.key_shift):
+        if self.dialogs.busy:  # a question or a file chooser opens: what is typed next is its
+            keys.drop()
+            return
+        if keys.take(K.f1, shift=None) or keys.take(K.slash, shift=True):
             self.show_shortcuts = not self.show_shortcuts
-        if not (io.key_ctrl or io.key_alt or io.key_super) and not imgui.is_any_item_active():
-            self._zoom_keys()
-        # Tool keys work anywhere (as in Krita and Photoshop), never while typing
-        # in a field or dragging a control.
-        if not (io.key_ctrl or io.key_alt or io.key_super) and not imgui.is_any_item_active():
-            for t in self.tools:
-                if t.key and imgui.is_key_pressed(getattr(imgui.Key, t.key.lower()), False):
-                    self.set_tool(t.name)
-            if imgui.is_key_pressed(imgui.Key.h, False):
-                self.show_fields = not self.show_fields
-            if imgui.is_key_pressed(imgui.Key.t, False):
-                self.tile_mode = not self.tile_mode
-            if imgui.is_key_pressed(imgui.Key.m, False) and self.session.ready:
-                roles = self.session.material.roles  # the next map of a material
-                cur = self.session.shown_map(self.display.map)
-                self.display = replace(self.display, map=roles[(roles.index(cur) + 1) % len(roles)])
-            self.tool.keys()
+        io = imgui.get_io()
+        if io.key_ctrl or io.key_alt or io.key_super or imgui.is_any_item_active():
+            keys.drop()
+            return
+        self._zoom_keys()
+        # Single keys: tools, H, T, M (anywhere a text field or a dialog does not
+        # take the keys, as in Krita and Photoshop; never while a control is dragged).
+        for t in self.tools:
+            if t.key and keys.plain(getattr(K, t.key.lower())):
+                self.set_tool(t.name)
+        if keys.plain(K.h):
+            self.show_fields = not self.show_fields
+        if keys.plain(K.t):
+            self.tile_mode = not self.tile_mode
+        if keys.plain(K.m) and self.session.ready:
+            roles = self.session.material.roles  # the next map of a material
+            cur = self.session.shown_map(self.display.map)
+            self.display = replace(self.display, map=roles[(roles.index(cur) + 1) % len(roles)])
+        self.tool.keys()
 
     def _zoom_keys(self) -> None:
         """1: actual size; + and -: zoom in and out around the canvas centre;
