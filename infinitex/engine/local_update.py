@@ -16,7 +16,9 @@ from __future__ import annotations
 import time
 
 from .controls import Controls
-from .rect import Rect, merge_rects
+from .rect import Rect, cover_rects, merge_rects
+
+DIRTY_RECTS = 64  # a level's dirty region: at most about this many rectangles
 from .stages import scratch_size
 
 
@@ -49,6 +51,9 @@ class LocalUpdates:
             self.set_params(self.params, controls)  # the whole canvas changes
             self.pixels_synthesized = 0
             return 0
+        # A dab's tiles touch without overlapping: grown by a pixel they merge into
+        # its box once here, not once a level (a 512 px dab is 250 tiles).
+        changed = merge_rects([r.pad(1, 1, 1, 1) for r in changed if not r.empty])
         b = 1 if controls.labels_active or self.controls.labels_active else 0  # the labels' blur: a level pixel
         if controls.directed and not self.controls.directed:
             self._widen_state()  # a first direction dab: the same state, with remainders of 0
@@ -65,11 +70,22 @@ class LocalUpdates:
         return self.pixels_synthesized
 
     def _mark(self, l: int, inputs: list[Rect]) -> None:
-        """Add the pixels within reach of changed inputs to level l's dirty region."""
+        """Add the pixels within reach of changed inputs to level l's dirty
+        region, as far as the level holds pixels or a request in progress is
+        making it hold them (:meth:`claimed`): what it does not hold is
+        synthesized with the current controls, from a parent that is exact or
+        itself dirty there, whenever it comes into view (and :meth:`settle`
+        skips it anyway). So a dab of any size, at any angle of a model, marks
+        at most that window, in a bounded number of rectangles
+        (:func:`~infinitex.engine.rect.cover_rects`)."""
+        held = self.claimed(l)
+        if held is None or held.empty:
+            self.dirty[l] = []
+            return
         reach = max(self.margins[l])
         grown = [r.pad(reach, reach, reach, reach) for r in inputs if not r.empty]
         if grown:
-            self.dirty[l] = merge_rects(self.dirty[l] + grown)
+            self.dirty[l] = cover_rects(self.dirty[l] + grown, held, DIRTY_RECTS)
 
     @property
     def updating(self) -> bool:

@@ -33,8 +33,21 @@ class SpreadRequests:
         self._check(level, rect)
         self.end_request()
         self.gpu.activate()
-        self._request_job = (level, rect, self._request_steps(self._targets(level, rect)))
+        targets = self._targets(level, rect)
+        self._request_job = (level, rect, self._request_steps(targets), dict(targets))
         self.request_pixels = 0
+
+    def claimed(self, l: int) -> Rect | None:
+        """What level l holds or the request in progress is making it hold
+        (their bounding box): where its pixels can be, now or once the request ends."""
+        buf = self.buffers[l]
+        held = buf.valid if buf is not None else None
+        target = self._request_job[3].get(l) if self._request_job is not None else None
+        if held is None or held.empty:
+            return target
+        if target is None:
+            return held
+        return Rect(min(held.x0, target.x0), min(held.y0, target.y0), max(held.x1, target.x1), max(held.y1, target.y1))
 
     @property
     def requesting(self) -> tuple[int, Rect] | None:

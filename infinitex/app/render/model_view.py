@@ -373,3 +373,54 @@ class ModelView:
         for o in (*self.vaos, self.vbo, *self.programs, self.texture, self.seam_texture, self.overlay_texture, self._fbo):
             if o is not None:
                 o.release()
+
+
+MAX_DAB_FRACTION = 0.25  # a dab on a model: at most this fraction of the atlas side in radius
+
+
+def atlas_footprint(uvh: np.ndarray, x: float, y: float, n: int, owner: np.ndarray | None = None,
+                    step: int = 2) -> tuple[tuple[float, float], float] | None:
+    """Where the ray under view pixel (x, y) meets the model, from a picking
+    render ``uvh`` ((h, w, 3): u, v, hit): the atlas position in finest texels
+    (row 0 at the top) and the atlas texels one screen pixel spans there; None
+    off the model.
+
+    The span is the smallest of the four one-sided differences ``step`` pixels
+    away (left, right, up, down) whose neighbour is on the model, on the same
+    chart (``owner``: the atlas's chart per texel) and no farther than the
+    step could reach: at a grazing angle the surface runs away along one axis
+    only, and a neighbour across the silhouette or a seam lies anywhere in the
+    atlas (which made a 47 px brush near a vase's outline a dab of thousands
+    of texels). Without a usable neighbour the span is 1."""
+    h, w = uvh.shape[:2]
+    xi, yi = int(x), int(y)
+    if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
+        return None
+    u, v = float(uvh[yi, xi, 0]), float(uvh[yi, xi, 1])
+    pos = (u * n, (1.0 - v) * n)
+
+    def chart(px: float, py: float) -> int:
+        if owner is None:
+            return 0
+        return int(owner[min(n - 1, max(0, int(py))), min(n - 1, max(0, int(px)))])
+
+    here = chart(*pos)
+    spans = []
+    for dx, dy in ((step, 0), (-step, 0), (0, step), (0, -step)):
+        x2, y2 = xi + dx, yi + dy
+        if not (0 <= x2 < w and 0 <= y2 < h) or uvh[y2, x2, 2] < 0.5:
+            continue
+        q = (float(uvh[y2, x2, 0]) * n, (1.0 - float(uvh[y2, x2, 1])) * n)
+        if chart(*q) != here:
+            continue
+        spans.append(math.hypot(q[0] - pos[0], q[1] - pos[1]) / step)
+    per_px = min(spans) if spans else 1.0
+    return pos, per_px if per_px > 0 else 1.0
+
+
+def dab_radius(radius: float, screen_units: bool, per_px: float, n: int) -> float:
+    """A brush's radius in atlas texels: its screen radius times the texels a
+    screen pixel spans there (or its radius as it is), at least 1 and at most
+    MAX_DAB_FRACTION of the atlas side, however the surface is seen."""
+    r = radius * per_px if screen_units else radius
+    return float(min(max(1.0, r), max(1.0, MAX_DAB_FRACTION * n)))

@@ -29,7 +29,7 @@ from infinitex.engine.surface.features import across_seams
 from infinitex.project import ProjectError
 from infinitex.project.surface import SurfaceSettings, default_repeats
 
-from ..render.model_view import ModelView, OrbitCamera
+from ..render.model_view import ModelView, OrbitCamera, atlas_footprint, dab_radius
 from ..render.overlays import heat_rgba
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 from .tools.direction_model import ModelComb
@@ -335,16 +335,11 @@ class ModelModeMixin:
 
     def pick_atlas(self, x: float, y: float, w: int, h: int) -> tuple[tuple[float, float], float] | None:
         """Where the ray under view pixel (x, y) meets the model: (atlas
-        position in finest texels, atlas texels per screen pixel there), or None."""
-        uvh = self.uv_image(w, h)
-        xi, yi = int(x), int(y)
-        if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
-            return None
-        n = self.doc.surface.size
-        u, v = float(uvh[yi, xi, 0]), float(uvh[yi, xi, 1])
-        x2 = min(w - 1, xi + 3) if xi + 3 < w else max(0, xi - 3)
-        du = uvh[yi, x2, :2] - uvh[yi, xi, :2] if uvh[yi, x2, 2] > 0.5 else np.zeros(2)
-        return (u * n, (1.0 - v) * n), float(np.hypot(*du)) * n / max(1, abs(x2 - xi)) or 1.0
+        position in finest texels, atlas texels per screen pixel there), or None
+        (render/model_view.py: atlas_footprint)."""
+        atlas = self.session.model.atlas
+        return atlas_footprint(self.uv_image(w, h), x, y, self.doc.surface.size,
+                               atlas.owner(0) if atlas is not None and atlas.size == self.doc.surface.size else None)
 
     def chart_at(self, pos: tuple[float, float]) -> int:
         """The chart of the atlas texel at ``pos`` (finest texels; -1 off the charts)."""
@@ -362,7 +357,8 @@ class ModelModeMixin:
             return
         pos, per_px = hit  # (atlas texels per screen pixel here: the brush keeps its size on screen)
         b = self.tool.brush
-        r = max(1.0, b.radius * per_px if b.screen_units else b.radius)
+        n = self.doc.surface.size
+        r = dab_radius(b.radius, b.screen_units, per_px, n)
         last = self._stroke_last
         if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r
                                  or self.chart_at(last) != self.chart_at(pos)):
@@ -374,7 +370,8 @@ class ModelModeMixin:
         atlas = self.session.model.atlas
         for cx, cy in dabs:  # each dab, and its continuation over the seams it reaches
             for x, y, rr in [(cx, cy, r)] + (across_seams(atlas, cx, cy, r) if atlas is not None else []):
-                field, _ = field.painted(x, y, rr, b.value_u16, b.strength, b.hardness)
+                field, _ = field.painted(x, y, min(rr, 2 * r), b.value_u16, b.strength, b.hardness,
+                                         bounds=(0, 0, n, n))  # (beyond the atlas nothing is read)
         self._stroke_last = dabs[-1]
         self.tool.dabs += len(dabs)
         self.edit(replace(self.doc, randomness_canvas=field), "Paint randomness (model)", group=self._stroke_group)

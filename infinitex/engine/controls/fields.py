@@ -50,8 +50,9 @@ def _u16(a: np.ndarray) -> np.ndarray:
 def dab_weights(cx: float, cy: float, radius: float, hardness: float, x0: int, y0: int, w: int, h: int) -> np.ndarray:
     """Brush coverage in [0, 1] over pixels [x0, x0+w) x [y0, y0+h) (pixel centers):
     1 inside ``hardness * radius``, then a smooth falloff to 0 at ``radius``."""
-    ys, xs = np.mgrid[y0:y0 + h, x0:x0 + w]
-    d = np.hypot(xs + 0.5 - cx, ys + 0.5 - cy) / max(radius, 1e-6)
+    xs = np.arange(x0, x0 + w, dtype=np.int64) + 0.5 - cx  # (broadcast: no full grids of indices)
+    ys = np.arange(y0, y0 + h, dtype=np.int64) + 0.5 - cy
+    d = np.hypot(xs[None, :], ys[:, None]) / max(radius, 1e-6)
     inner = min(max(hardness, 0.0), 0.999)
     t = np.clip((d - inner) / (1.0 - inner), 0.0, 1.0)
     return np.where(d >= 1.0, 0.0, 1.0 - t * t * (3.0 - 2.0 * t))
@@ -266,19 +267,34 @@ class CanvasField:
         return cls(tiles)
 
     def painted(self, cx: float, cy: float, radius: float, value: int, strength: float = 1.0,
-                hardness: float = 0.5) -> tuple[CanvasField, "tuple[int, int, int, int]"]:
+                hardness: float = 0.5, bounds: tuple[int, int, int, int] | None = None
+                ) -> tuple[CanvasField, "tuple[int, int, int, int]"]:
         """A dab (finest-level canvas pixels): the new field, sharing every
-        untouched tile with this one, and the rectangle (x0, y0, x1, y1) it changed."""
+        untouched tile with this one, and the rectangle (x0, y0, x1, y1) it
+        changed; ``bounds`` (x0, y0, x1, y1): painted only inside it (a model's atlas)."""
         x0, y0, x1, y1 = dab_rect(cx, cy, radius)
+        if bounds is not None:
+            x0, y0 = max(x0, bounds[0]), max(y0, bounds[1])
+            x1, y1 = min(x1, bounds[2]), min(y1, bounds[3])
+            if x0 >= x1 or y0 >= y1:
+                return self, (x0, y0, x0, y0)
         tiles = dict(self.tiles)
-        for ty in range(y0 // TILE, (y1 - 1) // TILE + 1):
-            for tx in range(x0 // TILE, (x1 - 1) // TILE + 1):
-                old = tiles.get((tx, ty))
-                base = old if old is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
-                wts = dab_weights(cx, cy, radius, hardness, tx * TILE, ty * TILE, TILE, TILE)
-                if not wts.any():
-                    continue
-                tiles[(tx, ty)] = apply_dab(base, wts, value, strength)
+        # The weights over the dab's whole tile span at once (one numpy pass, not one a tile).
+        tx0, ty0, tx1, ty1 = x0 // TILE, y0 // TILE, (x1 - 1) // TILE + 1, (y1 - 1) // TILE + 1
+        ox, oy = tx0 * TILE, ty0 * TILE
+        wts = dab_weights(cx, cy, radius, hardness, ox, oy, (tx1 - tx0) * TILE, (ty1 - ty0) * TILE)
+        if bounds is not None:  # nothing outside them
+            wts[:, :max(0, x0 - ox)] = 0
+            wts[:, max(0, x1 - ox):] = 0
+            wts[:max(0, y0 - oy)] = 0
+            wts[max(0, y1 - oy):] = 0
+        touched = wts.reshape(ty1 - ty0, TILE, tx1 - tx0, TILE).any(axis=(1, 3))
+        for j, i in zip(*np.nonzero(touched)):
+            key = (tx0 + int(i), ty0 + int(j))
+            old = tiles.get(key)
+            base = old if old is not None else np.full((TILE, TILE), NEUTRAL, np.uint16)
+            w = wts[j * TILE:(j + 1) * TILE, i * TILE:(i + 1) * TILE]
+            tiles[key] = apply_dab(base, w, value, strength)
         return CanvasField(tiles), (x0, y0, x1, y1)
 
     def rescaled(self, factor: float, size: int) -> CanvasField:

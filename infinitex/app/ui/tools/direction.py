@@ -29,7 +29,7 @@ from infinitex.engine.controls.direction import (
 from infinitex.engine.controls.fields import FieldTooLarge, dab_rect, dab_weights
 from infinitex.engine.exemplar import ExemplarError
 
-from . import Tool
+from . import MAX_CANVAS_RADIUS, Tool
 from .paint import Brush, brush_keys, dab_centers
 
 MODES = (("comb", "Comb", "Drag the way the texture should run"),
@@ -40,7 +40,7 @@ MODES = (("comb", "Comb", "Drag the way the texture should run"),
          ("guide", "Guide", "Click the points of a curve; Enter (or Apply guide) makes the texture follow it"))
 MAP_FILTER = ["Direction maps", "*.png *.tif *.tiff *.webp *.bmp"]
 MAX_GUIDE_AREA = 2048 * 2048  # canvas pixels a guide's box may cover (about a second of work)
-MAX_BRUSH = 512.0  # canvas pixels: a brush zoomed far out still edits a bounded area
+MAX_BRUSH = MAX_CANVAS_RADIUS  # canvas pixels: a brush zoomed far out still edits a bounded area
 
 
 # What the exemplar can give, said in the panel (engine/controls/direction.py limits).

@@ -25,7 +25,7 @@ from infinitex.engine.controls.labels import LABEL_COLORS, propose_labels
 from infinitex.engine.exemplar import ExemplarError
 from infinitex.project.document import LabelMaps
 
-from . import Tool, begin_tool_window
+from . import MAX_CANVAS_RADIUS, Tool, begin_tool_window
 from .paint import Brush, brush_keys, dab_centers
 
 FILL_LIMIT = 4096  # a fill covers at most this many canvas pixels a side (the view, at most)
@@ -207,7 +207,7 @@ class LabelTool(Tool):
     # -- the canvas ----------------------------------------------------------
 
     def radius_canvas(self) -> float:
-        return self.brush.radius / self.ed.view.zoom
+        return min(MAX_CANVAS_RADIUS, self.brush.radius / self.ed.view.zoom)
 
     def press(self, pos, screen) -> None:
         lab = self.labels

@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
 
-from . import Tool, begin_tool_window
+from . import MAX_CANVAS_RADIUS, Tool, begin_tool_window
 
 
 @dataclass
@@ -91,7 +91,7 @@ class PaintCanvasTool(Tool):
 
     def radius_canvas(self) -> float:
         b = self.brush
-        return b.radius / self.ed.view.zoom if b.screen_units else b.radius
+        return min(MAX_CANVAS_RADIUS, b.radius / self.ed.view.zoom if b.screen_units else b.radius)
 
     def press(self, pos, screen) -> None:
         ed = self.ed
