@@ -166,3 +166,23 @@ def test_feature_handles_on_the_model_show_only_what_the_camera_sees(gpu):
         assert [h[0] for h in mf._handles(*size)] == [1]
     finally:
         view.release()
+
+
+@pytest.mark.parametrize("theta", [0.0, 30.0, 90.0, 135.0])
+def test_the_model_shows_the_direction_field_as_strokes_along_it(theta):
+    """H with the Direction tool on a model shows the field (not the randomness):
+    strokes only where it is painted, each along the painted direction."""
+    from infinitex.app.render.overlays import direction_rgba
+    from infinitex.engine.controls.direction import DirectionField
+    n = 256
+    field = DirectionField.uniform(theta, 1.2, 1.0, 0, 0, 128, 256)  # the left half (scale 1.2: 0 degrees is painted too)
+    rgba = direction_rgba(field, n)
+    on = rgba[..., 3] > 200  # the light core of the strokes
+    assert on[:, :128].mean() > 0.01 and not on[:, 136:].any()
+    cell = 8
+    ys, xs = np.nonzero(on[64:64 + cell, 64:64 + cell])  # one cell's stroke: its main axis is the direction
+    pts = np.stack([xs - xs.mean(), ys - ys.mean()])
+    w, v = np.linalg.eigh(pts @ pts.T)
+    got = math.degrees(math.atan2(v[1, -1], v[0, -1])) % 180.0
+    assert min(abs(got - theta % 180.0), 180.0 - abs(got - theta % 180.0)) < 12.0
+    assert direction_rgba(DirectionField(), n) is None

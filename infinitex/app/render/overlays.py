@@ -24,6 +24,41 @@ def heat_rgba(values: np.ndarray) -> np.ndarray:
     return out
 
 
+def direction_rgba(field, n: int, axis: int = 0) -> np.ndarray | None:
+    """A direction field over an n x n atlas as RGBA8 short strokes, as the
+    plane shows it (draw_field): one stroke per cell of about n / 32 texels
+    where the field is painted, along the exemplar's x (``axis`` 1: its y),
+    as long as its scale, light on a dark outline; None where nothing is painted."""
+    from infinitex.engine.controls.direction import decompose
+    if field is None or field.identity or n < 8:
+        return None
+    step = max(2, int(math.log2(n)) - 5)
+    cell = 1 << step
+    g = n // cell
+    j = field.region(step, 0, 0, g, g)
+    if j is None:
+        return None
+    painted = np.any(j != np.array([4096, 0, 0, 4096], np.int16), axis=-1)
+    if not painted.any():
+        return None
+    th, sc, _ = decompose(j)
+    a = np.radians(th + 90.0 * axis)
+    half = 0.38 * cell * np.clip(sc, 0.5, 1.25)
+    ys, xs = np.mgrid[0:n, 0:n]
+    cy, cx = ys // cell, xs // cell
+    dy = ys - (cy + 0.5) * cell + 0.5
+    dx = xs - (cx + 0.5) * cell + 0.5
+    ca, sa = np.cos(a)[cy, cx], np.sin(a)[cy, cx]
+    along = dx * ca + dy * sa
+    across = np.abs(-dx * sa + dy * ca)
+    inside = painted[cy, cx] & (np.abs(along) <= half[cy, cx])
+    w = max(1.0, cell / 16)
+    out = np.zeros((n, n, 4), np.uint8)
+    out[inside & (across <= 2 * w)] = (0, 0, 0, 170)
+    out[inside & (across <= w)] = (255, 205, 50, 240)
+    return out
+
+
 def avoid_rgba(values: np.ndarray) -> np.ndarray:
     """An avoid mask to RGBA8: avoided pixels hatched magenta (diagonal stripes,
     so the exemplar stays readable underneath), usable ones transparent."""

@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 
 from imgui_bundle import imgui
+from .tips import tip
 
 WINDOW_ID = "infinitex-path"
 
@@ -227,8 +228,7 @@ class FileBrowser:
             imgui.set_keyboard_focus_here()
             self._focus_name = False
         enter, self.name = imgui.input_text("##name", self.name, imgui.InputTextFlags_.enter_returns_true)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("The file name (or a path); a folder's name goes into it")
+        tip("The file name (or a path); a folder's name goes into it")
         imgui.same_line()
         imgui.set_next_item_width(-1)
         changed, i = imgui.combo("##filter", self.filter_index, [f[0] for f in self.filters])
@@ -236,8 +236,8 @@ class FileBrowser:
             self.set_filter(i)
         if imgui.button("Save" if self.save else "Open", (120, 0)) or enter:
             self.accept()
-        if self.multi and imgui.is_item_hovered():
-            imgui.set_tooltip("Opens the files chosen (Ctrl-click for several), or with none, this folder's maps")
+        if self.multi:
+            tip("Opens the files chosen (Ctrl-click for several), or with none, this folder's maps")
         imgui.same_line()
         if imgui.button("Cancel", (120, 0)):
             self.cancel()

@@ -49,9 +49,8 @@ def draw(p: Panels) -> None:
     if imgui.button("Replace exemplar...", (-1, 0)):
         ed.dialogs.ask_path("Replace the exemplar", False, IMAGE_FILTER,
                             lambda path: ed.open_path(path, replace_exemplar=True))
-    if imgui.is_item_hovered():
-        imgui.set_tooltip("Use another image as the exemplar of this document, keeping its settings (undoable). "
-                          "File > Open makes a new document.")
+    tip("Use another image as the exemplar of this document, keeping its settings (undoable). "
+        "File > Open makes a new document.")
     if not lattice:
         _palette(ed, doc)
     if doc.lattice is not None:
@@ -153,8 +152,8 @@ def thumbnail(p: Panels, size: float) -> None:
     imgui.image(tex, (size, size))
     imgui.set_cursor_screen_pos(p0)
     imgui.invisible_button("exemplar-thumb", (size, size))
-    if imgui.is_item_hovered() and not imgui.is_mouse_down(imgui.MouseButton_.left):
-        imgui.set_tooltip("Drag a spot of the exemplar onto the canvas to place it there as a feature")
+    if not imgui.is_mouse_down(imgui.MouseButton_.left):
+        tip("Drag a spot of the exemplar onto the canvas to place it there as a feature")
     if imgui.begin_drag_drop_source():
         try:
             m = ed.session.analysis.size

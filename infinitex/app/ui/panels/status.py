@@ -12,6 +12,7 @@ from imgui_bundle import imgui
 
 from infinitex.export.jobs import duration_text
 
+from ..tips import current_hint
 from .widgets import tip, zoom_text
 
 if TYPE_CHECKING:
@@ -41,7 +42,11 @@ def status_bar(p: Panels) -> None:
             parts.append(f"level {ed.frame.level}/{s.L}")
     parts.append(ed.title.rsplit(" - ", 1)[0])
     imgui.text("   |   ".join(parts))
-    if ed.notice is not None:
+    said = current_hint()  # a tool bar item's explanation (a tooltip there would cover the canvas)
+    if said:
+        imgui.same_line()
+        imgui.text_colored((0.95, 0.85, 0.45, 1.0), f"   {said}")
+    elif ed.notice is not None:
         text, t = ed.notice
         if time.monotonic() - t < 15.0:
             imgui.same_line()

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
+from ..tips import hint
 
 if TYPE_CHECKING:
     from . import Panels
@@ -34,10 +35,8 @@ def draw(p: Panels) -> None:
             ed.set_tool(t.name)
         if active:
             imgui.pop_style_color()
-        if imgui.is_item_hovered():
-            imgui.set_tooltip(t.tooltip)
+        hint(t.tooltip)
     next_item("Show painted (H)", imgui.get_frame_height() + style.item_inner_spacing.x)
     _, ed.show_fields = imgui.checkbox("Show painted (H)", ed.show_fields)
-    if imgui.is_item_hovered():
-        imgui.set_tooltip("Overlay what is painted: randomness as heat maps (blue = calm, red = rough), "
-                          "labels in their colors, directions as short strokes")
+    hint("Overlay what is painted: randomness as heat maps (blue = calm, red = rough), "
+        "labels in their colors, directions as short strokes")

@@ -31,6 +31,7 @@ from infinitex.engine.exemplar import ExemplarError
 
 from . import MAX_CANVAS_RADIUS, Tool
 from .paint import Brush, brush_keys, dab_centers
+from ..tips import tip
 
 MODES = (("comb", "Comb", "Drag the way the texture should run"),
          ("smooth", "Smooth", "Blend directions and sizes into their surroundings"),
@@ -207,30 +208,25 @@ class DirectionTool(Tool):
                 if mode != "guide":
                     self.guide = []
                 self.mode = mode
-            if imgui.is_item_hovered():
-                imgui.set_tooltip(tip)
+            tip(tip)
         imgui.push_item_width(-110)
         if imgui.radio_button("x along strokes##direction-axis", self.axis == 0):
             self.axis = 0
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("The exemplar's horizontal runs along your strokes and guides")
+        tip("The exemplar's horizontal runs along your strokes and guides")
         imgui.same_line()
         if imgui.radio_button("y along strokes##direction-axis", self.axis == 1):
             self.axis = 1
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("The exemplar's vertical runs along your strokes and guides")
+        tip("The exemplar's vertical runs along your strokes and guides")
         if self.mode == "guide" and ed.model_mode:
             self.mode = "comb"
         if self.mode == "guide":
             _, self.guide_width = imgui.slider_float("Guide width", self.guide_width, 4.0, 1024.0, "%.0f px",
                                                      imgui.SliderFlags_.logarithmic)
-            if imgui.is_item_hovered():
-                imgui.set_tooltip("Within this width the texture follows the guide fully")
+            tip("Within this width the texture follows the guide fully")
             _, self.guide_blend = imgui.slider_float("Blend", self.guide_blend, 0.0, 1024.0, "%.0f px",
                                                      imgui.SliderFlags_.logarithmic)
-            if imgui.is_item_hovered():
-                imgui.set_tooltip("Beyond the width, the guide fades into what is there over this distance: "
-                                  "between two guides, the texture turns smoothly from one to the other")
+            tip("Beyond the width, the guide fades into what is there over this distance: "
+                "between two guides, the texture turns smoothly from one to the other")
             _, self.brush.strength = imgui.slider_float("Strength", self.brush.strength, 0.0, 1.0, "%.2f")
             imgui.pop_item_width()
             imgui.text_disabled(f"{len(self.guide)} points: click to add, Backspace removes, Enter applies")
@@ -242,8 +238,7 @@ class DirectionTool(Tool):
         else:
             if self.mode in ("grow", "shrink"):
                 _, self.rate = imgui.slider_float("Rate", self.rate, 1.05, 4.0, "%.2fx")
-                if imgui.is_item_hovered():
-                    imgui.set_tooltip("How much larger (or smaller) a stroke over a spot makes the texture")
+                tip("How much larger (or smaller) a stroke over a spot makes the texture")
                 imgui.text_wrapped(GROW_NOTE if self.mode == "grow" else SHRINK_NOTE)
             imgui.pop_item_width()
             b = self.brush
@@ -270,9 +265,8 @@ class DirectionTool(Tool):
         _, self.map_y_up = imgui.checkbox("Flow map green points up (OpenGL)", self.map_y_up)
         if imgui.button("Place direction map...", (-1, 0)):
             ed.dialogs.ask_path("Direction map", False, MAP_FILTER, self.place_map)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("A flow map (red and green, mid-gray = as is) or an angle map (gray: 0 to 360 "
-                              "degrees), placed centered in the view")
+        tip("A flow map (red and green, mid-gray = as is) or an angle map (gray: 0 to 360 "
+            "degrees), placed centered in the view")
         if ed.doc.direction is not None and imgui.button("Clear direction field", (-1, 0)):
             self._set(DirectionField(), "Clear direction field")
 

@@ -27,6 +27,7 @@ from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.project import View
 
 from . import Tool
+from ..tips import tip
 
 PAYLOAD = "INFINITEX_FEATURE"   # drag-and-drop payload: exemplar point as uy * 4096 + ux
 
@@ -217,15 +218,12 @@ class FeatureTool(Tool):
         ed = self.ed
         imgui.push_item_width(-110)
         _, self.inner = imgui.slider_int("Inner radius", self.inner, 0, 512)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("New features: inside this radius the exemplar is copied at the finest level used")
+        tip("New features: inside this radius the exemplar is copied at the finest level used")
         _, self.outer = imgui.slider_int("Outer radius", max(self.outer, self.inner), self.inner, 1024)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("New features: the radius at the coarsest level; the texture around blends in")
+        tip("New features: the radius at the coarsest level; the texture around blends in")
         imgui.pop_item_width()
         _, self.exact = imgui.checkbox("Exact copy (all levels)", self.exact)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Off: the finest two levels stay free, so the feature gets fresh detail (LH05)")
+        tip("Off: the finest two levels stay free, so the feature gets fresh detail (LH05)")
         _, self.show = imgui.checkbox("Show feature handles", self.show)
         feats = self.features
         imgui.text(f"{len(feats)} feature{'s' if len(feats) != 1 else ''}")

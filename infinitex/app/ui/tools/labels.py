@@ -27,6 +27,7 @@ from infinitex.project.document import LabelMaps
 
 from . import MAX_CANVAS_RADIUS, Tool, begin_tool_window
 from .paint import Brush, brush_keys, dab_centers
+from ..tips import tip
 
 FILL_LIMIT = 4096  # a fill covers at most this many canvas pixels a side (the view, at most)
 LABEL_FILTER = ["Label maps", "*.png *.bmp *.tif *.tiff *.gif *.webp"]
@@ -125,15 +126,13 @@ class LabelTool(Tool):
         lab = self.labels
         if imgui.button("Import label map..."):
             ed.dialogs.ask_path("Exemplar label map", False, LABEL_FILTER, self.import_map)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("An image the size of the exemplar whose flat colors mark its regions: each "
-                              "distinct color is a label (at most 16; an indexed PNG works well)")
+        tip("An image the size of the exemplar whose flat colors mark its regions: each "
+            "distinct color is a label (at most 16; an indexed PNG works well)")
         imgui.same_line()
         if imgui.button("Propose"):
             self.propose()
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Split the exemplar into regions that look alike (then correct them by hand "
-                              "in the Labels window)")
+        tip("Split the exemplar into regions that look alike (then correct them by hand "
+            "in the Labels window)")
         imgui.same_line()
         imgui.set_next_item_width(-1)
         _, self.propose_n = imgui.slider_int("##propose-n", self.propose_n, 2, 8, "%d labels")
@@ -146,24 +145,20 @@ class LabelTool(Tool):
         imgui.same_line()
         if imgui.radio_button("Fill##labels-mode", self.mode == "fill"):
             self.mode = "fill"
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Click inside a closed region of the canvas (within the view) to give it the label")
+        tip("Click inside a closed region of the canvas (within the view) to give it the label")
         imgui.same_line()
         if imgui.radio_button("Exemplar##labels-mode", self.mode == "exemplar"):
             self.mode = "exemplar"
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Paint the exemplar's own labels, in the Labels window")
+        tip("Paint the exemplar's own labels, in the Labels window")
         imgui.push_item_width(-110)
         _, self.brush.radius = imgui.slider_float("Radius", self.brush.radius, 1.0, 400.0, "%.0f px",
                                                   imgui.SliderFlags_.logarithmic)
         if self.mode == "brush":
             _, self.brush.hardness = imgui.slider_float("Hardness", self.brush.hardness, 0.0, 1.0, "%.2f")
-            if imgui.is_item_hovered():
-                imgui.set_tooltip("A soft edge mixes the labels over a wider band: a wider transition")
+            tip("A soft edge mixes the labels over a wider band: a wider transition")
         changed, strength = imgui.slider_float("Label strength", lab.strength, 0.0, 8.0, "%.2f")
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("How strictly the texture follows the painted labels: low lets the texture flow "
-                              "across label borders, high keeps every label in its place (more at coarse scales)")
+        tip("How strictly the texture follows the painted labels: low lets the texture flow "
+            "across label borders, high keeps every label in its place (more at coarse scales)")
         imgui.pop_item_width()
         if imgui.is_item_activated():
             self._strength_group = object()
@@ -174,9 +169,8 @@ class LabelTool(Tool):
         _, self.brush.eraser = imgui.checkbox("Eraser (back to free)", self.brush.eraser)
         if imgui.button("Place label image..."):
             ed.dialogs.ask_path("Canvas label map", False, LABEL_FILTER, self.place_image)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("An image in the exemplar's label colors, placed centered in the view; its "
-                              "transparent pixels leave the canvas as it is")
+        tip("An image in the exemplar's label colors, placed centered in the view; its "
+            "transparent pixels leave the canvas as it is")
         if not lab.canvas.empty and imgui.button("Clear canvas labels"):
             self._set(replace(lab, canvas=CanvasLabels()), "Clear canvas labels")
         imgui.same_line()

@@ -32,6 +32,7 @@ from infinitex.engine.imagefile import to_u8
 
 from ...render.canvas import to_rgba
 from . import Tool, begin_tool_window
+from ..tips import tip
 
 CELLS = (1, 2, 4, 8, 16)
 HANDLE_PX = 7.0
@@ -200,8 +201,7 @@ class LatticeTool(Tool):
         lat = doc.lattice
         on = lat is not None
         changed, want = imgui.checkbox("Synthesize on a lattice", on)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Coarse levels move whole cells only, so rows and columns stay aligned")
+        tip("Coarse levels move whole cells only, so rows and columns stay aligned")
         if changed:
             if want:
                 self.auto_detect()
@@ -236,9 +236,8 @@ class LatticeTool(Tool):
                 imgui.push_item_width(120)
                 changed, v = imgui.slider_int("Lattice levels", count, 0, cur.max_levels(m))
                 imgui.pop_item_width()
-                if imgui.is_item_hovered():
-                    imgui.set_tooltip("Coarse levels (h >= spacing shown below) keep whole cells; finer levels vary "
-                                      "the detail of each cell freely")
+                tip("Coarse levels (h >= spacing shown below) keep whole cells; finer levels vary "
+                    "the detail of each cell freely")
                 if changed:
                     ed.edit(replace(ed.doc, lattice=replace(lat, levels=v)), "Lattice levels")
                 imgui.same_line()
@@ -258,8 +257,7 @@ class LatticeTool(Tool):
             imgui.same_line()
             if imgui.radio_button("Rectified", geom == "rectified"):
                 ed.display = replace(ed.display, geometry="rectified")
-            if imgui.is_item_hovered():
-                imgui.set_tooltip("Show the texture as synthesized: cells axis-aligned")
+            tip("Show the texture as synthesized: cells axis-aligned")
             imgui.push_text_wrap_pos(0)
             imgui.text_disabled(f"lattice: {lat.to_text()}")
             imgui.pop_text_wrap_pos()
@@ -270,9 +268,8 @@ class LatticeTool(Tool):
         if self.proposal is not None and self.proposal != ed.doc.lattice:
             if imgui.button(f"Offset the rows by {self.proposal.t2[0]:.0f} px", (-1, 0)):
                 self.use_offset()
-            if imgui.is_item_hovered():
-                imgui.set_tooltip("Staggered rows (running bond, shingles): each row of cells starts half a cell "
-                                  "(or what the image shows) further along; one undo step")
+            tip("Staggered rows (running bond, shingles): each row of cells starts half a cell "
+                "(or what the image shows) further along; one undo step")
         imgui.push_text_wrap_pos(0)
         imgui.text_disabled("In the Lattice window: drag a rectangle over one cell, or drag the handles "
                             "(the block shrinks to what fits).")

@@ -16,6 +16,7 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
 
 from . import MAX_CANVAS_RADIUS, Tool, begin_tool_window
+from ..tips import tip
 
 
 @dataclass
@@ -38,18 +39,15 @@ def brush_options(brush: Brush, canvas: bool, values: bool = True,
     imgui.push_item_width(-110)
     _, brush.radius = imgui.slider_float("Radius", brush.radius, 1.0, 400.0, "%.0f px",
                                          imgui.SliderFlags_.logarithmic)
-    if imgui.is_item_hovered():
-        imgui.set_tooltip("Brush size ([ and ] change it)")
+    tip("Brush size ([ and ] change it)")
     if canvas:
         _, brush.screen_units = imgui.checkbox("Radius in screen pixels", brush.screen_units)
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("On: the brush keeps its size on screen at any zoom. Off: it covers a "
-                              "fixed area of the canvas")
+        tip("On: the brush keeps its size on screen at any zoom. Off: it covers a "
+            "fixed area of the canvas")
     if values:
         _, brush.value = imgui.slider_float("Paint value", brush.value, 0.0, 2.0, "%.2f")
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("0 = calm (no randomness: the exemplar is copied as it is), 1 = neutral, "
-                              "2 = rough (twice the randomness). Alt-click picks the value under the cursor")
+        tip("0 = calm (no randomness: the exemplar is copied as it is), 1 = neutral, "
+            "2 = rough (twice the randomness). Alt-click picks the value under the cursor")
         _, brush.strength = imgui.slider_float("Strength", brush.strength, 0.0, 1.0, "%.2f")
         _, brush.hardness = imgui.slider_float("Hardness", brush.hardness, 0.0, 1.0, "%.2f")
     imgui.pop_item_width()
@@ -168,15 +166,13 @@ class PaintExemplarTool(Tool):
     def options(self) -> None:
         if imgui.radio_button("Randomness##paint-mode", self.mode == "randomness"):
             self.mode = "randomness"
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Paint how much the exemplar's features may vary: calm keeps them whole, "
-                              "rough breaks them up")
+        tip("Paint how much the exemplar's features may vary: calm keeps them whole, "
+            "rough breaks them up")
         imgui.same_line()
         if imgui.radio_button("Avoid##paint-mode", self.mode == "avoid"):
             self.mode = "avoid"
-        if imgui.is_item_hovered():
-            imgui.set_tooltip("Mark exemplar regions the synthesis must not copy: a blemish, a logo, or an "
-                              "element that stands out and would recur once per exemplar area")
+        tip("Mark exemplar regions the synthesis must not copy: a blemish, a logo, or an "
+            "element that stands out and would recur once per exemplar area")
         if self.mode == "avoid":
             brush_options(self.brush, canvas=False, values=False, eraser_label="Eraser (usable again)")
             ed = self.ed
