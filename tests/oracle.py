@@ -52,8 +52,22 @@ def field_values(controls: Controls, an: Analysis, params: SynthParams, level: i
 def canvas_mixes(controls: Controls, an: Analysis, params: SynthParams, level: int,
                  gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
     """The packed canvas label mix of each level pixel (gx, gy), from the
-    definition (engine/controls/labels.py): per pixel, the 3 x 3 binomial sum
-    over its neighbors q of the labels sampled s x s over q's footprint."""
+    definition (engine/controls/labels.py): its own mix (_pixel_mixes), kept
+    only where every level pixel within erosion(k) of it is painted enough too."""
+    from infinitex.engine.controls.labels import erosion
+    out = _pixel_mixes(controls, an, params, level, gx, gy)
+    e = erosion(an.L - level)
+    for dy in range(-e, e + 1):
+        for dx in range(-e, e + 1):
+            if dx or dy:
+                out = np.where(_pixel_mixes(controls, an, params, level, gx + dx, gy + dy) != 0, out, 0)
+    return out
+
+
+def _pixel_mixes(controls: Controls, an: Analysis, params: SynthParams, level: int,
+                 gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """A level pixel's own mix: the 3 x 3 binomial sum over its neighbors q
+    of the labels sampled s x s over q's footprint, free when less than half painted."""
     from infinitex.engine.controls import TILE
     from infinitex.engine.controls.labels import MAX_LABELS, pack_mix, top_two
     lc = controls.labels_canvas

@@ -54,7 +54,8 @@ class LocalUpdates:
         # A dab's tiles touch without overlapping: grown by a pixel they merge into
         # its box once here, not once a level (a 512 px dab is 250 tiles).
         changed = merge_rects([r.pad(1, 1, 1, 1) for r in changed if not r.empty])
-        b = 1 if controls.labels_active or self.controls.labels_active else 0  # the labels' blur: a level pixel
+        # The labels' blur (a level pixel) and their erosion (controls/labels.py: one more).
+        b = 2 if controls.labels_active or self.controls.labels_active else 0
         if controls.directed and not self.controls.directed:
             self._widen_state()  # a first direction dab: the same state, with remainders of 0
         self.controls = controls
