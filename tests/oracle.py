@@ -78,14 +78,14 @@ def _pixel_mixes(controls: Controls, an: Analysis, params: SynthParams, level: i
     n = params.period
     counts = np.zeros(gx.shape + (MAX_LABELS + 1,), np.int64)
 
-    def label_at(X, Y):
+    def label_at(X, Y):  # unpainted: the background (free, or a palette's first label)
         if n:
             X, Y = X & (n - 1), Y & (n - 1)
         out = np.zeros(X.shape, np.int64)
         for (tx, ty), t in lc.tiles.items():
             sel = (X // TILE == tx) & (Y // TILE == ty)
             out[sel] = t[Y[sel] - ty * TILE, X[sel] - tx * TILE]
-        return out
+        return np.where(out == 0, lc.background, out)
 
     rows = np.arange(gx.size)
     for dy, by in ((-1, 1), (0, 2), (1, 1)):

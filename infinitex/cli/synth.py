@@ -196,7 +196,9 @@ def run_synth(argv: list[str]) -> int:
     if labels is not None:
         if lattice is not None or args.make_tileable:
             raise CliError("Texture by numbers goes with neither --lattice nor --make-tileable.", EXIT_USAGE)
-        controls = replace(controls, labels_exemplar=labels.exemplar, labels_canvas=labels.canvas,
+        # With a palette, what is not painted is the first exemplar's (as Document.controls says).
+        canvas = replace(labels.canvas, background=1) if palette is not None else labels.canvas
+        controls = replace(controls, labels_exemplar=labels.exemplar, labels_canvas=canvas,
                            label_strength=labels.strength)
         try:
             controls.validate(ex.size)

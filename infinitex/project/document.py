@@ -237,8 +237,11 @@ class Document:
         e = None if self.randomness_exemplar is None else self.randomness_exemplar.scaled(m)
         a = None if self.avoid_exemplar is None else self.avoid_exemplar.scaled(m)
         lab = self.labels
+        canvas = None if lab is None else lab.canvas
+        if canvas is not None and self.palette:  # what is not painted is the first exemplar's (label 1)
+            canvas = replace(canvas, background=1)
         controls = Controls(e, self.randomness_canvas, fit_features(self.features, m), self.lattice, a,
-                            None if lab is None else lab.exemplar.scaled(m), None if lab is None else lab.canvas,
+                            None if lab is None else lab.exemplar.scaled(m), canvas,
                             1.0 if lab is None else float(lab.strength), self.direction).normalized()
         object.__setattr__(self, "_controls", (m, controls))  # a cache, not a field (frozen dataclass)
         return controls

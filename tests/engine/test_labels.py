@@ -54,6 +54,36 @@ def test_gl_matches_oracle_with_labels(analyses, gpu, name, x, y):
     assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 40, 36, controls=controls))
 
 
+@pytest.mark.parametrize("x, y", [(-20, 30), (FAR - 150, -FAR + 60)])
+def test_gl_matches_oracle_with_a_background_label(analyses, gpu, x, y):
+    """A palette's background (what is not painted is label 2 here): GL equals
+    the oracle across the painted stripes and the unpainted rest, and windows
+    that overlap agree (local updates: the test below)."""
+    an = analyses["gravel-appearance"]
+    canvas = replace(stripes(x - 30, y - 10, 40, 70), background=3)
+    controls = Controls(labels_exemplar=halves(an.size), labels_canvas=canvas)
+    params = SynthParams.default(an.L, seed=4)
+    gl = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(x, y, 40, 36))
+    assert np.array_equal(gl, oracle.synthesize(an, params, x, y, 40, 36, controls=controls))
+    other = Synthesizer(an, params, gpu=gpu, controls=controls).window(Rect.of(x + 13, y - 7, 40, 36))
+    assert np.array_equal(gl[:29, 13:], other[7:, :27])
+
+
+def test_nothing_painted_over_a_background_is_its_label(analyses, gpu):
+    """Unpainted canvas with a background takes that label (a palette with
+    nothing painted shows its first exemplar), and without one is free."""
+    an = analyses["gravel-appearance"]
+    m = an.size
+    for bg, want in ((1, 0), (3, 2)):
+        controls = Controls(labels_exemplar=halves(m), labels_canvas=CanvasLabels(background=bg))
+        assert controls.labels_active and controls.labels_canvas.used == (want,)
+        with Synthesizer(an, SynthParams.default(an.L, seed=2), gpu=gpu, controls=controls) as s:
+            S = s.window(Rect.of(500, -300, 96, 64))
+        got = halves(m).values[S[..., 1], S[..., 0]]
+        assert (got == want).mean() > 0.97
+    assert not Controls(labels_exemplar=halves(m), labels_canvas=CanvasLabels()).normalized().labels_active
+
+
 @pytest.mark.parametrize("vote", [False, True])  # the search alone; search and vote
 @pytest.mark.parametrize("name", ["gravel-appearance", "torus-color-k3"])
 def test_gl_matches_oracle_with_labels_and_the_fidelity_stage(analyses, gpu, name, vote):
@@ -106,12 +136,12 @@ def test_local_updates_after_label_strokes_equal_a_fresh_synthesis(analyses, gpu
     an = analyses["gravel-appearance"]
     rng = np.random.default_rng(5)
     le = halves(an.size)
-    for structure in (0, 1):
+    for structure, background in ((0, 0), (1, 0), (0, 3)):  # (3: a palette's background, label 2)
         params = structure_params(SynthParams.default(an.L, seed=6), structure)
         view = Rect.of(-FAR + 1000, 500, 160, 120)
         vp = Synthesizer(an, params, gpu=gpu).viewport()
-        labels = CanvasLabels()
-        vp.set_params(params, Controls(labels_exemplar=le))
+        labels = CanvasLabels(background=background)
+        vp.set_params(params, Controls(labels_exemplar=le, labels_canvas=labels))
         try:
             for i in range(6):
                 vp.show(view)
@@ -128,7 +158,7 @@ def test_local_updates_after_label_strokes_equal_a_fresh_synthesis(analyses, gpu
                 vp.pyramid.update_controls(controls, changed)
                 after = vp.read(view)
                 fresh = Synthesizer(an, params, gpu=gpu, controls=controls).window(view)
-                assert np.array_equal(after, fresh), f"stroke {i}, structure {structure}"
+                assert np.array_equal(after, fresh), f"stroke {i}, structure {structure}, background {background}"
         finally:
             vp.release()
 

@@ -114,6 +114,10 @@ def test_palette_documents_synthesize_each_label_from_its_exemplar(tmp_path, gpu
     entry, _, _ = lay.locate(S)
     inner = entry[8:-8]
     assert (inner[:, 8:88] == 1).mean() > 0.97 and (inner[:, 104:-8] == 2).mean() > 0.97
+    # What is not painted is the first exemplar's (not a patchwork of all three).
+    with Synthesizer(an, doc.params(an.L), gpu=gpu, controls=doc.controls(an.size)) as s:
+        far, _, _ = lay.locate(s.window(Rect.of(-4000, 3000, 128, 96)))
+    assert (far == 0).mean() > 0.97
     # One entry left: no palette, no labels.
     single_doc = doc.with_palette([doc.entries()[0]])
     assert not single_doc.palette and single_doc.labels is None

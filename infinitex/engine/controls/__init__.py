@@ -285,7 +285,10 @@ class Controls:
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()
         out = before.changed_rects(after)
-        out += (self.labels_canvas or CanvasLabels()).changed_rects(other.labels_canvas or CanvasLabels())
+        la, lb = self.labels_canvas or CanvasLabels(), other.labels_canvas or CanvasLabels()
+        if la.background != lb.background:
+            return None  # what is unpainted changes everywhere
+        out += la.changed_rects(lb)
         if self.directed and not other.directed:
             return None  # the state drops its sub-pixel parts: everything again (a first field widens it in place)
         out += (self.direction or DirectionField()).changed_rects(other.direction or DirectionField())

@@ -277,12 +277,19 @@ def _canvas_u8(a: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class CanvasLabels:
     """Labels over the canvas: sparse uint8 TILE x TILE tiles keyed by tile
-    index (tx, ty) (pixels [tx*TILE, (tx+1)*TILE)), 0 = free, 1..16 = label + 1;
-    absent tiles are free."""
+    index (tx, ty) (pixels [tx*TILE, (tx+1)*TILE)), 0 = unpainted, 1..16 =
+    label + 1; absent tiles are unpainted. Unpainted pixels are free, or with
+    a ``background`` (1..16, label + 1) that label: a palette's first
+    exemplar, which the others are painted into (a palette with nothing
+    painted shows its first exemplar, not a patchwork of all of them)."""
 
     tiles: dict = field(default_factory=dict)
+    background: int = FREE
 
     def __post_init__(self):
+        if not 0 <= int(self.background) <= MAX_LABELS:
+            raise ValueError(f"a canvas label background is 0 (free) to {MAX_LABELS}")
+        object.__setattr__(self, "background", int(self.background))
         clean = {}
         for (tx, ty), t in self.tiles.items():
             t = _canvas_u8(t)
@@ -321,7 +328,7 @@ class CanvasLabels:
                 part = t[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0]
                 part[...] = np.where(new == 0, part, new) if keep_free else new
                 tiles[(tx, ty)] = t
-        return CanvasLabels(tiles)
+        return CanvasLabels(tiles, self.background)
 
     def painted(self, cx: float, cy: float, radius: float, value: int, hardness: float = 0.8,
                 seed: int = 0) -> tuple[CanvasLabels, tuple[int, int, int, int]]:
@@ -349,7 +356,7 @@ class CanvasLabels:
                 base = old.copy() if old is not None else np.zeros((TILE, TILE), np.uint8)
                 base[take] = value
                 tiles[(tx, ty)] = base
-        return CanvasLabels(tiles), (x0, y0, x1, y1)
+        return CanvasLabels(tiles, self.background), (x0, y0, x1, y1)
 
     def changed_rects(self, other: CanvasLabels) -> list:
         """(x0, y0, x1, y1) per tile: the box of the pixels that differ between two label maps."""
@@ -357,7 +364,7 @@ class CanvasLabels:
 
     @cached_property
     def key(self) -> str:
-        return tiles_key(self.tiles, b"labels")
+        return tiles_key(self.tiles, b"labels") + (f"/{self.background}" if self.background else "")
 
     def __eq__(self, other):
         return isinstance(other, CanvasLabels) and self.key == other.key
@@ -367,19 +374,22 @@ class CanvasLabels:
 
     @property
     def empty(self) -> bool:
-        return not self.tiles
+        """Nothing constrains the synthesis (nothing painted, no background)."""
+        return not self.tiles and not self.background
 
     @cached_property
     def used(self) -> tuple[int, ...]:
-        """The labels (0..15) painted anywhere, ascending."""
+        """The labels (0..15) painted anywhere or in the background, ascending."""
         seen = np.zeros(MAX_LABELS + 1, bool)
         for t in self.tiles.values():
             seen[np.unique(t)] = True
+        seen[self.background] = True
         return tuple(int(i) - 1 for i in np.flatnonzero(seen[1:]) + 1)
 
     def sample(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """The canvas labels at the grid of finest pixels xs x ys (uint8 (len(ys), len(xs)))."""
-        out = np.zeros((len(ys), len(xs)), np.uint8)
+        bg = self.background
+        out = np.full((len(ys), len(xs)), bg, np.uint8)
         if not self.tiles:
             return out
         txs, tys = xs // TILE, ys // TILE
@@ -394,7 +404,8 @@ class CanvasLabels:
             if t is None:
                 continue
             cols, rows = np.flatnonzero(txs == tx), np.flatnonzero(tys == ty)
-            out[np.ix_(rows, cols)] = t[np.ix_(ys[rows] - ty * TILE, xs[cols] - tx * TILE)]
+            v = t[np.ix_(ys[rows] - ty * TILE, xs[cols] - tx * TILE)]
+            out[np.ix_(rows, cols)] = np.where(v == FREE, np.uint8(bg), v) if bg else v
         return out
 
     def features(self, k: int, x0: int, y0: int, w: int, h: int, period: int = 0) -> np.ndarray | None:
@@ -410,7 +421,7 @@ class CanvasLabels:
         only when a label tile it reads changed, so a dab costs the tiles
         around it, not every level's whole region (each level pixel's mix
         depends on its own samples and its neighbors' alone)."""
-        if not self.tiles:
+        if self.empty:
             return None
         if period:
             return self._features(k, x0, y0, w, h, period)
@@ -440,9 +451,9 @@ class CanvasLabels:
         else:
             reads = sorted((key, t) for key, t in self.tiles.items()
                            if lx0 <= key[0] <= lx1 and ly0 <= key[1] <= ly1)
-        if not reads:
+        if not reads and not self.background:
             return None
-        key = (k, tx, ty)
+        key = (k, tx, ty, self.background)
         with _MIX_LOCK:
             hit = _MIX_CACHE.get(key)
             if hit is not None and len(hit[0]) == len(reads) and all(

@@ -166,7 +166,8 @@ class LabelTool(Tool):
             self._set(replace(lab, strength=float(strength)), "Label strength", self._strength_group)
         if imgui.is_item_deactivated_after_edit() and ed.history is not None:
             ed.history.end_group()
-        _, self.brush.eraser = imgui.checkbox("Eraser (back to free)", self.brush.eraser)
+        _, self.brush.eraser = imgui.checkbox("Eraser (back to the first exemplar)" if self.ed.doc.palette
+                                              else "Eraser (back to free)", self.brush.eraser)
         if imgui.button("Place label image..."):
             ed.dialogs.ask_path("Canvas label map", False, LABEL_FILTER, self.place_image)
         tip("An image in the exemplar's label colors, placed centered in the view; its "
