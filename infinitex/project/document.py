@@ -114,6 +114,23 @@ class LabelMaps:
 
 
 @dataclass(frozen=True)
+class PlaneControls:
+    """What was painted and placed on the plane (the infinite canvas), set
+    aside while a model is open: the model's own live in its atlas's texels in
+    the same fields, and closing the model brings these back exactly."""
+
+    randomness_canvas: CanvasField | None = None
+    features: tuple = ()
+    direction: DirectionField | None = None
+    lattice: Lattice | None = None
+
+    @property
+    def empty(self) -> bool:
+        return ((self.randomness_canvas is None or self.randomness_canvas.neutral) and not self.features
+                and (self.direction is None or self.direction.identity) and self.lattice is None)
+
+
+@dataclass(frozen=True)
 class Document:
     """Everything that decides the texture. Immutable: edits make new ones."""
 
@@ -148,6 +165,23 @@ class Document:
     palette: tuple[tuple[tuple[str, ExemplarSource], ...], ...] = ()
     direction: DirectionField | None = None            # direction and scale over the canvas (sparse tiles)
     surface: object | None = None                      # a model to texture (project/surface.py SurfaceSettings)
+    plane: PlaneControls | None = None                 # with a model: the plane's controls, set aside
+
+    def with_model(self, settings) -> Document:
+        """This document texturing a model: what is painted and placed on the
+        plane is set aside (the model's is painted in its atlas), a model
+        already open is replaced (the plane's stay aside)."""
+        if self.surface is not None:
+            return replace(self, surface=settings, randomness_canvas=None, features=(), direction=None)
+        plane = PlaneControls(self.randomness_canvas, tuple(self.features), self.direction, self.lattice)
+        return replace(self, surface=settings, plane=None if plane.empty else plane, randomness_canvas=None,
+                       features=(), direction=None, lattice=None)
+
+    def without_model(self) -> Document:
+        """The model closed: the plane's controls back as they were when it opened."""
+        p = self.plane or PlaneControls()
+        return replace(self, surface=None, plane=None, randomness_canvas=p.randomness_canvas,
+                       features=tuple(p.features), direction=p.direction, lattice=p.lattice)
 
     def analysis_key(self) -> tuple:
         """What the exemplar analysis depends on (a lattice's geometry: its
@@ -318,6 +352,8 @@ class Document:
                 raise ProjectError("A palette works without a lattice and without Make tileable.")
             if self.labels is None:
                 raise ProjectError("A palette's exemplars are its labels; the project has no label map.")
+        if self.plane is not None and self.surface is None:
+            raise ProjectError("The plane's set-aside controls belong with a model; the project has none.")
         if self.surface is not None:
             self.surface.validate()
             if self.lattice is not None:  # (a direction field is combed over the model: its atlas texels)

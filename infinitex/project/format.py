@@ -52,6 +52,7 @@ from .document import (
     Display,
     Document,
     ExemplarSource,
+    PlaneControls,
     Project,
     ProjectError,
     View,
@@ -187,10 +188,40 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         **({"palette": palette_to_json(doc, entry_json)} if doc.palette else {}),
         **({"direction": direction_to_json(doc.direction)} if doc.direction and not doc.direction.identity else {}),
         **({"surface": surface_to_json(doc.surface)} if doc.surface is not None else {}),
+        **({"plane": _plane_to_json(doc.plane)} if doc.surface is not None and doc.plane is not None else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
         **({"autosave_of": project.origin} if project.origin else {}),
     }
+
+
+def _plane_to_json(p: PlaneControls) -> dict:
+    """What the plane had, set aside while a model is open (each part as the document writes its own)."""
+    c = p.randomness_canvas
+    return {
+        **({"randomness": {"tile": TILE, "tiles": [{"x": tx, "y": ty, "png16": _png16(t)}
+                                                   for (tx, ty), t in sorted(c.tiles.items())]}}
+           if c is not None and not c.neutral else {}),
+        **({"features": features_to_json(p.features)} if p.features else {}),
+        **({"direction": direction_to_json(p.direction)} if p.direction is not None and not p.direction.identity
+           else {}),
+        **({"lattice": _lattice_to_json(p.lattice)} if p.lattice is not None else {}),
+    }
+
+
+def _plane_from_json(d: object) -> PlaneControls | None:
+    """The plane's set-aside controls, or None; all or nothing."""
+    if d is None:
+        return None
+    if not isinstance(d, dict):
+        raise ProjectError("The project's set-aside plane controls are damaged.")
+    _, canvas = _fields_from_json({"canvas": d["randomness"]}) if "randomness" in d else (None, None)
+    try:
+        features = features_from_json(d.get("features", []))
+    except ValueError as exc:
+        raise ProjectError(f"The project's set-aside features are damaged: {exc}") from None
+    return PlaneControls(canvas, tuple(features), direction_from_json(d.get("direction")),
+                         _lattice_from_json(d.get("lattice")))
 
 
 def _lattice_to_json(lat: Lattice) -> dict:
@@ -545,6 +576,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         palette=palette,
         direction=direction_from_json(d.get("direction")),
         surface=surface_from_json(d.get("surface")),
+        plane=_plane_from_json(d.get("plane")),
     )
     doc.validate()
     view, display = View(), Display()

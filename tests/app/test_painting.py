@@ -261,3 +261,63 @@ def test_a_dragged_control_previews_one_change_at_a_time(doc):
     assert h.doc(e) is e and not h.waiting  # a dab: its own exact local update
     f = replace(e, seed=e.seed + 1)
     assert h.doc(f, holding=False) is f and not h.waiting  # a model shown: no hold
+
+
+def test_every_control_round_trips_through_autosave_recovery_and_a_model(doc, tmp_path, monkeypatch):
+    """Painted randomness (soft edges included), features, a combed direction
+    field and labels survive an autosave and its recovery exactly; opening a
+    model sets the plane's controls aside (the model's are painted in its
+    atlas), they survive a save and a recovery while it is open, and closing
+    the model brings them back exactly (the comb arch was gone after Open
+    model, recovery and Close model)."""
+    from infinitex.engine.controls import DirectionField, Feature
+    from infinitex.engine.controls.direction import comb
+    from infinitex.engine.surface.shapes import cube
+    from infinitex.project import Autosave
+    from infinitex.project.surface import SurfaceSettings
+    monkeypatch.setenv("INFINITEX_STATE", str(tmp_path / "state"))
+    d = painted_doc(doc)
+    field = d.randomness_canvas
+    for i in range(6):  # a soft band: its edges are not tile-shaped
+        field, _ = field.painted(400.0 + 20 * i, -60.0 + 3 * i, 30.0, 0, 0.6, 0.1)
+    direction = DirectionField()
+    for i in range(8):  # a comb along an arch
+        a = np.radians(20 * i)
+        direction, _ = direction.edited(*_comb_box(600 + 80 * np.cos(a), 80 * np.sin(a)), comb(90 + 20 * i))
+    d = replace(d, randomness_canvas=field, direction=direction,
+                features=(Feature(exemplar=(40, 50), canvas=(120, -30), inner=12, outer=18),))
+
+    def same(a, b):
+        assert a == b
+        for k, t in a.randomness_canvas.tiles.items():
+            assert np.array_equal(b.randomness_canvas.tiles[k], t)
+        assert a.direction.key == b.direction.key and a.features == b.features
+
+    def recovered(x):  # what recovery reads (Autosave.pending_all loads the file a crashed editor left)
+        auto = Autosave(str(tmp_path / "state" / "autosave.itex"))
+        assert auto.tick(Project(x), dirty=True, force=True)
+        back = load_project(auto.path).document
+        auto.clear()
+        return back
+
+    same(d, recovered(d))
+    with_model = d.with_model(SurfaceSettings(cube(n=2), 256, repeats=2.0))
+    assert with_model.randomness_canvas is None and with_model.direction is None and not with_model.features
+    painted_on_model, _ = CanvasField().painted(100.0, 100.0, 20.0, 65535)  # the model's own, in its atlas
+    with_model = replace(with_model, randomness_canvas=painted_on_model)
+    back = recovered(with_model)
+    assert back.plane == with_model.plane and back.randomness_canvas == painted_on_model
+    path = tmp_path / "m.itex"
+    save_project(str(path), Project(back))
+    closed = load_project(str(path)).document.without_model()
+    same(d, closed)
+    assert closed.surface is None and closed.plane is None
+    with pytest.raises(ProjectError, match="model"):
+        replace(d, plane=with_model.plane).validate()
+
+
+def _comb_box(cx, cy, r=40):
+    """A round comb dab's (x0, y0, weights) at (cx, cy)."""
+    from infinitex.engine.controls.fields import dab_weights
+    x0, y0 = int(cx - r), int(cy - r)
+    return x0, y0, dab_weights(cx, cy, r, 0.5, x0, y0, 2 * r, 2 * r)

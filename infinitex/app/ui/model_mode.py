@@ -72,11 +72,9 @@ class ModelModeMixin:
         try:
             settings = SurfaceSettings(model, size, repeats=default_repeats(model, size, m))
             settings.validate(m)
-            # The canvas randomness and the features are placed on the model from now on (in its
-            # atlas): the plane's go.
-            self.edit(replace(self.doc, surface=settings, direction=None, lattice=None, randomness_canvas=None,
-                              features=()),
-                      f"Open model {os.path.basename(path)}")
+            # The canvas randomness, the features and the directions are placed on the model from now
+            # on (in its atlas): the plane's are set aside until the model closes (Document.with_model).
+            self.edit(self.doc.with_model(settings), f"Open model {os.path.basename(path)}")
         except (ProjectError, AtlasError, ValueError) as exc:
             self.dialogs.message("Open model", str(exc))
             return
@@ -85,8 +83,7 @@ class ModelModeMixin:
 
     def close_model(self) -> None:
         if self.model_mode:
-            self.edit(replace(self.doc, surface=None, randomness_canvas=None, features=(), direction=None),
-                      "Close model")
+            self.edit(self.doc.without_model(), "Close model")  # the plane's controls come back
             self.release_model_view()
             self.model_view, self._model_fbo, self._model_view_key = None, None, None
 
