@@ -199,7 +199,7 @@ class DirectionTool(Tool):
 
     def options(self) -> None:
         ed = self.ed
-        for i, (mode, label, tip) in enumerate(MODES):
+        for i, (mode, label, says) in enumerate(MODES):
             if mode == "guide" and ed.model_mode:
                 continue  # (guides and maps are placed on the plane)
             if i % 3:
@@ -208,7 +208,7 @@ class DirectionTool(Tool):
                 if mode != "guide":
                     self.guide = []
                 self.mode = mode
-            tip(tip)
+            tip(says)
         imgui.push_item_width(-110)
         if imgui.radio_button("x along strokes##direction-axis", self.axis == 0):
             self.axis = 0
