@@ -458,7 +458,7 @@ def test_session_with_a_lattice_paints_locally_and_exports_in_both_geometries(gp
         field, _ = field.painted(-60 + 30 * i, 12.0 * i, 20.0, 65535)
         d = replace(d, randomness_canvas=field)
         s.sync(d)
-        assert s.refine(frame, 1.0)
+        assert any(s.refine(frame, 1.0) for _ in range(10))  # a dab settles in a few budgets (a busy machine)
     fresh = Synthesizer(s.analysis, s.params, gpu=gpu, controls=d.controls(s.analysis.size)).window(frame.want)
     assert np.array_equal(s.pyramid.read(s.L, frame.want), fresh)
     key = s.key
