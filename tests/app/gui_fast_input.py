@@ -14,7 +14,8 @@ released before the letter, as ``xdotool key ctrl+o`` sends them) and as 10 ms
 ones must each act once, and a file name typed at once after Ctrl+O ("lt")
 must neither choose a tool nor turn tile mode on.
 INFINITEX_IDLE_S sets how long each round waits once the editor is idle
-(default 3.5 s: the editor then sleeps between frames).
+(default 3.5 s: the editor then sleeps between frames); INFINITEX_SCENARIOS
+(names, e.g. "fast_chords") runs only those.
 Writes "ok NAME" / "FAIL NAME: why" lines to OUT_DIR/report.txt.
 """
 from __future__ import annotations
@@ -287,7 +288,10 @@ def main(out: str, rounds: int) -> int:
     drv = Driver(out)
     try:
         for n in range(rounds):
+            only = os.environ.get("INFINITEX_SCENARIOS", "").split()  # (by hand: e.g. "fast_chords")
             for scenario in (drv.flick, drv.ctrl_o, drv.undo, drv.escape_menu, drv.fast_chords):
+                if only and scenario.__name__ not in only:
+                    continue
                 try:
                     scenario(n)
                 except RuntimeError as exc:  # a wait timed out: that scenario failed, the others still run
