@@ -41,12 +41,12 @@ def status_bar(p: Panels) -> None:
         if ed.frame is not None:
             parts.append(f"level {ed.frame.level}/{s.L}")
     parts.append(ed.title.rsplit(" - ", 1)[0])
-    imgui.text("   |   ".join(parts))
-    said = current_hint()  # a tool bar item's explanation (a tooltip there would cover the canvas)
+    said = current_hint()  # a tool bar item's explanation (a tooltip there would cover the canvas): the whole line
     if said:
-        imgui.same_line()
-        imgui.text_colored((0.95, 0.85, 0.45, 1.0), f"   {said}")
-    elif ed.notice is not None:
+        imgui.text_colored((0.95, 0.85, 0.45, 1.0), said)
+        return
+    imgui.text("   |   ".join(parts))
+    if ed.notice is not None:
         text, t = ed.notice
         if time.monotonic() - t < 15.0:
             imgui.same_line()
