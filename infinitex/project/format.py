@@ -26,7 +26,6 @@ from infinitex.engine.controls import (
     features_from_json,
     features_to_json,
 )
-from infinitex.engine.controls.lattice import Lattice, LatticeError
 from infinitex.engine.exemplar import MAX_FILE_BYTES, MAX_SIZE
 from infinitex.engine.material import IMAGE, ROLES
 from infinitex.engine.params import STRUCTURE_LEVELS
@@ -43,6 +42,7 @@ from infinitex.engine.safeio import (
 
 from .labels_json import labels_from_json, labels_to_json, palette_from_json, palette_to_json, tiles_from_json
 from .direction_json import direction_from_json, direction_to_json
+from .lattice_json import lattice_from_json, lattice_to_json
 from .surface import surface_from_json, surface_to_json
 from .document import (
     DISPLAY_MODES,
@@ -182,7 +182,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         **({"randomness": fields} if fields else {}),
         **({"avoid": avoid} if avoid else {}),
         **({"features": features_to_json(doc.features)} if doc.features else {}),
-        **({"lattice": _lattice_to_json(doc.lattice)} if doc.lattice else {}),
+        **({"lattice": lattice_to_json(doc.lattice)} if doc.lattice else {}),
         **({"labels": labels_to_json(doc.labels)} if doc.labels else {}),
         **({"material": material} if material else {}),
         **({"palette": palette_to_json(doc, entry_json)} if doc.palette else {}),
@@ -205,7 +205,7 @@ def _plane_to_json(p: PlaneControls) -> dict:
         **({"features": features_to_json(p.features)} if p.features else {}),
         **({"direction": direction_to_json(p.direction)} if p.direction is not None and not p.direction.identity
            else {}),
-        **({"lattice": _lattice_to_json(p.lattice)} if p.lattice is not None else {}),
+        **({"lattice": lattice_to_json(p.lattice)} if p.lattice is not None else {}),
     }
 
 
@@ -221,38 +221,7 @@ def _plane_from_json(d: object) -> PlaneControls | None:
     except ValueError as exc:
         raise ProjectError(f"The project's set-aside features are damaged: {exc}") from None
     return PlaneControls(canvas, tuple(features), direction_from_json(d.get("direction")),
-                         _lattice_from_json(d.get("lattice")))
-
-
-def _lattice_to_json(lat: Lattice) -> dict:
-    return {"origin": list(lat.origin), "t1": list(lat.t1), "t2": list(lat.t2),
-            "cells": [lat.nx, lat.ny], "levels": lat.levels}
-
-
-def _lattice_from_json(d: object) -> Lattice | None:
-    if d is None:
-        return None
-    bad = ProjectError("The project's lattice is damaged.")
-    if not isinstance(d, dict):
-        raise bad
-    vecs = []
-    for key in ("origin", "t1", "t2"):
-        v = d.get(key)
-        if not (isinstance(v, list) and len(v) == 2 and all(is_number(x) and abs(x) < 1e6 for x in v)):
-            raise bad
-        vecs.append((float(v[0]), float(v[1])))
-    cells, levels = d.get("cells"), d.get("levels")
-    if not (isinstance(cells, list) and len(cells) == 2
-            and all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= 16 for c in cells)):
-        raise bad
-    if levels is not None and not (isinstance(levels, int) and not isinstance(levels, bool) and 0 <= levels <= 10):
-        raise bad
-    lat = Lattice(vecs[0], vecs[1], vecs[2], cells[0], cells[1], levels)
-    try:
-        lat.check_shape()
-    except LatticeError as exc:
-        raise ProjectError(f"The project's lattice: {exc}") from None
-    return lat
+                         lattice_from_json(d.get("lattice")))
 
 
 def _png16(a: np.ndarray) -> str:
@@ -570,7 +539,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         labels=labels,
         randomness_canvas=fields[1],
         features=features,
-        lattice=_lattice_from_json(d.get("lattice")),
+        lattice=lattice_from_json(d.get("lattice")),
         maps=maps,
         weights=weights,
         palette=palette,
