@@ -55,13 +55,14 @@ def canvas_mixes(controls: Controls, an: Analysis, params: SynthParams, level: i
     definition (engine/controls/labels.py): its own mix (_pixel_mixes), kept
     only where every level pixel within erosion(k) of it is painted enough too."""
     from infinitex.engine.controls.labels import erosion
-    out = _pixel_mixes(controls, an, params, level, gx, gy)
     e = erosion(an.L - level)
-    for dy in range(-e, e + 1):
-        for dx in range(-e, e + 1):
-            if dx or dy:
-                out = np.where(_pixel_mixes(controls, an, params, level, gx + dx, gy + dy) != 0, out, 0)
-    return out
+    offsets = [(dx, dy) for dy in range(-e, e + 1) for dx in range(-e, e + 1)]
+    gx, gy = np.asarray(gx), np.asarray(gy)
+    # Every neighbour's own mix in one call (the pixels side by side).
+    mixes = _pixel_mixes(controls, an, params, level, np.stack([gx + dx for dx, _ in offsets]),
+                         np.stack([gy + dy for _, dy in offsets]))
+    out = mixes[offsets.index((0, 0))]
+    return np.where(np.all(mixes != 0, axis=0), out, 0)
 
 
 def _pixel_mixes(controls: Controls, an: Analysis, params: SynthParams, level: int,
