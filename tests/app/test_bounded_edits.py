@@ -5,7 +5,6 @@ the largest brush, the pyramid's dirty regions stay a bounded number of
 rectangles inside what it holds, so the synchronous part of every frame of a
 stroke (painting the field, the session's sync) stays far under 100 ms, and
 the stroke still ends exactly as a fresh synthesis."""
-import math
 import os
 import time
 from dataclasses import replace
@@ -18,12 +17,11 @@ from hypothesis import strategies as st
 from infinitex.app.render.model_view import MAX_DAB_FRACTION, ModelView, OrbitCamera, atlas_footprint, dab_radius
 from infinitex.app.session import Frame, Session
 from infinitex.app.ui.tools import MAX_CANVAS_RADIUS
-from infinitex.app.ui.tools.paint import dab_centers
+from infinitex.app.ui.tools.paint import Brush, dab_centers, model_stroke
 from infinitex.engine.controls import CanvasField
 from infinitex.engine.local_update import DIRTY_RECTS
 from infinitex.engine.rect import Rect, cover_rects, merge_rects
 from infinitex.engine.surface.bake import atlas_coords
-from infinitex.engine.surface.features import across_seams
 from infinitex.engine.surface.shapes import vase
 from infinitex.engine.synth import Synthesizer
 from infinitex.export.surface import surface_controls
@@ -99,6 +97,7 @@ def test_the_walkthrough_stroke_on_a_model_stays_a_brush_and_ends_exact(model_se
     y = H // 2
     x0 = _left_silhouette(uvh, y)
     field = CanvasField()
+    brush = Brush(radius=47.0, strength=0.8, hardness=0.5, value=0.0)
     last = None
     radii, syncs = [], []
     for x in range(x0, x0 + 331, 6):
@@ -109,14 +108,7 @@ def test_the_walkthrough_stroke_on_a_model_stays_a_brush_and_ends_exact(model_se
         pos, per_px = hit
         r = dab_radius(47.0, True, per_px, n)
         radii.append((x, r))
-        if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r
-                                 or owner[int(min(n - 1, last[1])), int(min(n - 1, last[0]))]
-                                 != owner[int(min(n - 1, pos[1])), int(min(n - 1, pos[0]))]):
-            last = None
-        for cx, cy in dab_centers(last, pos, 0.25 * r):
-            for ax, ay, rr in [(cx, cy, r)] + across_seams(atlas, cx, cy, r):
-                field, _ = field.painted(ax, ay, min(rr, 2 * r), 0, 0.8, 0.5, bounds=(0, 0, n, n))
-            last = (cx, cy)
+        field, last, _ = model_stroke(field, atlas, n, last, pos, r, brush)  # what the editor's stroke does
         doc = replace(doc, randomness_canvas=field)
         t = time.perf_counter()
         s.sync(doc)

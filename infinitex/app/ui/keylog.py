@@ -16,6 +16,8 @@ imgui's per-frame key state.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 from imgui_bundle import imgui
 
 CTRL, SHIFT, ALT, SUPER = 2, 1, 4, 8  # glfw's modifier bits
@@ -24,9 +26,13 @@ _MODS = CTRL | SHIFT | ALT | SUPER
 
 def _glfw_key(key: imgui.Key) -> int | None:
     """glfw's key code of an imgui key (the keys the editor's shortcuts use)."""
+    return _glfw_code(int(key))
+
+
+@lru_cache(maxsize=None)
+def _glfw_code(k: int) -> int | None:
     import glfw
     K = imgui.Key
-    k = int(key)
     for first, last, gfirst in ((K.a, K.z, glfw.KEY_A), (K._0, K._9, glfw.KEY_0), (K.f1, K.f12, glfw.KEY_F1),
                                 (K.keypad0, K.keypad9, glfw.KEY_KP_0)):
         if int(first) <= k <= int(last):

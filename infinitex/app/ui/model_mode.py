@@ -13,7 +13,6 @@ made here on first use.
 """
 from __future__ import annotations
 
-import math
 import os
 import time
 from dataclasses import replace
@@ -22,10 +21,9 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
-from infinitex.engine.controls import CanvasField, rescaled_features
+from infinitex.engine.controls import rescaled_features
 from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.engine.surface import AtlasError, ModelError, load_model
-from infinitex.engine.surface.features import across_seams
 from infinitex.project import ProjectError
 from infinitex.project.surface import SurfaceSettings, default_repeats
 
@@ -34,7 +32,7 @@ from ..render.overlays import direction_rgba, heat_rgba
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 from .tools.direction_model import ModelComb
 from .tools.feature_model import ModelFeatures
-from .tools.paint import dab_centers
+from .tools.paint import model_stroke
 
 MODEL_FILTER = ["Models (*.obj *.glb *.gltf)", "*.obj *.glb *.gltf"]
 MODEL_BUDGET_S = 0.030  # atlas synthesis per frame
@@ -368,21 +366,11 @@ class ModelModeMixin:
         b = self.tool.brush
         n = self.doc.surface.size
         r = dab_radius(b.radius, b.screen_units, per_px, n)
-        last = self._stroke_last
-        if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r
-                                 or self.chart_at(last) != self.chart_at(pos)):
-            last = None  # onto another chart: no dabs in between (the atlas between is elsewhere)
-        dabs = dab_centers(last, pos, 0.25 * r)
-        if not dabs:
+        field, self._stroke_last, count = model_stroke(self.doc.randomness_canvas, self.session.model.atlas, n,
+                                                       self._stroke_last, pos, r, b)
+        if not count:
             return
-        field = self.doc.randomness_canvas or CanvasField()
-        atlas = self.session.model.atlas
-        for cx, cy in dabs:  # each dab, and its continuation over the seams it reaches
-            for x, y, rr in [(cx, cy, r)] + (across_seams(atlas, cx, cy, r) if atlas is not None else []):
-                field, _ = field.painted(x, y, min(rr, 2 * r), b.value_u16, b.strength, b.hardness,
-                                         bounds=(0, 0, n, n))  # (beyond the atlas nothing is read)
-        self._stroke_last = dabs[-1]
-        self.tool.dabs += len(dabs)
+        self.tool.dabs += count
         self.edit(replace(self.doc, randomness_canvas=field), "Paint randomness (model)", group=self._stroke_group)
 
     def release_model_view(self) -> None:

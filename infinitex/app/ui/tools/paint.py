@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 from imgui_bundle import imgui
 
 from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
+from infinitex.engine.surface.features import across_seams
 
 from . import MAX_CANVAS_RADIUS, Tool, begin_tool_window
 from ..tips import tip
@@ -72,6 +73,32 @@ def dab_centers(last: tuple[float, float] | None, pos: tuple[float, float], spac
     if n == 0:
         return []
     return [(last[0] + (pos[0] - last[0]) * i / n, last[1] + (pos[1] - last[1]) * i / n) for i in range(1, n + 1)]
+
+
+def model_stroke(field: CanvasField | None, atlas, n: int, last: tuple[float, float] | None,
+                 pos: tuple[float, float], radius: float, brush: Brush) -> tuple[CanvasField, tuple | None, int]:
+    """A Paint canvas stroke on a model carried on to ``pos`` (finest atlas
+    texels, n a side): dabs every quarter radius from ``last`` (none in
+    between when ``pos`` is on another chart or farther than 4 radii: the atlas
+    between is elsewhere on the surface), each continued over the seams it
+    reaches (at most twice its radius there) and painted only inside the
+    atlas. Returns the field, the stroke's new last dab and the dabs painted."""
+    owner = atlas.owner(0) if atlas is not None else None
+
+    def chart(p) -> int:
+        if owner is None:
+            return 0
+        return int(owner[min(n - 1, max(0, int(p[1]))), min(n - 1, max(0, int(p[0])))])
+
+    if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * radius or chart(last) != chart(pos)):
+        last = None
+    dabs = dab_centers(last, pos, 0.25 * radius)
+    field = field or CanvasField()
+    for cx, cy in dabs:
+        for x, y, rr in [(cx, cy, radius)] + (across_seams(atlas, cx, cy, radius) if atlas is not None else []):
+            field, _ = field.painted(x, y, min(rr, 2 * radius), brush.value_u16, brush.strength, brush.hardness,
+                                     bounds=(0, 0, n, n))
+    return field, (dabs[-1] if dabs else last), len(dabs)
 
 
 class PaintCanvasTool(Tool):
