@@ -186,3 +186,12 @@ def test_the_model_shows_the_direction_field_as_strokes_along_it(theta):
     got = math.degrees(math.atan2(v[1, -1], v[0, -1])) % 180.0
     assert min(abs(got - theta % 180.0), 180.0 - abs(got - theta % 180.0)) < 12.0
     assert direction_rgba(DirectionField(), n) is None
+    # The Direction tool is what asks for it (H over a model); other tools leave the randomness shown.
+    from types import SimpleNamespace
+
+    from infinitex.app.ui.tools import Tool
+    from infinitex.app.ui.tools.direction import DirectionTool
+    key, make = DirectionTool(None).atlas_overlay(SimpleNamespace(direction=field), n)
+    assert key[0] == "direction" and np.array_equal(make(), rgba)
+    assert DirectionTool(None).atlas_overlay(SimpleNamespace(direction=None), n) is None
+    assert Tool(None).atlas_overlay(SimpleNamespace(direction=field), n) is None

@@ -28,7 +28,7 @@ from infinitex.project import ProjectError
 from infinitex.project.surface import SurfaceSettings, default_repeats
 
 from ..render.model_view import ModelView, OrbitCamera, atlas_footprint, dab_radius
-from ..render.overlays import direction_rgba, heat_rgba
+from ..render.overlays import heat_rgba
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
 from .tools.direction_model import ModelComb
 from .tools.feature_model import ModelFeatures
@@ -169,21 +169,16 @@ class ModelModeMixin:
         tool, else the randomness as a heat map (calm blue, rough red, as on the
         plane); the key of what is shown."""
         n = pv.atlas.size if pv.atlas is not None else 0
-        key = None
+        key, make = None, None
         if self.show_fields and n:
-            direction = self.doc.direction
-            if self.tool.name == "direction" and direction is not None and not direction.identity:
-                axis = next((t.axis for t in self.tools if t.name == "direction"), 0)
-                key = ("direction", direction.key, n, axis)
-            elif self.doc.randomness_canvas is not None and not self.doc.randomness_canvas.neutral:
-                key = ("randomness", self.doc.randomness_canvas.key, n)
+            shown = self.tool.atlas_overlay(self.doc, n)
+            field = self.doc.randomness_canvas
+            if shown is not None:
+                key, make = shown
+            elif field is not None and not field.neutral:
+                key, make = ("randomness", field.key, n), lambda: heat_rgba(field.region(0, 0, 0, n, n))
         if key != self._model_overlay_key:
-            rgba = None
-            if key is not None and key[0] == "direction":
-                rgba = direction_rgba(self.doc.direction, n, key[3])
-            elif key is not None:
-                rgba = heat_rgba(self.doc.randomness_canvas.region(0, 0, 0, n, n))
-            mv.set_overlay(rgba)
+            mv.set_overlay(make() if make is not None else None)
             self._model_overlay_key = key
         return key
 

@@ -42,6 +42,12 @@ class Tool:
     def keys(self) -> None:
         """Per-frame keyboard shortcuts while the tool is active."""
 
+    def atlas_overlay(self, doc, n: int):
+        """What "Show painted" (H) draws over a model while this tool is active:
+        (key, a function making the n x n RGBA8 overlay), or None for the
+        painted randomness (the default)."""
+        return None
+
     def wheel(self, pos: tuple[float, float], amount: float) -> bool:
         """The mouse wheel over the canvas; True when the tool used it (else it zooms)."""
         return False

@@ -270,6 +270,14 @@ class DirectionTool(Tool):
         if ed.doc.direction is not None and imgui.button("Clear direction field", (-1, 0)):
             self._set(DirectionField(), "Clear direction field")
 
+    def atlas_overlay(self, doc, n: int):
+        """On a model: the combed field as short strokes (render/overlays.direction_rgba)."""
+        from ...render.overlays import direction_rgba
+        d = doc.direction
+        if d is None or d.identity:
+            return None
+        return ("direction", d.key, n, self.axis), lambda: direction_rgba(d, n, self.axis)
+
     def keys(self) -> None:
         brush_keys(self.brush)
         if self.mode != "guide" or imgui.get_io().want_text_input:
