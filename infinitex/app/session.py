@@ -159,6 +159,7 @@ class Refiner:
         deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
+        needs = pyr.needs(frame.level, frame.want)  # (what a missing level is asked for)
         top = len(plan) - 1 if max_level is None else max_level
         pixels = 0
         while True:
@@ -167,21 +168,21 @@ class Refiner:
                 # Past max_level: a whole level at once only when it fits in what is left.
                 if time.perf_counter() - t0 + self._missing(missing, plan[missing]) * self.cost[missing] > budget_s:
                     break
-                pixels += self._request(missing, plan[missing])  # (drops a request in progress)
+                pixels += self._request(missing, needs[missing])  # (drops a request in progress)
                 continue
             job = pyr.requesting
-            if job is not None and (missing is None or job != (missing, plan[missing])):
+            if job is not None and (missing is None or job != (missing, needs[missing])):
                 pyr.end_request()  # the view moved, or a refinement's band: whole levels here
                 job = None
             if missing is None:
                 break
             if job is None:
                 if missing <= min_level:
-                    pixels += self._request(missing, plan[missing])
+                    pixels += self._request(missing, needs[missing])
                     continue
                 if deadline - time.perf_counter() < 0.5 * pyr.pacer.piece_s:
                     break
-                pyr.start_request(missing, plan[missing])
+                pyr.start_request(missing, needs[missing])
                 self._job_s = 0.0
             done, n = self._advance(missing, deadline)
             pixels += n
@@ -223,6 +224,7 @@ class Refiner:
         deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
+        needs = None
         # This frame's edits shown at once as quick looks (patches) unless their
         # exact update fits in the frame (about: a coarse level's change spreads).
         work = 0.0
@@ -258,7 +260,9 @@ class Refiner:
                 continue
             if missing is None:
                 break
-            self._start(missing, plan[missing])
+            if needs is None:
+                needs = pyr.needs(frame.level, frame.want)
+            self._start(missing, needs[missing])
         self._done(t0, pixels)
         return (pyr.settled and pyr.requesting is None
                 and all(self.holds(l, want) for l, want in enumerate(plan)))

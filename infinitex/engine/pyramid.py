@@ -206,6 +206,20 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
             cur = self.padded(l, cur).half()
         return need
 
+    def needs(self, level: int, rect: Rect) -> list[Rect]:
+        """What to request of each level 0..level, one level at a time coarse to
+        fine, so that no pixel is synthesized twice: :meth:`plan`'s rectangles
+        grown by what each finer level's target (its prefetch, its chunks) will
+        read. (Requesting ``plan[l]`` made each finer level send its parent back
+        for the strips its prefetch reads: after a jump, the coarse levels were
+        synthesized 2-3 times over, the whole view about twice.)"""
+        need = [Rect(0, 0, 0, 0)] * (level + 1)
+        cur = rect
+        for l in range(level, -1, -1):
+            need[l] = cur
+            cur = self.padded(l, self._target(l, cur)).half()
+        return need
+
     def _target(self, l: int, need: Rect) -> Rect:
         """What level l will hold: its current rectangle while that still covers
         ``need`` (hysteresis), else ``need`` plus prefetch, snapped to chunks."""
