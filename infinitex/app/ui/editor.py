@@ -82,6 +82,11 @@ class FramePacer:
             self._other_s = 0.8 * self._other_s + 0.2 * max(0.0, dt - update_ms / 1000.0)
 
     @property
+    def other_s(self) -> float:
+        """What a frame costs besides the synthesis, lately."""
+        return self._other_s
+
+    @property
     def budget_s(self) -> float:
         """The synthesis budget of this frame; the least while a text field
         takes keys (a file name typed in the chooser: every key shows at once)."""
