@@ -90,14 +90,10 @@ def main(argv=None) -> int:
             os.remove(out)
         env = dict(os.environ, INFINITEX_CACHE=tempfile.mkdtemp(prefix="cache-", dir=tmp),
                    INFINITEX_STATE=tempfile.mkdtemp(prefix="state-", dir=tmp), INFINITEX_NO_NATIVE_DIALOGS="1")
-        busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)]
-        try:
+        from bench.load import busy
+        with busy(args.load):
             subprocess.run([sys.executable, "-m", "bench.editor_open", "--child", path, out], cwd=HERE, env=env,
                            timeout=900, capture_output=True)
-        finally:
-            for b in busy:
-                b.kill()
-                b.wait()
         t = json.load(open(out)) if os.path.exists(out) else {}
         rows.append({"case": name, **t})
         print(f"{name:<18} first texture {t.get('first_texture', float('nan')):6.2f} s   "

@@ -1,6 +1,6 @@
 """How fast the editor's view settles, and how long its frames are meanwhile.
 
-    xvfb-run -a -s "-screen 0 1280x800x24" python -m bench.editor_settle [--structure N] [--json OUT.json]
+    xvfb-run -a -s "-screen 0 1280x800x24" python -m bench.editor_settle [--structure N] [--load N] [--json OUT.json]
 
 The real editor (its own runner, 1280 x 800 window, the default gravel,
 analysis cached first) is settled, then, a second after each other: the view
@@ -9,7 +9,11 @@ changed as a slider release does (one edit of the document). For each:
 the time to the first frame that shows the finest level everywhere, to the
 exact view, and the frame times (start to start) until then: median, p90,
 max. The issue's targets: after the pan 0.5 s / 2 s, after the release exact
-within 1.5 s, p90 frame time 33 ms. Prints a table, writes JSON.
+within 1.5 s, p90 frame time 33 ms; at a load of 2 (``--load 2``: two busy
+processes beside the editor, both cores of this machine) the pan exact within
+3 s. Frames while nothing is touched may take up to about 90 ms (the
+refinement goes on until input arrives, CanvasPreviewMixin._work). Prints a
+table, writes JSON.
 """
 from __future__ import annotations
 
@@ -37,6 +41,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="OUT.json")
     ap.add_argument("--structure", type=int, default=None, metavar="N",
                     help="Structure preset of the document (default: the documents' default)")
+    ap.add_argument("--load", type=int, default=0, metavar="N",
+                    help="N busy processes run beside the editor (a load average of N more)")
     args = ap.parse_args(argv)
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     from infinitex.app.ui.editor import Editor
@@ -105,7 +111,9 @@ def main(argv=None) -> int:
 
     ed = Bench(recover=False, window_size=(1280, 800))
     t_start = time.perf_counter()
-    ed.run()
+    from bench.load import busy
+    with busy(args.load):
+        ed.run()
     for what in ("pan", "release"):
         r = results.get(what)
         if r is None:
@@ -116,6 +124,7 @@ def main(argv=None) -> int:
               f"frames {r['frames']:4d}: median {r['frame_median_ms']:6.1f} ms, p90 {r['frame_p90_ms']:6.1f} ms, "
               f"max {r['frame_max_ms']:6.1f} ms")
     results["renderer"] = ed.renderer
+    results["load"] = args.load
     results["total_s"] = time.perf_counter() - t_start
     if args.json:
         from infinitex.engine.safeio import atomic_write

@@ -46,6 +46,8 @@ def main(argv=None) -> int:
     ap.add_argument("--comb", action="store_true", help="comb a direction field (the Direction tool) instead")
     ap.add_argument("--no-looks", action="store_true", help="without quick looks (Pyramid.quick_look): for an A/B")
     ap.add_argument("--mid-shot", metavar="PNG", help="also capture the window in the middle of the stroke")
+    ap.add_argument("--load", type=int, default=0, metavar="N",
+                    help="N busy processes run beside the editor (a load average of N more)")
     args = ap.parse_args(argv)
     os.environ.setdefault("INFINITEX_STATE", tempfile.mkdtemp(prefix="infinitex-bench-"))
     os.environ["INFINITEX_NO_NATIVE_DIALOGS"] = "1"
@@ -200,11 +202,13 @@ def main(argv=None) -> int:
             "pixels_per_dab": px / max(1, dabs),
             "full_view_pixels": full, "fewer_pixels_than_full": full * dabs / max(1, px),
             "fps_during_stroke": len(frames) / max(1e-9, sum(f[0] for f in frames)),
-            "settle_after_stroke_s": settle_s,
+            "settle_after_stroke_s": settle_s, "load": args.load,
         })
         testing.capture(ctx, os.path.join(tempfile.gettempdir(), "infinitex-paint-bench.png"))
 
-    testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
+    from bench.load import busy
+    with busy(args.load):
+        testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
     if not results:
         print("the benchmark did not run (see the test engine log)")
         return 1
