@@ -159,7 +159,7 @@ class Refiner:
         deadline = t0 + budget_s
         pyr = self.pyramid
         plan = pyr.plan(frame.level, frame.want)
-        needs = pyr.needs(frame.level, frame.want)  # (what a missing level is asked for)
+        needs = pyr.plan(frame.level, frame.want, grown=True)  # (what a missing level is asked for)
         top = len(plan) - 1 if max_level is None else max_level
         pixels = 0
         while True:
@@ -261,7 +261,7 @@ class Refiner:
             if missing is None:
                 break
             if needs is None:
-                needs = pyr.needs(frame.level, frame.want)
+                needs = pyr.plan(frame.level, frame.want, grown=True)
             self._start(missing, needs[missing])
         self._done(t0, pixels)
         return (pyr.settled and pyr.requesting is None

@@ -197,27 +197,17 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
         """The region a strip is synthesized on: r plus correction margins, s-aligned."""
         return r.pad(*self.margins[level]).align(self.params.subgrid)
 
-    def plan(self, level: int, rect: Rect) -> list[Rect]:
-        """The rectangle each level 0..level must hold exactly for ``rect``."""
+    def plan(self, level: int, rect: Rect, grown: bool = False) -> list[Rect]:
+        """The rectangle each level 0..level must hold exactly for ``rect``.
+        ``grown``: what to request of each, one level at a time coarse to fine,
+        so that no pixel is made twice: grown by what each finer level's target
+        (its prefetch, its chunks) will read (asked for the plain plan, each
+        finer level sent its parent back for more strips)."""
         need = [Rect(0, 0, 0, 0)] * (level + 1)
         cur = rect
         for l in range(level, -1, -1):
             need[l] = cur
-            cur = self.padded(l, cur).half()
-        return need
-
-    def needs(self, level: int, rect: Rect) -> list[Rect]:
-        """What to request of each level 0..level, one level at a time coarse to
-        fine, so that no pixel is synthesized twice: :meth:`plan`'s rectangles
-        grown by what each finer level's target (its prefetch, its chunks) will
-        read. (Requesting ``plan[l]`` made each finer level send its parent back
-        for the strips its prefetch reads: after a jump, the coarse levels were
-        synthesized 2-3 times over, the whole view about twice.)"""
-        need = [Rect(0, 0, 0, 0)] * (level + 1)
-        cur = rect
-        for l in range(level, -1, -1):
-            need[l] = cur
-            cur = self.padded(l, self._target(l, cur)).half()
+            cur = self.padded(l, self._target(l, cur) if grown else cur).half()
         return need
 
     def _target(self, l: int, need: Rect) -> Rect:
