@@ -100,3 +100,58 @@ def test_the_checks_catch_what_they_look_for(tmp_path):
                    (3, "infinitex.app.session", [])]
     got = list(_imports(str(p), "infinitex.project", True))
     assert got[0][1] == "infinitex.export.window" and _layer(got[0][1]) == "export"
+
+
+TOOLS = os.path.join(PACKAGE, "app", "ui", "tools")
+
+
+def _tool_names() -> set[str]:
+    names = set()
+    for path in os.listdir(TOOLS):
+        if path.endswith(".py"):
+            for node in ast.walk(ast.parse(open(os.path.join(TOOLS, path), encoding="utf-8").read())):
+                if isinstance(node, ast.ClassDef):
+                    for st in node.body:
+                        if (isinstance(st, ast.Assign) and [getattr(t, "id", None) for t in st.targets] == ["name"]
+                                and isinstance(st.value, ast.Constant)):
+                            names.add(st.value.value)
+    return names
+
+
+def _is_name(node) -> bool:
+    return (isinstance(node, ast.Attribute) and node.attr == "name") or (isinstance(node, ast.Name)
+                                                                        and node.id == "name")
+
+
+def _name_comparisons(src: str, names: set[str]) -> list[int]:
+    """Lines comparing a ``name`` (``x.name``, ``name``) with a tool's name (==, !=, in, startswith)."""
+    lines = []
+    for node in ast.walk(ast.parse(src)):
+        consts = []
+        if isinstance(node, ast.Compare) and any(_is_name(c) for c in node.comparators + [node.left]):
+            for c in node.comparators + [node.left]:
+                consts += [c] if isinstance(c, ast.Constant) else list(getattr(c, "elts", []))
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+              and node.func.attr == "startswith" and node.args and _is_name(node.func.value)):
+            consts = [node.args[0]]
+        if any(isinstance(c, ast.Constant) and isinstance(c.value, str)
+               and (c.value in names or any(n.startswith(c.value) for n in names if len(c.value) > 3))
+               for c in consts):
+            lines.append(node.lineno)
+    return lines
+
+
+def test_no_tool_name_is_compared_outside_the_tools():
+    """A tool declares what the editor needs (app/ui/tools/__init__.py Tool);
+    the editor, its panels and its model view never branch on a tool's name."""
+    names = _tool_names()
+    assert {"navigate", "paint-canvas", "feature", "direction", "labels", "lattice"} <= names
+    bad = []
+    for path, _, _ in _modules():
+        if os.sep + "app" + os.sep not in path or path.startswith(TOOLS):
+            continue
+        bad += [f"{os.path.relpath(path, ROOT)}:{n}" for n in _name_comparisons(open(path, encoding="utf-8").read(), names)]
+    assert not bad, "\n".join(bad)
+    assert _name_comparisons('if ed.tool.name in ("labels", "x"): pass\nif t.name.startswith("paint"): pass\n'
+                             'if tool.name == "feature": pass\nkinds = ("labels", 1)\nif ex.fit == "lattice": pass\n',
+                             names) == [1, 2, 3]

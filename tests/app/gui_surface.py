@@ -175,7 +175,7 @@ def main(out: str) -> int:
             steps = len(ed.history.undo_stack)
             # A press inside the inner circle, well off the centre dot, grabs the feature too.
             w, h = ed.canvas_size
-            handles = ed.model_features._handles(w, h)
+            handles = next(t for t in ed.tools if t.name == "feature").model_gesture()._handles(w, h)
             _, hx, hy, ri, _ = handles[0] if handles else (0, cx + 10 - r.min.x, cy + 10 - r.min.y, 0.0, 0.0)
             px, py = r.min.x + hx + 0.6 * ri, r.min.y + hy
             check("the inner circle is large enough to press off its centre", ri >= 15, f"inner {ri:.1f} px")

@@ -17,9 +17,9 @@ from imgui_bundle import imgui
 
 from infinitex.engine.material import IMAGE
 
-from .tools import CANVAS_SPACE_TOOLS
-from .tools.direction import draw_field
-from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
+from .tools import Tool
+from .tools.direction import DirectionTool, draw_field
+from .tools.feature import PAYLOAD as FEATURE_PAYLOAD, FeatureTool
 
 
 class CanvasInputMixin:
@@ -56,7 +56,7 @@ class CanvasInputMixin:
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
             if payload is not None and s.ready and self.doc is not None and self.geometry() is None:
-                self.set_tool("feature")
+                self.set_tool(self.tools.of(FeatureTool))
                 self.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
             imgui.end_drag_drop_target()
         if hovered and io.mouse_wheel and not (s.ready and self.doc is not None and self.tool.wheel(at, io.mouse_wheel)):
@@ -76,8 +76,7 @@ class CanvasInputMixin:
             if self.show_fields and self.geometry() is None:
                 self._field_overlay(dl, p0, w, h)
             self.panels.canvas_overlay(p0, w, h)
-            if self.tool.name == "feature":
-                self.tool.draw_handles(dl, p0, w, h)
+            self.tool.handles(dl, p0, w, h)
             if s.period:
                 self._tile_borders(dl, p0, w, h, s.period)
             if hovered:
@@ -143,8 +142,7 @@ class CanvasInputMixin:
             fx, fy, fw, fh = overlay.placement
             a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
             dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
-        tool = next((t for t in self.tools if t.name == "direction"), None)
-        draw_field(dl, self.doc.direction, self.view, p0, w, h, tool.axis if tool is not None else 0)
+        draw_field(dl, self.doc.direction, self.view, p0, w, h, self.tools.of(DirectionTool).axis)
         dl.pop_clip_rect()
 
     # -- small helpers for panels -----------------------------------------
@@ -168,13 +166,13 @@ class CanvasInputMixin:
             return None
         return lat.canvas_matrix(s.analysis.size)
 
-    def set_tool(self, name: str) -> None:
-        if name in CANVAS_SPACE_TOOLS and self.geometry() is not None:
+    def set_tool(self, t: Tool) -> None:
+        """Make ``t`` (one of ``self.tools``) the active tool."""
+        if t.space == "canvas" and self.geometry() is not None:
             # Paint and features live on the synthesized canvas: show it rectified.
             self.display = replace(self.display, geometry="rectified")
-        for t in self.tools:
-            if t.name == name and t is not self.tool:
-                self.tool.release()
-                self.tool = t
-                if name.startswith("paint") or name in ("labels", "direction"):
-                    self.show_fields = True  # painting shows what is painted
+        if t is not self.tool:
+            self.tool.release()
+            self.tool = t
+            if t.shows_painted:
+                self.show_fields = True  # painting shows what is painted

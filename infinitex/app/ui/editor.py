@@ -330,7 +330,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.dialogs.draw()
         self.panels.progress_modals()
         imgui.end()
-        if self.tool.name in ("paint-exemplar", "lattice", "labels") and self.doc is not None:
+        if self.doc is not None:
             self.tool.window()
         self.shortcuts_window()
         self._after_frame()

@@ -27,12 +27,9 @@ from infinitex.engine.surface import AtlasError, ModelError, load_model
 from infinitex.project import ProjectError
 from infinitex.project.surface import SurfaceSettings, default_repeats
 
-from ..render.model_view import ModelView, OrbitCamera, atlas_footprint, dab_radius
+from ..render.model_view import ModelView, OrbitCamera, atlas_footprint
 from ..render.overlays import heat_rgba
-from .tools.feature import PAYLOAD as FEATURE_PAYLOAD
-from .tools.direction_model import ModelComb
-from .tools.feature_model import ModelFeatures
-from .tools.paint import model_stroke
+from .tools.feature import PAYLOAD as FEATURE_PAYLOAD, FeatureTool
 
 MODEL_FILTER = ["Models (*.obj *.glb *.gltf)", "*.obj *.glb *.gltf"]
 MODEL_BUDGET_S = 0.030  # atlas synthesis per frame
@@ -155,13 +152,9 @@ class ModelModeMixin:
         self._seams_key = None
         self._model_overlay_key = None
         self._model_tex_version = -1
-        self._stroke_last = None
-        self._stroke_group: object = None
         self.model_export_magnify = 1
         self.atlas_request = False  # tests: read the finished atlas's coordinates during a frame
         self.atlas_read = None
-        self.model_features = ModelFeatures(self)
-        self.model_comb = ModelComb(self)
 
     def _model_overlay(self, mv, pv):
         """With "Show painted" on (H), what the active tool paints, over the
@@ -263,13 +256,12 @@ class ModelModeMixin:
             tw = imgui.calc_text_size(text).x
             dl.add_rect_filled((p0.x + 8, p0.y + 8), (p0.x + 24 + tw, p0.y + 30), imgui.get_color_u32((0, 0, 0, 0.55)), 4)
             dl.add_text((p0.x + 16, p0.y + 11), imgui.get_color_u32((1, 1, 1, 1)), text)
-        if self.tool.name == "feature":
-            self.model_features.draw(dl, p0, w, h)
-        if hovered and self.tool.name in ("paint-canvas", "direction"):
-            io = imgui.get_io()
-            r = self.tool.brush.radius
-            dl.add_circle((io.mouse_pos.x, io.mouse_pos.y), r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
-            dl.add_circle((io.mouse_pos.x, io.mouse_pos.y), r, imgui.get_color_u32((1, 1, 1, 0.9)), 0, 1.5)
+        gesture = self.tool.model_gesture()
+        if gesture is not None:
+            gesture.draw(dl, p0, w, h)
+            if hovered:
+                io = imgui.get_io()
+                gesture.cursor(dl, (io.mouse_pos.x, io.mouse_pos.y))
 
     def _model_input(self, p0, w: int, h: int) -> bool:
         imgui.invisible_button("canvas", (w, h), imgui.ButtonFlags_.mouse_button_left
@@ -277,54 +269,35 @@ class ModelModeMixin:
         io = imgui.get_io()
         hovered = imgui.is_item_hovered()
         mx, my = io.mouse_pos.x - p0.x, io.mouse_pos.y - p0.y
-        painting = self.tool.name == "paint-canvas" and not io.key_alt
-        placing = self.tool.name == "feature" and not io.key_alt
-        combing = self.tool.name == "direction" and not io.key_alt
+        # The active tool seen through the model's mapping (Alt: the left button orbits).
+        tool_gesture = self.tool.model_gesture()
+        gesture = None if io.key_alt else tool_gesture
         if imgui.is_item_activated():
             left = imgui.is_mouse_down(imgui.MouseButton_.left)
             self._canvas_button = 0 if left else (2 if imgui.is_mouse_down(imgui.MouseButton_.middle) else 1)
-            if left and painting:
-                self._stroke_last = None
-                self._stroke_group = object()
-                self._paint_model(mx, my, w, h)
-            elif left and placing:
-                self.model_features.press(mx, my, w, h)
-            elif left and combing:
-                self.model_comb.press(mx, my, w, h)
+            if left and gesture is not None:
+                gesture.press(mx, my, w, h)
         elif imgui.is_item_active() and self._canvas_button >= 0:
             d = io.mouse_delta
-            if self._canvas_button == 0 and placing:
+            if self._canvas_button == 0 and gesture is not None:
                 if d.x or d.y:
-                    self.model_features.drag(mx, my, w, h)
-            elif self._canvas_button == 0 and combing:
-                if d.x or d.y:
-                    self.model_comb.drag(mx, my, w, h)
-            elif self._canvas_button == 0 and painting:
-                if d.x or d.y:
-                    self._paint_model(mx, my, w, h)
+                    gesture.drag(mx, my, w, h)
             elif (self._canvas_button == 1 or (self._canvas_button == 2 and io.key_shift)) and (d.x or d.y):
                 self.camera = self.camera.pan(-d.x / h, d.y / h, w / max(1, h))
             elif d.x or d.y:
                 self.camera = self.camera.orbit(-d.x * ORBIT_DEG_PER_PX, d.y * ORBIT_DEG_PER_PX)
         if imgui.is_item_deactivated() and self._canvas_button >= 0:
-            if self._canvas_button == 0 and placing:
-                self.model_features.drag(mx, my, w, h)  # a move in the release's frame counts
-                self.model_features.release()
-            elif self._canvas_button == 0 and combing:
-                self.model_comb.drag(mx, my, w, h)
-                self.model_comb.release()
-            elif self._canvas_button == 0 and painting and self.history is not None:
-                self.history.end_group()
+            if self._canvas_button == 0 and gesture is not None:
+                gesture.finish(mx, my, w, h)  # (a move in the release's frame counts)
             self._canvas_button = -1
-            self._stroke_last = None
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
             if payload is not None:
-                self.set_tool("feature")
-                self.model_features.drop((payload.data_id % 4096, payload.data_id // 4096), mx, my, w, h)
+                self.set_tool(self.tools.of(FeatureTool))
+                self.tool.model_gesture().drop((payload.data_id % 4096, payload.data_id // 4096), mx, my, w, h)
             imgui.end_drag_drop_target()
-        if hovered and io.mouse_wheel and not (self.tool.name == "feature"
-                                               and self.model_features.wheel(mx, my, w, h, io.mouse_wheel)):
+        if hovered and io.mouse_wheel and not (tool_gesture is not None
+                                               and tool_gesture.wheel(mx, my, w, h, io.mouse_wheel)):
             self.camera = self.camera.zoom(0.85 ** io.mouse_wheel)
         self.cursor = None
         return hovered
@@ -350,23 +323,6 @@ class ModelModeMixin:
             return -1
         n = atlas.size
         return int(atlas.owner(0)[min(n - 1, max(0, int(pos[1]))), min(n - 1, max(0, int(pos[0])))])
-
-    def _paint_model(self, x: float, y: float, w: int, h: int) -> None:
-        """A dab of the Paint canvas brush where the ray under (x, y) meets the model (atlas texels)."""
-        hit = self.pick_atlas(x, y, w, h)
-        if hit is None:
-            self._stroke_last = None
-            return
-        pos, per_px = hit  # (atlas texels per screen pixel here: the brush keeps its size on screen)
-        b = self.tool.brush
-        n = self.doc.surface.size
-        r = dab_radius(b.radius, b.screen_units, per_px, n)
-        field, self._stroke_last, count = model_stroke(self.doc.randomness_canvas, self.session.model.atlas, n,
-                                                       self._stroke_last, pos, r, b)
-        if not count:
-            return
-        self.tool.dabs += count
-        self.edit(replace(self.doc, randomness_canvas=field), "Paint randomness (model)", group=self._stroke_group)
 
     def release_model_view(self) -> None:
         for o in (getattr(self, "model_view", None), getattr(self, "_model_fbo", None)):

@@ -73,7 +73,7 @@ class ShortcutsMixin:
         # take the keys, as in Krita and Photoshop; never while a control is dragged).
         for t in self.tools:
             if t.key and keys.plain(getattr(K, t.key.lower())):
-                self.set_tool(t.name)
+                self.set_tool(t)
         if keys.plain(K.h):
             self.show_fields = not self.show_fields
         if keys.plain(K.t):

@@ -1,7 +1,7 @@
 """The editor's menus, side panels, status bar and progress windows.
 
 One module per panel: menu (the menu bar, Open dialogs, Open Recent), toolbar,
-brush (the active tool's options), exemplar, material, randomness, synthesis
+exemplar, material, randomness, synthesis
 (the Advanced section), display, export (and the File menu's view and tile
 exports), tileset (the tile-set dialog), status (the status bar, canvas overlay and export progress window);
 widgets holds what they share (``tip``, ``LAST_TIP``, ``size_combo``). Each
@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.params import DEFAULT_JITTER
 
-from . import brush, display, exemplar, export, material, menu, model, randomness, status, synthesis, tileset, toolbar
+from . import display, exemplar, export, material, menu, model, randomness, status, synthesis, tileset, toolbar
 from .display import MAGNIFY_LABELS, MODE_LABELS, MODE_TIPS
 from .exemplar import FIT_LABELS, PANEL_IMAGE, TOROIDAL_LABELS
 from .export import DEPTH_CHOICES, EXPORT_FORMATS, MAGNIFY_CHOICES, TILE_SIZES
@@ -42,7 +42,6 @@ class Panels:
     # as a method as it is (``ed.panels.export_view()`` is export.export_view(panels)).
     menu_bar, open_dialog, open_material_dialog = menu.draw, menu.open_dialog, menu.open_material_dialog
     toolbar = toolbar.draw
-    brush_panel = brush.draw
     randomness_panel = randomness.draw
     exemplar_panel, exemplar_thumbnail = exemplar.draw, exemplar.thumbnail
     material_panel = material.draw
@@ -63,10 +62,8 @@ class Panels:
             self._loading()
             return
         flags = imgui.TreeNodeFlags_.default_open
-        if ed.tool.name != "navigate" and imgui.collapsing_header(
-                {"feature": "Features", "lattice": "Lattice", "labels": "Labels"}.get(ed.tool.name, "Brush")
-                + "###tool-options", flags):
-            self.brush_panel()
+        if ed.tool.panel and imgui.collapsing_header(ed.tool.panel + "###tool-options", flags):
+            ed.tool.options()  # (the paint tools' include clearing what they painted)
         # Artists' controls first; the synthesis internals wait in Advanced (collapsed).
         # Which sections are open is kept between runs (the user's settings).
         if ed.model_mode:

@@ -12,7 +12,8 @@ from infinitex.engine.controls import MAX_LABELS
 from infinitex.engine.tileable import recommended
 
 from ..dialogs import IMAGE_FILTER
-from ..tools.feature import PAYLOAD as FEATURE_PAYLOAD
+from ..tools.feature import PAYLOAD as FEATURE_PAYLOAD, FeatureTool
+from ..tools.lattice import LatticeTool
 from .widgets import tip
 
 if TYPE_CHECKING:
@@ -84,7 +85,7 @@ def lattice_line(ed, doc) -> None:
     tip("Synthesize the image as a stochastic texture, without its lattice (undoable)")
     imgui.same_line()
     if imgui.button("Adjust (L)##lattice-adjust"):
-        ed.set_tool("lattice")
+        ed.set_tool(ed.tools.of(LatticeTool))
     tip("The Lattice tool: drag the cell's handles over the image, or mark one cell with a rectangle")
 
 
@@ -162,7 +163,7 @@ def thumbnail(p: Panels, size: float) -> None:
             uy = int(min(m - 1, max(0, (pos.y - delta.y - p0.y) / size * m)))
             imgui.set_drag_drop_payload_py_id(FEATURE_PAYLOAD, uy * 4096 + ux)
             # Preview: the exemplar around the point, at the size it will have on the canvas.
-            tool = next(t for t in ed.tools if t.name == "feature")
+            tool = ed.tools.of(FeatureTool)
             r = max(8, tool.outer)
             prev = min(256.0, 2 * r * ed.view.zoom)
             imgui.image(tex, (prev, prev), ((ux - r) / m, (uy - r) / m), ((ux + r) / m, (uy + r) / m))

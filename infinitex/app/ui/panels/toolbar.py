@@ -10,8 +10,6 @@ from ..tips import hint
 if TYPE_CHECKING:
     from . import Panels
 
-PLANE_ONLY = ("labels", "lattice")  # tools of the plane, hidden while a model is open
-
 
 def draw(p: Panels) -> None:
     """The tool bar over the canvas: one button per tool, the field overlay toggle."""
@@ -24,7 +22,7 @@ def draw(p: Panels) -> None:
         imgui.same_line()
         if imgui.get_content_region_avail().x < w:
             imgui.new_line()
-    shown = [t for t in ed.tools if not (ed.model_mode and t.name in PLANE_ONLY)]
+    shown = [t for t in ed.tools if t.on_model or not ed.model_mode]
     for i, t in enumerate(shown):
         if i:
             next_item(f"{t.label} ({t.key})")
@@ -32,7 +30,7 @@ def draw(p: Panels) -> None:
         if active:
             imgui.push_style_color(imgui.Col_.button, imgui.get_style_color_vec4(imgui.Col_.button_active))
         if imgui.button(f"{t.label} ({t.key})##tool-{t.name}"):
-            ed.set_tool(t.name)
+            ed.set_tool(t)
         if active:
             imgui.pop_style_color()
         hint(t.tooltip)

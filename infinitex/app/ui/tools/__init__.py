@@ -1,12 +1,64 @@
 """Canvas tools: each has its own module with press / drag / release handling,
 its options panel and its overlay; a gesture (press to release) is one undo
 step. The editor routes the left mouse button to the active tool; the right
-and middle buttons always pan."""
+and middle buttons always pan.
+
+A tool declares what the editor needs to know of it (:class:`Tool`: the space
+it works in, whether it shows what is painted, its panel section, whether a
+model view offers it, its floating window, its handles, and what it does on a
+model, :meth:`Tool.model_gesture`); the editor never compares tool names."""
 from __future__ import annotations
 
 
 MAX_CANVAS_RADIUS = 512.0  # canvas pixels: a brush zoomed far out still edits a bounded area (a dab of
 #                            this radius takes about 60 ms to paint on this 2-core machine)
+
+
+class ModelGesture:
+    """What a tool's left button does on a model: the same tool seen through
+    the model view's mapping (screen positions in the canvas of w x h)."""
+
+    def __init__(self, ed):
+        self.ed = ed
+
+    def press(self, mx: float, my: float, w: int, h: int) -> None:
+        pass
+
+    def drag(self, mx: float, my: float, w: int, h: int) -> None:
+        pass
+
+    def release(self) -> None:
+        pass
+
+    def finish(self, mx: float, my: float, w: int, h: int) -> None:
+        """The button came up at (mx, my): a move in the release's frame counts, then release."""
+        self.drag(mx, my, w, h)
+        self.release()
+
+    def wheel(self, mx: float, my: float, w: int, h: int, amount: float) -> bool:
+        """The wheel over the model; True when used (else it zooms the camera)."""
+        return False
+
+    def drop(self, u: tuple[int, int], mx: float, my: float, w: int, h: int) -> None:
+        """An exemplar point dropped at (mx, my)."""
+
+    def draw(self, draw_list, p0, w: int, h: int) -> None:
+        """Drawn over the model whether hovered or not (handles)."""
+
+    def cursor(self, draw_list, mouse: tuple[float, float]) -> None:
+        """Drawn at the mouse while it is over the model."""
+
+
+class BrushCursor:
+    """A brush's circle at the mouse (the active tool's ``brush.radius``, screen pixels)."""
+
+    ed = None
+
+    def cursor(self, draw_list, mouse: tuple[float, float]) -> None:
+        from imgui_bundle import imgui
+        r = self.ed.tool.brush.radius
+        draw_list.add_circle(mouse, r, imgui.get_color_u32((0, 0, 0, 0.8)), 0, 3.0)
+        draw_list.add_circle(mouse, r, imgui.get_color_u32((1, 1, 1, 0.9)), 0, 1.5)
 
 
 class Tool:
@@ -16,6 +68,11 @@ class Tool:
     label = "Tool"
     key = ""          # shortcut letter
     tooltip = ""
+    space = ""        # "canvas": works on the synthesized canvas (shown rectified while active);
+    #                   "exemplar": on the exemplar, in the tool's own window
+    shows_painted = False  # choosing it turns "Show painted" (H) on
+    panel = "Brush"   # the side panel's section of its options ("": none)
+    on_model = True   # offered while a model is open
 
     def __init__(self, ed):
         self.ed = ed
@@ -52,6 +109,24 @@ class Tool:
         """The mouse wheel over the canvas; True when the tool used it (else it zooms)."""
         return False
 
+    def handles(self, draw_list, p0, w: int, h: int) -> None:
+        """Drawn over the canvas whether hovered or not (the features' handles)."""
+
+    def window(self) -> None:
+        """Its own floating window, drawn each frame while the tool is active."""
+
+    def model_gesture(self) -> ModelGesture | None:
+        """What the left button does on a model (None: it orbits)."""
+        return None
+
+
+class Tools(list):
+    """The editor's tools in tool bar order (Navigate first)."""
+
+    def of(self, cls: type) -> Tool:
+        """The tool of class ``cls``."""
+        return next(t for t in self if isinstance(t, cls))
+
 
 def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tuple[int, int],
                       zoom_range: tuple[float, float], fmt: str) -> bool:
@@ -66,7 +141,7 @@ def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tu
                               imgui.Cond_.first_use_ever)
     opened, keep = imgui.begin(title, True)
     if not keep:
-        ed.set_tool("navigate")
+        ed.set_tool(ed.tools[0])
     if opened:
         imgui.set_next_item_width(160)
         _, tool.zoom = imgui.slider_float("Zoom", tool.zoom, zoom_range[0], zoom_range[1], fmt,
@@ -75,16 +150,12 @@ def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tu
         imgui.text_disabled(f"{image[0]}x{image[1]} px")
     return opened
 
-
-CANVAS_SPACE_TOOLS = ("paint-canvas", "feature", "labels", "direction")  # tools that work on the synthesized (rectified) canvas
-
-
-def make_tools(ed) -> list[Tool]:
+def make_tools(ed) -> Tools:
     from .direction import DirectionTool
     from .feature import FeatureTool
     from .labels import LabelTool
     from .lattice import LatticeTool
     from .navigate import NavigateTool
     from .paint import PaintCanvasTool, PaintExemplarTool
-    return [NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed), LabelTool(ed),
-            DirectionTool(ed), LatticeTool(ed)]
+    return Tools([NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed), LabelTool(ed),
+                  DirectionTool(ed), LatticeTool(ed)])

@@ -56,9 +56,12 @@ class DirectionTool(Tool):
     key = "D"
     tooltip = ("Turn, grow and stretch the texture along curves: comb it, smooth it, grow or shrink it, "
                "or draw guides it follows (D)")
+    space = "canvas"
+    shows_painted = True
 
     def __init__(self, ed):
         super().__init__(ed)
+        self._model = None
         self.brush = Brush(radius=40.0, strength=0.7)
         self.mode = "comb"
         self.axis = 0          # 0: the exemplar's x runs along strokes, 1: its y
@@ -196,6 +199,12 @@ class DirectionTool(Tool):
         self._set(field, "Place direction map")
 
     # -- panel, keys, overlay ------------------------------------------------
+
+    def model_gesture(self):
+        if self._model is None:
+            from .direction_model import ModelComb
+            self._model = ModelComb(self.ed)
+        return self._model
 
     def options(self) -> None:
         ed = self.ed

@@ -21,6 +21,7 @@ from infinitex.engine.controls.direction import DirectionField
 from infinitex.engine.controls.fields import FieldTooLarge
 from infinitex.engine.surface.features import across_seams
 
+from . import BrushCursor, ModelGesture
 from .direction import MAX_BRUSH
 from .paint import dab_centers
 
@@ -28,11 +29,11 @@ LABELS = {"comb": "Comb direction (model)", "smooth": "Smooth direction (model)"
           "shrink": "Shrink texture (model)", "erase": "Erase direction (model)"}
 
 
-class ModelComb:
-    """Press / drag / release of the Direction tool on the model view."""
+class ModelComb(BrushCursor, ModelGesture):
+    """Press / drag / release of the Direction tool on the model view (its brush circle at the mouse)."""
 
     def __init__(self, ed):
-        self.ed = ed
+        super().__init__(ed)
         self._last: tuple[float, float] | None = None
         self._group: object = None
 

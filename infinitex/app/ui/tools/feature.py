@@ -38,9 +38,12 @@ class FeatureTool(Tool):
     key = "F"
     tooltip = ("Place exemplar features: drag on the canvas to move what you see, or drag the exemplar "
                "thumbnail onto the canvas; drag a feature's center to move it, its circles to resize (F)")
+    space = "canvas"
+    panel = "Features"
 
     def __init__(self, ed):
         super().__init__(ed)
+        self._model = None
         self.inner = 24
         self.outer = 48
         self.exact = False        # False: every level but the finest two (fresh detail); True: all levels
@@ -174,12 +177,18 @@ class FeatureTool(Tool):
             self._set(feats, "Delete feature")
         self.selected = None
 
+    def model_gesture(self):
+        if self._model is None:
+            from .feature_model import ModelFeatures
+            self._model = ModelFeatures(self.ed)
+        return self._model
+
     # -- drawing ------------------------------------------------------------
 
     def overlay(self, draw_list, p0, w, h) -> None:
-        pass  # handles are drawn for every visible feature by draw_handles
+        pass  # handles are drawn for every visible feature by handles()
 
-    def draw_handles(self, draw_list, p0, w: int, h: int) -> None:
+    def handles(self, draw_list, p0, w: int, h: int) -> None:
         ed = self.ed
         if not self.show or not self.features:
             return
@@ -254,7 +263,7 @@ class FeatureTool(Tool):
                 ed.history.end_group()
             if imgui.button("Jump to"):
                 if ed.model_mode:
-                    ed.model_features.jump_to(f)
+                    self.model_gesture().jump_to(f)
                 else:
                     ed.view = View(float(f.canvas[0]), float(f.canvas[1]), ed.view.zoom)
             imgui.same_line()

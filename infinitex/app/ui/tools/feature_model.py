@@ -26,12 +26,14 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import MAX_FEATURE_RADIUS, Feature
 from infinitex.engine.pyramid import Rect, SynthesisError
 
+from . import ModelGesture
 
-class ModelFeatures:
+
+class ModelFeatures(ModelGesture):
     """Press / drag / release / wheel / drop / handles of the Features tool on the model view."""
 
     def __init__(self, ed):
-        self.ed = ed
+        super().__init__(ed)
         self._mode: str | None = None
         self._group: object = None
         self._start: Feature | None = None

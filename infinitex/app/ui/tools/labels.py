@@ -49,6 +49,10 @@ class LabelTool(Tool):
     key = "G"
     tooltip = ("Texture by numbers: give the exemplar's regions labels (stones, grass, mortar...), then paint "
                "on the canvas which label goes where (G)")
+    space = "canvas"
+    shows_painted = True
+    panel = "Labels"
+    on_model = False
 
     def __init__(self, ed):
         super().__init__(ed)

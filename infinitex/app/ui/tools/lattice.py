@@ -45,6 +45,8 @@ class LatticeTool(Tool):
     key = "L"
     tooltip = ("Near-regular textures (bricks, tiles, weaves): mark or detect the lattice on the exemplar "
                "image; the synthesis moves whole cells and keeps rows (L)")
+    panel = "Lattice"
+    on_model = False
 
     def __init__(self, ed):
         super().__init__(ed)
@@ -252,8 +254,8 @@ class LatticeTool(Tool):
             geom = ed.display.geometry
             if imgui.radio_button("Original geometry", geom == "original"):
                 ed.display = replace(ed.display, geometry="original")
-                if ed.tool.name in ("paint-canvas", "feature"):
-                    ed.set_tool("navigate")
+                if ed.tool.space == "canvas":  # (those work on the rectified canvas)
+                    ed.set_tool(ed.tools[0])
             imgui.same_line()
             if imgui.radio_button("Rectified", geom == "rectified"):
                 ed.display = replace(ed.display, geometry="rectified")

@@ -9,6 +9,7 @@ class NavigateTool(Tool):
     label = "Navigate"
     key = "N"
     tooltip = "Drag to move around the infinite canvas; the wheel zooms (N)"
+    panel = ""
 
     def __init__(self, ed):
         super().__init__(ed)

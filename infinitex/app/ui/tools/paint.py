@@ -16,7 +16,7 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
 from infinitex.engine.surface.features import across_seams
 
-from . import MAX_CANVAS_RADIUS, Tool, begin_tool_window
+from . import MAX_CANVAS_RADIUS, BrushCursor, ModelGesture, Tool, begin_tool_window
 from ..tips import tip
 
 
@@ -101,11 +101,65 @@ def model_stroke(field: CanvasField | None, atlas, n: int, last: tuple[float, fl
     return field, (dabs[-1] if dabs else last), len(dabs)
 
 
+class ModelPaint(BrushCursor, ModelGesture):
+    """The Paint canvas brush on a model: dabs where the ray under the mouse
+    meets it, in atlas texels (the brush keeps its size on screen), along the
+    stroke (:func:`model_stroke`); one undo step per stroke."""
+
+    def __init__(self, ed):
+        super().__init__(ed)
+        self._last: tuple[float, float] | None = None
+        self._group: object = None
+
+    def press(self, mx: float, my: float, w: int, h: int) -> None:
+        self._last, self._group = None, object()
+        self.drag(mx, my, w, h)
+
+    def drag(self, mx: float, my: float, w: int, h: int) -> None:
+        from ...render.model_view import dab_radius
+        ed = self.ed
+        if self._group is None:
+            return
+        hit = ed.pick_atlas(mx, my, w, h)
+        if hit is None:
+            self._last = None
+            return
+        pos, per_px = hit  # (atlas texels per screen pixel here)
+        tool = ed.tool
+        b = tool.brush
+        n = ed.doc.surface.size
+        r = dab_radius(b.radius, b.screen_units, per_px, n)
+        field, self._last, count = model_stroke(ed.doc.randomness_canvas, ed.session.model.atlas, n,
+                                                self._last, pos, r, b)
+        if not count:
+            return
+        tool.dabs += count
+        ed.edit(replace(ed.doc, randomness_canvas=field), "Paint randomness (model)", group=self._group)
+
+    def finish(self, mx: float, my: float, w: int, h: int) -> None:
+        self.release()  # (no dab where the button came up: the last move's was made)
+
+    def release(self) -> None:
+        if self._group is not None and self.ed.history is not None:
+            self.ed.history.end_group()
+        self._last, self._group = None, None
+
+
+def clear_painted(ed) -> None:
+    """The "Clear painted randomness" button of the paint tools (when there is some)."""
+    doc = ed.doc
+    if doc.randomness_canvas is not None or doc.randomness_exemplar is not None:
+        if imgui.button("Clear painted randomness", (-1, 0)):
+            ed.edit(replace(doc, randomness_canvas=None, randomness_exemplar=None), "Clear painted randomness")
+
+
 class PaintCanvasTool(Tool):
     name = "paint-canvas"
     label = "Paint canvas"
     key = "B"
     tooltip = "Paint where the texture may vary: calm (0) keeps the exemplar's look, rough (2) varies more (B)"
+    space = "canvas"
+    shows_painted = True
 
     def __init__(self, ed):
         super().__init__(ed)
@@ -113,6 +167,10 @@ class PaintCanvasTool(Tool):
         self._last: tuple[float, float] | None = None
         self._group: object = None
         self.dabs = 0  # dabs painted (benchmarks, tests)
+        self._model = ModelPaint(ed)
+
+    def model_gesture(self) -> ModelPaint:
+        return self._model
 
     def radius_canvas(self) -> float:
         b = self.brush
@@ -155,6 +213,7 @@ class PaintCanvasTool(Tool):
 
     def options(self) -> None:
         brush_options(self.brush, canvas=True)
+        clear_painted(self.ed)
 
     def keys(self) -> None:
         brush_keys(self.brush)
@@ -181,6 +240,8 @@ class PaintExemplarTool(Tool):
     key = "E"
     tooltip = ("Paint on the exemplar (in its window): randomness (calm keeps those features whole wherever "
                "they appear, rough breaks them up more), or regions to avoid, never copied (E)")
+    space = "exemplar"
+    shows_painted = True
 
     def __init__(self, ed):
         super().__init__(ed)
@@ -211,6 +272,7 @@ class PaintExemplarTool(Tool):
         else:
             brush_options(self.brush, canvas=False)
         imgui.text_disabled("Paint in the Paint exemplar window.")
+        clear_painted(self.ed)
 
     def keys(self) -> None:
         brush_keys(self.brush)
