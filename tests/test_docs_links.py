@@ -55,3 +55,15 @@ def test_the_check_catches_a_lost_heading(tmp_path):
     b.write_text("# B\n\n## Kept one\n")
     assert broken_links([str(a), str(b)]) == [f"{os.path.relpath(str(a), ROOT)}: b.md#gone is no heading",
                                               f"{os.path.relpath(str(a), ROOT)}: c.md does not exist"]
+
+
+def test_the_readme_is_short_and_gives_the_two_commands_first():
+    """The README stays a front page (at most 150 lines; the figures live in
+    docs/benchmarks.md) whose first 40 lines give the two set-up commands that
+    .ci/run and a newcomer rely on."""
+    lines = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read().splitlines()
+    assert len(lines) <= 150, len(lines)
+    head = "\n".join(lines[:40])
+    assert "bash scripts/editor.sh" in head and "bash scripts/test.sh" in head
+    ci = open(os.path.join(ROOT, ".ci", "run"), encoding="utf-8").read()
+    assert "bash scripts/test.sh" in ci  # CI runs the README's test command
