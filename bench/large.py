@@ -4,7 +4,7 @@
 
 For each exemplar side m, a fresh process (so its peak memory is its own)
 imports the engine, reads an m x m PNG (a cobblestone base color made by
-``scripts/make_material.py``: the same 100 stones at every side, 3 channels) with the fit rule that
+``bench/cobbles.py``: the same 100 stones at every side, 3 channels) with the fit rule that
 keeps it, and analyzes it without the cache (default settings: similarity
 sets up to 512 px, the random-walk search above; at 512 px also k = 0). It
 reports the analysis seconds, the process's peak resident memory (VmHWM:
@@ -60,7 +60,7 @@ print(json.dumps(dict(size=ex.size, k=an.k, analysis_s=seconds, peak_mb=peak, im
 
 def exemplar_png(m: int, folder: str) -> str:
     from infinitex.engine.imagefile import write_image
-    from scripts.make_material import cobbles
+    from bench.cobbles import cobbles
     path = os.path.join(folder, f"cobbles{m}.png")
     write_image(path, cobbles(m, stones=100)["basecolor"], 8)  # the same stones at every side: a finer photo
     return path

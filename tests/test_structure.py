@@ -155,3 +155,77 @@ def test_no_tool_name_is_compared_outside_the_tools():
     assert _name_comparisons('if ed.tool.name in ("labels", "x"): pass\nif t.name.startswith("paint"): pass\n'
                              'if tool.name == "feature": pass\nkinds = ("labels", 1)\nif ex.fit == "lattice": pass\n',
                              names) == [1, 2, 3]
+
+
+def _graph(root: str, prefix: str) -> dict[str, set[str]]:
+    """Module -> the modules under ``prefix`` it imports (at the top or inside a
+    function: a lazy import is a dependency too), from the files under ``root``."""
+    mods = {}
+    for folder, _, files in os.walk(root):
+        for name in sorted(files):
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                rel = os.path.relpath(path, ROOT)[:-3].split(os.sep)
+                is_package = rel[-1] == "__init__"
+                mods[".".join(rel[:-1] if is_package else rel)] = (path, is_package)
+    graph = {}
+    for module, (path, is_package) in mods.items():
+        out = set()
+        for _, target, names in _imports(path, module, is_package):
+            for t in [target] + [f"{target}.{n}" for n in names]:
+                if t in mods and t != module and t.startswith(prefix):
+                    out.add(t)
+        graph[module] = out
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_subpackages_depend_one_way():
+    """No import cycle inside the engine (engine/surface included), none between
+    engine/controls and engine/surface (the controls know a model's atlas only
+    as an object with methods), app/render never imports app/ui (drawing knows
+    no panel or tool), and the benchmarks never import the scripts."""
+    engine = _graph(os.path.join(PACKAGE, "engine"), "infinitex.engine")
+    assert _cycles(engine) == []
+    assert not [(m, t) for m, ts in engine.items() for t in ts
+                if m.startswith("infinitex.engine.controls") and t.startswith("infinitex.engine.surface")]
+    app = _graph(os.path.join(PACKAGE, "app"), "infinitex.app")
+    assert not [(m, t) for m, ts in app.items() for t in ts
+                if m.startswith("infinitex.app.render") and t.startswith("infinitex.app.ui")]
+    for folder, _, files in os.walk(os.path.join(ROOT, "bench")):
+        for name in files:
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                bad = [t for _, t, _ in _imports(path, "bench." + name[:-3], False) if t.split(".")[0] == "scripts"]
+                assert not bad, f"{os.path.relpath(path, ROOT)} imports {bad}"
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]

@@ -72,6 +72,16 @@ def avoid_rgba(values: np.ndarray) -> np.ndarray:
     return out
 
 
+
+def label_rgba(values: np.ndarray, colors, free_value: int | None = 0, alpha: int = 120) -> np.ndarray:
+    """Label values to RGBA8 for an overlay: each label in its color, ``free_value`` transparent;
+    ``values`` hold label + 1 on the canvas (free_value 0) or the label itself (free_value None)."""
+    lut = np.zeros((17, 4), np.uint8)
+    offset = 0 if free_value is None else 1
+    for i, c in enumerate(colors[:16]):
+        lut[i + offset] = (*c, alpha)
+    return np.take(lut, np.minimum(values, 16), axis=0)
+
 class FieldOverlay:
     """One texture holding a heat map, re-made only when its inputs change."""
 
@@ -141,13 +151,11 @@ class LabelOverlay(FieldOverlay):
     Labels window) and the canvas labels over the canvas."""
 
     def exemplar_labels(self, labels, colors) -> moderngl.Texture:
-        from infinitex.app.ui.tools.labels import label_rgba
         return self._whole(("l", labels.key, tuple(colors)), lambda: label_rgba(labels.values, colors, None))
 
     def canvas_labels(self, labels, colors, x0: float, y0: float, w_canvas: float, h_canvas: float):
         """The canvas labels over a finest-level rectangle, sampled near the
         screen's resolution (``placement`` says where), or None where none is painted."""
-        from infinitex.app.ui.tools.labels import label_rgba
         if labels is None or labels.empty:
             return None
         big = max(w_canvas, h_canvas)

@@ -246,9 +246,8 @@ class Controls:
         if not self.features:
             return None
         if self.surface is not None:  # placed on a model: per-chart copies (engine/surface/features.py)
-            from ..surface.features import feature_table
-            copies = self.surface.feature_copies(self.features_key, self._features)
-            return feature_table(copies, self._features, level, L, m, toroidal, x0, y0, x1, y1)
+            return self.surface.feature_table(self.features_key, self._features, level, L, m, toroidal,
+                                              x0, y0, x1, y1)
         k = L - level
         f = self._features if period else self._features[self._meeting(x0 << k, y0 << k, x1 << k, y1 << k)]
         active, radius, u = level_values(f, level, L, m, toroidal)
@@ -272,8 +271,8 @@ class Controls:
         if table is None:
             return None
         if self.surface is not None:
-            from ..surface.features import table_reach
-            return (table, *reach_bins(*table_reach(table, level, L), len(table), x0, y0, x1 - x0, y1 - y0))
+            return (table, *reach_bins(*self.surface.table_reach(table, level, L), len(table), x0, y0,
+                                       x1 - x0, y1 - y0))
         return (table, *feature_bins(table, x0, y0, x1 - x0, y1 - y0, period))
 
     def changed_rects(self, other: Controls) -> list | None:

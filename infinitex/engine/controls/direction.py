@@ -58,6 +58,36 @@ def _identity_tile() -> np.ndarray:
     return np.broadcast_to(IDENTITY, (TILE, TILE, 4)).copy()
 
 
+def clamp_stretch(J: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+    """2x2 matrices (n, 4) with their singular values held within [lo, hi]
+    (J V diag(s'/s) V^T), and which were changed; closed-form, elementwise."""
+    a = J[:, 0] ** 2 + J[:, 2] ** 2  # J^T J = [[a, b], [b, c]]
+    b = J[:, 0] * J[:, 1] + J[:, 2] * J[:, 3]
+    c = J[:, 1] ** 2 + J[:, 3] ** 2
+    half, mid = 0.5 * (a - c), 0.5 * (a + c)
+    r = np.sqrt(half * half + b * b)
+    l1, l2 = mid + r, np.maximum(mid - r, 0.0)
+    s1, s2 = np.sqrt(l1), np.sqrt(l2)
+    changed = (s1 > hi) | (s2 < lo)
+    if not changed.any():
+        return J, changed
+    # The eigenvector of l1: (b, l1 - a), or (l1 - c, b), whichever is longer; the other is its normal.
+    va = np.stack([b, l1 - a], -1)
+    vb = np.stack([l1 - c, b], -1)
+    v = np.where((np.abs(va).sum(-1) >= np.abs(vb).sum(-1))[:, None], va, vb)
+    length = np.sqrt((v * v).sum(-1))
+    v = np.where(length[:, None] > 0, v / np.where(length > 0, length, 1.0)[:, None], [1.0, 0.0])
+    f1 = np.clip(s1, lo, hi) / np.where(s1 > 0, s1, 1.0)
+    f2 = np.clip(s2, lo, hi) / np.where(s2 > 0, s2, 1.0)
+    f2 = np.where(s2 > 0, f2, 1.0)
+    # S = V diag(f1, f2) V^T, then J S.
+    x, y = v[:, 0], v[:, 1]
+    S00, S01, S11 = f1 * x * x + f2 * y * y, (f1 - f2) * x * y, f1 * y * y + f2 * x * x
+    out = np.stack([J[:, 0] * S00 + J[:, 1] * S01, J[:, 0] * S01 + J[:, 1] * S11,
+                    J[:, 2] * S00 + J[:, 3] * S01, J[:, 2] * S01 + J[:, 3] * S11], -1)
+    return np.where(changed[:, None], out, J), changed
+
+
 def jacobian(theta_deg, scale=1.0, aspect=1.0) -> np.ndarray:
     """J in Q12 (..., 4) int16 for directions (degrees), scales and aspects (arrays broadcast).
     ValueError when a stretch leaves [MIN_STRETCH, MAX_STRETCH]."""

@@ -42,7 +42,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH
+from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH, clamp_stretch
 from ..controls.fields import TILE
 from .mesh import Model
 
@@ -98,36 +98,6 @@ def _box_texels(ids: np.ndarray, x0: np.ndarray, y0: np.ndarray, w: np.ndarray, 
         bw = np.maximum(w[rep], 1)
         yield ids[rep], x0[rep] + off % bw, y0[rep] + off // bw
         start = stop
-
-
-def clamp_stretch(J: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
-    """2x2 matrices (n, 4) with their singular values held within [lo, hi]
-    (J V diag(s'/s) V^T), and which were changed; closed-form, elementwise."""
-    a = J[:, 0] ** 2 + J[:, 2] ** 2  # J^T J = [[a, b], [b, c]]
-    b = J[:, 0] * J[:, 1] + J[:, 2] * J[:, 3]
-    c = J[:, 1] ** 2 + J[:, 3] ** 2
-    half, mid = 0.5 * (a - c), 0.5 * (a + c)
-    r = np.sqrt(half * half + b * b)
-    l1, l2 = mid + r, np.maximum(mid - r, 0.0)
-    s1, s2 = np.sqrt(l1), np.sqrt(l2)
-    changed = (s1 > hi) | (s2 < lo)
-    if not changed.any():
-        return J, changed
-    # The eigenvector of l1: (b, l1 - a), or (l1 - c, b), whichever is longer; the other is its normal.
-    va = np.stack([b, l1 - a], -1)
-    vb = np.stack([l1 - c, b], -1)
-    v = np.where((np.abs(va).sum(-1) >= np.abs(vb).sum(-1))[:, None], va, vb)
-    length = np.sqrt((v * v).sum(-1))
-    v = np.where(length[:, None] > 0, v / np.where(length > 0, length, 1.0)[:, None], [1.0, 0.0])
-    f1 = np.clip(s1, lo, hi) / np.where(s1 > 0, s1, 1.0)
-    f2 = np.clip(s2, lo, hi) / np.where(s2 > 0, s2, 1.0)
-    f2 = np.where(s2 > 0, f2, 1.0)
-    # S = V diag(f1, f2) V^T, then J S.
-    x, y = v[:, 0], v[:, 1]
-    S00, S01, S11 = f1 * x * x + f2 * y * y, (f1 - f2) * x * y, f1 * y * y + f2 * x * x
-    out = np.stack([J[:, 0] * S00 + J[:, 1] * S01, J[:, 0] * S01 + J[:, 1] * S11,
-                    J[:, 2] * S00 + J[:, 3] * S01, J[:, 2] * S01 + J[:, 3] * S11], -1)
-    return np.where(changed[:, None], out, J), changed
 
 
 def triangle_jacobians(model: Model, uvpx: np.ndarray, sigma: float, frame: str,
@@ -593,6 +563,19 @@ class AtlasDomain:
                 cache.clear()
             cache[features_key] = feature_copies(self, feats)
         return cache[features_key]
+
+    def feature_table(self, features_key: str, feats: np.ndarray, level: int, L: int, m: int, toroidal: bool,
+                      x0: int, y0: int, x1: int, y1: int) -> np.ndarray | None:
+        """The passes' table of the features placed on the model (their per-chart
+        copies) over a level-texel rectangle (surface/features.py feature_table)."""
+        from .features import feature_table
+        return feature_table(self.feature_copies(features_key, feats), feats, level, L, m, toroidal, x0, y0, x1, y1)
+
+    @staticmethod
+    def table_reach(table: np.ndarray, level: int, L: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each row's centre level texel and reach (surface/features.py table_reach)."""
+        from .features import table_reach
+        return table_reach(table, level, L)
 
     def link_map(self, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """(chart served, target (n, n, 2)) of level k's links."""

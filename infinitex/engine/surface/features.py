@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH
+from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH, clamp_stretch
 from ..controls.features import level_values
 
 Q = 3  # bits below a finest texel of a copy's centre
@@ -97,7 +97,6 @@ def feature_copies(atlas, feats: np.ndarray) -> np.ndarray:
     under its centre and one in each chart across a seam its outer disc
     reaches (across the edge of that seam nearest its centre): float64 (C,
     COLUMNS), by feature, its own copy first, then by chart across (module docstring)."""
-    from .atlas import clamp_stretch
     n = atlas.size
     feats = np.asarray(feats, np.int64).reshape(-1, 9)
     px, py, outer = feats[:, 0], feats[:, 1], feats[:, 3]

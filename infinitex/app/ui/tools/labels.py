@@ -33,16 +33,6 @@ FILL_LIMIT = 4096  # a fill covers at most this many canvas pixels a side (the v
 LABEL_FILTER = ["Label maps", "*.png *.bmp *.tif *.tiff *.gif *.webp"]
 
 
-def label_rgba(values: np.ndarray, colors, free_value: int | None = 0, alpha: int = 120) -> np.ndarray:
-    """Label values to RGBA8 for an overlay: each label in its color, ``free_value`` transparent;
-    ``values`` hold label + 1 on the canvas (free_value 0) or the label itself (free_value None)."""
-    lut = np.zeros((17, 4), np.uint8)
-    offset = 0 if free_value is None else 1
-    for i, c in enumerate(colors[:16]):
-        lut[i + offset] = (*c, alpha)
-    return np.take(lut, np.minimum(values, 16), axis=0)
-
-
 class LabelTool(Tool):
     name = "labels"
     label = "Labels"
