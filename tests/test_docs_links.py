@@ -67,3 +67,18 @@ def test_the_readme_is_short_and_gives_the_two_commands_first():
     assert "bash scripts/editor.sh" in head and "bash scripts/test.sh" in head
     ci = open(os.path.join(ROOT, ".ci", "run"), encoding="utf-8").read()
     assert "bash scripts/test.sh" in ci  # CI runs the README's test command
+
+
+def test_how_it_works_names_every_module():
+    """docs/how-it-works.md's module table names every source file of the
+    package (by its path, its folder and name, or its name in backquotes)."""
+    doc = open(os.path.join(ROOT, "docs", "how-it-works.md"), encoding="utf-8").read()
+    missing = []
+    for folder, _, files in os.walk(os.path.join(ROOT, "infinitex")):
+        for name in files:
+            if name.endswith(".py") and name != "__init__.py":
+                rel = os.path.relpath(os.path.join(folder, name), ROOT).replace(os.sep, "/")
+                parent = rel.split("/")[-2]
+                if not (rel in doc or f"`{name}`" in doc or f"{parent}/{name}" in doc):
+                    missing.append(rel)
+    assert not missing, "not in docs/how-it-works.md: " + ", ".join(sorted(missing))
