@@ -113,7 +113,8 @@ class CanvasPreviewMixin:
 
     def _work(self, step, done, settle: bool):
         """Run ``step(budget)`` for this frame's synthesis budget; while nothing
-        is touched (no button held, no control active, no input queued), again
+        is touched (no button held, no control active, no input queued) and no
+        other job takes a slice of each frame (an export, a tile set), again
         and again until ``done(result)``, a frame of about SETTLE_FRAME_S, or an
         input event arrives (glfw is polled between steps, so a key or a move
         ends the frame within one step, and the next frame is short again).
@@ -133,7 +134,7 @@ class CanvasPreviewMixin:
     def _untouched(self) -> bool:
         io = imgui.get_io()
         return not (imgui.is_any_item_active() or imgui.is_any_mouse_down() or io.want_text_input
-                    or self._canvas_button >= 0 or self._input_arrived(poll=False))
+                    or self._canvas_button >= 0 or self._working or self._input_arrived(poll=False))
 
     def _input_arrived(self, poll: bool = True) -> bool:
         """Input events wait for the next frame (polled from the window system first)."""

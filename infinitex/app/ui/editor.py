@@ -169,6 +169,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self._title = ""
         self._may_idle = False           # set after each frame: nothing to refine, no job
         self._analyzing = False          # set after each frame: an analysis is running
+        self._working = False            # set after each frame: a job runs a slice per frame
         self._idle_fps = IDLE_FPS
         self._last_input = 0.0           # monotonic time of the last input event seen
         self._last_frame_t = 0.0
@@ -387,12 +388,20 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             self._finish_load(job)
         elif job is not None and job.error:
             self.dialogs.message("Analysis failed", job.error)
-        if self.doc is not None and (self.pending is None or s.job is None):
-            s.sync(self.session_doc())
         if s.ready:
             self._show_maps()
         self._poll_export()
         self._autosave_tick()
+
+    def sync_session(self) -> None:
+        """The frame's one ``Session.sync``, after the canvas's input (so a tool's
+        edit of this frame is synthesized, or its local update started, in this
+        frame; an edit made later in a frame, in a dialog, is taken by the next)."""
+        s = self.session
+        if self.doc is not None and (self.pending is None or s.job is None):
+            s.sync(self.session_doc())
+            if s.ready:
+                self._show_maps()
 
     def _show_maps(self) -> None:
         """Upload the shown map's stack (and, lit, the shaping map's) when they change."""
@@ -422,7 +431,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         hovered = self._canvas_input(p0, w, h)
         if s.ready and self.doc is not None:
             s.period = self.tile_period()
-            s.sync(self.session_doc())  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
+        self.sync_session()  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
+        if s.ready and self.doc is not None:
             level = None
             if self.display.mode == "level":
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
@@ -471,6 +481,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             self._idle_fps = ANALYSIS_FPS
         self._may_idle = not busy
         self._analyzing = analyzing
+        self._working = working  # a job sliced into frames (an export here, a tile set): frames stay short
         if self.quit_requested:
             self.params.app_shall_exit = True
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)

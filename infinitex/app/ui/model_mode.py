@@ -189,8 +189,8 @@ class ModelModeMixin:
             self._seams_key = None
             self._model_overlay_key = None
         hovered = self._model_input(p0, w, h)
+        self.sync_session()  # (the model's texture with it: Session.sync keeps s.model in step)
         pv = s.model
-        pv.sync(s, self.doc)
         t0 = time.perf_counter()
         self.refined = pv.step(MODEL_BUDGET_S, self.shown_role())
         self.update_ms = (time.perf_counter() - t0) * 1000.0
