@@ -61,7 +61,10 @@ def main(out: str) -> int:
         built = wait(ctx, lambda: d.job is not None and d.job.built, 120)
         elapsed = time.monotonic() - t0
         frames = ed.frame_count - frames0
-        check("the preview is made while the editor keeps drawing", built and frames >= 5 * elapsed,
+        # Spread over frames (FRAME_BUDGET_S of it a frame): a build that held the
+        # editor would take a frame or two. (Not a frame rate: on a busy machine,
+        # the suite's own workers and this export's beside it, 3 a second was seen.)
+        check("the preview is made while the editor keeps drawing", built and frames >= 10,
               f"built {built}, {frames} frames in {elapsed:.1f} s, {d.error}")
         ctx.yield_(3)
         check("the preview shows 8 x 8 tiles", d.tex is not None and d.tex.size == (512, 512),
