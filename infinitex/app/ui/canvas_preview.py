@@ -136,16 +136,6 @@ class CanvasPreviewMixin:
         return not (imgui.is_any_item_active() or imgui.is_any_mouse_down() or io.want_text_input
                     or self._canvas_button >= 0 or self._working or self._input_arrived(poll=False))
 
-    def _input_arrived(self, poll: bool = True) -> bool:
-        """Input events wait for the next frame (polled from the window system first)."""
-        if poll:
-            try:
-                import glfw
-                glfw.poll_events()  # (the callbacks only queue: imgui's events, the key log, dropped files)
-            except Exception:
-                return True
-        return bool(len(imgui.get_current_context().input_events_queue) or self.keys.waiting)
-
     def _refine_and_draw(self, s, geom) -> None:
         """Synthesize for this frame and bring the canvas texture up to date."""
         if self.doc is not self._last_doc:

@@ -356,7 +356,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
 
     def _sleep_until_input(self) -> None:
         now = time.monotonic()
-        queue = len(imgui.get_current_context().input_events_queue) + self.keys.waiting
+        queue = self._input_arrived(poll=False)
         if queue:
             self._last_input = now
         if (not self._may_idle or queue or now - self._last_input < ACTIVE_AFTER_INPUT_S
@@ -370,8 +370,19 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             glfw.wait_events_timeout(timeout)  # releases the GIL: the analysis thread runs meanwhile
         except Exception:
             return
-        if len(imgui.get_current_context().input_events_queue) or self.keys.waiting:
+        if self._input_arrived(poll=False):
             self._last_input = time.monotonic()
+
+    def _input_arrived(self, poll: bool = True) -> bool:
+        """Input events wait for a frame: imgui's queue or the key log (``poll``:
+        asked of the window system first; its callbacks only queue)."""
+        if poll:
+            try:
+                import glfw
+                glfw.poll_events()
+            except Exception:
+                return True
+        return bool(len(imgui.get_current_context().input_events_queue) or self.keys.waiting)
 
     def _tick_fps(self) -> None:
         self._fps_n += 1
