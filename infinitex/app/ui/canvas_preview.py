@@ -127,14 +127,14 @@ class CanvasPreviewMixin:
         if not settle or self.canvas_request or not self._untouched():
             return result
         settle_s = SETTLE_FRAME_S - self.frame_pacer.other_s
-        while not done(result) and time.perf_counter() - t0 + budget <= settle_s and not self._input_arrived():
+        while not done(result) and time.perf_counter() - t0 + budget <= settle_s and not self.waits.arrived():
             result = step(budget)
         return result
 
     def _untouched(self) -> bool:
         io = imgui.get_io()
         return not (imgui.is_any_item_active() or imgui.is_any_mouse_down() or io.want_text_input
-                    or self._canvas_button >= 0 or self._working or self._input_arrived(poll=False))
+                    or self._canvas_button >= 0 or self.waits.working or self.waits.arrived(poll=False))
 
     def _refine_and_draw(self, s, geom) -> None:
         """Synthesize for this frame and bring the canvas texture up to date."""

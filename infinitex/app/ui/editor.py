@@ -10,6 +10,7 @@ concerns are mixins, one a module: files.py (documents, saving, the questions
 before unsaved edits are lost, autosave, the undo history), exports.py
 (starting and following exports), canvas_input.py (the mouse on the canvas,
 the tools, the overlays) and shortcuts.py (the keys and their F1 list).
+When it sleeps between frames and how long a frame synthesizes: pacing.py.
 """
 from __future__ import annotations
 
@@ -43,56 +44,19 @@ from .exports import ExportsMixin
 from .files import DEFAULT_EXEMPLAR, FilesMixin
 from .keylog import KeyLog
 from .model_mode import ModelModeMixin
+from .pacing import FramePacer, InputWait
 from .shortcuts import ShortcutsMixin
 from .tools import make_tools
 
 __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EXEMPLAR: where it always was
 
-REST_BUDGET_S = 0.020        # synthesis per frame while refining, at most: with drawing, a frame takes about 33 ms
-FRAME_S = 0.027              # the frame the refinement's budget aims at (what the rest of a frame leaves)
 PANEL_WIDTH = 340
 # The editor spawns worker processes (streamed exports, their estimate) while
 # GL and the UI threads run. CPython's vfork() path for that (multiprocessing
 # uses it through subprocess) aborted the editor now and then, under the imgui
 # test engine, during a spawn; plain fork + exec (the documented switch) did not.
 subprocess._USE_VFORK = False
-IDLE_FPS = 0.25              # frames per second with nothing to do (input wakes the editor at once)
-ACTIVE_AFTER_INPUT_S = 0.5   # full frame rate this long after the last input event
-BACKGROUND_FPS = 4.0  # while worker processes export: progress, and the cores left to them
-ANALYSIS_FPS = 8.0    # while only the analysis thread works (nothing to refine)
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
-
-
-TYPING_BUDGET_S = 0.004  # the refinement's share of a frame while the user types
-
-
-class FramePacer:
-    """Learns what a busy frame costs besides the synthesis (drawing, the UI,
-    an edit), so that the refinement's budget keeps frames near FRAME_S."""
-
-    def __init__(self) -> None:
-        self._t = 0.0  # when the last frame began (perf_counter)
-        self._other_s = 0.010
-
-    def frame_began(self, update_ms: float) -> None:
-        """A frame begins; the last one spent ``update_ms`` synthesizing."""
-        now = time.perf_counter()
-        dt, self._t = now - self._t, now
-        if dt < 0.1 and update_ms > 0.0:  # (not after an idle wait)
-            self._other_s = 0.8 * self._other_s + 0.2 * max(0.0, dt - update_ms / 1000.0)
-
-    @property
-    def other_s(self) -> float:
-        """What a frame costs besides the synthesis, lately."""
-        return self._other_s
-
-    @property
-    def budget_s(self) -> float:
-        """The synthesis budget of this frame; the least while a text field
-        takes keys (a file name typed in the chooser: every key shows at once)."""
-        if imgui.get_io().want_text_input:
-            return TYPING_BUDGET_S
-        return min(REST_BUDGET_S, max(0.006, FRAME_S - self._other_s))
 
 
 class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, ShortcutsMixin, ModelModeMixin):
@@ -138,9 +102,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.canvas_size = (1, 1)
         self.refined = False
         self.frame_count = 0
-        self.fps = 0.0
-        self._fps_t = time.perf_counter()
-        self._fps_n = 0
         self.update_ms = 0.0
         self.frame_pacer = FramePacer()
         self.pixels = 0
@@ -167,13 +128,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self._canvas_button = -1         # mouse button that went down on the canvas
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
-        self._may_idle = False           # set after each frame: nothing to refine, no job
-        self._analyzing = False          # set after each frame: an analysis is running
-        self._working = False            # set after each frame: a job runs a slice per frame
-        self._idle_fps = IDLE_FPS
-        self._last_input = 0.0           # monotonic time of the last input event seen
-        self._last_frame_t = 0.0
         self.keys = KeyLog()             # this frame's key presses, each with its own modifiers
+        self.waits = InputWait(self.keys)  # whether the editor may sleep between frames, and its sleep
 
     # -- running ------------------------------------------------------------
 
@@ -198,17 +154,16 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
                 self.notice = (note, time.monotonic())
         p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
         # Idle means idle, and no input is lost: the editor does its own waiting
-        # (_wait_for_input, before each frame), so the events that wake it are
-        # handled by the very frame they wake, and it stays awake while input
-        # keeps coming; the runner's own idling (which handled the waking event
-        # one frame late, that is up to a whole idle period late) stays off.
+        # (InputWait.before_frame), so the events that wake it are handled by the
+        # very frame they wake; the runner's own idling (which handled the waking
+        # event one frame late, that is up to a whole idle period late) stays off.
         # No multisampled window: imgui smooths its own edges, and on a software
         # GL (llvmpipe) the runner's default 8x multisampling cost 12 of the
         # 18 ms a 1280 x 800 frame took to draw, time taken from the synthesis.
         p.renderer_backend_options.open_gl_options.anti_aliasing_samples = 0
         p.fps_idling.enable_idling = False
         p.fps_idling.remember_enable_idling = False
-        p.callbacks.pre_new_frame = self._wait_for_input
+        p.callbacks.pre_new_frame = self.waits.before_frame
         p.callbacks.post_init = self.post_init
         p.callbacks.show_gui = self.gui
         p.callbacks.before_exit = self.before_exit
@@ -250,7 +205,9 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
                           "on Linux install libgl1 and a Mesa driver.")
             return
         self._install_drop_callback()
-        if not getattr(self.params, "use_imgui_test_engine", False):  # (its keys go to imgui, not the window)
+        # The imgui test engine drives the frames itself: no sleeping between them.
+        self.waits.never = bool(getattr(self.params, "use_imgui_test_engine", False))
+        if not self.waits.never:  # (its keys go to imgui, not the window)
             try:
                 from imgui_bundle import glfw_utils
                 self.keys.install(glfw_utils.glfw_window_hello_imgui())
@@ -289,9 +246,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
 
     def gui(self) -> None:
         self.frame_count += 1
-        self._last_frame_t = time.monotonic()
+        self.waits.frame_began()
         self.frame_pacer.frame_began(self.update_ms)
-        self._tick_fps()
         vp = imgui.get_main_viewport()
         imgui.set_next_window_pos(vp.work_pos)
         imgui.set_next_window_size(vp.work_size)
@@ -335,61 +291,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             self.tool.window()
         self.shortcuts_window()
         self._after_frame()
-
-    @property
-    def idle(self) -> bool:
-        """Nothing to do: no refinement, no job, no input for a moment (the editor sleeps between frames)."""
-        return (self._may_idle and not self._analyzing
-                and time.monotonic() - self._last_input >= ACTIVE_AFTER_INPUT_S)
-
-    def _wait_for_input(self) -> None:
-        """Before each frame (after the runner polled the window system): when
-        there is nothing to do, sleep until input arrives or the idle period
-        ends. The events glfw delivers while waiting go to imgui's queue, so
-        this frame handles them; and while events are queued or came recently
-        (imgui spreads fast input over frames: a press and release of one key,
-        a move and a release), the editor does not sleep at all."""
-        try:
-            self._sleep_until_input()
-        finally:
-            self.keys.new_frame()  # the presses delivered until now are this frame's
-
-    def _sleep_until_input(self) -> None:
-        now = time.monotonic()
-        queue = self._input_arrived(poll=False)
-        if queue:
-            self._last_input = now
-        if (not self._may_idle or queue or now - self._last_input < ACTIVE_AFTER_INPUT_S
-                or getattr(self.params, "use_imgui_test_engine", False)):
-            return
-        timeout = 1.0 / self._idle_fps - (now - self._last_frame_t)
-        if timeout <= 0:
-            return
-        try:
-            import glfw
-            glfw.wait_events_timeout(timeout)  # releases the GIL: the analysis thread runs meanwhile
-        except Exception:
-            return
-        if self._input_arrived(poll=False):
-            self._last_input = time.monotonic()
-
-    def _input_arrived(self, poll: bool = True) -> bool:
-        """Input events wait for a frame: imgui's queue or the key log (``poll``:
-        asked of the window system first; its callbacks only queue)."""
-        if poll:
-            try:
-                import glfw
-                glfw.poll_events()
-            except Exception:
-                return True
-        return bool(len(imgui.get_current_context().input_events_queue) or self.keys.waiting)
-
-    def _tick_fps(self) -> None:
-        self._fps_n += 1
-        now = time.perf_counter()
-        if now - self._fps_t >= 0.5:
-            self.fps = self._fps_n / (now - self._fps_t)
-            self._fps_t, self._fps_n = now, 0
 
     def _update_engine(self) -> None:
         s = self.session
@@ -474,11 +375,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
 
     def _after_frame(self) -> None:
         self._update_title()
-        # Worker processes doing the work (a streamed export, an estimate) need
-        # the cores more than a full frame rate: a few frames a second show progress.
-        background = (self.exporting_apart()
-                      or (self.estimate is not None and not self.estimate.poll()))
-        self._idle_fps = BACKGROUND_FPS if background else IDLE_FPS
         analyzing = self.pending is not None or (self.session is not None and self.session.job is not None)
         working = (self.export_job is not None and not self.exporting_apart()
                    or self.panels.tileset.building)
@@ -486,13 +382,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         waiting = self.history is None and bool(self.dialogs.modals)
         shown = self.session is not None and self.session.ready and self.doc is not None
         busy = working or (shown and not self.refined) or (not shown and not waiting and not analyzing)
-        if analyzing and not busy:
-            # Only the analysis thread works: a few frames a second show its
-            # progress and leave it the cores (full frames would starve it).
-            self._idle_fps = ANALYSIS_FPS
-        self._may_idle = not busy
-        self._analyzing = analyzing
-        self._working = working  # a job sliced into frames (an export here, a tile set): frames stay short
+        # Worker processes doing the work (a streamed export, an estimate) need
+        # the cores more than a full frame rate: a few frames a second show progress.
+        background = (self.exporting_apart()
+                      or (self.estimate is not None and not self.estimate.poll()))
+        self.waits.frame_ended(busy=busy, analyzing=analyzing, working=working, background=background)
         if self.quit_requested:
             self.params.app_shall_exit = True
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)

@@ -23,11 +23,11 @@ def status_bar(p: Panels) -> None:
     ed = p.ed
     imgui.separator()
     s = ed.session
-    if ed.refined and ed.idle:
+    if ed.refined and ed.waits.idle:
         # Nothing to do: the editor sleeps until input comes, so a frame rate means nothing.
         parts = ["idle"]
     else:
-        parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.fps:5.1f} fps"]
+        parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.frame_pacer.fps:5.1f} fps"]
     pv = s.model if ed.model_mode else None
     if pv is not None:  # a model: its texture's size and the finest level shown (the plane's view is elsewhere)
         parts.append(f"model texture {ed.doc.surface.size} px")
