@@ -229,3 +229,33 @@ def test_subpackages_depend_one_way():
                 bad = [t for _, t, _ in _imports(path, "bench." + name[:-3], False) if t.split(".")[0] == "scripts"]
                 assert not bad, f"{os.path.relpath(path, ROOT)} imports {bad}"
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def _programs_built_apart(src: str) -> list[int]:
+    """Lines that compile GL programs themselves (``.program(vertex_shader=...)``)
+    or carry GLSL in a Python string (a ``#version`` line)."""
+    out = []
+    for node in ast.walk(ast.parse(src)):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "program"
+                and any(k.arg in ("vertex_shader", "fragment_shader") for k in node.keywords)):
+            out.append(node.lineno)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and "#version" in node.value:
+            out.append(node.lineno)
+    return sorted(set(out))
+
+
+def test_every_shader_comes_from_files_through_one_loader():
+    """The engine, the canvas and the model view build their programs with
+    engine/gpu.py's build_program, from GLSL files: no GLSL in Python strings,
+    no program compiled elsewhere."""
+    loader = os.path.join(PACKAGE, "engine", "gpu.py")
+    bad = []
+    for path, _, _ in _modules():
+        lines = _programs_built_apart(open(path, encoding="utf-8").read())
+        if path == loader:
+            assert len(lines) == 2, lines  # the one ctx.program call, GLSL_VERSION
+            continue
+        bad += [f"{os.path.relpath(path, ROOT)}:{n}" for n in lines]
+    assert not bad, "\n".join(bad)
+    assert _programs_built_apart('p = ctx.program(vertex_shader=V, fragment_shader=F)\n'
+                                 'VERT = """\n#version 330 core\nvoid main() {}\n"""\nq = gpu.program("copy.frag")\n') == [1, 2]

@@ -1,8 +1,10 @@
 """OpenGL 3.3 core plumbing: context, shader programs, exemplar textures.
 
-Shaders live in ``engine/shaders/*.glsl`` / ``*.frag`` / ``*.vert``; a program
-is its files plus a few ``#define`` lines (subpass grid size, model), compiled
-once per context and cached.
+Every GL program of the product is built by :func:`build_program` from GLSL
+files: the synthesis passes' in ``engine/shaders/*.glsl`` / ``*.frag`` /
+``*.vert``, the editor's canvas and model view's in ``app/render/shaders``;
+one header (the version and a few ``#define`` lines: subpass grid size, model,
+drawing mode) before the files. :class:`Gpu` caches the engine's per context.
 """
 from __future__ import annotations
 
@@ -53,8 +55,31 @@ def set_uniforms(prog: moderngl.Program, **values) -> None:
 
 
 def read_shader(name: str) -> str:
+    """A shader file's text: a name in engine/shaders, or a path."""
     with open(os.path.join(SHADER_DIR, name), encoding="utf-8") as f:
         return f.read()
+
+
+def shader_header(defines: dict) -> str:
+    """The version line and one ``#define`` per entry (True: defined, no value), sorted."""
+    return GLSL_VERSION + "\n" + "".join(
+        f"#define {k} {'' if v is True else v}\n" for k, v in sorted(defines.items()) if v is not False)
+
+
+def build_program(ctx: moderngl.Context, vertex: list[str], fragment: list[str],
+                  defines: dict | None = None) -> moderngl.Program:
+    """A program from shader files (names in engine/shaders, or paths), each
+    stage the header then its files in order. Macros written over several
+    lines are joined: GLSL has line continuations only from 4.20, and some 3.30
+    compilers reject them. A driver's refusal is a :class:`GLUnavailable`
+    naming the file."""
+    head = shader_header(defines or {})
+    vert = head + "".join(read_shader(n) for n in vertex)
+    frag = (head + "".join(read_shader(n) for n in fragment)).replace("\\\n", " ")
+    try:
+        return ctx.program(vertex_shader=vert, fragment_shader=frag)
+    except moderngl.Error as exc:
+        raise GLUnavailable(f"The GPU driver rejected shader {os.path.basename(fragment[-1])}: {exc}") from None
 
 
 class Gpu:
@@ -96,16 +121,7 @@ class Gpu:
     def program(self, frag: str, **defines) -> tuple[moderngl.Program, moderngl.VertexArray]:
         key = (frag, tuple(sorted(defines.items())))
         if key not in self._programs:
-            head = GLSL_VERSION + "\n" + "".join(
-                f"#define {k} {'' if v is True else v}\n" for k, v in sorted(defines.items()))
-            vert = head + read_shader("fullscreen.vert")
-            # Macros written over several lines are joined here: GLSL has line
-            # continuations only from 4.20, and some 3.30 compilers reject them.
-            src = (head + read_shader("common.glsl") + read_shader(frag)).replace("\\\n", " ")
-            try:
-                prog = self.ctx.program(vertex_shader=vert, fragment_shader=src)
-            except moderngl.Error as exc:
-                raise GLUnavailable(f"The GPU driver rejected shader {frag}: {exc}") from None
+            prog = build_program(self.ctx, ["fullscreen.vert"], ["common.glsl", frag], defines)
             self._programs[key] = prog
             self._sources[prog.glo] = key
             self._vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "in_pos")])

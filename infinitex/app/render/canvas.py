@@ -14,7 +14,7 @@ import moderngl
 import numpy as np
 from PIL import Image
 
-from infinitex.engine.gpu import Gpu, read_shader, set_uniforms
+from infinitex.engine.gpu import Gpu, build_program, set_uniforms
 from infinitex.engine.imagefile import to_u8
 from infinitex.engine.pyramid import Pyramid
 from infinitex.engine.rect import Rect
@@ -34,9 +34,6 @@ FEATHER_TEXELS = 6.0  # a quick look's patch blends in over this many texels fro
 class Canvas:
     def __init__(self, gpu: Gpu):
         self.gpu = gpu
-        ctx = gpu.ctx
-        with open(os.path.join(SHADER_DIR, "canvas.frag"), encoding="utf-8") as f:
-            self._frag = f.read()
         self._programs: dict[tuple, tuple] = {}  # (mode, mag, alpha, shape kind) -> (program, vao)
         self.size = (0, 0)
         self.tex: moderngl.Texture | None = None
@@ -106,12 +103,10 @@ class Canvas:
         """The canvas program compiled for one kind of draw (see canvas.frag)."""
         key = (mode, mag, alpha, shape_kind, direction, feather)
         if key not in self._programs:
-            head = (f"#version 330 core\n#define MODE {mode}\n#define MAG {mag}\n#define ALPHA {alpha}\n"
-                    f"#define SHAPE_KIND {shape_kind}\n" + ("#define DIRECTION\n" if direction else "")
-                    + ("#define FEATHER\n" if feather else ""))
             ctx = self.gpu.ctx
-            prog = ctx.program(vertex_shader="#version 330 core\n" + read_shader("fullscreen.vert"),
-                               fragment_shader=head + self._frag)
+            prog = build_program(ctx, ["fullscreen.vert"], [os.path.join(SHADER_DIR, "canvas.frag")],
+                                 dict(MODE=mode, MAG=mag, ALPHA=alpha, SHAPE_KIND=shape_kind,
+                                      DIRECTION=direction, FEATHER=feather))
             self._programs[key] = (prog, ctx.vertex_array(prog, [(self.gpu.quad, "2f", "in_pos")]))
         return self._programs[key]
 
