@@ -271,6 +271,25 @@ class Refiner:
 # -- the session -------------------------------------------------------------
 
 
+def _reads_alike(a, b, r: Rect) -> bool:
+    """Whether two controls' canvas fields read the same over ``r`` (Session.verify_regions)."""
+    from infinitex.engine.controls import CanvasField, CanvasLabels, DirectionField
+    from infinitex.engine.controls.direction import IDENTITY
+    from infinitex.engine.controls.fields import NEUTRAL
+
+    def region(field, blank):
+        v = field.region(0, r.x0, r.y0, r.w, r.h)
+        return np.broadcast_to(np.asarray(blank), (r.h, r.w) + np.shape(blank)) if v is None else v
+    fa, fb = a.randomness_canvas or CanvasField(), b.randomness_canvas or CanvasField()
+    da, db = a.direction or DirectionField(), b.direction or DirectionField()
+    la, lb = a.labels_canvas or CanvasLabels(), b.labels_canvas or CanvasLabels()
+    xs, ys = np.arange(r.x0, r.x1), np.arange(r.y0, r.y1)
+    return (np.array_equal(region(fa, NEUTRAL), region(fb, NEUTRAL))
+            and np.array_equal(region(da, IDENTITY), region(db, IDENTITY))
+            and np.array_equal(la.sample(xs, ys), lb.sample(xs, ys))
+            and set(a.features) == set(b.features))
+
+
 class Session(LoadedDocument):
     """A loaded document and the view's scrolling pyramid, refined per frame.
 
@@ -279,6 +298,10 @@ class Session(LoadedDocument):
     replaces it when it is ready (the view stays where it is)."""
 
     QUICK_PREVIEW = True
+    # Tests: check that the region each edit says it reached holds every change
+    # the two controls show (Controls.changed_rects); what it misses is listed here.
+    verify_regions = False
+    missed_regions: list = []
 
     def __init__(self, gpu: Gpu, cache_dir: str | None = None):
         super().__init__(gpu, cache_dir)
@@ -287,9 +310,12 @@ class Session(LoadedDocument):
         self.model = ModelPreview()  # the document's model, textured live (app/model_session.py)
         self.warmup = ShaderWarmup(config_dir())  # the shader variants of the next edits, compiled aside
 
-    def sync(self, doc: Document) -> None:
+    def sync(self, doc: Document, changed: tuple | None = None) -> None:
         """Keep the engine in step with ``doc``: new analysis key -> analyze;
-        new parameters -> the pyramid drops only the levels they change."""
+        new parameters -> the pyramid drops only the levels they change; new
+        controls -> re-synthesized where they changed: ``changed``, the
+        finest-level canvas rectangles the edits since the last sync reached
+        (History.changes_since), else found by comparing the controls."""
         key = doc.analysis_key()
         if key != self.key:
             if (self.job is None or self.job.key != key) and key not in self.failed:
@@ -304,13 +330,28 @@ class Session(LoadedDocument):
         elif controls != self.controls:
             # Paint on the canvas, placed features: re-synthesized in place where
             # they reach (a change of the exemplar field refines everything).
+            if self.verify_regions and changed is not None:
+                self._verify(controls, changed)
             self.controls = controls
             self.synth.set_params(params, controls)
             # The work is done a budget at a time by the refinement, so a dab
             # never holds the editor up (see Pyramid.settle).
-            self.pyramid.update_controls(controls, defer=True)
+            self.pyramid.update_controls(controls, None if changed is None else list(changed), defer=True)
+        self.synced_doc = doc
         self.model.sync(self, doc)
         self.warmup.poll()
+
+    def _verify(self, controls, changed) -> None:
+        from infinitex.engine.rect import uncovered
+        if self.controls.reaches_everywhere(controls):
+            return
+        found = [Rect(*r) for r in self.controls.changed_rects(controls)]
+        # (The boxes found hold every changed pixel, and some that are not:
+        # only a pixel that changed outside ``changed`` is a miss.)
+        missed = [r for r in uncovered(found, [Rect(*r) for r in changed])
+                  if not _reads_alike(self.controls, controls, r)]
+        if missed:
+            Session.missed_regions.append((changed, missed))
 
     def install(self, doc: Document, ex: Exemplar, an: Analysis, material: Material | None = None,
                 preview: bool = False) -> None:

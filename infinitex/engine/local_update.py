@@ -27,9 +27,12 @@ class LocalUpdates:
 
     def update_controls(self, controls: Controls, changed: list[Rect] | None = None, *, defer: bool = False) -> int:
         """Adopt new controls that differ from the current ones only inside the
-        finest-level canvas rectangles ``changed`` (painted randomness, placed
-        features; None: computed from the two controls), re-synthesizing in
-        place just what that changes in the held buffers.
+        finest-level canvas rectangles ``changed`` (where an edit reached: a
+        dab's box, a feature's old and new circles; None: found by comparing the
+        two controls, :meth:`Controls.changed_rects`), re-synthesizing in place
+        just what that changes in the held buffers. A change that reaches
+        everywhere (:meth:`Controls.reaches_everywhere`) starts again, whatever
+        ``changed`` says.
 
         The pixels whose field value changed, grown by the reach of correction
         (outside it no result can change), become each level's dirty region;
@@ -44,10 +47,13 @@ class LocalUpdates:
         controls = controls.normalized()
         controls.validate(self.an.size, self.an.settings.lattice)
         self.gpu.activate()
+        if self.controls.reaches_everywhere(controls):
+            changed = None
+        elif changed is None:
+            changed = [Rect(*r) for r in self.controls.changed_rects(controls)]
+        else:
+            changed = [r if isinstance(r, Rect) else Rect(*r) for r in changed]
         if changed is None:
-            rects = self.controls.changed_rects(controls)
-            changed = None if rects is None else [Rect(*r) for r in rects]
-        if changed is None or controls.exemplar_inputs() != self.controls.exemplar_inputs():
             self.set_params(self.params, controls)  # the whole canvas changes
             self.pixels_synthesized = 0
             return 0

@@ -65,6 +65,14 @@ class Rect:
         return [r for r in out if not r.empty]
 
 
+def uncovered(rects: list[Rect], by: list[Rect]) -> list[Rect]:
+    """The parts of ``rects`` outside every rectangle of ``by``."""
+    parts = [r for r in rects if not r.empty]
+    for b in by:
+        parts = [q for p in parts for q in p.minus(b) if not q.empty]
+    return parts
+
+
 def merge_rects(rects: list[Rect]) -> list[Rect]:
     """Overlapping rectangles merged into their bounding boxes, until no two
     overlap (empty ones dropped).

@@ -45,6 +45,7 @@ class LoadedDocument:
         self.params: SynthParams | None = None
         self.period = 0  # tile mode: the canvas shows the periodic texture a toroidal export of this size makes
         self.controls: Controls = NO_CONTROLS
+        self.synced_doc: Document | None = None  # the document whose parameters and controls are held
         self.failed: dict[tuple, str] = {}     # analysis keys that could not be loaded
 
     @property
@@ -111,6 +112,7 @@ class LoadedDocument:
         self._display = {}
         self.params = self.doc_params(doc, an.L)
         self.controls = doc.controls(an.size)
+        self.synced_doc = doc  # the document whose parameters and controls are held
         self.synth = Synthesizer(an, self.params, self.gpu, controls=self.controls)
         self.stack = self.display_stack(material.primary)
         self.key = doc.analysis_key()

@@ -14,6 +14,7 @@ if HERE not in sys.path:
 
 from imgui_bundle.immapp import testing  # noqa: E402
 
+from infinitex.app.session import Session  # noqa: E402
 from infinitex.app.ui.editor import Editor  # noqa: E402
 
 
@@ -25,6 +26,7 @@ class Harness:
         # default's analysis and levels; test_editor's screenshot test opens that).
         os.environ.setdefault("INFINITEX_DEFAULT_EXEMPLAR", os.path.join(HERE, "infinitex", "assets", "gravel.png"))
         self.out = out
+        Session.verify_regions = True  # every edit's region is checked against what changed
         self.ed = Editor(path, recover=False, window_size=window_size)
         self.report: list[str] = []
 
@@ -87,6 +89,9 @@ class Harness:
             testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
         except Exception as exc:
             self.report.append(f"FAIL driver: {exc}")
+        missed = Session.missed_regions
+        self.check("every edit's region holds what it changed", not missed,
+                   f"{len(missed)} edits missed {missed[:3]}")
         with open(os.path.join(self.out, "report.txt"), "w") as fh:
             fh.write("\n".join(self.report) + "\n")
         return 0 if self.report and all(r.startswith("ok") for r in self.report) else 1

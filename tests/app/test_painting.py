@@ -100,7 +100,7 @@ def test_undo_memory_grows_with_what_was_painted(doc):
             touched.add(stroke)
             h.apply(replace(h.current, randomness_canvas=field), "paint", group=g)
         h.end_group()
-    arrays = {id(t) for d, _ in h.undo_stack + [(h.current, "")] if d.randomness_canvas
+    arrays = {id(t) for d, *_ in h.undo_stack + [(h.current, "")] if d.randomness_canvas
               for t in d.randomness_canvas.tiles.values()}
     per_stroke = len(h.current.randomness_canvas.tiles) / 10
     # One copy of each tile a stroke touched, per stroke that touched it: no whole-field copies.

@@ -56,6 +56,39 @@ def test_undo_redo_and_slider_drag_is_one_step(doc):
     assert not h.can_redo()
 
 
+def test_each_step_carries_where_it_changed_the_canvas(doc):
+    """An edit's region reaches the synthesis through the history: a stroke's
+    dabs are one step with their union, an undo and a redo say it again, and
+    what changed between two documents is known only while the older one was
+    current lately (else None: the synthesis compares the controls)."""
+    from infinitex.project.history import JOURNAL
+    h = History(doc)
+    d0 = h.current
+    stroke = object()
+    for i in range(3):  # one stroke, three frames of dabs
+        h.apply(replace(h.current, seed=10 + i), "Paint", group=stroke, region=[(i, 0, i + 4, 4)])
+    h.end_group()
+    d1 = h.current
+    assert h.undo_stack[-1].region == ((0, 0, 4, 4), (1, 0, 5, 4), (2, 0, 6, 4))
+    assert sorted(h.changes_between(d0, d1)) == sorted(h.undo_stack[-1].region)
+    assert h.changes_between(d1, d1) == ()
+    h.apply(replace(h.current, seed=2), "New seed")  # a panel's edit says nothing
+    d2 = h.current
+    assert h.changes_between(d1, d2) is None and h.changes_between(d0, d2) is None
+    h.undo()
+    assert h.current is d1 and h.changes_between(d2, d1) is None  # undoing the seed: not said either
+    h.undo()
+    assert h.current is d0 and h.changes_between(d1, d0) == ((0, 0, 4, 4), (1, 0, 5, 4), (2, 0, 6, 4))
+    h.redo()
+    assert h.changes_between(d0, h.current) == ((0, 0, 4, 4), (1, 0, 5, 4), (2, 0, 6, 4))
+    assert h.changes_between(d2, h.current) is None          # d2 is not what came before
+    assert h.changes_between(h.current, d0) is None          # only towards the current document
+    base = h.current
+    for i in range(JOURNAL):
+        h.apply(replace(h.current, seed=100 + i), "Paint", region=[(0, 0, 1, 1)])
+    assert h.changes_between(base, h.current) is None        # too long ago: not known
+
+
 def test_identical_edit_is_not_a_step_and_invalid_edit_is_refused(doc):
     h = History(doc)
     assert not h.apply(doc, "nothing")

@@ -311,7 +311,9 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         frame; an edit made later in a frame, in a dialog, is taken by the next)."""
         s = self.session
         if self.doc is not None and (self.pending is None or s.job is None):
-            s.sync(self.session_doc())
+            doc = self.session_doc()
+            # Where the edits since the document the session holds reached.
+            s.sync(doc, self.history.changes_between(s.synced_doc, doc))
             if s.ready:
                 self._show_maps()
 

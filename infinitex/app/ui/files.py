@@ -296,12 +296,14 @@ class FilesMixin:
 
     # -- history ------------------------------------------------------------
 
-    def edit(self, doc: Document, label: str, group: object = None) -> None:
-        """Apply an edit (one undo step; same ``group`` = same step)."""
+    def edit(self, doc: Document, label: str, group: object = None, region: tuple | None = None) -> None:
+        """Apply an edit (one undo step; same ``group`` = same step). A tool
+        says where it reached the canvas (``region``: finest-level canvas
+        rectangles (x0, y0, x1, y1)); the synthesis redoes just that."""
         if self.history is None:
             return
         try:
-            self.history.apply(doc, label, group)
+            self.history.apply(doc, label, group, region)
         except ProjectError as exc:
             self.dialogs.message("Invalid setting", str(exc))
 

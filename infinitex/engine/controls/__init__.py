@@ -275,25 +275,37 @@ class Controls:
                                        x1 - x0, y1 - y0))
         return (table, *feature_bins(table, x0, y0, x1 - x0, y1 - y0, period))
 
-    def changed_rects(self, other: Controls) -> list | None:
-        """Finest-level rectangles outside which ``other`` reads the same as this
-        one; None when the change reaches everywhere (the exemplar field, the avoid mask)."""
+    def reaches_everywhere(self, other: Controls) -> bool:
+        """Whether going from these controls to ``other`` may change the texture
+        anywhere, whatever was edited where: the exemplar's inputs (randomness
+        field, avoid mask, labels), the lattice, the model, what unpainted
+        labels mean, the first or last direction field (the state gains or drops
+        its sub-pixel parts), or the features on a model (one reaches other
+        charts of the atlas)."""
         if self.exemplar_inputs() != other.exemplar_inputs() or self.lattice != other.lattice \
                 or self.surface is not other.surface:
+            return True
+        la, lb = self.labels_canvas or CanvasLabels(), other.labels_canvas or CanvasLabels()
+        if la.background != lb.background:
+            return True
+        if self.directed and not other.directed:
+            return True
+        return self.surface is not None and self.features != other.features
+
+    def changed_rects(self, other: Controls) -> list | None:
+        """Finest-level rectangles outside which ``other`` reads the same as this
+        one, found by comparing the two (an edit made by a tool says where it
+        reached instead: :meth:`Pyramid.update_controls`'s ``changed``); None when
+        the change reaches everywhere (:meth:`reaches_everywhere`)."""
+        if self.reaches_everywhere(other):
             return None
         before = self.randomness_canvas or CanvasField()
         after = other.randomness_canvas or CanvasField()
         out = before.changed_rects(after)
         la, lb = self.labels_canvas or CanvasLabels(), other.labels_canvas or CanvasLabels()
-        if la.background != lb.background:
-            return None  # what is unpainted changes everywhere
         out += la.changed_rects(lb)
-        if self.directed and not other.directed:
-            return None  # the state drops its sub-pixel parts: everything again (a first field widens it in place)
         out += (self.direction or DirectionField()).changed_rects(other.direction or DirectionField())
         if self.features != other.features:
-            if self.surface is not None:
-                return None  # on a model a feature reaches other charts of the atlas too
             old, new = set(self.features), set(other.features)
             out += [f.bbox() for f in old ^ new]  # added, removed, moved or resized
             # Which feature wins an overlap follows the list order: features whose

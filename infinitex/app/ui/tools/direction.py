@@ -81,9 +81,9 @@ class DirectionTool(Tool):
     def field(self) -> DirectionField:
         return self.ed.doc.direction or DirectionField()
 
-    def _set(self, field: DirectionField, what: str, group: object = None) -> None:
+    def _set(self, field: DirectionField, what: str, group: object = None, region=None) -> None:
         ed = self.ed
-        ed.edit(replace(ed.doc, direction=None if field.identity else field), what, group=group)
+        ed.edit(replace(ed.doc, direction=None if field.identity else field), what, group=group, region=region)
 
     def radius_canvas(self) -> float:
         b = self.brush
@@ -144,12 +144,14 @@ class DirectionTool(Tool):
             return
         field = self.field
         prev = self._last
+        rects = []
         try:
             for cx, cy in dabs:
                 heading = None
                 if prev is not None and (cx, cy) != prev:
                     heading = math.degrees(math.atan2(cy - prev[1], cx - prev[0]))
                 field = self.dab(field, cx, cy, heading)
+                rects.append(dab_rect(cx, cy, r))
                 prev = (cx, cy)
         except FieldTooLarge as exc:
             self.ed.notice = (str(exc), time.monotonic())
@@ -159,7 +161,7 @@ class DirectionTool(Tool):
         self.dabs += len(dabs)
         if field is not self.field:
             self._set(field, {"comb": "Comb direction", "smooth": "Smooth direction", "grow": "Grow texture",
-                              "shrink": "Shrink texture", "erase": "Erase direction"}[self.mode], self._group)
+                              "shrink": "Shrink texture", "erase": "Erase direction"}[self.mode], self._group, rects)
 
     def release(self) -> None:
         if self._group is not None and self.ed.history is not None:
@@ -196,7 +198,7 @@ class DirectionTool(Tool):
         except (ExemplarError, FieldTooLarge, ValueError) as exc:
             ed.dialogs.message("Direction map", str(exc))
             return
-        self._set(field, "Place direction map")
+        self._set(field, "Place direction map", region=[(x, y, x + w, y + h)])
 
     # -- panel, keys, overlay ------------------------------------------------
 

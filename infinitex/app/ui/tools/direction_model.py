@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from infinitex.engine.controls.direction import DirectionField
-from infinitex.engine.controls.fields import FieldTooLarge
+from infinitex.engine.controls.fields import FieldTooLarge, dab_rect
 from infinitex.engine.surface.features import across_seams
 
 from . import BrushCursor, ModelGesture
@@ -85,6 +85,7 @@ class ModelComb(BrushCursor, ModelGesture):
         field = doc.direction or DirectionField()
         before = field
         prev = last
+        rects = []
         try:
             atlas = self.ed.session.model.atlas
             for cx, cy in dabs:
@@ -93,6 +94,7 @@ class ModelComb(BrushCursor, ModelGesture):
                 # the same on both sides).
                 for x, y, rr in [(cx, cy, r)] + (across_seams(atlas, cx, cy, r) if atlas is not None else []):
                     field = tool.dab(field, x, y, heading, rr)
+                    rects.append(dab_rect(x, y, rr))
                 prev = (cx, cy)
         except FieldTooLarge as exc:
             self.ed.notice = (str(exc), time.monotonic())
@@ -102,7 +104,7 @@ class ModelComb(BrushCursor, ModelGesture):
         tool.dabs += len(dabs)
         if field is not before:
             self.ed.edit(replace(doc, direction=None if field.identity else field), LABELS[tool.mode],
-                         group=self._group)
+                         group=self._group, region=rects)
 
     def release(self) -> None:
         if self._group is not None and self.ed.history is not None:

@@ -64,9 +64,12 @@ class FeatureTool(Tool):
     def features(self) -> tuple[Feature, ...]:
         return self.ed.doc.features if self.ed.doc is not None else ()
 
-    def _set(self, features, label: str, group=None) -> None:
+    def _set(self, features, label: str, group=None, changed=None) -> None:
+        """The features become ``features``; ``changed``: the features added,
+        removed or replaced (old and new), whose circles the edit reaches."""
         ed = self.ed
-        ed.edit(replace(ed.doc, features=tuple(features)), label, group=group)
+        ed.edit(replace(ed.doc, features=tuple(features)), label, group=group,
+                region=None if changed is None else [f.bbox() for f in changed])
 
     def levels(self):
         return (0, self.ed.session.L) if self.exact else None
@@ -88,7 +91,7 @@ class FeatureTool(Tool):
 
     def place(self, u: tuple[int, int], pos, label: str = "Place feature", group=None) -> None:
         f = Feature(u, (round(pos[0]), round(pos[1])), self.inner, max(self.inner, self.outer), self.levels())
-        self._set(self.features + (f,), label, group)
+        self._set(self.features + (f,), label, group, (f,))
         self.selected = len(self.features) - 1
 
     # -- hit testing --------------------------------------------------------
@@ -139,8 +142,8 @@ class FeatureTool(Tool):
         if f is not None and self.selected is not None and self.selected < len(self.features) \
                 and self.features[self.selected] != f:
             feats = list(self.features)
-            feats[self.selected] = f
-            self._set(feats, "Move feature" if self._mode == "move" else "Resize feature", self._group)
+            old, feats[self.selected] = feats[self.selected], f
+            self._set(feats, "Move feature" if self._mode == "move" else "Resize feature", self._group, (old, f))
         if self._group is not None and self.ed.history is not None:
             self.ed.history.end_group()
         self._group, self._mode, self.preview = None, None, None
@@ -161,7 +164,7 @@ class FeatureTool(Tool):
         inner = f.inner if imgui.get_io().key_shift else min(outer, max(0, round(f.inner * s)))
         feats = list(self.features)
         feats[i] = replace(f, inner=min(inner, outer), outer=outer)
-        self._set(feats, "Resize feature", ("feature-wheel", i))
+        self._set(feats, "Resize feature", ("feature-wheel", i), (f, feats[i]))
         self.selected = i
 
     def keys(self) -> None:
@@ -173,8 +176,8 @@ class FeatureTool(Tool):
     def delete(self, i: int) -> None:
         feats = list(self.features)
         if 0 <= i < len(feats):
-            del feats[i]
-            self._set(feats, "Delete feature")
+            gone = feats.pop(i)
+            self._set(feats, "Delete feature", changed=(gone,))
         self.selected = None
 
     def model_gesture(self):
@@ -258,7 +261,7 @@ class FeatureTool(Tool):
                             levels=None if levels == (0, max(0, L - 2)) and f.levels is None else levels)
                 new = list(feats)
                 new[i] = g
-                self._set(new, "Edit feature", ("feature-edit", i))
+                self._set(new, "Edit feature", ("feature-edit", i), (f, g))
             if imgui.is_item_deactivated():
                 ed.history.end_group()
             if imgui.button("Jump to"):

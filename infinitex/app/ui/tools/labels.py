@@ -66,8 +66,8 @@ class LabelTool(Tool):
             self.active = len(lab.colors) - 1  # an undo or another document has fewer labels
         return lab
 
-    def _set(self, labels: LabelMaps | None, what: str, group: object = None) -> None:
-        self.ed.edit(replace(self.ed.doc, labels=labels), what, group=group)
+    def _set(self, labels: LabelMaps | None, what: str, group: object = None, region=None) -> None:
+        self.ed.edit(replace(self.ed.doc, labels=labels), what, group=group, region=region)
 
     def _value(self) -> int:
         return 0 if self.brush.eraser else self.active + 1
@@ -221,11 +221,13 @@ class LabelTool(Tool):
         if not dabs:
             return
         canvas = lab.canvas
+        rects = []
         for cx, cy in dabs:
-            canvas, _ = canvas.painted(cx, cy, r, self._value(), self.brush.hardness, seed=self.strokes)
+            canvas, rect = canvas.painted(cx, cy, r, self._value(), self.brush.hardness, seed=self.strokes)
+            rects.append(rect)
         self._last = dabs[-1]
         self.dabs += len(dabs)
-        self._set(replace(lab, canvas=canvas), "Paint labels", self._group)
+        self._set(replace(lab, canvas=canvas), "Paint labels", self._group, rects)
 
     def release(self) -> None:
         if self._group is not None:
@@ -260,7 +262,8 @@ class LabelTool(Tool):
         ys, xs = np.nonzero(region)
         bx0, by0, bx1, by1 = xs.min(), ys.min(), xs.max() + 1, ys.max() + 1
         canvas = lab.canvas.replaced(area[by0:by1, bx0:bx1], x0 + int(bx0), y0 + int(by0))
-        self._set(replace(lab, canvas=canvas), "Fill labels")
+        self._set(replace(lab, canvas=canvas), "Fill labels",
+                  region=[(x0 + int(bx0), y0 + int(by0), x0 + int(bx1), y0 + int(by1))])
 
     def overlay(self, draw_list, p0, w, h) -> None:
         ed = self.ed

@@ -76,13 +76,14 @@ def dab_centers(last: tuple[float, float] | None, pos: tuple[float, float], spac
 
 
 def model_stroke(field: CanvasField | None, atlas, n: int, last: tuple[float, float] | None,
-                 pos: tuple[float, float], radius: float, brush: Brush) -> tuple[CanvasField, tuple | None, int]:
+                 pos: tuple[float, float], radius: float, brush: Brush) -> tuple[CanvasField, tuple | None, int, list]:
     """A Paint canvas stroke on a model carried on to ``pos`` (finest atlas
     texels, n a side): dabs every quarter radius from ``last`` (none in
     between when ``pos`` is on another chart or farther than 4 radii: the atlas
     between is elsewhere on the surface), each continued over the seams it
     reaches (at most twice its radius there) and painted only inside the
-    atlas. Returns the field, the stroke's new last dab and the dabs painted."""
+    atlas. Returns the field, the stroke's new last dab, the dabs painted and
+    the rectangles (x0, y0, x1, y1) they changed."""
     owner = atlas.owner(0) if atlas is not None else None
 
     def chart(p) -> int:
@@ -94,11 +95,13 @@ def model_stroke(field: CanvasField | None, atlas, n: int, last: tuple[float, fl
         last = None
     dabs = dab_centers(last, pos, 0.25 * radius)
     field = field or CanvasField()
+    rects = []
     for cx, cy in dabs:
         for x, y, rr in [(cx, cy, radius)] + (across_seams(atlas, cx, cy, radius) if atlas is not None else []):
-            field, _ = field.painted(x, y, min(rr, 2 * radius), brush.value_u16, brush.strength, brush.hardness,
-                                     bounds=(0, 0, n, n))
-    return field, (dabs[-1] if dabs else last), len(dabs)
+            field, rect = field.painted(x, y, min(rr, 2 * radius), brush.value_u16, brush.strength, brush.hardness,
+                                        bounds=(0, 0, n, n))
+            rects.append(rect)
+    return field, (dabs[-1] if dabs else last), len(dabs), rects
 
 
 class ModelPaint(BrushCursor, ModelGesture):
@@ -129,12 +132,13 @@ class ModelPaint(BrushCursor, ModelGesture):
         b = tool.brush
         n = ed.doc.surface.size
         r = dab_radius(b.radius, b.screen_units, per_px, n)
-        field, self._last, count = model_stroke(ed.doc.randomness_canvas, ed.session.model.atlas, n,
-                                                self._last, pos, r, b)
+        field, self._last, count, rects = model_stroke(ed.doc.randomness_canvas, ed.session.model.atlas, n,
+                                                       self._last, pos, r, b)
         if not count:
             return
         tool.dabs += count
-        ed.edit(replace(ed.doc, randomness_canvas=field), "Paint randomness (model)", group=self._group)
+        ed.edit(replace(ed.doc, randomness_canvas=field), "Paint randomness (model)", group=self._group,
+                region=rects)
 
     def finish(self, mx: float, my: float, w: int, h: int) -> None:
         self.release()  # (no dab where the button came up: the last move's was made)
@@ -199,11 +203,14 @@ class PaintCanvasTool(Tool):
         ed = self.ed
         field = ed.doc.randomness_canvas or CanvasField()
         b = self.brush
+        rects = []
         for cx, cy in dabs:
-            field, _ = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)
+            field, rect = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)
+            rects.append(rect)
         self._last = dabs[-1]
         self.dabs += len(dabs)
-        ed.edit(replace(ed.doc, randomness_canvas=field), "Paint randomness (canvas)", group=self._group)
+        ed.edit(replace(ed.doc, randomness_canvas=field), "Paint randomness (canvas)", group=self._group,
+                region=rects)
 
     def release(self) -> None:
         if self._group is not None and self.ed.history is not None:
