@@ -1,4 +1,4 @@
-"""A small numpy oracle of the synthesis passes (ALGORITHM.md section 3).
+"""A small numpy oracle of the synthesis passes (docs/algorithm.md section 3).
 
 Written independently of the GL pyramid: one padded window per level with the
 naive padding c * s^2 * radius (larger than the engine's exact margins), plain

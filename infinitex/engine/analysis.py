@@ -1,4 +1,4 @@
-"""Exemplar analysis (ALGORITHM.md section 2): CPU, numpy + scipy, cached on disk.
+"""Exemplar analysis (docs/algorithm.md section 2): CPU, numpy + scipy, cached on disk.
 
 For every level ``l = 0..L`` of the Gaussian stack this computes what the
 correction shaders read, all as small integers so that the GPU passes and the

@@ -1,7 +1,7 @@
 """Exemplar import: any image Pillow reads, brought to a power-of-two square.
 
 The synthesis needs an ``m x m`` exemplar with ``m = 2^L`` between 32 and 2048
-(ALGORITHM.md section 1). Images that already are such squares (up to the
+(docs/algorithm.md section 1). Images that already are such squares (up to the
 rule's limit) are used as they are. Anything else is brought there by one of
 two rules, chosen by the user and never applied silently, each up to 512 px
 (``"resize"``, ``"crop"``) or up to 2048 px (``"resize-2048"``,

@@ -1,8 +1,8 @@
 """Materials: a set of aligned maps that one synthesis drives.
 
-The synthesis produces exemplar *coordinates* ``S`` (ALGORITHM.md sections 1
-and 4), so every map aligned with the exemplar (base color, normal, height,
-roughness...) is looked up through the same ``S``: ``map_l[S]``. Only the
+The synthesis produces exemplar *coordinates* ``S`` (docs/algorithm.md
+sections 1 and 4), so every map aligned with the exemplar (base color, normal,
+height, roughness...) is looked up through the same ``S``: ``map_l[S]``. Only the
 maps chosen for the analysis (with weights; default base color plus height)
 shape the appearance vectors; the others just follow.
 

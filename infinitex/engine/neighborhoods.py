@@ -1,7 +1,8 @@
-"""An exemplar level's filtered colors and neighborhood features (ALGORITHM.md
-section 2): the Gaussian stack, LH06's appearance vectors (or LH05's colors),
-the runtime neighborhood's integer projection and every texel's projected
-neighborhood. Used by :mod:`engine.analysis`, which caches the results.
+"""An exemplar level's filtered colors and neighborhood features
+(docs/algorithm.md section 2): the Gaussian stack, LH06's appearance vectors
+(or LH05's colors), the runtime neighborhood's integer projection and every
+texel's projected neighborhood. Used by :mod:`engine.analysis`, which caches
+the results.
 
 Each texel's neighborhood taps are copied a band of rows at a time (by
 slices, see :func:`runs`) and projected with one BLAS product per band, so a

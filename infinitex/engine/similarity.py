@@ -1,6 +1,6 @@
-"""k-coherence similarity sets (LH05 3.3; ALGORITHM.md section 3): for every
-exemplar texel, the k texels whose neighborhoods are most alike, found by
-approximate nearest-neighbor search; and the band near a non-toroidal
+"""k-coherence similarity sets (LH05 3.3; docs/algorithm.md sections 2 and 3):
+for every exemplar texel, the k texels whose neighborhoods are most alike, found
+by approximate nearest-neighbor search; and the band near a non-toroidal
 exemplar's border that no candidate may use."""
 from __future__ import annotations
 

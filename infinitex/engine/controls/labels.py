@@ -1,4 +1,4 @@
-"""Texture by numbers (TBN10, ALGORITHM.md section 7): a label map over the
+"""Texture by numbers (TBN10, docs/algorithm.md section 7): a label map over the
 exemplar says what each of its regions is (stones, grass, mortar...), a label
 map painted over the infinite canvas says which label each place should get,
 and the synthesis follows it, with transitions taken from the exemplar's own.

@@ -1,6 +1,6 @@
-"""Near-regular textures (LH05 section 4.5; ALGORITHM.md section 5): the lattice
-model, its automatic detection, and the rectification of a block of cells into
-a square toroidal exemplar.
+"""Near-regular textures (LH05 section 4.5; docs/algorithm.md section 5): the
+lattice model, its automatic detection, and the rectification of a block of
+cells into a square toroidal exemplar.
 
 A :class:`Lattice` is an origin and two translation vectors ``t1``, ``t2`` in
 input-image pixels (any angle, any aspect, not orthogonal), and a block of

@@ -1,7 +1,7 @@
-"""Finding the lattice of a near-regular image (LH05 section 4.5; ALGORITHM.md
-section 5): the autocorrelation's peaks give a grid (two vectors), its ridges
-give rows (planks, stripes, lines); the confidence says how sure; the block of
-cells comes from :mod:`.lattice_block`."""
+"""Finding the lattice of a near-regular image (LH05 section 4.5;
+docs/algorithm.md section 5): the autocorrelation's peaks give a grid (two
+vectors), its ridges give rows (planks, stripes, lines); the confidence says how
+sure; the block of cells comes from :mod:`.lattice_block`."""
 from __future__ import annotations
 
 import math
