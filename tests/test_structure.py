@@ -157,6 +157,21 @@ def test_no_tool_name_is_compared_outside_the_tools():
                              names) == [1, 2, 3]
 
 
+def test_tool_keys_are_unique_and_free():
+    """Each tool's shortcut letter is its own, and none is one of the editor's
+    single keys (H fields, T tile mode, M next map: shortcuts.py)."""
+    from infinitex.app.ui.tools import Tool
+    from infinitex.app.ui.tools import direction, feature, labels, lattice, navigate, paint  # noqa: F401
+
+    def subclasses(c):
+        for s in c.__subclasses__():
+            yield s
+            yield from subclasses(s)
+    keys = [c.key.upper() for c in set(subclasses(Tool)) if c.key]
+    assert len(keys) >= 7 and len(keys) == len(set(keys)), sorted(keys)
+    assert not set(keys) & {"H", "T", "M"}
+
+
 def _graph(root: str, prefix: str) -> dict[str, set[str]]:
     """Module -> the modules under ``prefix`` it imports (at the top or inside a
     function: a lazy import is a dependency too), from the files under ``root``."""

@@ -1,4 +1,4 @@
-"""Placed features (LH05 4.3): exact copies, oracle agreement, overlapping
+"""Placed features (LH05 4.4): exact copies, oracle agreement, overlapping
 windows, local updates after edits, the exemplar border, the spatial index."""
 import numpy as np
 import oracle

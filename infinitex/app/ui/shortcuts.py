@@ -71,7 +71,7 @@ class ShortcutsMixin:
         self._zoom_keys()
         # Single keys: tools, H, T, M (anywhere a text field or a dialog does not
         # take the keys, as in Krita and Photoshop; never while a control is dragged).
-        for t in self.tools:
+        for t in self.tools.offered(self.model_mode):  # (the Lattice and Labels keys do nothing on a model)
             if t.key and keys.plain(getattr(K, t.key.lower())):
                 self.set_tool(t)
         if keys.plain(K.h):

@@ -2,7 +2,7 @@
 
 Everything an artist paints, places or marks reaches the synthesis passes
 through a :class:`Controls` value (immutable): today the two randomness fields
-of LH05 section 4.2 (docs/algorithm.md section 5), placed features (4.3) and the
+of LH05 section 4.2 (docs/algorithm.md section 5), placed features (4.4) and the
 lattice of a near-regular texture (4.5, :mod:`engine.controls.lattice`). The pyramid asks it, per strip and level, for what the passes read.
 
 **Randomness fields** modulate the jitter: ``J_l(p) = floor(h H(p) r_l M_l(p) + 1/2)``

@@ -1,4 +1,4 @@
-"""Exemplar features placed on the canvas (LH05 4.3): :class:`Feature` and
+"""Exemplar features placed on the canvas (LH05 4.4): :class:`Feature` and
 its documented JSON form."""
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ ENTRY_ROW = 4096            # entries per row of the cell lists' texture
 
 @dataclass(frozen=True)
 class Feature:
-    """An exemplar feature placed on the canvas (LH05 4.3; docs/algorithm.md section 5).
+    """An exemplar feature placed on the canvas (LH05 4.4; docs/algorithm.md section 5).
 
     At each level l of its range, inside a circle around the canvas point
     whose radius goes from ``outer`` (first level) to ``inner`` (last level),

@@ -50,7 +50,7 @@ int modulated_rq(int rq, uint E, uint C) {
     return int(min(1024u, (uint(rq) * t + 16384u) >> 15));
 }
 
-// Placed features (engine/controls/features.py Feature, LH05 4.3). Table texture, one
+// Placed features (engine/controls/features.py Feature, LH05 4.4). Table texture, one
 // row per feature (2 texels, TABLE_ROW = 512 rows a texture row): (p_F,l.x, p_F,l.y,
 // frac.x + 16 frac.y, radius in 1/16 level pixels), (u_F.x, u_F.y, -, -). A pixel whose
 // center lies within the radius takes S = (u_F + h (g - p_F,l)) mod m; later features

@@ -3,7 +3,7 @@
 //   S_l[p] = (S_{l-1}[floor(p/2)] + floor(h (D - 1/2)) + J_l(p)) mod m,
 //   J_l(p) = floor(h H(p, l, seed) r_l M_l(p) + 1/2),
 // M_l(p) the product of the randomness fields over the exemplar (read at the
-// upsampled coordinate, min-mipmapped) and over the canvas (engine/controls/avoid.py);
+// upsampled coordinate, min-mipmapped) and over the canvas (engine/controls/fields.py);
 // the effective r_l M_l(p) is clamped to 1. Fields are 1/32768ths (neutral 32768).
 // Level 0 starts from the exemplar centre m/2 (the upsampled S_{-1} = 0).
 // With a period n_l (toroidal output), jitter and child offsets use p mod n_l.

@@ -1,4 +1,4 @@
-"""Features placed on a model (LH05 4.3 in a mesh's atlas, engine/surface/atlas.py).
+"""Features placed on a model (LH05 4.4 in a mesh's atlas, engine/surface/atlas.py).
 
 A feature on a model has its centre at an atlas texel (``Feature.canvas``:
 finest texels of the atlas) and its radii in exemplar pixels: the disc of the

@@ -22,7 +22,7 @@ def draw(p: Panels) -> None:
         imgui.same_line()
         if imgui.get_content_region_avail().x < w:
             imgui.new_line()
-    shown = [t for t in ed.tools if t.on_model or not ed.model_mode]
+    shown = ed.tools.offered(ed.model_mode)
     for i, t in enumerate(shown):
         if i:
             next_item(f"{t.label} ({t.key})")

@@ -127,6 +127,10 @@ class Tools(list):
         """The tool of class ``cls``."""
         return next(t for t in self if isinstance(t, cls))
 
+    def offered(self, model: bool) -> list[Tool]:
+        """The tools the tool bar and their keys offer (``model``: while a model is shown)."""
+        return [t for t in self if t.on_model or not model]
+
 
 def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tuple[int, int],
                       zoom_range: tuple[float, float], fmt: str) -> bool:

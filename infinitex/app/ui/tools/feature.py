@@ -1,4 +1,4 @@
-"""Features (LH05 4.3): place chosen exemplar features anywhere on the canvas.
+"""Features (LH05 4.4): place chosen exemplar features anywhere on the canvas.
 
 - Press on empty canvas and drag: "grab what I see": the feature's exemplar
   point is the synthesized coordinate under the cursor, and it follows the
