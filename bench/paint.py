@@ -46,6 +46,9 @@ def main(argv=None) -> int:
     ap.add_argument("--comb", action="store_true", help="comb a direction field (the Direction tool) instead")
     ap.add_argument("--no-looks", action="store_true", help="without quick looks (Pyramid.quick_look): for an A/B")
     ap.add_argument("--mid-shot", metavar="PNG", help="also capture the window in the middle of the stroke")
+    ap.add_argument("--files", action="store_true",
+                    help="list the package's files whose code runs in a dab's frame (a profiler on the frame; "
+                         "the timings are then not the editor's)")
     ap.add_argument("--load", type=int, default=0, metavar="N",
                     help="N busy processes run beside the editor (a load average of N more)")
     args = ap.parse_args(argv)
@@ -64,9 +67,44 @@ def main(argv=None) -> int:
 
     full_view: list[int] = []
 
+    package = os.path.join(HERE, "infinitex") + os.sep
+    frame_files: list[set] = []  # --files: the package files whose code ran in each frame
+    path_files: list[set] = []   # those of them that ran under the dab's own entry points (DAB_PATH)
+    profiling = [False]
+    from infinitex.app.session import Session
+    from infinitex.app.ui.tools.paint import PaintCanvasTool
+    from infinitex.engine.local_update import LocalUpdates
+    from infinitex.engine.preview import QuickLooks
+    # A dab's way through a frame: the tool's stroke (and the edit it makes), the
+    # session's sync (the local update recorded), the settling and the quick look.
+    entries = {f.__code__ for f in (PaintCanvasTool.drag, Session.sync, LocalUpdates.settle, QuickLooks.quick_look)}
+
     def gui():
         stamps.append(time.perf_counter())
-        orig_gui()
+        if profiling[0]:
+            seen: set = set()
+            path: set = set()
+            depth = [0]
+
+            def prof(frame, event, arg):
+                code = frame.f_code
+                if code in entries:
+                    depth[0] += 1 if event == "call" else -1 if event == "return" else 0
+                if event == "call" and code.co_filename.startswith(package):
+                    seen.add(os.path.relpath(code.co_filename, HERE))
+                    if depth[0] > 0:
+                        path.add(os.path.relpath(code.co_filename, HERE))
+            sys.setprofile(prof)
+            try:
+                orig_gui()
+            finally:
+                sys.setprofile(None)
+            frame_files.append(seen)
+            path_files.append(path)
+        else:
+            orig_gui()
+            frame_files.append(set())
+            path_files.append(set())
         ends.append(time.perf_counter())
         dabs_at.append(ed.tools[4 if args.labels else 5 if args.comb else 1].dabs)
         pixels_at.append(sum(updates))
@@ -132,6 +170,10 @@ def main(argv=None) -> int:
         cy = (r.min.y + r.max.y) / 2
         step = 0.25 * args.radius + 0.01  # one dab per frame
         per_row = int((x1 - x0) // step)
+        if args.files:
+            profiling[0] = True
+            ctx.mouse_move_to_pos((x0, cy - 120))
+            ctx.yield_(3)  # frames without a dab, the same view: what every frame runs
         n0 = len(stamps)
         d0 = tool.dabs
         row = 0
@@ -156,6 +198,21 @@ def main(argv=None) -> int:
             row += 1
         ctx.yield_()
         n1 = len(stamps)
+        profiling[0] = False
+        if args.files:
+            base = frame_files[n0 - 1]
+            dab_frames = [frame_files[k] for k in range(n0 + 1, n1) if dabs_at[k] > dabs_at[k - 1]]
+            counts = sorted(len(f) for f in dab_frames)
+            own = sorted(len(f - base) for f in dab_frames)
+            typical = min(dab_frames, key=lambda f: abs(len(f) - counts[len(counts) // 2]))
+            paths = [path_files[k] for k in range(n0 + 1, n1) if dabs_at[k] > dabs_at[k - 1]]
+            plen = sorted(len(f) for f in paths)
+            results["files_on_the_dab_path"] = {"median": plen[len(plen) // 2], "max": plen[-1],
+                                                "union": sorted(set().union(*paths))}
+            results["files"] = {"frame_without_a_dab": sorted(base), "dab_frame_median": counts[len(counts) // 2],
+                                "dab_frame_max": counts[-1], "added_by_the_dab_median": own[len(own) // 2],
+                                "added_by_the_dab_max": own[-1], "typical_dab_frame": sorted(typical),
+                                "added_by_a_typical_dab": sorted(typical - base)}
         t_end = time.perf_counter()
         for _ in range(100000):  # until the view shows every dab exactly
             ctx.yield_()
@@ -222,6 +279,17 @@ def main(argv=None) -> int:
           f"{results['latency_ms_p90']:.1f} | {results['frame_ms_median']:.1f} / {results['frame_ms_p90']:.1f} / "
           f"{results['frame_ms_max']:.1f} | {results['fps_during_stroke']:.1f} | {results['settle_after_stroke_s']:.2f} | "
           f"{results['pixels_per_dab']:.0f} | {results['full_view_pixels']} | {results['fewer_pixels_than_full']:.1f}x |")
+    if "files" in results:
+        f = results["files"]
+        print(f"package files run in a frame: {len(f['frame_without_a_dab'])} without a dab; with one "
+              f"{f['dab_frame_median']} (median, max {f['dab_frame_max']}); the dab's own: "
+              f"{f['added_by_the_dab_median']} (median, max {f['added_by_the_dab_max']})")
+        print("  a typical dab's own files: " + ", ".join(f["added_by_a_typical_dab"]))
+        print("  every frame's: " + ", ".join(f["frame_without_a_dab"]))
+        p = results["files_on_the_dab_path"]
+        print(f"files on a dab's path (under PaintCanvasTool.drag, Session.sync, LocalUpdates.settle, "
+              f"QuickLooks.quick_look): {p['median']} (median, max {p['max']}); all dabs: {len(p['union'])}: "
+              + ", ".join(p["union"]))
     if args.json:
         from infinitex.engine.safeio import atomic_write
         atomic_write(args.json, json.dumps(results, indent=1).encode())

@@ -114,10 +114,10 @@ def test_the_walkthrough_stroke_on_a_model_stays_a_brush_and_ends_exact(model_se
         pos, per_px = hit
         r = dab_radius(47.0, True, per_px, n)
         radii.append((x, r))
-        field, last, _ = model_stroke(field, atlas, n, last, pos, r, brush)  # what the editor's stroke does
+        field, last, _, rects = model_stroke(field, atlas, n, last, pos, r, brush)  # what the editor's stroke does
         doc = replace(doc, randomness_canvas=field)
         t = time.process_time()
-        s.sync(doc)
+        s.sync(doc, rects)  # where it reached, as the editor says it
         syncs.append(time.process_time() - t)
         pyr = s.pyramid
         for l in range(s.L + 1):
