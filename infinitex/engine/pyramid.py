@@ -30,7 +30,16 @@ from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
 from .params import SynthParams, correction_margins, first_rects, subpass_rects
 from .rect import Rect
-from .stages import Draw, Pacer, block_layout, correction_draws, fidelity_draws, label_draws, scratch_size
+from .stages import (
+    Draw,
+    Pacer,
+    RegionPass,
+    block_layout,
+    correction_draws,
+    fidelity_draws,
+    label_draws,
+    scratch_size,
+)
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -352,117 +361,122 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
         the write-back is the last step. Returns (as the generator's value) the
         rectangle of the pixels that changed, when ``buf`` is None. ``parent``:
         read instead of level l - 1's buffer (a quick look, see preview.py)."""
-        p = self.params
-        s = p.subgrid
-        an = self.an
+        rp = self._region_pass(l, strip, scratch)
+        try:
+            yield from self._upsample_steps(rp, parent, pace)
+            # Correction subpasses, then the fidelity stage's, on scratch a, each
+            # over what the strip needs of it (not in an atlas, whose reads jump).
+            draws = []
+            if rp.level_corrected:
+                # Lattice levels keep their lattice candidates only.
+                walk = self.params.walk_steps(self.an.k, self.controls.avoid is not None) \
+                    if rp.lattice_shift is None else 0
+                draws += correction_draws(rp, walk)
+            if self.params.fidelity_at(l):
+                draws += fidelity_draws(rp)
+            for d in draws:
+                yield from d.steps(pace)
+            return (yield from self._write_back(rp, strip, buf))
+        finally:
+            rp.release()
+
+    def _region_pass(self, l: int, strip: Rect, scratch) -> RegionPass:
+        """What every pass over ``strip``'s padded region reads (stages.RegionPass)."""
+        p, an = self.params, self.an
         region = self.padded(l, strip)
-        qdims = (region.w // s, region.h // s)
-        bstride, boff, tex_size = block_layout(qdims, s)
-        a, fa, b, fb = scratch
-        h = an.h(l)
         ftexs, funi = feature_textures(self.gpu, self.controls, an, l, region, p.level_period(l), self._dummy_i)
         cvals = None
         if self.controls.randomness_canvas is not None:
             cvals = self.controls.randomness_canvas.region(an.L - l, region.x0, region.y0, region.w, region.h,
                                                            p.level_period(l))
-        ctex = self.gpu.u16_texture(cvals) if cvals is not None else None
         dtex, ltex, ptex, ddef = self._geometry_textures(l, region)
+        corrected = l in self.corrected
+        # Only what the subpasses then read of each phase (not in an atlas, whose reads jump).
+        npass = p.passes_at(l) if corrected else 0
+        rects, first = (None, None) if ltex is not None else strip_rects(p, an.model, l, npass, strip, region)
         labels = None
-        try:
-            # Upsample + jitter into scratch a (modulated by the randomness fields), at once.
-            prog, vao = self.gpu.program("upsample.frag", SUB_S=s, **ddef)
-            efield = self._efield_texture(l)
-            textures = {1: efield or self._dummy, 2: ctex or self._dummy}
-            if dtex is not None:
-                textures[11] = dtex
-            if ltex is not None:
-                textures[12] = ltex
-                textures[13] = ptex or ltex
-            uni: dict = {}
-            if l > 0:
-                parent = parent or self.buffers[l - 1]
-                assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
-                textures[0] = parent.tex
-                uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
-            lshift = self.controls.lattice_shift(an.size, l)
-            uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=qdims, bstride=bstride, boff=boff, h=h,
-                       m=an.size, level=l, seed=p.seed, rq=fixed.jitter_q(self.controls.jitter_at(p, an.size, l)),
-                       period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
-                       cfield=2, has_cfield=int(ctex is not None), lattice_shift=lshift or (-1, -1), **funi,
-                       **(dict(dfield=11) if dtex is not None else {}),
-                       **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0)) if ltex is not None else {}))
-            for unit, tex in zip((3, 6, 7), ftexs or [self._dummy_i] * 3):
-                textures[unit] = tex
-            # Only what the subpasses then read of each phase (not in an atlas, whose reads jump).
-            npass = p.passes_at(l) if l in self.corrected else 0
-            rects, first = (None, None) if ltex is not None else strip_rects(p, an.model, l, npass, strip, region)
-            if first is None:
-                yield from Draw(prog, vao, fa, (*boff, tex_size[0] - boff[0], tex_size[1] - boff[1]), textures, uni,
-                                l).steps(pace)
-            else:
-                for (i, j), (x0, y0, x1, y1) in sorted(first.items()):
-                    if x0 < x1 and y0 < y1:
-                        yield from Draw(prog, vao, fa, (boff[0] + i * bstride[0] + x0, boff[1] + j * bstride[1] + y0,
-                                                        x1 - x0, y1 - y0), textures, uni, l).steps(pace)
+        if corrected or p.fidelity_at(l):
+            labels = label_draws(self.gpu, self._efield, self._label_typical, self.controls, an, p, l, region)
+        return RegionPass(self.gpu, self.gan, p, l, region, scratch, rects, first,
+                          self.controls.lattice_shift(an.size, l), ftexs, funi,
+                          self.gpu.u16_texture(cvals) if cvals is not None else None, dtex, ltex, ptex, ddef,
+                          self._avoid_texture(), labels, self._dummy, self._dummy_i, corrected)
 
-            # Correction subpasses, then the fidelity stage's, on scratch a, each
-            # over what the strip needs of it (not in an atlas, whose reads jump).
-            draws = []
-            ncorr = npass * s * s
-            avoid = self._avoid_texture()
-            if l in self.corrected or p.fidelity_at(l):
-                labels = label_draws(self.gpu, self._efield, self._label_typical, self.controls, an, p, l, region)
-            if l in self.corrected:
-                # Lattice levels keep their lattice candidates only.
-                walk = p.walk_steps(an.k, self.controls.avoid is not None) if lshift is None else 0
-                draws += correction_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, walk, scratch,
-                                          avoid, self._dummy, self._dummy_i, labels, dtex, ltex, ddef,
-                                          None if rects is None else rects[:ncorr])
-            if p.fidelity_at(l):
-                draws += fidelity_draws(self.gpu, self.gan, p, l, region, qdims, lshift is not None, scratch,
-                                        avoid or self._dummy, avoid is not None, labels, dtex, ltex,
-                                        None if rects is None else rects[ncorr:])
-            for d in draws:
-                yield from d.steps(pace)
+    def _upsample_steps(self, rp: RegionPass, parent: _LevelBuffer | None, pace: Pacer | None) -> Iterator[None]:
+        """Upsample + jitter into scratch a (modulated by the randomness fields):
+        the whole region, or per phase what the subpasses then read (``rp.first``)."""
+        p, an, l, region = self.params, self.an, rp.level, rp.region
+        s = p.subgrid
+        bstride, boff, tex_size = block_layout(rp.qdims, s)
+        prog, vao = self.gpu.program("upsample.frag", SUB_S=s, **rp.defines)
+        efield = self._efield_texture(l)
+        textures = {1: efield or self._dummy, 2: rp.canvas_field or self._dummy}
+        if rp.direction is not None:
+            textures[11] = rp.direction
+        if rp.links is not None:
+            textures[12] = rp.links
+            textures[13] = rp.parent_links or rp.links
+        uni: dict = {}
+        if l > 0:
+            parent = parent or self.buffers[l - 1]
+            assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
+            textures[0] = parent.tex
+            uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
+        uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=rp.qdims, bstride=bstride, boff=boff,
+                   h=an.h(l), m=an.size, level=l, seed=p.seed,
+                   rq=fixed.jitter_q(self.controls.jitter_at(p, an.size, l)),
+                   period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
+                   cfield=2, has_cfield=int(rp.canvas_field is not None), lattice_shift=rp.lattice_shift or (-1, -1),
+                   **rp.feature_uniforms, **(dict(dfield=11) if rp.direction is not None else {}),
+                   **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0))
+                      if rp.links is not None else {}))
+        for unit, tex in zip((3, 6, 7), rp.features or [self._dummy_i] * 3):
+            textures[unit] = tex
+        fa = rp.scratch[1]
+        if rp.first is None:
+            yield from Draw(prog, vao, fa, (*boff, tex_size[0] - boff[0], tex_size[1] - boff[1]), textures, uni,
+                            l).steps(pace)
+            return
+        for (i, j), (x0, y0, x1, y1) in sorted(rp.first.items()):
+            if x0 < x1 and y0 < y1:
+                yield from Draw(prog, vao, fa, (boff[0] + i * bstride[0] + x0, boff[1] + j * bstride[1] + y0,
+                                                x1 - x0, y1 - y0), textures, uni, l).steps(pace)
 
-            # Write the exact strip back, split where the buffer wraps.
-            changed = None
-            deferred = buf is None
-            if deferred:  # a local update: into what the level holds now
-                buf = self.buffers[l]
-                strip = strip.intersect(buf.valid) if buf is not None and buf.valid is not None else Rect(0, 0, 0, 0)
-                if strip.empty:
-                    return None
-                before = self._read_rect(buf, strip)
-            prog, vao = self.gpu.program("writeback.frag", SUB_S=s, **ddef)
-            uni = dict(src=0, qdims=qdims, bstride=bstride, boff=boff, src_origin=(region.x0, region.y0), dest_mask=buf.mask,
-                       h=h, m=an.size, period=p.level_period(l), links=12, **funi)  # links: charts (on a model)
-            textures = {0: a, 12: self._dummy_i if ltex is None else ltex, **dict(zip((3, 6, 7), ftexs or [self._dummy_i] * 3))}
-            # At once and without a pause: a level shown between two pieces
-            # would hold pixels the view was not told about (Pyramid.touched).
-            for g0, t0, w, hh in buf.pieces(strip):
-                for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
-                              dict(uni, region_g0=g0, region_t0=t0), l).steps():
-                    pass
-            if not deferred:
-                yield  # (a local update reports what it changed before any frame can draw it: no pause here)
-            if deferred:
-                diff = np.any(self._read_rect(buf, strip) != before, axis=-1)
-                if diff.any():
-                    ys, xs = np.nonzero(diff)
-                    changed = Rect(strip.x0 + int(xs.min()), strip.y0 + int(ys.min()),
-                                   strip.x0 + int(xs.max()) + 1, strip.y0 + int(ys.max()) + 1)
-            return changed
-        finally:
-            for tex in ftexs:
-                tex.release()
-            if ctex is not None:
-                ctex.release()
-            for tex in (dtex, ltex, ptex):
-                if tex is not None:
-                    tex.release()
-            if labels is not None:
-                labels.canvas.release()
+    def _write_back(self, rp: RegionPass, strip: Rect, buf: _LevelBuffer | None) -> Iterator[None]:
+        """Write the exact strip back from scratch a, split where the buffer
+        wraps; ``buf`` None (a local update): into what the level holds now,
+        returning the rectangle of the pixels that changed (or None)."""
+        p, an, l, region = self.params, self.an, rp.level, rp.region
+        s = p.subgrid
+        bstride, boff, _ = block_layout(rp.qdims, s)
+        deferred = buf is None
+        if deferred:
+            buf = self.buffers[l]
+            strip = strip.intersect(buf.valid) if buf is not None and buf.valid is not None else Rect(0, 0, 0, 0)
+            if strip.empty:
+                return None
+            before = self._read_rect(buf, strip)
+        prog, vao = self.gpu.program("writeback.frag", SUB_S=s, **rp.defines)
+        uni = dict(src=0, qdims=rp.qdims, bstride=bstride, boff=boff, src_origin=(region.x0, region.y0),
+                   dest_mask=buf.mask, h=an.h(l), m=an.size, period=p.level_period(l), links=12,
+                   **rp.feature_uniforms)  # links: charts (on a model)
+        textures = {0: rp.scratch[0], 12: self._dummy_i if rp.links is None else rp.links,
+                    **dict(zip((3, 6, 7), rp.features or [self._dummy_i] * 3))}
+        # At once and without a pause: a level shown between two pieces
+        # would hold pixels the view was not told about (Pyramid.touched).
+        for g0, t0, w, hh in buf.pieces(strip):
+            for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
+                          dict(uni, region_g0=g0, region_t0=t0), l).steps():
+                pass
+        if not deferred:
+            yield  # (a local update reports what it changed before any frame can draw it: no pause here)
+            return None
+        diff = np.any(self._read_rect(buf, strip) != before, axis=-1)
+        if not diff.any():
+            return None
+        ys, xs = np.nonzero(diff)
+        return Rect(strip.x0 + int(xs.min()), strip.y0 + int(ys.min()),
+                    strip.x0 + int(xs.max()) + 1, strip.y0 + int(ys.max()) + 1)
 
     def _efield_texture(self, l: int):
         e = self.controls.randomness_exemplar

@@ -226,23 +226,72 @@ def _region_inputs(textures: dict, uniforms: dict, labels, label_uniforms, direc
         uniforms["links"] = 12
 
 
-def correction_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
-                     lattice: bool, walk: int, scratch, avoid_tex, dummy, dummy_i, labels: LabelDraws | None,
-                     direction, links, defines: dict, rects: list | None) -> list[Draw]:
-    """The correction's subpasses on level ``l``'s padded ``region`` (see
-    shaders/correct.frag); ``lattice``: a lattice level (its lattice candidates
-    only); ``walk``: random-walk steps; ``avoid_tex``: the avoided region or
-    None; ``dummy``/``dummy_i``: textures bound where an input is absent;
-    ``labels``, ``direction``, ``links``, ``rects`` as fidelity_draws;
-    ``defines``: the geometry's (DIRECTION, ATLAS)."""
+@dataclass
+class RegionPass:
+    """One padded region of a level as every pass over it reads it: the level,
+    the region, the quadrant-packed state's scratch textures, what each subpass
+    renders, and the region's inputs besides the state (the passes' one
+    description, made and released by ``Pyramid._region_pass``)."""
+
+    gpu: Gpu
+    gan: GpuAnalysis
+    params: SynthParams
+    level: int
+    region: Any                    # the padded region (Rect, level pixels)
+    scratch: tuple                 # (a, its framebuffer, b, b's framebuffer)
+    rects: list | None             # per subpass (correction's, then the fidelity stage's) what it renders; None: all
+    first: dict | None             # what the upsampling must compute, per phase (None: all)
+    lattice_shift: tuple | None    # a lattice level's cell shift (its lattice candidates only), or None
+    features: list                 # feature textures (units 3, 6, 7) and their uniforms
+    feature_uniforms: dict
+    canvas_field: Any = None       # the canvas randomness over the region (u16), or None
+    direction: Any = None          # J over the region (anisometric synthesis), or None
+    links: Any = None              # a mesh atlas' indirection map over the region, or None
+    parent_links: Any = None       # and over the parent's region
+    defines: dict = field(default_factory=dict)  # the geometry's (DIRECTION, ATLAS)
+    avoid: Any = None              # the avoided exemplar region, or None
+    labels: LabelDraws | None = None
+    dummy: Any = None              # textures bound where an input is absent (u16, int)
+    dummy_i: Any = None
+
+    @property
+    def qdims(self) -> tuple[int, int]:
+        s = self.params.subgrid
+        return (self.region.w // s, self.region.h // s)
+
+    def stage_rects(self, correction: bool) -> list | None:
+        """What the correction's (else the fidelity stage's) subpasses render."""
+        if self.rects is None:
+            return None
+        n = self.params.passes_at(self.level) * self.params.subgrid ** 2 if self.level_corrected else 0
+        return self.rects[:n] if correction else self.rects[n:]
+
+    level_corrected: bool = False  # the level has correction passes
+
+    def release(self) -> None:
+        for tex in self.features:
+            tex.release()
+        for tex in (self.canvas_field, self.direction, self.links, self.parent_links):
+            if tex is not None:
+                tex.release()
+        if self.labels is not None:
+            self.labels.canvas.release()
+
+
+def correction_draws(rp: RegionPass, walk: int) -> list[Draw]:
+    """The correction's subpasses on ``rp``'s region (see shaders/correct.frag);
+    a lattice level tries its lattice candidates only; ``walk``: random-walk steps."""
+    gpu, gan, p, l, region, qdims = rp.gpu, rp.gan, rp.params, rp.level, rp.region, rp.qdims
     an = gan.analysis
     s = p.subgrid
     lt = gan.level(l)
-    prog, vao = gpu.program("correct.frag", SUB_S=s, **gan.correction_defines(l, avoid_tex is not None,
+    rects = rp.stage_rects(True)
+    labels, direction = rp.labels, rp.direction
+    prog, vao = gpu.program("correct.frag", SUB_S=s, **gan.correction_defines(l, rp.avoid is not None,
                                                                                 direction is not None),
-                            **(labels.defines if labels else {}), **defines,
+                            **(labels.defines if labels else {}), **rp.defines,
                             **(dict(INSIDE=True) if rects is not None else {}))
-    sims = lt.lattice_sim if lattice else (lt.sim or [dummy_i] * 2)
+    sims = lt.lattice_sim if rp.lattice_shift is not None else (lt.sim or [rp.dummy_i] * 2)
     h = an.h(l)
     uni = dict(feat=1, ptable=1, nbhd=2, sim01=3, sim23=4, dims=(region.w, region.h), qdims=qdims, h=h,
                m=an.size, shift=lt.shift, psi=fixed.psi_q(p.kappa), P=lt.proj, walk=walk,
@@ -250,33 +299,31 @@ def correction_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region,
                border=-1 if an.toroidal else border_margin(an.size, h), avoid=5)
     table = gan.projection_tables and direction is None
     textures = dict(enumerate([lt.table if table else lt.feat, lt.nbhd] + sims, start=1))
-    textures[5] = avoid_tex or dummy
-    _region_inputs(textures, uni, labels, labels and labels.correction, direction, links)
-    return subpass_draws(gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, scratch, textures, uni,
+    textures[5] = rp.avoid or rp.dummy
+    _region_inputs(textures, uni, labels, labels and labels.correction, direction, rp.links)
+    return subpass_draws(gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, rp.scratch, textures, uni,
                          lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)}, rects)
 
 
-def fidelity_draws(gpu: Gpu, gan: GpuAnalysis, p: SynthParams, l: int, region, qdims: tuple[int, int],
-                   lattice: bool, scratch, avoid_tex, has_avoid: bool, labels: LabelDraws | None = None,
-                   direction=None, links=None, rects: list | None = None) -> list[Draw]:
-    """The fidelity stage's iterations on level ``l``'s padded ``region`` (see
-    shaders/fidelity.frag); ``lattice``: a lattice level (no random search);
-    ``labels``: texture by numbers over the region, if any; ``direction``: the
-    region's J texture (anisometric synthesis), if any; ``links``: its
-    indirection map (synthesis in a mesh's atlas), if any; ``rects``: what
-    each subpass renders (subpass_draws)."""
+def fidelity_draws(rp: RegionPass) -> list[Draw]:
+    """The fidelity stage's iterations on ``rp``'s region (see
+    shaders/fidelity.frag); a lattice level has no random search."""
+    gpu, gan, p, l, region, qdims = rp.gpu, rp.gan, rp.params, rp.level, rp.region, rp.qdims
     an = gan.analysis
+    rects = rp.stage_rects(False)
+    labels, direction, links, scratch = rp.labels, rp.direction, rp.links, rp.scratch
     defines = dict(SUB_S=p.subgrid, FID_RADIUS=p.fidelity_radius, FID_SEARCH=FIDELITY_SEARCH, FID_NCH=an.channels,
                    **(labels.defines if labels else {}), **(dict(DIRECTION=True) if direction is not None else {}),
-                   **(dict(ATLAS=True) if links is not None else {}), **(dict(AVOID=True) if has_avoid else {}),
+                   **(dict(ATLAS=True) if links is not None else {}), **(dict(AVOID=True) if rp.avoid is not None else {}),
                    **(dict(INSIDE=True) if rects is not None else {}))
     if direction is None:
         defines["ROW_TAPS"] = True
     prog, vao = gpu.program("fidelity.frag", **defines)
     uniforms = dict(colors=1, rowtaps=2, avoid=5, dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
-                    origin=(region.x0, region.y0), level=l, period=p.level_period(l), no_search=int(lattice))
-    textures = {1: gan.level(l).colors, 5: avoid_tex}
+                    origin=(region.x0, region.y0), level=l, period=p.level_period(l),
+                    no_search=int(rp.lattice_shift is not None))
+    textures = {1: gan.level(l).colors, 5: rp.avoid or rp.dummy}
     if direction is None:
         textures[2] = gan.level(l).row_taps(an.h(l), p.fidelity_radius, an.toroidal)
     _region_inputs(textures, uniforms, labels, labels and labels.fidelity, direction, links)
