@@ -218,8 +218,8 @@ def main(out: str) -> int:
         check("reopened canvas is identical", np.array_equal(f, h), "canvas differs after reopening")
 
         # Export a toroidal tile through the Export panel, with its coordinate map.
-        ed.tile_size = 64
-        ed.write_coords = True
+        ed.export_settings.tile_size = 64
+        ed.export_settings.write_coords = True
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Export toroidal tile...")
         ctx.yield_(2)

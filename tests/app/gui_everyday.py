@@ -136,7 +136,7 @@ def main(out: str) -> int:
 
         # Tile mode: the canvas shows the periodic texture of the tile size (T toggles it).
         import numpy as np
-        ed.tile_size = 64
+        ed.export_settings.tile_size = 64
         ctx.mouse_move("**/canvas")
         ctx.key_press(imgui.Key.t)
         a = canvas(ctx)

@@ -51,20 +51,20 @@ def main(out: str) -> int:
             ctx.item_close(f"**/{header}")
         ctx.item_open("**/Export")
         ctx.yield_(2)
-        ed.export_rect = list(TIFF_RECT)
+        ed.export_settings.rect = list(TIFF_RECT)
         choose(ctx, "Format", "BigTIFF (tiled)")
         ctx.yield_(2)
-        check("the format is chosen in the panel", ed.export_format == "tiff", ed.export_format)
+        check("the format is chosen in the panel", ed.export_settings.format == "tiff", ed.export_settings.format)
         choose(ctx, "Tile##stream", "256")
-        ed.export_workers = 1
+        ed.export_settings.workers = 1
         ctx.yield_(2)
-        check("an estimate starts in the background", ed.estimate is not None and ed.estimate.key[1:] == ("tiff", 256),
-              str(ed.estimate and ed.estimate.key))
-        measured = wait(ctx, lambda: ed.estimate is not None and ed.estimate.poll(), 120)
-        text, low = ed.estimate.describe(TIFF_RECT[2], TIFF_RECT[3], 1, out)
-        check("size and time are estimated before starting", measured and ed.estimate.result is not None
+        check("an estimate starts in the background", ed.export_settings.estimate is not None and ed.export_settings.estimate.key[1:] == ("tiff", 256),
+              str(ed.export_settings.estimate and ed.export_settings.estimate.key))
+        measured = wait(ctx, lambda: ed.export_settings.estimate is not None and ed.export_settings.estimate.poll(), 120)
+        text, low = ed.export_settings.estimate.describe(TIFF_RECT[2], TIFF_RECT[3], 1, out)
+        check("size and time are estimated before starting", measured and ed.export_settings.estimate.result is not None
               and re.match(r"About [\d.]+ (KB|MB|GB) and [\d.]+ (s|min|h) with 1 worker\.$", text) is not None
-              and not low, f"{text} {ed.estimate.error}")
+              and not low, f"{text} {ed.export_settings.estimate.error}")
         testing.capture(ctx, os.path.join(out, "export-panel.png"))
 
         # A BigTIFF by a worker process; the editor keeps drawing meanwhile.
@@ -91,7 +91,7 @@ def main(out: str) -> int:
               and os.path.isfile(target) and not os.path.exists(target + ".parts"), str(ed.notice))
 
         # A tile set, cancelled in the progress window, then resumed.
-        ed.export_rect = list(TILES_RECT)
+        ed.export_settings.rect = list(TILES_RECT)
         ctx.set_ref("//Infinitex")
         choose(ctx, "Format", "PNG tiles (UDIM)")
         ctx.yield_(2)
@@ -119,16 +119,16 @@ def main(out: str) -> int:
               and f"({kept} tiles kept from an earlier run)" in ed.notice[0] and kept >= 3, f"{kept} {ed.notice}")
         ctx.set_ref("//Infinitex")
         choose(ctx, "Format", "PNG image")
-        ed.export_rect = [0, 0, 20000, 100]
+        ed.export_settings.rect = [0, 0, 20000, 100]
         ctx.yield_(3)
-        check("too large for one PNG is said, not attempted", ed.export_format == "png", ed.export_format)
+        check("too large for one PNG is said, not attempted", ed.export_settings.format == "png", ed.export_settings.format)
 
         # A PNG export runs in a process of its own: the canvas stays live (a
         # pan refines meanwhile) and a second export waits in the queue.
         from infinitex.project import View
         names = [os.path.join(out, f"apart{i}.png") for i in (1, 2)]
         for rect, name in zip(APART_RECTS, names):
-            ed.export_rect = list(rect)
+            ed.export_settings.rect = list(rect)
             ctx.yield_(2)
             ctx.item_click("**/Export rectangle...")
             ctx.yield_(2)

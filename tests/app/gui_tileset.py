@@ -40,7 +40,7 @@ def main(out: str) -> int:
             ctx.item_close(f"**/{header}")
         ctx.item_open("**/Export")
         ctx.yield_(2)
-        ed.export_rect = [0, 0, 1536, 1536]
+        ed.export_settings.rect = [0, 0, 1536, 1536]
         ctx.yield_(2)
         ctx.item_click("**/Export rectangle...")
         ctx.yield_(2)

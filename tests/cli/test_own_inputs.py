@@ -263,10 +263,10 @@ def editor(monkeypatch):
         ed = Fake()
         ed.doc, ed.project_path, ed.dialogs = doc, project_path, Dialogs(native)
         ed.session = SimpleNamespace(material=material, synth=None, L=0, previewing=False)  # not ready: a window export says so
-        ed.write_coords, ed.export_depth, ed.export_magnify, ed.export_job = False, None, 1, None
-        ed.export_format, ed.stream_tile, ed.export_workers = "png", 256, 1
+        ed.export_job = None
+        ed.export_settings = exports.ExportSettings(stream_tile=256, workers=1)
         for k, v in kw.items():
-            setattr(ed, k, v)
+            setattr(ed.export_settings, k, v)
         return ed
     return make
 
@@ -287,7 +287,7 @@ def test_the_editor_refuses_an_export_over_its_inputs(editor, wood, gravel):
     ed.start_export(str(wood / "wood.png"), Rect.of(0, 0, 64, 64))
     assert ed.export_job is None and not ed.dialogs.questions
     assert "wood_basecolor.png is an input of this export" in ed.dialogs.messages[-1][1]
-    ed.export_format = "tiff"  # the streamed form writes the map shown: wood_basecolor.tif replaces nothing
+    ed.export_settings.format = "tiff"  # the streamed form writes the map shown: wood_basecolor.tif replaces nothing
     ed.start_streamed_export(str(wood / "wood.tif"), Rect.of(0, 0, 64, 64))
     assert isinstance(ed.export_job, Started) and ed.export_job.path == str(wood / "wood_basecolor.tif")
     assert digest(wood) == before
@@ -300,7 +300,7 @@ def test_the_editor_refuses_an_export_over_its_inputs(editor, wood, gravel):
     assert "proj.png is an input of this export" in ed.dialogs.messages[-1][1] and proj.read_bytes() == b"{}"
     ed.start_export(str(gravel), Rect.of(0, 0, 64, 64))
     assert "gravel.png is an input of this export" in ed.dialogs.messages[-1][1]
-    ed.export_format = "tiles"  # a tile's name that is a link to the exemplar
+    ed.export_settings.format = "tiles"  # a tile's name that is a link to the exemplar
     (gravel.parent / "t.1001.png").symlink_to(gravel)
     ed.start_streamed_export(str(gravel.parent / "t.png"), Rect.of(0, 0, 64, 64))
     assert "is an input of this export" in ed.dialogs.messages[-1][1]
@@ -327,18 +327,18 @@ def test_the_editor_asks_before_replacing_an_existing_file(editor, gravel, tmp_p
     ed.start_export(str(out), Rect.of(0, 0, 64, 64))
     assert "view_coords.png already exists" in ed.dialogs.questions[-1][1]
     # Streamed: an existing BigTIFF is asked about; a tile set being continued (its parts folder there) is not.
-    ed = editor(doc, mat, export_format="tiff")
+    ed = editor(doc, mat, format="tiff")
     (tmp_path / "big.tif").write_bytes(b"tif")
     ed.start_streamed_export(str(tmp_path / "big.tif"), Rect.of(0, 0, 64, 64))
     assert "big.tif already exists" in ed.dialogs.questions[-1][1] and ed.export_job is None
     ed.dialogs.questions[-1][2][0][1]()  # Replace
     assert isinstance(ed.export_job, Started) and (tmp_path / "big.tif").read_bytes() == b"tif"
-    ed = editor(doc, mat, export_format="tiles")
+    ed = editor(doc, mat, format="tiles")
     (tmp_path / "set.1001.png").write_bytes(b"tile")
     ed.start_streamed_export(str(tmp_path / "set.png"), Rect.of(0, 0, 64, 64))
     assert "set.<UDIM>.png already exists" in ed.dialogs.questions[-1][1] and ed.export_job is None
     (tmp_path / "set.png.parts").mkdir()
-    ed = editor(doc, mat, export_format="tiles")
+    ed = editor(doc, mat, format="tiles")
     ed.start_streamed_export(str(tmp_path / "set.png"), Rect.of(0, 0, 64, 64))
     assert not ed.dialogs.questions and isinstance(ed.export_job, Started)
 

@@ -86,7 +86,7 @@ class CanvasInputMixin:
         """The tile size while tile mode is on (whole lattice cells required), else 0."""
         if not self.tile_mode or not self.session.ready:
             return 0
-        n = self.tile_size
+        n = self.export_settings.tile_size
         lat = self.session.controls.lattice
         if lat is not None:
             cx, cy = lat.cell(self.session.analysis.size)

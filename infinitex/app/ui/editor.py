@@ -28,7 +28,7 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 
 from infinitex.engine.gpu import GLUnavailable, Gpu
 from infinitex.engine.safeio import WriteError, printable
-from infinitex.export.jobs import BackgroundExport, ExportEstimate, StreamedExport
+from infinitex.export.jobs import BackgroundExport, StreamedExport
 from infinitex.export.window import ExportJob
 from infinitex.project import Autosave, Display, History, View
 
@@ -40,7 +40,7 @@ from . import panels
 from .canvas_input import CanvasInputMixin
 from .canvas_preview import CanvasPreviewMixin
 from .dialogs import Dialogs
-from .exports import ExportsMixin
+from .exports import ExportSettings, ExportsMixin
 from .files import DEFAULT_EXEMPLAR, FilesMixin
 from .keylog import KeyLog
 from .model_mode import ModelModeMixin
@@ -88,15 +88,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.found_lattice = None  # the Detection that put the open image on its lattice (Exemplar panel)
         self.export_job: ExportJob | StreamedExport | BackgroundExport | None = None
         self.export_queue: list[BackgroundExport] = []  # window exports waiting for the running one
-        self.export_rect = [0, 0, 2048, 2048]
-        self.export_format = "png"       # png (one image, in memory) | tiles (UDIM PNG set) | tiff (BigTIFF)
-        self.stream_tile = 1024          # tile size of the streamed formats
-        self.export_workers = max(1, (os.cpu_count() or 2) - 1)  # leave a core to the editor
-        self.estimate: ExportEstimate | None = None
-        self.tile_size = 1024
-        self.write_coords = False
-        self.export_depth: int | None = None  # bit depth of exported maps; None: each map's own
-        self.export_magnify = 1               # exported pixels per texel (synthesis magnification)
+        self.export_settings = ExportSettings()  # what the Export panel sets (it alone), the exports read
         self.goto = [0, 0]
         self.frame: Frame | None = None
         self.canvas_size = (1, 1)
@@ -387,7 +379,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         # Worker processes doing the work (a streamed export, an estimate) need
         # the cores more than a full frame rate: a few frames a second show progress.
         background = (self.exporting_apart()
-                      or (self.estimate is not None and not self.estimate.poll()))
+                      or (self.export_settings.estimate is not None and not self.export_settings.estimate.poll()))
         self.waits.frame_ended(busy=busy, analyzing=analyzing, working=working, background=background)
         if self.quit_requested:
             self.params.app_shall_exit = True

@@ -12,12 +12,13 @@ from __future__ import annotations
 import math
 import os
 import time
+from dataclasses import dataclass, field
 
 from infinitex.engine.material import export_depths, map_path, output_paths
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.export import check_zarr_output, udim_name
-from infinitex.export.jobs import BackgroundExport, StreamedExport
+from infinitex.export.jobs import BackgroundExport, ExportEstimate, StreamedExport
 from infinitex.export.window import (
     ExportJob,
     Writes,
@@ -27,6 +28,22 @@ from infinitex.export.window import (
 )
 
 FRAME_BUDGET_S = 0.030       # synthesis time per frame: keeps the UI above 15 fps on llvmpipe
+
+
+@dataclass
+class ExportSettings:
+    """The Export panel's settings (panels/export.py writes them, alone; the
+    exports read them)."""
+
+    rect: list = field(default_factory=lambda: [0, 0, 2048, 2048])  # x, y, w, h (canvas pixels)
+    format: str = "png"     # png (one image, in memory) | tiles (UDIM PNG set) | tiff (BigTIFF) | zarr
+    stream_tile: int = 1024  # tile size of the streamed formats
+    workers: int = field(default_factory=lambda: max(1, (os.cpu_count() or 2) - 1))  # leave a core to the editor
+    tile_size: int = 1024    # the seamless tile's size (tile mode shows it)
+    write_coords: bool = False
+    depth: int | None = None  # bit depth of exported maps; None: each map's own
+    magnify: int = 1          # exported pixels per texel (synthesis magnification)
+    estimate: ExportEstimate | None = None  # the streamed export's estimate running for these settings
 
 
 class ExportsMixin:
@@ -81,8 +98,8 @@ class ExportsMixin:
         chosen = path
         if not os.path.splitext(path)[1]:
             single = self.session.material is None or self.session.material.single
-            path += ".tif" if self.export_depth == 32 and single else ".png"
-        coords = os.path.splitext(path)[0] + "_coords.png" if self.write_coords else None
+            path += ".tif" if self.export_settings.depth == 32 and single else ".png"
+        coords = os.path.splitext(path)[0] + "_coords.png" if self.export_settings.write_coords else None
         try:
             check_output(path, (".png", ".tif", ".tiff"), "export")  # before any work
             if coords:
@@ -90,15 +107,15 @@ class ExportsMixin:
             mat = self.session.material
             if mat is not None:  # every file the export writes: none may be one of its inputs
                 outs = [p for _, p, _ in output_paths(path, mat.roles,
-                                                      export_depths(mat, mat.roles, self.export_depth, path))]
+                                                      export_depths(mat, mat.roles, self.export_settings.depth, path))]
                 writes = Writes(files=outs + ([coords] if coords else []))
                 check_own_inputs(writes, self.export_inputs())
                 if not confirmed and not self._confirm_replace(
                         writes, self._asked(chosen, path), lambda: self.start_export(path, rect, toroidal, True)):
                     return
             geometry = "original" if self.geometry() is not None else "rectified"  # what the canvas shows
-            options = dict(toroidal=toroidal, coords_path=coords, geometry=geometry, depth=self.export_depth,
-                           magnify=1 if coords else self.export_magnify)
+            options = dict(toroidal=toroidal, coords_path=coords, geometry=geometry, depth=self.export_settings.depth,
+                           magnify=1 if coords else self.export_settings.magnify)
             job = ExportJob(self.session, rect, path, **options)
             job.cancel()  # it checked the export; the export itself runs in a process of its own
             for _, out, _ in job.outputs:
@@ -109,7 +126,7 @@ class ExportsMixin:
 
     def start_streamed_export(self, path: str, rect: Rect, confirmed: bool = False) -> None:
         """A tile set or BigTIFF of ``rect``, rendered by worker processes while the editor stays live."""
-        fmt = self.export_format
+        fmt = self.export_settings.format
         ext = {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png")
         chosen = path
         if not os.path.splitext(path)[1]:
@@ -119,20 +136,20 @@ class ExportsMixin:
                 check_zarr_output(path)
             else:
                 check_output(path, (".tif", ".tiff") if ext == ".tif" else (".png",), "export")
-            if self.write_coords and fmt != "zarr":
+            if self.export_settings.write_coords and fmt != "zarr":
                 check_output(os.path.splitext(path)[0] + "_coords" + ext, (ext,), "coordinate map")
             asked = self._asked(chosen, path)
             role = "" if self.session.material.single else self.shown_role()
             if role:  # one map per streamed export: the one shown
                 path = map_path(path, role)
                 asked = None
-            writes = streamed_writes(path, fmt, rect.w, rect.h, self.stream_tile, self.write_coords)
+            writes = streamed_writes(path, fmt, rect.w, rect.h, self.export_settings.stream_tile, self.export_settings.write_coords)
             check_own_inputs(writes, self.export_inputs())
             if not confirmed and not self._confirm_replace(
                     writes, asked, lambda: self.start_streamed_export(path, rect, True)):
                 return
-            self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.stream_tile,
-                                             self.export_workers, coords=self.write_coords and fmt != "zarr",
+            self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.export_settings.stream_tile,
+                                             self.export_settings.workers, coords=self.export_settings.write_coords and fmt != "zarr",
                                              role=role)
         except (SynthesisError, ValueError, WriteError) as exc:
             self.dialogs.message("Export", str(exc))
@@ -144,10 +161,10 @@ class ExportsMixin:
         chosen = path
         if not os.path.splitext(path)[1]:
             single = self.session.material is None or self.session.material.single
-            path += ".tif" if self.export_depth == 32 and single else ".png"
+            path += ".tif" if self.export_settings.depth == 32 and single else ".png"
         try:
             check_output(path, (".png", ".tif", ".tiff"), "export")
-            job.set_output(path, depth=self.export_depth, per_tile=per_tile, preview_seed=seed)
+            job.set_output(path, depth=self.export_settings.depth, per_tile=per_tile, preview_seed=seed)
             writes = Writes(files=job.writes)
             check_own_inputs(writes, self.export_inputs())
             if not confirmed and not self._confirm_replace(
@@ -227,8 +244,8 @@ class ExportsMixin:
                 self.export_job.wait(120)  # the tiles being rendered finish; every finished one is kept
             elif isinstance(self.export_job, BackgroundExport):
                 self.export_job.wait(30)
-        if self.estimate is not None:
-            self.estimate.close(wait=10.0)
+        if self.export_settings.estimate is not None:
+            self.export_settings.estimate.close(wait=10.0)
 
 
 def _written(job) -> str:

@@ -123,7 +123,7 @@ class ModelModeMixin:
         job = None
         try:
             check_output(path, (".glb",), "export")
-            job = ModelExportJob(self.session, s, path, size, self.export_depth)
+            job = ModelExportJob(self.session, s, path, size, self.export_settings.depth)
             writes = Writes(files=[p for _, p, _ in job.outputs])
             # (a model read from a file this session: it and the files it names, load_model's meta)
             check_own_inputs(writes, self.export_inputs() + s.model.meta.get("files", []))

@@ -106,7 +106,7 @@ def draw(p: Panels) -> None:
             ed.show_shortcuts = True
         imgui.separator()
         _, ed.show_fields = imgui.menu_item("Show painted maps", "H", ed.show_fields)
-        _, ed.tile_mode = imgui.menu_item(f"Tile mode ({ed.tile_size} px)", "T", ed.tile_mode)
+        _, ed.tile_mode = imgui.menu_item(f"Tile mode ({ed.export_settings.tile_size} px)", "T", ed.tile_mode)
         imgui.end_menu()
     imgui.end_menu_bar()
     if p._goto_open:
