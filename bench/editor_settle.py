@@ -104,7 +104,7 @@ def main(argv=None) -> int:
 
         def _act(self, what: str) -> None:
             if what == "pan":
-                self.view = self.view.panned(-4500, 0)
+                self.viewer.pan(-4500, 0)
             else:
                 L = self.session.L
                 self.edit(self.doc.with_jitter(L, L - 3, 0.35), "bench: slider")

@@ -125,7 +125,6 @@ def main(out: str) -> int:
 
         # A PNG export runs in a process of its own: the canvas stays live (a
         # pan refines meanwhile) and a second export waits in the queue.
-        from infinitex.project import View
         names = [os.path.join(out, f"apart{i}.png") for i in (1, 2)]
         for rect, name in zip(APART_RECTS, names):
             ed.export_settings.rect = list(rect)
@@ -138,7 +137,7 @@ def main(out: str) -> int:
               repr(ed.export_job))
         check("a second export waits in the queue", len(ed.export_queue) == 1, str(ed.export_queue))
         v0 = ed.view
-        ed.view = View(v0.x + 400, v0.y, v0.zoom)
+        ed.viewer.center(v0.x + 400, v0.y)
         frames0, t0 = ed.frame_count, time.monotonic()
         refined = wait(ctx, lambda: ed.refined, 120)
         busy = ed.export_job is not None

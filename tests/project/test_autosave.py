@@ -342,13 +342,17 @@ def FakeEditor(doc, project_path=None):
     """The editor's document handling (files.py) without a window."""
     from infinitex.app.settings import Settings
     from infinitex.app.ui.files import FilesMixin
-    from infinitex.project import Display
+    from infinitex.app.ui.viewer import Viewer
 
     class Ed(FilesMixin):
+        view = property(lambda self: self.viewer.view)
+        display = property(lambda self: self.viewer.display)
+
         def remember(self, path):
             self.remembered = path
     ed = Ed()
-    ed.history, ed.view, ed.display, ed.project_path = History(doc), View(), Display(), project_path
+    ed.history, ed.project_path = History(doc), project_path
+    ed.viewer = Viewer()
     ed.dialogs, ed.autosave, ed.settings, ed.pending = FakeDialogs(), Autosave(), Settings(), None
     ed.tools = []  # (the canvas tools: none without a window)
     return ed

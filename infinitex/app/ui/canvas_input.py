@@ -10,7 +10,6 @@ attributes it uses are made in ``Editor.__init__``.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 from imgui_bundle import imgui
@@ -60,7 +59,7 @@ class CanvasInputMixin:
                 self.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
             imgui.end_drag_drop_target()
         if hovered and io.mouse_wheel and not (s.ready and self.doc is not None and self.tool.wheel(at, io.mouse_wheel)):
-            self.view = self.view.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
+            self.viewer.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
         if self.view != view_before:  # the wheel or a pan moved the canvas under the mouse
             x0, y0 = self.view.top_left(w, h)
             at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
@@ -170,7 +169,7 @@ class CanvasInputMixin:
         """Make ``t`` (one of ``self.tools``) the active tool."""
         if t.space == "canvas" and self.geometry() is not None:
             # Paint and features live on the synthesized canvas: show it rectified.
-            self.display = replace(self.display, geometry="rectified")
+            self.viewer.set_display(geometry="rectified")
         if t is not self.tool:
             self.tool.release()
             self.tool = t

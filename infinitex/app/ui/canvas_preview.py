@@ -166,7 +166,7 @@ class CanvasPreviewMixin:
             else:
                 self.refined = self._work(lambda b: s.refine(frame, b), bool, settle=True)
         except SynthesisError as exc:
-            self.view = View(0, 0, self.view.zoom)
+            self.viewer.center(0, 0)
             hold.waiting = False
             self.dialogs.message("Synthesis", str(exc))
         self.update_ms = (time.perf_counter() - t0) * 1000.0

@@ -47,6 +47,7 @@ from .model_mode import ModelModeMixin
 from .pacing import FramePacer, InputWait
 from .shortcuts import ShortcutsMixin
 from .tools import make_tools
+from .viewer import Viewer
 
 __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EXEMPLAR: where it always was
 
@@ -73,8 +74,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.tile_mode = False           # the canvas shows the periodic texture of the tile size
         self.offer_recovery = recover and screenshot is None
         self.history: History | None = None
-        self.view = View()
-        self.display = Display()
+        self.viewer = Viewer()           # the view and the display, their one owner
         self.project_path: str | None = None
         self.gpu: Gpu | None = None
         self.renderer = ""
@@ -122,6 +122,16 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self._title = ""
         self.keys = KeyLog()             # this frame's key presses, each with its own modifiers
         self.waits = InputWait(self.keys)  # whether the editor may sleep between frames, and its sleep
+
+    @property
+    def view(self) -> View:
+        """Where the canvas looks (changed through ``viewer``)."""
+        return self.viewer.view
+
+    @property
+    def display(self) -> Display:
+        """How the canvas draws (changed through ``viewer``)."""
+        return self.viewer.display
 
     # -- running ------------------------------------------------------------
 

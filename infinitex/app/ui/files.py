@@ -20,7 +20,6 @@ from infinitex.engine.material import MaterialError, assign_roles
 from infinitex.engine.safeio import ReadError, printable
 from infinitex.project import (
     PROJECT_SUFFIX,
-    Display,
     Document,
     ExemplarOutside,
     ExemplarSource,
@@ -28,7 +27,6 @@ from infinitex.project import (
     Project,
     ProjectError,
     Recoverable,
-    View,
     is_project_file,
     load_project,
     project_save_path,
@@ -239,15 +237,15 @@ class FilesMixin:
             tool.new_document()
         self.autosave.clear()  # a new document: the autosave of the one it replaces goes
         if kind == "project":
-            self.view, self.display = proj.view, proj.display
+            self.viewer.show(proj.view, proj.display)
             self.project_path = path if path != self.autosave.path else None
         elif kind == "recovered":  # the unsaved work of a project (or of an untitled document)
-            self.view, self.display = proj.view, proj.display
+            self.viewer.show(proj.view, proj.display)
             self.project_path = proj.origin if proj.origin and os.path.isfile(proj.origin) else None
             self.history.saved = None
             self._adopt_autosave(path)
         else:
-            self.view, self.display = View(), Display()
+            self.viewer.show()
             self.project_path = None
 
     def _recover(self, rec: Recoverable) -> None:

@@ -8,8 +8,6 @@ attributes it uses are made in ``Editor.__init__``.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import replace
 
 from imgui_bundle import imgui
 
@@ -81,7 +79,7 @@ class ShortcutsMixin:
         if keys.plain(K.m) and self.session.ready:
             roles = self.session.material.roles  # the next map of a material
             cur = self.session.shown_map(self.display.map)
-            self.display = replace(self.display, map=roles[(roles.index(cur) + 1) % len(roles)])
+            self.viewer.set_display(map=roles[(roles.index(cur) + 1) % len(roles)])
         self.tool.keys()
 
     def _zoom_keys(self) -> None:
@@ -90,15 +88,13 @@ class ShortcutsMixin:
         w, h = self.canvas_size
         K = imgui.Key
         if imgui.is_key_pressed(K._1, False) or imgui.is_key_pressed(K.keypad1, False):
-            self.view = replace(self.view, zoom=1.0).clamped()
+            self.viewer.zoom_to(1.0)
         elif imgui.is_key_pressed(K.equal) or imgui.is_key_pressed(K.keypad_add):
-            self.view = self.view.zoom_at(2.0, w / 2, h / 2, w, h)
+            self.viewer.zoom_at(2.0, w / 2, h / 2, w, h)
         elif imgui.is_key_pressed(K.minus) or imgui.is_key_pressed(K.keypad_subtract):
-            self.view = self.view.zoom_at(0.5, w / 2, h / 2, w, h)
+            self.viewer.zoom_at(0.5, w / 2, h / 2, w, h)
         elif (imgui.is_key_pressed(K._0, False) or imgui.is_key_pressed(K.keypad0, False)) and self.session.ready:
-            m = self.session.analysis.size
-            z = 2.0 ** math.floor(math.log2(max(1e-3, min(w, h) / m)))
-            self.view = replace(self.view, zoom=z).clamped()
+            self.viewer.fit(self.session.analysis.size, w, h)
 
     def shortcuts_window(self) -> None:
         """F1 or ?: every keyboard and mouse shortcut."""

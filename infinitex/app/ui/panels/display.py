@@ -3,13 +3,12 @@ one pyramid level, shaded relief, the lit material and its light), which
 map of a material, how magnified texels look, the zoom, 1:1 and Origin."""
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
 
 from infinitex.engine.material import ROLE_LABELS
-from infinitex.project import DISPLAY_MODES, View
+from infinitex.project import DISPLAY_MODES
 
 from .widgets import tip, zoom_text
 
@@ -36,13 +35,13 @@ def draw(p: Panels) -> None:
     L = ed.session.L
     for mode in DISPLAY_MODES:
         if imgui.radio_button(MODE_LABELS[mode], d.mode == mode):
-            ed.display = replace(d, mode=mode)
+            ed.viewer.set_display(mode=mode)
         tip(MODE_TIPS[mode])
     if ed.display.mode == "level":
         lvl = L if d.level < 0 else min(d.level, L)
         changed, v = imgui.slider_int("Level", lvl, 0, L)
         if changed:
-            ed.display = replace(ed.display, level=v)
+            ed.viewer.set_display(level=v)
     mat = ed.session.material
     if mat is not None and not mat.single and ed.display.mode != "lit":
         roles = mat.roles
@@ -51,7 +50,7 @@ def draw(p: Panels) -> None:
         changed, i = imgui.combo("Map", roles.index(cur), [ROLE_LABELS[r] for r in roles])
         tip("The material's map the canvas shows (M: the next one)")
         if changed:
-            ed.display = replace(ed.display, map=roles[i])
+            ed.viewer.set_display(map=roles[i])
     if ed.display.mode == "lit":
         kind, shape = ed.session.shape_map()
         imgui.text_disabled({"normal": "Shaded by the normal map", "height": "Shaded by the height map",
@@ -60,15 +59,15 @@ def draw(p: Panels) -> None:
         changed, az = imgui.slider_float("Light direction", ed.display.light_azimuth % 360.0, 0.0, 360.0, "%.0f deg")
         tip("Where the light comes from, around the surface (0: from the right, 90: from the top)")
         if changed:
-            ed.display = replace(ed.display, light_azimuth=float(az))
+            ed.viewer.set_display(light_azimuth=float(az))
         changed, el = imgui.slider_float("Light height", ed.display.light_elevation, 5.0, 90.0, "%.0f deg")
         tip("How high the light stands over the surface: low lights show the relief most")
         if changed:
-            ed.display = replace(ed.display, light_elevation=float(el))
+            ed.viewer.set_display(light_elevation=float(el))
         changed, rel = imgui.slider_float("Relief", ed.display.relief, 0.0, 4.0, "%.2f")
         tip("How strongly the normal or height map tilts the surface (1: as authored)")
         if changed:
-            ed.display = replace(ed.display, relief=float(rel))
+            ed.viewer.set_display(relief=float(rel))
         imgui.pop_item_width()
     keys = [k for k, _ in MAGNIFY_LABELS]
     labels = [lbl if k != "hires" or ed.canvas.has_hires else lbl + " (none: same as bilinear)"
@@ -78,13 +77,13 @@ def draw(p: Panels) -> None:
     tip("How the texture looks magnified: sharp patches drawn from the full-resolution image "
         "(synthesis magnification, LH05 5), or plain enlarged texels")
     if changed:
-        ed.display = replace(ed.display, magnify=keys[i])
+        ed.viewer.set_display(magnify=keys[i])
     imgui.text(f"Zoom {zoom_text(ed.view.zoom)}")
     imgui.same_line()
     if imgui.small_button("1:1"):
-        ed.view = View(ed.view.x, ed.view.y, 1.0)
+        ed.viewer.zoom_to(1.0)
     tip("Actual size: one texture pixel per screen pixel (1)")
     imgui.same_line()
     if imgui.small_button("Origin"):
-        ed.view = View(0.0, 0.0, ed.view.zoom)
+        ed.viewer.center(0, 0)
     tip("Back to canvas position (0, 0)")

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 from imgui_bundle import imgui
 
 from infinitex.engine.safeio import printable
-from infinitex.project import View
 
 from ...settings import save_settings
 from ..dialogs import IMAGE_FILTER, MAPS_FILTER
@@ -97,11 +96,11 @@ def draw(p: Panels) -> None:
         imgui.end_menu()
     if imgui.begin_menu("View"):
         if imgui.menu_item_simple("Go to origin"):
-            ed.view = View(0.0, 0.0, ed.view.zoom)
+            ed.viewer.center(0, 0)
         if imgui.menu_item_simple("Go to coordinates..."):
             p._goto_open = True
         if imgui.menu_item_simple("Actual size (1:1)", "1"):
-            ed.view = View(ed.view.x, ed.view.y, 1.0)
+            ed.viewer.zoom_to(1.0)
         if imgui.menu_item_simple("Shortcuts", "F1"):
             ed.show_shortcuts = True
         imgui.separator()
@@ -117,6 +116,6 @@ def draw(p: Panels) -> None:
         imgui.set_next_item_width(220)
         _, ed.goto = imgui.input_int2("x, y", ed.goto)
         if imgui.button("Go", (100, 0)):
-            ed.view = View(float(ed.goto[0]), float(ed.goto[1]), ed.view.zoom).clamped()
+            ed.viewer.center(ed.goto[0], ed.goto[1])
             imgui.close_current_popup()
         imgui.end_popup()

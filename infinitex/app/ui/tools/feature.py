@@ -24,7 +24,6 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import MAX_FEATURE_RADIUS, Feature
 from infinitex.engine.pyramid import Rect, SynthesisError
 
-from infinitex.project import View
 
 from . import Tool
 from ..tips import tip
@@ -268,7 +267,7 @@ class FeatureTool(Tool):
                 if ed.model_mode:
                     self.model_gesture().jump_to(f)
                 else:
-                    ed.view = View(float(f.canvas[0]), float(f.canvas[1]), ed.view.zoom)
+                    ed.viewer.center(f.canvas[0], f.canvas[1])
             imgui.same_line()
             if imgui.button("Delete (Del)"):
                 self.delete(i)

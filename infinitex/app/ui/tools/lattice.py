@@ -253,12 +253,12 @@ class LatticeTool(Tool):
                 imgui.pop_text_wrap_pos()
             geom = ed.display.geometry
             if imgui.radio_button("Original geometry", geom == "original"):
-                ed.display = replace(ed.display, geometry="original")
+                ed.viewer.set_display(geometry="original")
                 if ed.tool.space == "canvas":  # (those work on the rectified canvas)
                     ed.set_tool(ed.tools[0])
             imgui.same_line()
             if imgui.radio_button("Rectified", geom == "rectified"):
-                ed.display = replace(ed.display, geometry="rectified")
+                ed.viewer.set_display(geometry="rectified")
             tip("Show the texture as synthesized: cells axis-aligned")
             imgui.push_text_wrap_pos(0)
             imgui.text_disabled(f"lattice: {lat.to_text()}")

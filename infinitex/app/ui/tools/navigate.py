@@ -22,7 +22,7 @@ class NavigateTool(Tool):
         if self._last is not None:
             dx, dy = screen[0] - self._last[0], screen[1] - self._last[1]
             if dx or dy:
-                self.ed.view = self.ed.view.panned(dx, dy)
+                self.ed.viewer.pan(dx, dy)
         self._last = screen
 
     def release(self) -> None:
