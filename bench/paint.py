@@ -191,9 +191,10 @@ def main(argv=None) -> int:
                 ctx.mouse_move_to_pos((x0 + i * step, y))
                 ctx.yield_()
                 if args.mid_shot and tool.dabs - d0 == args.dabs // 2:
-                    shown, ed.show_fields = ed.show_fields, False  # the texture itself
+                    shown = ed.viewer.show_fields
+                    ed.viewer.show_painted(False)  # the texture itself
                     testing.capture(ctx, args.mid_shot)
-                    ed.show_fields = shown
+                    ed.viewer.show_painted(shown)
             ctx.mouse_up(0)
             row += 1
         ctx.yield_()

@@ -129,7 +129,7 @@ def main(out: str) -> int:
         th = float(decompose(ed.doc.direction.dense(int(ed.view.x), int(ed.view.y), 1, 1))[0][0, 0])
         check("a flow map is placed in the view", len(ed.history.undo_stack) == steps + 4 and abs(th - 90) < 1,
               f"{len(ed.history.undo_stack) - steps} steps, {th:.1f} degrees")
-        ed.show_fields = True
+        ed.viewer.show_painted(True)
         settle(ctx)
         testing.capture(ctx, os.path.join(out, "direction-editor.png"))
         for _ in range(4):  # map, guide, grow, comb

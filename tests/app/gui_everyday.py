@@ -140,11 +140,11 @@ def main(out: str) -> int:
         ctx.mouse_move("**/canvas")
         ctx.key_press(imgui.Key.t)
         a = canvas(ctx)
-        check("tile mode shows the periodic texture", ed.tile_mode and ed.session.params.period == 64
+        check("tile mode shows the periodic texture", ed.viewer.tile_mode and ed.session.params.period == 64
               and np.array_equal(a[:, :-64], a[:, 64:]) and np.array_equal(a[:-64], a[64:]), "not periodic")
         ctx.key_press(imgui.Key.t)
         b = canvas(ctx)
-        check("T turns tile mode off", not ed.tile_mode and ed.session.params.period == 0
+        check("T turns tile mode off", not ed.viewer.tile_mode and ed.session.params.period == 0
               and not np.array_equal(b[:, :-64], b[:, 64:]), "still periodic")
 
         # The title names the document and its unsaved state.
@@ -164,8 +164,8 @@ def main(out: str) -> int:
         settle(ctx)
         check("an image opens as a new document", ed.doc.exemplar.name == "brick.png" and ed.project_path is None
               and not ed.history.can_undo() and not ed.history.dirty, f"{ed.doc.exemplar.name} {ed.project_path}")
-        check("open recent lists it", ed.settings.recent and ed.settings.recent[0] == os.path.abspath(BRICK),
-              str(ed.settings.recent))
+        check("open recent lists it", ed.prefs.settings.recent and ed.prefs.settings.recent[0] == os.path.abspath(BRICK),
+              str(ed.prefs.settings.recent))
         # The brick photo does not tile: Make tileable is offered; it is one undo step.
         ctx.set_ref("//Infinitex")
         check("make tileable offered", ctx.item_exists("**/Make tileable") and not ed.session.exemplar.toroidal,
@@ -184,7 +184,7 @@ def main(out: str) -> int:
         ctx.menu_click("File/Open Recent/brick.png##recent1")
         settle(ctx)
         check("File > Open Recent reopens it", ed.doc.exemplar.name == "brick.png"
-              and ed.settings.recent[:2] == (os.path.abspath(BRICK), os.path.abspath(GRAVEL)), str(ed.settings.recent))
+              and ed.prefs.settings.recent[:2] == (os.path.abspath(BRICK), os.path.abspath(GRAVEL)), str(ed.prefs.settings.recent))
 
         # Save as a project, then the title is its name; an export says where it went.
         proj = os.path.join(out, "bricks.itex")
@@ -194,7 +194,7 @@ def main(out: str) -> int:
         ctx.item_input_value("//**/##path", proj)
         ctx.yield_(2)
         check("saved title", ed.title == "bricks.itex - Infinitex", ed.title)
-        check("a saved project is recent too", ed.settings.recent[0] == os.path.abspath(proj), str(ed.settings.recent))
+        check("a saved project is recent too", ed.prefs.settings.recent[0] == os.path.abspath(proj), str(ed.prefs.settings.recent))
         target = os.path.join(out, "view.png")
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Export view as PNG...")

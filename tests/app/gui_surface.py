@@ -125,9 +125,9 @@ def main(out: str) -> int:
         check("the stroke changes the texture", diff.sum() > 50, f"{diff.sum()} texels")
         # "Show painted" (on since the paint tool was chosen) shows the stroke as on the plane: rough is red.
         with_heat = canvas(ctx).astype(int)
-        ed.show_fields = False
+        ed.viewer.show_painted(False)
         plain = canvas(ctx).astype(int)
-        ed.show_fields = True
+        ed.viewer.show_painted(True)
         heat = np.abs(with_heat - plain).sum(-1) > 30
         redder = (with_heat[..., 0] - with_heat[..., 2] > plain[..., 0] - plain[..., 2])[heat]
         check("Show painted shows the stroke on the model, rough in red", heat.sum() > 200 and redder.mean() > 0.9,

@@ -42,7 +42,7 @@ class ReportingEditor(Editor):
             "analyzing": bool(self.pending is not None or (self.session is not None and self.session.job is not None)),
             "view": [self.view.x, self.view.y, self.view.zoom],
             "tool": self.tool.name,
-            "tile_mode": bool(self.tile_mode),
+            "tile_mode": bool(self.viewer.tile_mode),
             "dragging": self._canvas_button >= 0,  # a button went down on the canvas and is not released yet
             "path_request": self.dialogs.path_request is not None,
             "modals": [m.title for m in self.dialogs.modals],

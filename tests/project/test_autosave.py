@@ -342,6 +342,7 @@ def FakeEditor(doc, project_path=None):
     """The editor's document handling (files.py) without a window."""
     from infinitex.app.settings import Settings
     from infinitex.app.ui.files import FilesMixin
+    from infinitex.app.ui.prefs import Preferences
     from infinitex.app.ui.viewer import Viewer
 
     class Ed(FilesMixin):
@@ -353,7 +354,7 @@ def FakeEditor(doc, project_path=None):
     ed = Ed()
     ed.history, ed.project_path = History(doc), project_path
     ed.viewer = Viewer()
-    ed.dialogs, ed.autosave, ed.settings, ed.pending = FakeDialogs(), Autosave(), Settings(), None
+    ed.dialogs, ed.autosave, ed.prefs, ed.pending = FakeDialogs(), Autosave(), Preferences(Settings()), None
     ed.tools = []  # (the canvas tools: none without a window)
     return ed
 

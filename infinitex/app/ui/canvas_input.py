@@ -72,7 +72,7 @@ class CanvasInputMixin:
         s = self.session
         if s.ready and self.doc is not None:
             dl = imgui.get_window_draw_list()
-            if self.show_fields and self.geometry() is None:
+            if self.viewer.show_fields and self.geometry() is None:
                 self._field_overlay(dl, p0, w, h)
             self.panels.canvas_overlay(p0, w, h)
             self.tool.handles(dl, p0, w, h)
@@ -83,14 +83,14 @@ class CanvasInputMixin:
 
     def tile_period(self) -> int:
         """The tile size while tile mode is on (whole lattice cells required), else 0."""
-        if not self.tile_mode or not self.session.ready:
+        if not self.viewer.tile_mode or not self.session.ready:
             return 0
         n = self.export_settings.tile_size
         lat = self.session.controls.lattice
         if lat is not None:
             cx, cy = lat.cell(self.session.analysis.size)
             if n % cx or n % cy:
-                self.tile_mode = False
+                self.viewer.show_tile(False)
                 self.dialogs.message("Tile mode", f"A tile of {n} px is not made of whole lattice cells "
                                      f"({cx}x{cy} px); choose a larger tile size.")
                 return 0
@@ -174,4 +174,4 @@ class CanvasInputMixin:
             self.tool.release()
             self.tool = t
             if t.shows_painted:
-                self.show_fields = True  # painting shows what is painted
+                self.viewer.show_painted(True)  # painting shows what is painted

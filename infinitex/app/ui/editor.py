@@ -18,7 +18,6 @@ import os
 import subprocess
 import sys
 import time
-from dataclasses import replace
 
 from imgui_bundle import (  # imported before glfw (bundled libglfw)
     hello_imgui,
@@ -35,7 +34,7 @@ from infinitex.project import Autosave, Display, History, View
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay, LabelOverlay
 from ..session import Frame, Session, frame_for
-from ..settings import check_config_file, config_dir, load_settings, save_settings
+from ..settings import check_config_file, config_dir
 from . import panels
 from .canvas_input import CanvasInputMixin
 from .canvas_preview import CanvasPreviewMixin
@@ -46,6 +45,7 @@ from .keylog import KeyLog
 from .model_mode import ModelModeMixin
 from .pacing import FramePacer, InputWait
 from .shortcuts import ShortcutsMixin
+from .prefs import Preferences
 from .tools import make_tools
 from .viewer import Viewer
 
@@ -66,12 +66,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.start_path = path
         self.screenshot = screenshot
         self.min_frames = frames
-        self.settings = load_settings()
+        self.prefs = Preferences()  # the user's settings kept between runs
         # The size the window had when the editor last closed (a screenshot keeps the documented 1280 x 800).
-        self.window_size = window_size or (None if screenshot else self.settings.window) or (1280, 800)
+        self.window_size = window_size or (None if screenshot else self.prefs.settings.window) or (1280, 800)
         self.show_shortcuts = False
-        self.panels_open = set(self.settings.panels if self.settings.panels is not None else DEFAULT_PANELS)
-        self.tile_mode = False           # the canvas shows the periodic texture of the tile size
+        self.panels_open = set(self.prefs.settings.panels if self.prefs.settings.panels is not None else DEFAULT_PANELS)
         self.offer_recovery = recover and screenshot is None
         self.history: History | None = None
         self.viewer = Viewer()           # the view and the display, their one owner
@@ -81,8 +80,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.session: Session | None = None
         self.canvas: Canvas | None = None
         self.dialogs = Dialogs()
-        if self.settings.recent:  # the file browser starts in the folder last used
-            self.dialogs.last_dir = os.path.dirname(self.settings.recent[0])
+        if self.prefs.settings.recent:  # the file browser starts in the folder last used
+            self.dialogs.last_dir = os.path.dirname(self.prefs.settings.recent[0])
         self.autosave = Autosave()
         self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
         self.found_lattice = None  # the Detection that put the open image on its lattice (Exemplar panel)
@@ -110,9 +109,6 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self.panels = panels.Panels(self)
         self.tools = make_tools(self)
         self.tool = self.tools[0]
-        # Randomness fields drawn as heat maps: off until a paint tool is chosen
-        # (the texture itself is what an artist looks at first); H toggles it.
-        self.show_fields = False
         # Overlay textures: the canvas and exemplar randomness, the avoid mask, the
         # exemplar's labels (Labels window) and the canvas labels.
         self.overlay_canvas = self.overlay_exemplar = self.overlay_avoid = None
@@ -122,6 +118,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self._title = ""
         self.keys = KeyLog()             # this frame's key presses, each with its own modifiers
         self.waits = InputWait(self.keys)  # whether the editor may sleep between frames, and its sleep
+
+    def tell(self, text: str) -> None:
+        """A one-line notice over the canvas for a few seconds (where an export
+        went, why a stroke did nothing)."""
+        self.notice = (text, time.monotonic())
 
     @property
     def view(self) -> View:
@@ -153,7 +154,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             usable, note = check_config_file(p.ini_filename)
             p.ini_disable = not usable
             if note:
-                self.notice = (note, time.monotonic())
+                self.tell(note)
         p.imgui_window_params.background_color = (0.06, 0.06, 0.065, 1.0)
         # Idle means idle, and no input is lost: the editor does its own waiting
         # (InputWait.before_frame), so the events that wake it are handled by the
@@ -217,21 +218,14 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
                 pass  # no glfw window: imgui's own key state serves
         self._open_first_document()
 
-    def _save_window_size(self) -> None:
-        if self.screenshot:
-            return
-        try:
-            import glfw
-            from imgui_bundle import glfw_utils
-            w, h = glfw.get_window_size(glfw_utils.glfw_window_hello_imgui())
-        except Exception:
-            return
-        if w >= 320 and h >= 320:
-            self.settings = replace(self.settings, window=(int(w), int(h)), panels=tuple(sorted(self.panels_open)))
-            save_settings(self.settings)
-
     def before_exit(self) -> None:
-        self._save_window_size()
+        if not self.screenshot:
+            try:
+                import glfw
+                from imgui_bundle import glfw_utils
+                self.prefs.keep_window(glfw.get_window_size(glfw_utils.glfw_window_hello_imgui()), self.panels_open)
+            except Exception:
+                pass  # no window: nothing to keep
         self._keep_unsaved_work()
         self._stop_exports()
         if self.session is not None:
@@ -267,9 +261,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
             return
         self.dialogs.project_dir = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else None
         self._update_engine()
-        if self._close_requested:
-            self._close_requested = False
-            self.request_quit()
+        self.close_requested()
         self.panels.menu_bar()
         self._shortcuts()
         status_h = imgui.get_frame_height_with_spacing() + 4

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import os
-import time
 from dataclasses import dataclass, field
 
 from infinitex.engine.material import export_depths, map_path, output_paths
@@ -188,8 +187,7 @@ class ExportsMixin:
             self.export_job = job
         else:
             self.export_queue.append(job)
-            self.notice = (f"Export queued ({len(self.export_queue)} waiting): "
-                           f"{os.path.basename(job.out_path)}", time.monotonic())
+            self.tell(f"Export queued ({len(self.export_queue)} waiting): {os.path.basename(job.out_path)}")
 
     def _next_export(self) -> None:
         if self.export_job is None and self.export_queue:
@@ -208,16 +206,16 @@ class ExportsMixin:
             if job.error:
                 self.dialogs.message("Export failed", job.error)
             elif isinstance(job, BackgroundExport):
-                self.notice = (f"Export of {os.path.basename(job.out_path)} cancelled" if job.cancelled
-                               else _written(job), time.monotonic())
+                self.tell(f"Export of {os.path.basename(job.out_path)} cancelled" if job.cancelled
+                          else _written(job))
             elif job.cancelled:
-                self.notice = (f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
-                               f"export continues from them", time.monotonic())
+                self.tell(f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
+                          f"export continues from them")
             else:
                 r = job.rect
                 where = " and ".join(os.path.abspath(o) for o in job.job.outputs())
                 kept = f" ({job.kept} tiles kept from an earlier run)" if job.kept else ""
-                self.notice = (f"Exported {r.w}x{r.h} to {where}{kept}", time.monotonic())
+                self.tell(f"Exported {r.w}x{r.h} to {where}{kept}")
                 if job.job.notes:  # e.g. a parts folder left in place because it held foreign files
                     self.dialogs.message("Export finished", "\n".join(job.job.notes))
             if isinstance(job, BackgroundExport):
@@ -230,9 +228,13 @@ class ExportsMixin:
                 if job.error:
                     self.dialogs.message("Export failed", job.error)
                 elif not job.cancelled and hasattr(job, "summary"):  # a tile set
-                    self.notice = (job.summary(), time.monotonic())
+                    self.tell(job.summary())
                 elif not job.cancelled:
-                    self.notice = (_written(job), time.monotonic())
+                    self.tell(_written(job))
+
+    def export_closed(self) -> None:
+        """The progress window of an export done in the editor was closed."""
+        self.export_job = None
 
     def _stop_exports(self) -> None:
         """On exit: cancel the running export and close the estimate's workers."""

@@ -33,7 +33,6 @@ from infinitex.project import (
     save_project,
 )
 
-from ..settings import save_settings
 from .dialogs import PROJECT_FILTER
 
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "assets")
@@ -289,8 +288,7 @@ class FilesMixin:
 
     def remember(self, path: str) -> None:
         """Put a file at the top of File > Open Recent (kept in the user's config folder)."""
-        self.settings = self.settings.with_recent(path)
-        save_settings(self.settings)
+        self.prefs.remember(path)
 
     # -- history ------------------------------------------------------------
 
@@ -403,6 +401,13 @@ class FilesMixin:
                              [("Save", save_and_quit), ("Discard", quit_now), ("Cancel", None)])
         else:
             quit_now()
+
+    def close_requested(self) -> None:
+        """In the frame: the window's close button was pressed with unsaved
+        edits (_confirm_exit): ask now."""
+        if self._close_requested:
+            self._close_requested = False
+            self.request_quit()
 
     def _confirm_exit(self) -> bool:
         # Called by the runner outside the frame (no imgui calls here): defer to a modal.

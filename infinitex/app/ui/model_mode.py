@@ -140,6 +140,15 @@ class ModelModeMixin:
 
     # -- the canvas ---------------------------------------------------------------
 
+    def frame_model(self) -> None:
+        """The orbit camera framing the whole model."""
+        if self.model_view is not None:
+            self.camera = OrbitCamera.framing(self.model_view.positions)
+
+    def look_with(self, camera: OrbitCamera) -> None:
+        """The model seen through ``camera`` (a tool turns it to a feature)."""
+        self.camera = camera
+
     def _init_model_mode(self) -> None:
         """The model view's state (Editor.__init__)."""
         self.camera = OrbitCamera()
@@ -163,7 +172,7 @@ class ModelModeMixin:
         plane); the key of what is shown."""
         n = pv.atlas.size if pv.atlas is not None else 0
         key, make = None, None
-        if self.show_fields and n:
+        if self.viewer.show_fields and n:
             shown = self.tool.atlas_overlay(self.doc, n)
             field = self.doc.randomness_canvas
             if shown is not None:

@@ -27,6 +27,10 @@ SHORTCUTS = [
 class ShortcutsMixin:
     """The editor's keys, read once a frame, and their list (F1)."""
 
+    def show_shortcut_list(self, on: bool) -> None:
+        """The list of shortcuts (F1) shown or not."""
+        self.show_shortcuts = bool(on)
+
     def _shortcuts(self) -> None:
         """This frame's key presses, in the order they came, each with the
         modifiers held when it went down (keylog.py): a chord as short as the
@@ -73,9 +77,9 @@ class ShortcutsMixin:
             if t.key and keys.plain(getattr(K, t.key.lower())):
                 self.set_tool(t)
         if keys.plain(K.h):
-            self.show_fields = not self.show_fields
+            self.viewer.show_painted(not self.viewer.show_fields)
         if keys.plain(K.t):
-            self.tile_mode = not self.tile_mode
+            self.viewer.show_tile(not self.viewer.tile_mode)
         if keys.plain(K.m) and self.session.ready:
             roles = self.session.material.roles  # the next map of a material
             cur = self.session.shown_map(self.display.map)

@@ -16,6 +16,10 @@ class Viewer:
     def __init__(self) -> None:
         self.view = View()
         self.display = Display()
+        self.tile_mode = False    # the canvas shows the periodic texture of the tile size
+        # Randomness fields drawn as heat maps: off until a paint tool is chosen
+        # (the texture itself is what an artist looks at first); H toggles it.
+        self.show_fields = False
 
     # -- the view ---------------------------------------------------------------
 
@@ -45,6 +49,14 @@ class Viewer:
         self.view = View(float(x), float(y), self.view.zoom).clamped()
 
     # -- the display ------------------------------------------------------------
+
+    def show_tile(self, on: bool) -> None:
+        """Tile mode: the canvas shows the seamless tile's periodic texture (T)."""
+        self.tile_mode = bool(on)
+
+    def show_painted(self, on: bool) -> None:
+        """What is painted (randomness, labels, direction...) over the texture (H)."""
+        self.show_fields = bool(on)
 
     def set_display(self, **changes) -> None:
         """Change how the canvas draws (``Display``'s fields by name)."""

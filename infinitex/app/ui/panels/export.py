@@ -67,7 +67,7 @@ def draw(p: Panels) -> None:
     imgui.separator_text("Seamless tile")
     ed.export_settings.tile_size = size_combo("Tile size", TILE_SIZES, ed.export_settings.tile_size)
     tip("Side of the seamless tile")
-    _, ed.tile_mode = imgui.checkbox("Show the tile on the canvas (T)", ed.tile_mode)
+    ed.viewer.show_tile(imgui.checkbox("Show the tile on the canvas (T)", ed.viewer.tile_mode)[1])
     tip("The canvas shows the periodic texture this tile size makes, tile borders drawn: "
         "tune exactly what the toroidal export will write")
     if imgui.button("Export toroidal tile...", (-1, 0)):
@@ -203,7 +203,7 @@ def tile_prompt_window(p: Panels) -> None:
         return
     ed.export_settings.tile_size = size_combo("Tile size", TILE_SIZES, ed.export_settings.tile_size)
     tip("Side of the seamless tile, in pixels")
-    _, ed.tile_mode = imgui.checkbox("Show the tile on the canvas (T)", ed.tile_mode)
+    ed.viewer.show_tile(imgui.checkbox("Show the tile on the canvas (T)", ed.viewer.tile_mode)[1])
     tip("The canvas shows the periodic texture this tile size makes, tile borders drawn")
     go = imgui.button("Choose file...", (150, 0))
     imgui.same_line()

@@ -3,14 +3,12 @@ Open Recent list and the Go to coordinates popup."""
 from __future__ import annotations
 
 import os
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
 
 from infinitex.engine.safeio import printable
 
-from ...settings import save_settings
 from ..dialogs import IMAGE_FILTER, MAPS_FILTER
 from .widgets import tip
 
@@ -30,8 +28,7 @@ def open_material_dialog(p: Panels) -> None:
 
 def _open_recent(ed, path: str) -> None:
     if not os.path.exists(path):
-        ed.settings = ed.settings.without_recent(path)
-        save_settings(ed.settings)
+        ed.prefs.forget(path)
         ed.dialogs.message("Open Recent", f"{printable(path)} is no longer there; it was removed from the list.")
         return
     ed.open_path(path)
@@ -55,15 +52,14 @@ def draw(p: Panels) -> None:
             ed.open_model_dialog()
         tip("Texture a model (OBJ, glTF, GLB): the texture is synthesized in its atlas, seamless across "
             "its UV seams")
-        if imgui.begin_menu("Open Recent", bool(ed.settings.recent)):
-            for i, path in enumerate(ed.settings.recent):
+        if imgui.begin_menu("Open Recent", bool(ed.prefs.settings.recent)):
+            for i, path in enumerate(ed.prefs.settings.recent):
                 if imgui.menu_item_simple(f"{os.path.basename(path)}##recent{i}"):
                     ed.confirm_discard(lambda path=path: _open_recent(ed, path))
                 tip(path)
             imgui.separator()
             if imgui.menu_item_simple("Clear the list"):
-                ed.settings = replace(ed.settings, recent=())
-                save_settings(ed.settings)
+                ed.prefs.forget(None)
             imgui.end_menu()
         imgui.separator()
         if imgui.menu_item_simple("Save", "Ctrl+S", enabled=ed.doc is not None):
@@ -102,10 +98,11 @@ def draw(p: Panels) -> None:
         if imgui.menu_item_simple("Actual size (1:1)", "1"):
             ed.viewer.zoom_to(1.0)
         if imgui.menu_item_simple("Shortcuts", "F1"):
-            ed.show_shortcuts = True
+            ed.show_shortcut_list(True)
         imgui.separator()
-        _, ed.show_fields = imgui.menu_item("Show painted maps", "H", ed.show_fields)
-        _, ed.tile_mode = imgui.menu_item(f"Tile mode ({ed.export_settings.tile_size} px)", "T", ed.tile_mode)
+        ed.viewer.show_painted(imgui.menu_item("Show painted maps", "H", ed.viewer.show_fields)[1])
+        ed.viewer.show_tile(imgui.menu_item(f"Tile mode ({ed.export_settings.tile_size} px)", "T",
+                                            ed.viewer.tile_mode)[1])
         imgui.end_menu()
     imgui.end_menu_bar()
     if p._goto_open:

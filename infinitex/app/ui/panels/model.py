@@ -55,8 +55,7 @@ def draw(p: Panels) -> None:
         tip("Draw the texture by synthesis magnification: sharp when zoomed in close (each pixel reads the "
             "exemplar, or its full-resolution copy, through the synthesized coordinates). Off: the texture's texels")
     if imgui.button("Frame the model"):
-        from ...render.model_view import OrbitCamera
-        ed.camera = OrbitCamera.framing(s.model.positions)
+        ed.frame_model()
     tip("Orbit: middle or left button; pan: Shift+middle or right button; zoom: the wheel")
     imgui.set_next_item_width(90)
     if imgui.begin_combo("##model-magnify", f"x{ed.model_export_magnify}"):

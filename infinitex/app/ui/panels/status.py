@@ -108,7 +108,7 @@ def progress_modals(p: Panels) -> None:
     opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
     if opened:
         if _progress(ed, job):
-            ed.export_job = None
+            ed.export_closed()
             imgui.close_current_popup()
         imgui.end_popup()
 

@@ -35,6 +35,6 @@ def draw(p: Panels) -> None:
             imgui.pop_style_color()
         hint(t.tooltip)
     next_item("Show painted (H)", imgui.get_frame_height() + style.item_inner_spacing.x)
-    _, ed.show_fields = imgui.checkbox("Show painted (H)", ed.show_fields)
+    ed.viewer.show_painted(imgui.checkbox("Show painted (H)", ed.viewer.show_fields)[1])
     hint("Overlay what is painted: randomness as heat maps (blue = calm, red = rough), "
         "labels in their colors, directions as short strokes")

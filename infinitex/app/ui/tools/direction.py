@@ -10,7 +10,6 @@ painted" (H) short strokes over the canvas show the field."""
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -93,8 +92,7 @@ class DirectionTool(Tool):
         """A lattice and a direction field do not go together: say so, once per gesture."""
         if self.ed.doc.lattice is None:
             return False
-        self.ed.notice = ("A direction field does not work on a lattice; turn the lattice off first.",
-                          time.monotonic())
+        self.ed.tell("A direction field does not work on a lattice; turn the lattice off first.")
         return True
 
     def _axis_offset(self) -> float:
@@ -154,7 +152,7 @@ class DirectionTool(Tool):
                 rects.append(dab_rect(cx, cy, r))
                 prev = (cx, cy)
         except FieldTooLarge as exc:
-            self.ed.notice = (str(exc), time.monotonic())
+            self.ed.tell(str(exc))
             self.release()
             return
         self._last = dabs[-1]
@@ -180,7 +178,7 @@ class DirectionTool(Tool):
             field = self.field.guided(pts, self.guide_width, self.guide_blend, self.brush.strength,
                                       self._axis_offset(), MAX_GUIDE_AREA)
         except (ValueError, FieldTooLarge) as exc:
-            self.ed.notice = (str(exc), time.monotonic())
+            self.ed.tell(str(exc))
             return
         self._set(field, "Direction guide")
 

@@ -12,7 +12,6 @@ the field changes, as when painting randomness on the model.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -97,7 +96,7 @@ class ModelComb(BrushCursor, ModelGesture):
                     rects.append(dab_rect(x, y, rr))
                 prev = (cx, cy)
         except FieldTooLarge as exc:
-            self.ed.notice = (str(exc), time.monotonic())
+            self.ed.tell(str(exc))
             self.release()
             return
         self._last = dabs[-1]

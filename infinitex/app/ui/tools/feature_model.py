@@ -246,7 +246,7 @@ class ModelFeatures(ModelGesture):
             nx, ny, nz = nrm / length  # the eye goes where the normal points (OrbitCamera.eye)
             cam = replace(cam, yaw=math.degrees(math.atan2(nx, nz)) % 360.0,
                           pitch=max(-89.0, min(89.0, math.degrees(math.asin(max(-1.0, min(1.0, ny)))))))
-        self.ed.camera = cam
+        self.ed.look_with(cam)
 
     def draw(self, dl, p0, w: int, h: int) -> None:
         t = self.tool

@@ -8,7 +8,6 @@ each one undo step; a canvas stroke re-synthesizes only what it reaches."""
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -203,8 +202,8 @@ class LabelTool(Tool):
         if lab is None or self.mode == "exemplar":
             return
         if self.active not in lab.exemplar.present and not self.brush.eraser:
-            self.ed.notice = (f"{lab.name(self.active)} is not on the exemplar: give the exemplar some of it "
-                              "first (Exemplar mode).", time.monotonic())
+            self.ed.tell(f"{lab.name(self.active)} is not on the exemplar: give the exemplar some of it "
+                         "first (Exemplar mode).")
             return
         if self.mode == "fill":
             self.fill(pos)
@@ -312,7 +311,7 @@ class LabelTool(Tool):
             imgui.image(imgui.ImTextureRef(ed.canvas.exemplar_tex.glo), (size, size))
             dl = imgui.get_window_draw_list()
             tex = ed.overlay_labels.exemplar_labels(lab.exemplar.scaled(m), lab.colors)
-            if ed.show_fields:
+            if ed.viewer.show_fields:
                 dl.add_image(imgui.ImTextureRef(tex.glo), p0, (p0.x + size, p0.y + size))
             imgui.set_cursor_screen_pos(p0)
             imgui.invisible_button("labels-paint", (size, size))

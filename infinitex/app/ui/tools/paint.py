@@ -8,7 +8,6 @@ the stroke reaches (engine.pyramid.Pyramid.update_controls)."""
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 
 from imgui_bundle import imgui
@@ -298,7 +297,7 @@ class PaintExemplarTool(Tool):
             for cx, cy in dabs:
                 mask = mask.painted(cx, cy, b.radius, avoid=not b.eraser)
             if mask.full:
-                ed.notice = ("The whole exemplar cannot be avoided: leave some of it usable.", time.monotonic())
+                ed.tell("The whole exemplar cannot be avoided: leave some of it usable.")
                 return
             ed.edit(replace(doc, avoid_exemplar=None if mask.empty else mask), "Avoid exemplar regions",
                     group=self._group)
@@ -325,7 +324,7 @@ class PaintExemplarTool(Tool):
             dl = imgui.get_window_draw_list()
             controls = ed.doc.controls(m)
             heat = ed.overlay_exemplar.exemplar(controls.randomness_exemplar, m)
-            if heat is not None and ed.show_fields:
+            if heat is not None and ed.viewer.show_fields:
                 dl.add_image(imgui.ImTextureRef(heat.glo), p0, (p0.x + size, p0.y + size))
             hatch = ed.overlay_avoid.mask(controls.avoid)
             if hatch is not None:
