@@ -339,7 +339,11 @@ class Session(LoadedDocument):
             self.pyramid.update_controls(controls, None if changed is None else list(changed), defer=True)
         self.synced_doc = doc
         self.model.sync(self, doc)
+
+    def poll(self):
+        """Once a frame: the analysis job (LoadedDocument.poll) and the shader warm-up process."""
         self.warmup.poll()
+        return super().poll()
 
     def _verify(self, controls, changed) -> None:
         from infinitex.engine.rect import uncovered
