@@ -43,7 +43,7 @@ def _child(path: str, out: str) -> int:
             s = self.session
             if s is not None and s.ready and s.refiner is not None and s.refiner.shows_texture:
                 self.marks.setdefault("first_texture", now)
-                if not getattr(s, "previewing", False) and s.job is None:
+                if not getattr(s, "quick_analysis", False) and s.job is None:
                     self.marks.setdefault("full_analysis", now)
                     if self.refined:
                         self.marks.setdefault("exact", now)

@@ -74,7 +74,7 @@ def main(argv=None) -> int:
     from infinitex.app.session import Session
     from infinitex.app.ui.tools.paint import PaintCanvasTool
     from infinitex.engine.local_update import LocalUpdates
-    from infinitex.engine.preview import QuickLooks
+    from infinitex.engine.looks import QuickLooks
     # A dab's way through a frame: the tool's stroke (and the edit it makes), the
     # session's sync (the local update recorded), the settling and the quick look.
     entries = {f.__code__ for f in (PaintCanvasTool.drag, Session.sync, LocalUpdates.settle, QuickLooks.quick_look)}

@@ -282,7 +282,7 @@ def test_every_shader_comes_from_files_through_one_loader():
 SHARED_EDITOR_STATE = {
     "update_ms", "refined", "canvas_pixels", "canvas_request", "cursor", "_canvas_button", "fatal",
 }
-EDITOR_MODULES = ("editor.py", "files.py", "exports.py", "canvas_input.py", "canvas_preview.py", "shortcuts.py",
+EDITOR_MODULES = ("editor.py", "files.py", "exports.py", "canvas_input.py", "canvas_refine.py", "shortcuts.py",
                   "model_mode.py")
 
 

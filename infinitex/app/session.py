@@ -147,9 +147,9 @@ class Refiner:
             return Rect(want.x0, max(want.y0, valid.y0), want.x1, min(want.y1, valid.y1 + n))
         return Rect(want.x0, max(want.y0, valid.y0 - n), want.x1, min(want.y1, valid.y1))
 
-    def preview(self, frame: Frame, budget_s: float, min_level: int = 2, max_level: int | None = None) -> int:
-        """While a change is previewed: complete whole levels, coarse to fine
-        (no bands: a preview is consistent everywhere), a piece of a draw at a
+    def coarse(self, frame: Frame, budget_s: float, min_level: int = 2, max_level: int | None = None) -> int:
+        """While a dragged control changes: complete whole levels, coarse to fine
+        (no bands: each shown level is consistent everywhere), a piece of a draw at a
         time for about ``budget_s``, carried on over frames (a level of a large
         view can cost more than a frame on a CPU). Levels up to ``min_level``
         are made at once; past ``max_level``, a whole level only when its
@@ -294,10 +294,10 @@ class Session(LoadedDocument):
     """A loaded document and the view's scrolling pyramid, refined per frame.
 
     Opening an image shows a texture at once: a quick analysis without
-    similarity sets is installed first (``previewing``), and the full one
+    similarity sets is installed first (``quick_analysis``), and the full one
     replaces it when it is ready (the view stays where it is)."""
 
-    QUICK_PREVIEW = True
+    QUICK_ANALYSIS = True
     # Tests: check that the region each edit says it reached holds every change
     # the two controls show (Controls.changed_rects); what it misses is listed here.
     verify_regions = False

@@ -25,7 +25,7 @@ from .controls import NO_CONTROLS, Controls
 from .controls.features import ENTRY_ROW, TABLE_ROW, pack_rows
 from .gpu import Gpu, GpuAnalysis, set_uniforms
 from .local_update import LocalUpdates
-from .preview import QuickLooks
+from .looks import QuickLooks
 from .requests import SpreadRequests
 from .state import StateAccess, SynthesisError
 from .params import SynthParams, correction_margins, first_rects, subpass_rects
@@ -360,7 +360,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
         ``pace``) per step: upsample + jitter, correction, fidelity stage, on ``scratch``;
         the write-back is the last step. Returns (as the generator's value) the
         rectangle of the pixels that changed, when ``buf`` is None. ``parent``:
-        read instead of level l - 1's buffer (a quick look, see preview.py)."""
+        read instead of level l - 1's buffer (a quick look, see looks.py)."""
         rp = self._region_pass(l, strip, scratch)
         try:
             yield from self._upsample_steps(rp, parent, pace)

@@ -27,11 +27,11 @@ class LoadedDocument:
 
     # Install a quick preview analysis while the full one runs (the editor's
     # session); exports and the command line always wait for the full one.
-    QUICK_PREVIEW = False
+    QUICK_ANALYSIS = False
 
     def __init__(self, gpu: Gpu, cache_dir: str | None = None):
         self.gpu = gpu
-        self.previewing = False                # the installed analysis is the quick preview
+        self.quick_analysis = False                # the installed analysis is the quick preview
         self.cache_dir = cache_dir
         self.key: tuple | None = None          # analysis key installed
         self.exemplar: Exemplar | None = None
@@ -60,7 +60,7 @@ class LoadedDocument:
 
     def load(self, doc: Document, preview: bool | None = None, find_lattice: bool = False) -> AnalysisJob:
         """Start analyzing ``doc``'s exemplar (cancelling a job for another key);
-        ``preview`` (default: the class's QUICK_PREVIEW): install a quick
+        ``preview`` (default: the class's QUICK_ANALYSIS): install a quick
         preview analysis first (see ``poll``); ``find_lattice``: first look for
         a lattice in a single image (project.realize.with_found_lattice; the
         job's ``doc`` becomes the document with it)."""
@@ -69,7 +69,7 @@ class LoadedDocument:
             if self.job.asked_key == key and self.job.find_lattice == find_lattice:
                 return self.job
             self.job.cancel()
-        self.job = AnalysisJob(doc, self.cache_dir, preview=self.QUICK_PREVIEW if preview is None else preview,
+        self.job = AnalysisJob(doc, self.cache_dir, preview=self.QUICK_ANALYSIS if preview is None else preview,
                                find_lattice=find_lattice)
         return self.job
 
@@ -78,14 +78,14 @@ class LoadedDocument:
         skips the fidelity stage (it is replaced soon: its refinement must leave
         the cores to the full analysis)."""
         params = doc.params(self.L if L is None else L)
-        if self.previewing:
+        if self.quick_analysis:
             params = replace(params, fidelity=None)
         return replace(params, period=self.period) if self.period else params
 
     def poll(self) -> AnalysisJob | None:
         """Install a finished job; returns it once when it ends (success or not),
         and once before that when its quick preview is ready and installed
-        (``previewing`` stays true until the full analysis replaces it)."""
+        (``quick_analysis`` stays true until the full analysis replaces it)."""
         job = self.job
         if job is None:
             return None
@@ -93,7 +93,7 @@ class LoadedDocument:
             preview = job.take_preview()
             if preview is None:
                 return None
-            self.install(job.doc, *preview, preview=True)  # previewing until the full analysis is installed
+            self.install(job.doc, *preview, preview=True)  # quick_analysis until the full analysis is installed
             return job  # the document can be shown (and edited) now
         self.job = None
         if job.analysis is not None:
@@ -107,7 +107,7 @@ class LoadedDocument:
         if material is None:
             material = material_or_none(doc) or single(ex, [lv.stack for lv in an.levels])
         self.release_synthesis()
-        self.previewing = preview
+        self.quick_analysis = preview
         self.exemplar, self.analysis, self.material = ex, an, material
         self._display = {}
         self.params = self.doc_params(doc, an.L)

@@ -229,7 +229,7 @@ def test_every_local_edit_is_refined_locally(doc):
     """A paint dab, a label dab, a feature move and a comb dab are re-synthesized
     in place (and shown at once as quick looks), not by the coarse preview a
     dragged slider gets; a change of a global setting is not local."""
-    from infinitex.app.ui.canvas_preview import local_edit
+    from infinitex.app.ui.canvas_refine import local_edit
     from infinitex.engine.controls import DirectionField
     from infinitex.engine.controls.direction import jacobian
     field, _ = CanvasField().painted(10.0, 10.0, 8.0, 0)
@@ -242,10 +242,10 @@ def test_every_local_edit_is_refined_locally(doc):
 
 def test_a_dragged_control_previews_one_change_at_a_time(doc):
     """While a control is held, a change waits for the one in progress to be
-    presentable (PreviewHold); released, the newest is taken at once and the
+    presentable (EditHold); released, the newest is taken at once and the
     picture kept until it is presentable; local edits never wait."""
-    from infinitex.app.ui.canvas_preview import PreviewHold
-    h = PreviewHold()
+    from infinitex.app.ui.canvas_refine import EditHold
+    h = EditHold()
     a, b, c = doc, replace(doc, seed=doc.seed + 1), replace(doc, seed=doc.seed + 2)
     assert h.doc(a) is a and not h.waiting
     assert h.doc(b) is b and h.waiting  # a change: shown once presentable

@@ -187,7 +187,7 @@ def test_redrawing_only_what_changed_equals_a_full_redraw(session, gpu, zoom, mo
 def test_preview_completes_whole_levels(session):
     session.pyramid.invalidate(0)
     frame = frame_for(View(0.0, 0.0, 1.0), 300, 200, session.L)
-    done = session.refiner.preview(frame, 0.0, min_level=2)
+    done = session.refiner.coarse(frame, 0.0, min_level=2)
     assert done == 2
     assert session.refiner.holds(2, session.pyramid.plan(frame.level, frame.want)[2])
 
@@ -309,7 +309,7 @@ def test_a_quick_preview_shows_first_then_the_full_analysis(gpu, tmp_path):
     while time.monotonic() < t:
         job = s.poll()
         if job is not None:
-            seen.append((s.previewing, search_k(s.analysis.settings, s.analysis.size), s.generation))
+            seen.append((s.quick_analysis, search_k(s.analysis.settings, s.analysis.size), s.generation))
             quick = quick or s.analysis
             if job.done:
                 break
@@ -324,12 +324,12 @@ def test_a_quick_preview_shows_first_then_the_full_analysis(gpu, tmp_path):
     s2.job.wait()
     assert s2.job.preview is None  # the full analysis is cached: no preview needed
     s2.poll()
-    assert not s2.previewing and s2.generation == 1
+    assert not s2.quick_analysis and s2.generation == 1
     s2.release()
     plain = LoadedDocument(gpu, cache_dir=str(tmp_path / "other"))
     job = plain.load(doc)
     job.wait()
-    assert job.preview is None and plain.poll() is job and not plain.previewing
+    assert job.preview is None and plain.poll() is job and not plain.quick_analysis
     plain.release()
 
 

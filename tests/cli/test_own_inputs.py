@@ -262,7 +262,7 @@ def editor(monkeypatch):
                 return material.primary
         ed = Fake()
         ed.doc, ed.project_path, ed.dialogs = doc, project_path, Dialogs(native)
-        ed.session = SimpleNamespace(material=material, synth=None, L=0, previewing=False)  # not ready: a window export says so
+        ed.session = SimpleNamespace(material=material, synth=None, L=0, quick_analysis=False)  # not ready: a window export says so
         ed.export_job = None
         ed.export_settings = exports.ExportSettings(stream_tile=256, workers=1)
         for k, v in kw.items():

@@ -1,4 +1,4 @@
-"""Quick looks at local updates (engine/preview.py): a dab shows at once as a
+"""Quick looks at local updates (engine/looks.py): a dab shows at once as a
 patch synthesized on its own buffers; the held levels, and so the exact result,
 are untouched; the patch goes once the level is exact under it."""
 import numpy as np

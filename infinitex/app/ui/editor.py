@@ -37,7 +37,7 @@ from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir
 from . import panels
 from .canvas_input import CanvasInputMixin
-from .canvas_preview import CanvasPreviewMixin
+from .canvas_refine import CanvasRefineMixin
 from .dialogs import Dialogs
 from .exports import ExportSettings, ExportsMixin
 from .files import DEFAULT_EXEMPLAR, FilesMixin
@@ -60,7 +60,7 @@ subprocess._USE_VFORK = False
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
 
 
-class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, ShortcutsMixin, ModelModeMixin):
+class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, ShortcutsMixin, ModelModeMixin):
     def __init__(self, path: str | None = None, *, screenshot: str | None = None, frames: int = 10,
                  window_size: tuple[int, int] | None = None, recover: bool = True):
         self.start_path = path
@@ -104,7 +104,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasPreviewMixin, Sho
         self._close_requested = False
         self.canvas_request = False
         self.canvas_pixels = None      # last canvas read back on request (tests)
-        self._init_canvas_preview()
+        self._init_canvas_refine()
         self._init_model_mode()
         self.panels = panels.Panels(self)
         self.tools = make_tools(self)

@@ -88,7 +88,7 @@ class ExportsMixin:
         return path if self.dialogs.native and os.path.abspath(chosen) == os.path.abspath(path) else None
 
     def start_export(self, path: str, rect: Rect, toroidal: int = 0, confirmed: bool = False) -> None:
-        if self.session.previewing:
+        if self.session.quick_analysis:
             job = self.session.job
             done = f" ({job.progress * 100:.0f}% done)" if job is not None else ""
             self.dialogs.message("Export", "The canvas still shows the quick preview while the full analysis "

@@ -57,7 +57,7 @@ def canvas_overlay(p: Panels, p0, w, h) -> None:
     ed = p.ed
     job = ed.session.job
     text = None
-    if job is not None and ed.session.previewing:
+    if job is not None and ed.session.quick_analysis:
         text = f"Quick preview; the full analysis of {job.doc.exemplar.name}: {job.progress * 100:.0f}%"
     elif job is not None:
         text = f"Analyzing {job.doc.exemplar.name}: {job.progress * 100:.0f}%  {job.message}"

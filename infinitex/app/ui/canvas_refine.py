@@ -1,5 +1,5 @@
 """What the canvas shows while a control is dragged or just changed
-(:class:`CanvasPreviewMixin`, a part of the editor).
+(:class:`CanvasRefineMixin`, a part of the editor).
 
 A change of a randomness slider, the Structure preset or the seed redoes the
 pyramid from the levels it changes. On a CPU one level of a large view can cost
@@ -14,7 +14,7 @@ result:
   drawn by the synthesis magnification: the exact texture at a lower
   resolution; measured against the exemplar, the neighbourhood energy of that
   preview is 1.3-1.7x the settled result's, of the coarsest levels 2-3x);
-- meanwhile further changes wait (:class:`PreviewHold`): the session keeps the
+- meanwhile further changes wait (:class:`EditHold`): the session keeps the
   document of the change in progress, so whole levels are made a piece at a
   time over frames (``Refiner.preview``) and never started again half done;
   then the newest document is taken. On a GPU that is every frame; on llvmpipe,
@@ -41,7 +41,7 @@ from ..render.canvas import PREVIEW_MAX_K  # a change shows once the view's leve
 INTERACTIVE_S = 0.25  # seconds after the last edit that still count as dragging
 HOLD_MAX_S = 10.0     # a change waits no longer than this for the one in progress (a safety net: a 4K
                       # canvas on llvmpipe takes seconds to reach a presentable level)
-SETTLE_FRAME_S = 0.080  # a frame while nothing is touched, at most (see CanvasPreviewMixin._work)
+SETTLE_FRAME_S = 0.080  # a frame while nothing is touched, at most (see CanvasRefineMixin._work)
 
 
 def local_edit(prev: Document | None, doc: Document) -> bool:
@@ -55,7 +55,7 @@ def local_edit(prev: Document | None, doc: Document) -> bool:
                    direction=doc.direction) == doc
 
 
-class PreviewHold:
+class EditHold:
     """The document the session synthesizes while changes come faster than
     their previews: one change at a time, each until it is presentable."""
 
@@ -97,18 +97,18 @@ class PreviewHold:
             self.waiting = False
 
 
-class CanvasPreviewMixin:
+class CanvasRefineMixin:
     """The editor's refinement and redraw of the flat canvas each frame."""
 
-    def _init_canvas_preview(self) -> None:
-        self.hold = PreviewHold()
+    def _init_canvas_refine(self) -> None:
+        self.hold = EditHold()
         self.canvas_peek = False  # a test asks for what this frame shows (no refinement forced)
         self._was_previewing = False
         self._last_doc = None
         self._last_edit = 0.0
 
     def session_doc(self) -> Document:
-        """The document the session shows this frame (see :class:`PreviewHold`)."""
+        """The document the session shows this frame (see :class:`EditHold`)."""
         return self.hold.doc(self.doc, holding=not self.model_mode, dragging=imgui.is_any_item_active())
 
     def _work(self, step, done, settle: bool):
@@ -144,8 +144,8 @@ class CanvasPreviewMixin:
                 self._last_edit = time.monotonic()
         interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
         hold = self.hold
-        was, self._was_previewing = self._was_previewing, s.previewing
-        if was and not s.previewing and s.key == self.doc.analysis_key():
+        was, self._was_previewing = self._was_previewing, s.quick_analysis
+        if was and not s.quick_analysis and s.key == self.doc.analysis_key():
             hold.hold_picture()  # the full analysis replaces the quick preview: no coarse levels meanwhile
         hold.expire()
         frame = self.frame
@@ -156,7 +156,7 @@ class CanvasPreviewMixin:
                 # A control is being dragged, or a change is not presentable
                 # yet: whole levels, coarse to fine, a piece at a time.
                 target = frame.level - PREVIEW_MAX_K
-                c = self._work(lambda b: s.refiner.preview(frame, b, max_level=target),
+                c = self._work(lambda b: s.refiner.coarse(frame, b, max_level=target),
                                lambda c: c >= target, settle=not interactive)
                 hold.reached(c, target)
                 self.refined = False
