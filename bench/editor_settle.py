@@ -88,8 +88,8 @@ def main(argv=None) -> int:
                 return
             self.frames.append(now)
             if os.environ.get("SETTLE_DEBUG") and len(self.frames) > 1:
-                print(f"{what} frame {1000 * (self.frames[-1] - self.frames[-2]):.1f} update {self.update_ms:.1f} "
-                      f"budget {1000 * self.frame_pacer.budget_s:.1f} px {self.pixels}", flush=True)
+                print(f"{what} frame {1000 * (self.frames[-1] - self.frames[-2]):.1f} update {self.canvas_state.update_ms:.1f} "
+                      f"budget {1000 * self.frame_pacer.budget_s:.1f} px {self.canvas_state.pixels}", flush=True)
             level = self.frame.level if self.frame is not None else -1
             full = s.refiner.holds(level, self.frame.want) if s.refiner is not None and self.frame else False
             if full and self.first_full is None:

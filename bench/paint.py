@@ -110,7 +110,7 @@ def main(argv=None) -> int:
         pixels_at.append(sum(updates))
         s = ed.session
         settled_at.append(bool(s is not None and s.pyramid is not None and s.pyramid.settled and ed.refined))
-        upd_at.append((ed.update_ms, 1000 * ed.frame_pacer.budget_s))
+        upd_at.append((ed.canvas_state.update_ms, 1000 * ed.frame_pacer.budget_s))
         looks_at.append(s.pyramid.looks_made if s is not None and s.pyramid is not None else 0)
         if full_view == [-1]:  # asked by the test (GL calls belong in the frame, on the GL thread)
             from infinitex.engine.pyramid import Pyramid

@@ -60,10 +60,10 @@ class Harness:
     def canvas(self, ctx):
         """The canvas read back exactly (RGB), by the editor itself during a frame."""
         self.settle(ctx)
-        self.ed.canvas_request = True
-        while self.ed.canvas_request:
+        self.ed.canvas_state.ask_read_back()
+        while self.ed.canvas_state.read_asked:
             ctx.yield_()
-        return self.ed.canvas_pixels
+        return self.ed.canvas_state.read_back
 
     def peek(self, ctx):
         """What the canvas shows now (RGB), read back in a frame without
@@ -71,7 +71,7 @@ class Harness:
         self.ed.canvas_peek = True
         while self.ed.canvas_peek:
             ctx.yield_()
-        return self.ed.canvas_pixels
+        return self.ed.canvas_state.read_back
 
     def run(self, test, watchdog_s: float = 600.0) -> int:
         """Run ``test(ctx)`` in the editor; write the report; 0 when every check passed.

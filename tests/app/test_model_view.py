@@ -143,6 +143,7 @@ def test_feature_handles_on_the_model_show_only_what_the_camera_sees(gpu):
         return cache[key]
     ed = SimpleNamespace(camera=cam, uv_image=uv_image, session=SimpleNamespace(model=SimpleNamespace(atlas=atlas)),
                          doc=SimpleNamespace(surface=SimpleNamespace(size=n), features=()))
+    ed.look_with = lambda camera: setattr(ed, "camera", camera)  # (the editor's ModelModeMixin.look_with)
     try:
         front = view.pick(cam, size, 200, 200, n)  # the +z face's centre
         mf = ModelFeatures(ed)

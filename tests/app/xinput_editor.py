@@ -43,7 +43,7 @@ class ReportingEditor(Editor):
             "view": [self.view.x, self.view.y, self.view.zoom],
             "tool": self.tool.name,
             "tile_mode": bool(self.viewer.tile_mode),
-            "dragging": self._canvas_button >= 0,  # a button went down on the canvas and is not released yet
+            "dragging": self.canvas_state.button >= 0,  # a button went down on the canvas and is not released yet
             "path_request": self.dialogs.path_request is not None,
             "modals": [m.title for m in self.dialogs.modals],
             "popup_open": bool(imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id | imgui.PopupFlags_.any_popup_level)),

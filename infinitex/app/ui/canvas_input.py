@@ -41,17 +41,17 @@ class CanvasInputMixin:
         view_before = self.view
         tool = self.tool if s.ready and self.doc is not None else self.tools[0]
         if imgui.is_item_activated():
-            self._canvas_button = 0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1
-            (tool if self._canvas_button == 0 else self.tools[0]).press(at, mouse)
-        elif imgui.is_item_active() and self._canvas_button >= 0:
-            (tool if self._canvas_button == 0 else self.tools[0]).drag(at, mouse)
-        if imgui.is_item_deactivated() and self._canvas_button >= 0:
+            self.canvas_state.press(0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1)
+            (tool if self.canvas_state.button == 0 else self.tools[0]).press(at, mouse)
+        elif imgui.is_item_active() and self.canvas_state.button >= 0:
+            (tool if self.canvas_state.button == 0 else self.tools[0]).drag(at, mouse)
+        if imgui.is_item_deactivated() and self.canvas_state.button >= 0:
             # The last move can come in the same frame as the release (a quick
             # flick, or input queued while a frame was busy): it counts.
-            held = tool if self._canvas_button == 0 else self.tools[0]
+            held = tool if self.canvas_state.button == 0 else self.tools[0]
             held.drag(at, mouse)
             held.release()
-            self._canvas_button = -1
+            self.canvas_state.release()
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
             if payload is not None and s.ready and self.doc is not None and self.geometry() is None:
@@ -63,7 +63,7 @@ class CanvasInputMixin:
         if self.view != view_before:  # the wheel or a pan moved the canvas under the mouse
             x0, y0 = self.view.top_left(w, h)
             at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
-        self.cursor = at if hovered else None
+        self.canvas_state.point(at if hovered else None)
         return hovered
 
     def _canvas_overlays(self, p0, w: int, h: int, hovered: bool) -> None:

@@ -124,7 +124,7 @@ class CanvasRefineMixin:
         budget = self.frame_pacer.budget_s
         t0 = time.perf_counter()
         result = step(budget)
-        if not settle or self.canvas_request or not self._untouched():
+        if not settle or self.canvas_state.read_asked or not self._untouched():
             return result
         settle_s = SETTLE_FRAME_S - self.frame_pacer.other_s
         while not done(result) and time.perf_counter() - t0 + budget <= settle_s and not self.waits.arrived():
@@ -134,7 +134,7 @@ class CanvasRefineMixin:
     def _untouched(self) -> bool:
         io = imgui.get_io()
         return not (imgui.is_any_item_active() or imgui.is_any_mouse_down() or io.want_text_input
-                    or self._canvas_button >= 0 or self.waits.working or self.waits.arrived(poll=False))
+                    or self.canvas_state.button >= 0 or self.waits.working or self.waits.arrived(poll=False))
 
     def _refine_and_draw(self, s, geom) -> None:
         """Synthesize for this frame and bring the canvas texture up to date."""
@@ -142,7 +142,7 @@ class CanvasRefineMixin:
             prev, self._last_doc = self._last_doc, self.doc
             if not local_edit(prev, self.doc):
                 self._last_edit = time.monotonic()
-        interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_request
+        interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_state.read_asked
         hold = self.hold
         was, self._was_previewing = self._was_previewing, s.quick_analysis
         if was and not s.quick_analysis and s.key == self.doc.analysis_key():
@@ -152,42 +152,41 @@ class CanvasRefineMixin:
         t0 = time.perf_counter()
         scale = 1
         try:
-            if (interactive or hold.waiting) and not self.canvas_request:
+            if (interactive or hold.waiting) and not self.canvas_state.read_asked:
                 # A control is being dragged, or a change is not presentable
                 # yet: whole levels, coarse to fine, a piece at a time.
                 target = frame.level - PREVIEW_MAX_K
                 c = self._work(lambda b: s.refiner.coarse(frame, b, max_level=target),
                                lambda c: c >= target, settle=not interactive)
                 hold.reached(c, target)
-                self.refined = False
+                self.canvas_state.set_refined(False)
                 texel_px = self.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
                 if self.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
                     scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
             else:
-                self.refined = self._work(lambda b: s.refine(frame, b), bool, settle=True)
+                self.canvas_state.set_refined(self._work(lambda b: s.refine(frame, b), bool, settle=True))
         except SynthesisError as exc:
             self.viewer.center(0, 0)
             hold.waiting = False
             self.dialogs.message("Synthesis", str(exc))
-        self.update_ms = (time.perf_counter() - t0) * 1000.0
-        self.pixels = s.refiner.last_pixels if s.refiner else 0
+        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, self.canvas_state.refined,
+                                      s.refiner.last_pixels if s.refiner else 0)
         w, h = self.canvas_size
         view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-        if hold.waiting and not self.canvas_request and self.canvas.shows(frame, view, self.display, geom,
+        if hold.waiting and not self.canvas_state.read_asked and self.canvas.shows(frame, view, self.display, geom,
                                                                           (w // scale, h // scale)):
             self._peek()
             return  # the last presentable texture stays until this change's is
         self.canvas.ensure_size(w // scale, h // scale)
         self.canvas.redraw(s.pyramid, frame, view, self.display, geom, (s.generation, s.params),
-                           force=self.canvas_request)
-        self.refined = self.refined and self.canvas.pending is None  # (a large redraw spreads over frames)
-        if self.canvas_request:
-            self.canvas_pixels = self.canvas.read()
-            self.canvas_request = False
+                           force=self.canvas_state.read_asked)
+        self.canvas_state.set_refined(self.canvas_state.refined and self.canvas.pending is None)  # (a large redraw spreads over frames)
+        if self.canvas_state.read_asked:
+            self.canvas_state.give_read_back(self.canvas.read())
         self._peek()
 
     def _peek(self) -> None:
         """Read back what the canvas shows this frame, changing nothing (tests: ``canvas_peek``)."""
         if self.canvas_peek:
-            self.canvas_pixels = self.canvas.read()
+            self.canvas_state.give_read_back(self.canvas.read())
             self.canvas_peek = False

@@ -37,6 +37,7 @@ from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir
 from . import panels
 from .canvas_input import CanvasInputMixin
+from .canvas_state import CanvasState
 from .canvas_refine import CanvasRefineMixin
 from .dialogs import Dialogs
 from .exports import ExportSettings, ExportsMixin
@@ -91,19 +92,14 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self.goto = [0, 0]
         self.frame: Frame | None = None
         self.canvas_size = (1, 1)
-        self.refined = False
         self.frame_count = 0
-        self.update_ms = 0.0
         self.frame_pacer = FramePacer()
-        self.pixels = 0
-        self.cursor: tuple[float, float] | None = None
+        self.canvas_state = CanvasState()  # what the canvas did last frame, the pointer on it
         self.cursor_uv: tuple[int, int] | None = None
         self.fatal: str | None = None
         self._dropped: list[str] = []
         self.quit_requested = False
         self._close_requested = False
-        self.canvas_request = False
-        self.canvas_pixels = None      # last canvas read back on request (tests)
         self._init_canvas_refine()
         self._init_model_mode()
         self.panels = panels.Panels(self)
@@ -113,16 +109,24 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         # exemplar's labels (Labels window) and the canvas labels.
         self.overlay_canvas = self.overlay_exemplar = self.overlay_avoid = None
         self.overlay_labels = self.overlay_canvas_labels = None
-        self._canvas_button = -1         # mouse button that went down on the canvas
         self.notice: tuple[str, float] | None = None  # (text, monotonic time): e.g. where an export went
         self._title = ""
         self.keys = KeyLog()             # this frame's key presses, each with its own modifiers
         self.waits = InputWait(self.keys)  # whether the editor may sleep between frames, and its sleep
 
+    def fail(self, text: str) -> None:
+        """Nothing can be shown (no GL, no exemplar): the window says why and offers Quit."""
+        self.fatal = text
+
     def tell(self, text: str) -> None:
         """A one-line notice over the canvas for a few seconds (where an export
         went, why a stroke did nothing)."""
         self.notice = (text, time.monotonic())
+
+    @property
+    def refined(self) -> bool:
+        """What the canvas shows is complete (canvas_state)."""
+        return self.canvas_state.refined
 
     @property
     def view(self) -> View:
@@ -204,8 +208,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
             self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid = (FieldOverlay(ctx) for _ in range(3))
             self.overlay_labels, self.overlay_canvas_labels = LabelOverlay(ctx), LabelOverlay(ctx)
         except (GLUnavailable, Exception) as exc:
-            self.fatal = (f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
-                          "on Linux install libgl1 and a Mesa driver.")
+            self.fail(f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
+                      "on Linux install libgl1 and a Mesa driver.")
             return
         self._install_drop_callback()
         # The imgui test engine drives the frames itself: no sleeping between them.
@@ -243,7 +247,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
     def gui(self) -> None:
         self.frame_count += 1
         self.waits.frame_began()
-        self.frame_pacer.frame_began(self.update_ms)
+        self.frame_pacer.frame_began(self.canvas_state.update_ms)
         vp = imgui.get_main_viewport()
         imgui.set_next_window_pos(vp.work_pos)
         imgui.set_next_window_size(vp.work_size)
@@ -351,7 +355,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
             self.canvas.ensure_size(w, h)
             self.canvas.render(None, None, self.view, self.display)
             self.canvas.shown_key = None
-            self.refined = False
+            self.canvas_state.set_refined(False)
         self.screen_fbo.use()
         imgui.set_cursor_screen_pos(p0)
         imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
@@ -377,7 +381,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)
         shown = self.session is not None and self.session.ready and self.doc is not None
-        busy = working or (shown and not self.refined) or (not shown and not waiting and not analyzing)
+        busy = working or (shown and not self.canvas_state.refined) or (not shown and not waiting and not analyzing)
         # Worker processes doing the work (a streamed export, an estimate) need
         # the cores more than a full frame rate: a few frames a second show progress.
         background = (self.exporting_apart()

@@ -224,7 +224,7 @@ class FilesMixin:
                 if kind != "new":
                     self.new_document()
                 else:
-                    self.fatal = job.error or "The default exemplar could not be loaded."
+                    self.fail(job.error or "The default exemplar could not be loaded.")
             return
         if path and kind in ("project", "image", "exemplar") and path != self.autosave.path:
             self.remember(path)

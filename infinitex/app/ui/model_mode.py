@@ -201,8 +201,8 @@ class ModelModeMixin:
         self.sync_session()  # (the model's texture with it: Session.sync keeps s.model in step)
         pv = s.model
         t0 = time.perf_counter()
-        self.refined = pv.step(MODEL_BUDGET_S, self.shown_role())
-        self.update_ms = (time.perf_counter() - t0) * 1000.0
+        refined = pv.step(MODEL_BUDGET_S, self.shown_role())
+        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, refined)
         mv = self.model_view
         if pv.image is not None and pv.version != self._model_tex_version:
             mv.set_texture(pv.image)
@@ -233,9 +233,9 @@ class ModelModeMixin:
         # While the mouse orbits or pans, the texture's mipmaps (a frame rate that
         # follows the hand); at rest, synthesis magnification. A picture that would
         # not change is not drawn again (magnification costs llvmpipe 150 ms a frame).
-        magnify = mv.magnify and self._canvas_button < 0
+        magnify = mv.magnify and self.canvas_state.button < 0
         drawn = (self.camera, w, h, self._model_tex_version, self.show_seams, magnify, pv.image is None, overlay_key)
-        if drawn != self._model_drawn or self.canvas_request:
+        if drawn != self._model_drawn or self.canvas_state.read_asked:
             fbo.use()
             fbo.clear(0.16, 0.17, 0.19, 1.0, depth=1.0)
             if pv.image is not None:
@@ -243,10 +243,9 @@ class ModelModeMixin:
                 mv.draw(self.camera, (0, 0, w, h), mode=2 if self.show_seams else 0)
                 mv.magnify = keep
             self._model_drawn = drawn
-        if self.canvas_request:
+        if self.canvas_state.read_asked:
             fbo.use()
-            self.canvas_pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1].copy()
-            self.canvas_request = False
+            self.canvas_state.give_read_back(np.frombuffer(fbo.read(components=3), np.uint8).reshape(h, w, 3)[::-1].copy())
         if self.atlas_request and pv.done:
             self.atlas_read = pv.coords()
             self.atlas_request = False
@@ -283,22 +282,22 @@ class ModelModeMixin:
         gesture = None if io.key_alt else tool_gesture
         if imgui.is_item_activated():
             left = imgui.is_mouse_down(imgui.MouseButton_.left)
-            self._canvas_button = 0 if left else (2 if imgui.is_mouse_down(imgui.MouseButton_.middle) else 1)
+            self.canvas_state.press(0 if left else (2 if imgui.is_mouse_down(imgui.MouseButton_.middle) else 1))
             if left and gesture is not None:
                 gesture.press(mx, my, w, h)
-        elif imgui.is_item_active() and self._canvas_button >= 0:
+        elif imgui.is_item_active() and self.canvas_state.button >= 0:
             d = io.mouse_delta
-            if self._canvas_button == 0 and gesture is not None:
+            if self.canvas_state.button == 0 and gesture is not None:
                 if d.x or d.y:
                     gesture.drag(mx, my, w, h)
-            elif (self._canvas_button == 1 or (self._canvas_button == 2 and io.key_shift)) and (d.x or d.y):
+            elif (self.canvas_state.button == 1 or (self.canvas_state.button == 2 and io.key_shift)) and (d.x or d.y):
                 self.camera = self.camera.pan(-d.x / h, d.y / h, w / max(1, h))
             elif d.x or d.y:
                 self.camera = self.camera.orbit(-d.x * ORBIT_DEG_PER_PX, d.y * ORBIT_DEG_PER_PX)
-        if imgui.is_item_deactivated() and self._canvas_button >= 0:
-            if self._canvas_button == 0 and gesture is not None:
+        if imgui.is_item_deactivated() and self.canvas_state.button >= 0:
+            if self.canvas_state.button == 0 and gesture is not None:
                 gesture.finish(mx, my, w, h)  # (a move in the release's frame counts)
-            self._canvas_button = -1
+            self.canvas_state.release()
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
             if payload is not None:
@@ -308,7 +307,7 @@ class ModelModeMixin:
         if hovered and io.mouse_wheel and not (tool_gesture is not None
                                                and tool_gesture.wheel(mx, my, w, h, io.mouse_wheel)):
             self.camera = self.camera.zoom(0.85 ** io.mouse_wheel)
-        self.cursor = None
+        self.canvas_state.point(None)
         return hovered
 
     def uv_image(self, w: int, h: int) -> np.ndarray:

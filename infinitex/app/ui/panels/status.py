@@ -27,15 +27,15 @@ def status_bar(p: Panels) -> None:
         # Nothing to do: the editor sleeps until input comes, so a frame rate means nothing.
         parts = ["idle"]
     else:
-        parts = [f"{ed.update_ms:5.1f} ms/update", f"{ed.pixels:>8,} px synthesized", f"{ed.frame_pacer.fps:5.1f} fps"]
+        parts = [f"{ed.canvas_state.update_ms:5.1f} ms/update", f"{ed.canvas_state.pixels:>8,} px synthesized", f"{ed.frame_pacer.fps:5.1f} fps"]
     pv = s.model if ed.model_mode else None
     if pv is not None:  # a model: its texture's size and the finest level shown (the plane's view is elsewhere)
         parts.append(f"model texture {ed.doc.surface.size} px")
         if pv.image_level >= 0:
             parts.append(f"level {pv.image_level}/{s.L}")
     else:
-        if ed.cursor is not None:
-            cx, cy = ed.cursor
+        if ed.canvas_state.cursor is not None:
+            cx, cy = ed.canvas_state.cursor
             parts.append(f"x {int(np.floor(cx))}  y {int(np.floor(cy))}")
         parts.append(f"zoom {zoom_text(ed.view.zoom)}")
         if ed.frame is not None:

@@ -310,7 +310,7 @@ class DirectionTool(Tool):
                 draw_list.add_line(a, b, imgui.get_color_u32((1, 0.8, 0.2, 1.0)), 1.5)
             for c in pts:
                 draw_list.add_circle_filled(c, 4.0, imgui.get_color_u32((1, 0.8, 0.2, 1.0)))
-        if ed.cursor is None:
+        if ed.canvas_state.cursor is None:
             return
         io = imgui.get_io()
         c = (io.mouse_pos.x, io.mouse_pos.y)

@@ -267,7 +267,7 @@ class LabelTool(Tool):
     def overlay(self, draw_list, p0, w, h) -> None:
         ed = self.ed
         lab = self.labels
-        if ed.cursor is None or lab is None or self.mode == "exemplar":
+        if ed.canvas_state.cursor is None or lab is None or self.mode == "exemplar":
             return
         io = imgui.get_io()
         c = (io.mouse_pos.x, io.mouse_pos.y)

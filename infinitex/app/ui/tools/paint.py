@@ -226,7 +226,7 @@ class PaintCanvasTool(Tool):
 
     def overlay(self, draw_list, p0, w, h) -> None:
         ed = self.ed
-        if ed.cursor is None:
+        if ed.canvas_state.cursor is None:
             return
         io = imgui.get_io()
         r = self.radius_canvas() * ed.view.zoom
