@@ -36,7 +36,7 @@ MUTANTS = [
     ("correction keeps the last of equal costs", "infinitex/engine/shaders/correct.frag",
      "            if (cost < best) {", "            if (cost <= best) {", "tests/engine/test_synthesis.py"),
     ("fidelity search keeps the last of equal costs", "infinitex/engine/shaders/fidelity.frag",
-     "        if (c < best) {", "        if (c <= best) {", "tests/engine/test_fidelity.py"),
+     "    if (c < best) {", "    if (c <= best) {", "tests/engine/test_fidelity.py"),
     ("feature bound one pixel short", "infinitex/engine/shaders/common.glsl",
      "int lim = (a.w >> 4) + 2;", "int lim = (a.w >> 4);", ENGINE),
     ("feature disc boundary excluded", "infinitex/engine/shaders/common.glsl",
@@ -65,6 +65,16 @@ MUTANTS = [
     ("row taps clamped on a toroidal exemplar", "infinitex/engine/gpu.py",
      "xs = xs & (m - 1) if toroidal else np.clip(xs, 0, m - 1)", "xs = np.clip(xs, 0, m - 1)",
      "tests/engine/test_fidelity.py"),
+    ("a dab's region says less than it changed (tools/paint.py)", "infinitex/app/ui/tools/paint.py",
+     "            field, rect = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)\n"
+     "            rects.append(rect)",
+     "            field, rect = field.painted(cx, cy, r, b.value_u16, b.strength, b.hardness)\n"
+     "            rects.append((rect[0] + 4, rect[1], rect[2], rect[3]))",
+     "tests/app/test_painting.py"),
+    ("an undo says none of its step's region (project/history.py)", "infinitex/project/history.py",
+     "        self._move(step.doc, step.region)\n        self._group = None\n        return True\n\n    def redo",
+     "        self._move(step.doc, ())\n        self._group = None\n        return True\n\n    def redo",
+     "tests/project/test_document.py"),
 ]
 
 

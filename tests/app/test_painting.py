@@ -321,3 +321,51 @@ def _comb_box(cx, cy, r=40):
     from infinitex.engine.controls.fields import dab_weights
     x0, y0 = int(cx - r), int(cy - r)
     return x0, y0, dab_weights(cx, cy, r, 0.5, x0, y0, 2 * r, 2 * r)
+
+
+@pytest.mark.parametrize("tool_kind", ["paint", "comb", "smooth", "grow"])
+def test_every_stroke_says_where_it_changed(doc, tool_kind):
+    """A tool's edits carry their regions (Editor.edit(..., region=...)), and the
+    synthesis redoes only those: every pixel a stroke changes is inside what
+    it says, for the randomness brush and each direction mode, soft and hard."""
+    from types import SimpleNamespace
+
+    from imgui_bundle import imgui
+
+    from infinitex.app.session import _reads_alike
+    from infinitex.app.ui.tools.direction import DirectionTool
+    from infinitex.app.ui.tools.paint import PaintCanvasTool
+    from infinitex.engine.rect import uncovered
+    from infinitex.project import View
+    ctx = imgui.create_context()
+    try:
+        edits = []
+        ed = SimpleNamespace(doc=doc, view=View(), history=None, tell=lambda text: None)
+
+        def edit(d, label, group=None, region=None):
+            edits.append((ed.doc, d, region))
+            ed.doc = d
+        ed.edit = edit
+        tool = PaintCanvasTool(ed) if tool_kind == "paint" else DirectionTool(ed)
+        if tool_kind != "paint":
+            tool.mode = tool_kind
+        rng = np.random.default_rng(5)
+        for stroke in range(3):
+            tool.brush.radius = float(rng.uniform(4, 30))
+            tool.brush.hardness = float(rng.uniform(0, 1))
+            if tool_kind == "paint":
+                tool.brush.value = float(rng.uniform(0, 2))
+            pts = np.cumsum(rng.normal(0, 9, (12, 2)), axis=0) + rng.uniform(-200, 200, 2)
+            tool.press(tuple(pts[0]), (0, 0))
+            for p in pts[1:]:
+                tool.drag(tuple(p), (0, 0))
+            tool.release()
+        assert len(edits) > 10
+        for before, after, region in edits:
+            assert region is not None
+            a, b = before.controls(128), after.controls(128)
+            found = [Rect(*r) for r in a.changed_rects(b)]
+            missed = [r for r in uncovered(found, [Rect(*r) for r in region]) if not _reads_alike(a, b, r)]
+            assert not missed, (region, missed)
+    finally:
+        imgui.destroy_context(ctx)
