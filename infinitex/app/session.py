@@ -315,7 +315,7 @@ class Session(LoadedDocument):
         new parameters -> the pyramid drops only the levels they change; new
         controls -> re-synthesized where they changed: ``changed``, the
         finest-level canvas rectangles the edits since the last sync reached
-        (History.changes_since), else found by comparing the controls."""
+        (History.changes_between), else found by comparing the controls."""
         key = doc.analysis_key()
         if key != self.key:
             if (self.job is None or self.job.key != key) and key not in self.failed:

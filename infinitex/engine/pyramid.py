@@ -34,7 +34,6 @@ from .stages import (
     Draw,
     Pacer,
     RegionPass,
-    block_layout,
     correction_draws,
     fidelity_draws,
     label_draws,
@@ -407,7 +406,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
         the whole region, or per phase what the subpasses then read (``rp.first``)."""
         p, an, l, region = self.params, self.an, rp.level, rp.region
         s = p.subgrid
-        bstride, boff, tex_size = block_layout(rp.qdims, s)
+        bstride, boff, tex_size = rp.layout
         prog, vao = self.gpu.program("upsample.frag", SUB_S=s, **rp.defines)
         efield = self._efield_texture(l)
         textures = {1: efield or self._dummy, 2: rp.canvas_field or self._dummy}
@@ -448,7 +447,7 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
         returning the rectangle of the pixels that changed (or None)."""
         p, an, l, region = self.params, self.an, rp.level, rp.region
         s = p.subgrid
-        bstride, boff, _ = block_layout(rp.qdims, s)
+        bstride, boff, _ = rp.layout
         deferred = buf is None
         if deferred:
             buf = self.buffers[l]

@@ -253,11 +253,17 @@ class RegionPass:
     labels: LabelDraws | None = None
     dummy: Any = None              # textures bound where an input is absent (u16, int)
     dummy_i: Any = None
+    level_corrected: bool = False  # the level has correction passes
 
     @property
     def qdims(self) -> tuple[int, int]:
         s = self.params.subgrid
         return (self.region.w // s, self.region.h // s)
+
+    @property
+    def layout(self) -> tuple:
+        """Where the scratch buffers' blocks lie: (bstride, boff, texture size), block_layout."""
+        return block_layout(self.qdims, self.params.subgrid)
 
     def stage_rects(self, correction: bool) -> list | None:
         """What the correction's (else the fidelity stage's) subpasses render."""
@@ -265,8 +271,6 @@ class RegionPass:
             return None
         n = self.params.passes_at(self.level) * self.params.subgrid ** 2 if self.level_corrected else 0
         return self.rects[:n] if correction else self.rects[n:]
-
-    level_corrected: bool = False  # the level has correction passes
 
     def release(self) -> None:
         for tex in self.features:

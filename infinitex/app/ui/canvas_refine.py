@@ -16,12 +16,12 @@ result:
   preview is 1.3-1.7x the settled result's, of the coarsest levels 2-3x);
 - meanwhile further changes wait (:class:`EditHold`): the session keeps the
   document of the change in progress, so whole levels are made a piece at a
-  time over frames (``Refiner.preview``) and never started again half done;
+  time over frames (``Refiner.coarse``) and never started again half done;
   then the newest document is taken. On a GPU that is every frame; on llvmpipe,
   a few times a second.
 
-The same holds when the full analysis replaces the quick preview shown while
-an image opens: the preview stays until the final texture is presentable.
+The same holds when the full analysis replaces the quick analysis shown while
+an image opens: its texture stays until the final one is presentable.
 Local edits (paint, labels, features, direction) never wait: they have their
 own exact local updates and quick looks.
 """
@@ -103,7 +103,7 @@ class CanvasRefineMixin:
     def _init_canvas_refine(self) -> None:
         self.hold = EditHold()
         self.canvas_peek = False  # a test asks for what this frame shows (no refinement forced)
-        self._was_previewing = False
+        self._was_quick = False
         self._last_doc = None
         self._last_edit = 0.0
 
@@ -144,9 +144,9 @@ class CanvasRefineMixin:
                 self._last_edit = time.monotonic()
         interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_state.read_asked
         hold = self.hold
-        was, self._was_previewing = self._was_previewing, s.quick_analysis
+        was, self._was_quick = self._was_quick, s.quick_analysis
         if was and not s.quick_analysis and s.key == self.doc.analysis_key():
-            hold.hold_picture()  # the full analysis replaces the quick preview: no coarse levels meanwhile
+            hold.hold_picture()  # the full analysis replaces the quick one: no coarse levels meanwhile
         hold.expire()
         frame = self.frame
         t0 = time.perf_counter()
@@ -169,19 +169,18 @@ class CanvasRefineMixin:
             self.viewer.center(0, 0)
             hold.waiting = False
             self.dialogs.message("Synthesis", str(exc))
-        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, self.canvas_state.refined,
-                                      s.refiner.last_pixels if s.refiner else 0)
+        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, s.refiner.last_pixels if s.refiner else 0)
         w, h = self.canvas_size
         view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-        if hold.waiting and not self.canvas_state.read_asked and self.canvas.shows(frame, view, self.display, geom,
-                                                                          (w // scale, h // scale)):
+        reading = self.canvas_state.read_asked
+        if hold.waiting and not reading and self.canvas.shows(frame, view, self.display, geom, (w // scale, h // scale)):
             self._peek()
             return  # the last presentable texture stays until this change's is
         self.canvas.ensure_size(w // scale, h // scale)
-        self.canvas.redraw(s.pyramid, frame, view, self.display, geom, (s.generation, s.params),
-                           force=self.canvas_state.read_asked)
-        self.canvas_state.set_refined(self.canvas_state.refined and self.canvas.pending is None)  # (a large redraw spreads over frames)
-        if self.canvas_state.read_asked:
+        self.canvas.redraw(s.pyramid, frame, view, self.display, geom, (s.generation, s.params), force=reading)
+        if self.canvas.pending is not None:  # a large redraw spreads over frames
+            self.canvas_state.set_refined(False)
+        if reading:
             self.canvas_state.give_read_back(self.canvas.read())
         self._peek()
 

@@ -17,9 +17,9 @@ class CanvasState:
         self.button = -1           # the mouse button that went down on the canvas (-1: none)
         self.cursor: tuple[float, float] | None = None  # the canvas point under the mouse, if over it
 
-    def synthesized(self, update_ms: float, refined: bool, pixels: int = 0) -> None:
-        """This frame's synthesis: its time, whether the canvas is now complete, its pixels."""
-        self.update_ms, self.refined, self.pixels = update_ms, bool(refined), pixels
+    def synthesized(self, update_ms: float, pixels: int = 0) -> None:
+        """This frame's synthesis: its time and the level pixels it made."""
+        self.update_ms, self.pixels = update_ms, pixels
 
     def set_refined(self, refined: bool) -> None:
         self.refined = bool(refined)

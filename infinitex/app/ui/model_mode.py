@@ -202,7 +202,8 @@ class ModelModeMixin:
         pv = s.model
         t0 = time.perf_counter()
         refined = pv.step(MODEL_BUDGET_S, self.shown_role())
-        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, refined)
+        self.canvas_state.set_refined(refined)
+        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0)
         mv = self.model_view
         if pv.image is not None and pv.version != self._model_tex_version:
             mv.set_texture(pv.image)
