@@ -1,0 +1,346 @@
+"""Texture in motion: the synthesized texture flows along a velocity field
+(LH06 section 7, texture advection), frame after frame, with a bounded past.
+
+LH06 advects the previous frame's synthesized coordinates along the velocity
+and regenerates only where the texture has become too distorted. Played from
+frame 0 that makes frame t depend on every frame before it; here a frame
+depends on at most ``2 * period`` frames, so any window of any frame is
+computed alone, exactly, with a bounded margin (engine/controls/flow.py has the
+field and its units).
+
+**Chains.** Chain ``j`` is born at frame ``t_j = j * period`` from the static
+texture ``T`` (the document's synthesis; every map of a material alike) and
+lives ``2 * period`` frames. At age ``a`` its content at pixel ``p`` is the
+static coordinate found by tracing ``p`` back ``a`` frames along the field
+(semi-Lagrangian, in exact integers, 1/256 px)::
+
+    d_0 = 0,  d_{i+1} = d_i - V(p + d_i)          (the trajectory of p)
+    X = p + d_a - V0 t_j + R_j [moving]           (where in T the content was)
+    S_j(p) = T[round(X)] + J (X - round(X))       (the sub-pixel rest as a remainder)
+
+``V0`` is the uniform velocity: where the field is uniform every chain is the
+same rigid slide of ``T`` and renewal changes nothing. ``R_j``, a pseudo-random
+offset per chain (8 distinct ones in an endless animation, one per chain in a
+loop), applies where the velocity map moves: there a renewed chain brings new
+content instead of rewinding the old (the pulse of flow-map shaders). ``J`` is
+the direction field's Jacobian at ``round(X)`` (identity without one).
+
+**Renewal, not crossfade.** At frame t two chains are alive: the new one
+(age ``a`` in [0, period)) and the old one (age ``a + period``). A pixel shows
+the new chain where the new chain's patch has come due, ``h < (a + 1) / period``
+with ``h`` a hash of the patch (the static coordinate minus the canvas
+position, constant over a coherent patch: whole patches come in at once, along
+the seams the synthesis already hid), or where the old chain has stretched
+too far (LH06's distortion: the Frobenius norm of the observed Jacobian of its
+coordinates minus the desired one, ``|| D d_a ||``, above ``distortion``). By
+the end of the period every pixel shows the new chain, which then becomes the
+old one. No pixel ever blends two textures: no ghosting and no loss of
+contrast; each frame replaces about 1/period of the patches.
+
+**Loops.** With ``loop = N`` (a multiple of the period), frames are taken
+modulo N and chain indices modulo N / period: frame N is frame 0 exactly, and
+the step N-1 -> N is a renewal step like the others. On a toroidal tile (a
+source with a period n) positions, the field and the static texture repeat
+with period n: a flipbook that tiles in space and loops in time. A uniform
+velocity whose travel over N frames is a multiple of n loops without renewal.
+
+**Cost.** A frame is a gather: two trajectories (one step each when frames are
+played in order: the trajectories of the last frame are kept), two lookups in
+static windows that are synthesized once per chain, and the choice.
+"""
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Protocol
+
+import numpy as np
+
+from .controls.flow import MAX_FRAME, Q, Flow, FlowError
+from .fixed import hash2, lowbias32
+from .rect import Rect
+
+SALT = 0x2545F491          # keeps the flow's hashes apart from the synthesis'
+ENDLESS_KEYS = 8           # distinct chain offsets R_j of an endless animation
+KEY_SPREAD = 16            # R_j is (hx, hy) * KEY_SPREAD px, hx, hy in [-1024, 1024)
+PATCH_LEVELS = 3           # chains come in by the patches of the level 3 above the finest (8 x 8 px a texel)
+J_SHIFT = 12               # Jacobians are Q12
+VOTE = 2                   # a pixel shows the chain most of the (2 VOTE + 1)^2 around it show
+
+
+class TextureSource(Protocol):
+    """The static texture T that flows."""
+
+    m: int          # exemplar size
+    wrap: bool      # the exemplar tiles (coordinates wrap) or not (they clamp)
+    period: int     # a toroidal tile's size, or 0 (the infinite canvas)
+
+    def window(self, rect: Rect, slack: int) -> tuple[np.ndarray, np.ndarray]:
+        """Over ``rect``: the coordinates (H, W, 4) int32 with remainders, and
+        which coarse patch each pixel belongs to, (H, W, 2) int64 (the same
+        over a coherent patch of level L - PATCH_LEVELS). ``slack``: how much
+        more around it later calls will likely ask for."""
+
+    def jacobians(self, rect: Rect) -> np.ndarray | None:
+        """(H, W, 4) Q12 direction-field Jacobians over ``rect``, or None (identity)."""
+
+
+class FlowFrames:
+    """Frames of ``source``'s texture flowing along ``flow``: ``frame(t, rect)``
+    gives the exact coordinates of any window of any frame. Frames asked in
+    order over one window reuse the last frame's trajectories (the result is
+    the same bit for bit)."""
+
+    def __init__(self, source: TextureSource, flow: Flow, seed: int = 0):
+        flow.validate()
+        if source.period and not flow.uniform:
+            n = source.period
+            h, w = flow.map.values.shape[:2]
+            if (flow.map.x, flow.map.y, w, h) != (0, 0, n, n):
+                raise FlowError(f"On a toroidal tile of {n} px the velocity map covers the tile: {n}x{n} at (0, 0).")
+        self.source = source
+        self.flow = flow
+        self.seed = int(seed) & 0xFFFFFFFF
+        self._rect: Rect | None = None
+        self._paths: dict[int, np.ndarray] = {}  # age -> trajectory (H+1, W+1, 2) over the window
+        self._base: tuple[np.ndarray, np.ndarray] | None = None
+
+    # -- which chains --------------------------------------------------------
+    def chains(self, t: int) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+        """((key, born, age) of the old chain, the same of the new one) at frame t:
+        ``key`` picks R_j and the hashes, ``born`` is t_j (in frames)."""
+        P, N = self.flow.period, self.flow.loop
+        if N:
+            t %= N
+        elif not 0 <= t < MAX_FRAME:
+            raise FlowError(f"Frames are numbered 0 to {MAX_FRAME - 1}, not {t}.")
+        j1 = t // P
+        a1 = t - j1 * P
+        out = []
+        for j, a in ((j1 - 1, a1 + P), (j1, a1)):
+            if N:
+                k = j % (N // P)
+                out.append((k, k * P, a))
+            else:
+                out.append((j % ENDLESS_KEYS, j * P, a))
+        return out[0], out[1]
+
+    def key_offset(self, key: int) -> tuple[int, int]:
+        """R_j in px (0 for a uniform flow)."""
+        if self.flow.uniform:
+            return 0, 0
+        hx, hy = hash2(np.int64(key), np.int64(0), 0, self.seed ^ SALT)
+        rx, ry = int(hx) * KEY_SPREAD, int(hy) * KEY_SPREAD
+        n = self.source.period
+        return (rx % n, ry % n) if n else (rx, ry)
+
+    # -- trajectories --------------------------------------------------------
+    def _window(self, rect: Rect) -> None:
+        if rect != self._rect:
+            self._rect = rect
+            self._paths = {}
+            ys, xs = np.mgrid[rect.y0:rect.y1 + 1, rect.x0:rect.x1 + 1]
+            self._base = (xs.astype(np.int64) * Q, ys.astype(np.int64) * Q)
+
+    def trajectory(self, age: int) -> np.ndarray:
+        """d_age over the current window plus one column and row, (H+1, W+1, 2) int64."""
+        if age in self._paths:
+            return self._paths[age]
+        X, Y = self._base
+        if self.flow.uniform:  # every step is the same
+            d = np.empty(X.shape + (2,), np.int64)
+            d[..., 0] = -age * self.flow.velocity[0]
+            d[..., 1] = -age * self.flow.velocity[1]
+        else:
+            start = age - 1 if age - 1 in self._paths else 0
+            d = self._paths[start].copy() if start else np.zeros(X.shape + (2,), np.int64)
+            for _ in range(start, age):
+                vx, vy = self.flow.sample(X + d[..., 0], Y + d[..., 1], self.source.period)
+                d[..., 0] -= vx
+                d[..., 1] -= vy
+        self._paths[age] = d
+        return d
+
+    # -- a frame -------------------------------------------------------------
+    def frame(self, t: int, rect: Rect) -> np.ndarray:
+        """Coordinates (H, W, 4) int32 (exemplar texel x, y, remainders in 1/256 px) of frame t over rect."""
+        old, new = self.chains(t)
+        v = VOTE
+        self._window(Rect(rect.x0 - v, rect.y0 - v, rect.x1 + v, rect.y1 + v))
+        keep = {old[2], new[2]}
+        c0, _, d0 = self._chain(*old)
+        c1, unit, _ = self._chain(*new)
+        self._paths = {a: d for a, d in self._paths.items() if a in keep}  # the next frame steps from these
+        P = self.flow.period
+        due = unit < ((new[2] + 1) << 16) // P
+        # LH06's distortion of the old chain: || D d || (Frobenius, 1/256 px per px), compared squared.
+        gx = d0[:-1, 1:] - d0[:-1, :-1]
+        gy = d0[1:, :-1] - d0[:-1, :-1]
+        stretch = (gx * gx).sum(-1) + (gy * gy).sum(-1)
+        limit = int(round((self.flow.distortion * Q) ** 2))
+        take = (due | (stretch > limit)).astype(np.int32)
+        # A vote over (2 VOTE + 1)^2 pixels: no pixel alone shows the other chain.
+        c = np.cumsum(np.cumsum(np.pad(take, ((1, 0), (1, 0))), 0), 1)
+        k = 2 * v + 1
+        votes = c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
+        take_new = votes * 2 > k * k
+        return np.where(take_new[..., None], c1[v:-v, v:-v], c0[v:-v, v:-v]).astype(np.int32)
+
+    def _chain(self, key: int, born: int, age: int):
+        """(coordinates (H, W, 4), the patch hash (H, W) in [0, 65536), the trajectory) of one chain."""
+        r = self._rect
+        d = self.trajectory(age)
+        X, Y = self._base
+        vx, vy = self.flow.velocity
+        X = X[:-1, :-1] + d[:-1, :-1, 0] - vx * born
+        Y = Y[:-1, :-1] + d[:-1, :-1, 1] - vy * born
+        n = self.source.period
+        rx, ry = self.key_offset(key)
+        moving = None
+        if rx or ry:
+            q0x, q0y = (X + Q // 2) >> 8, (Y + Q // 2) >> 8
+            moving = self.flow.moving_at(q0x, q0y, n)
+            X = X + np.where(moving, rx * Q, 0)
+            Y = Y + np.where(moving, ry * Q, 0)
+        qx, qy = (X + Q // 2) >> 8, (Y + Q // 2) >> 8
+        fx, fy = X - qx * Q, Y - qy * Q
+        slack = self.flow.reach(2 * self.flow.period) + r.w // 4
+        if moving is None or moving.all() or not moving.any():
+            T, pid, J = self._lookup(qx, qy, slack)
+        else:  # two far-apart places of T: one window each
+            T = np.empty(qx.shape + (4,), np.int32)
+            pid = np.empty(qx.shape + (2,), np.int64)
+            J = None
+            for part in (moving, ~moving):
+                t_, p_, j_ = self._lookup(qx[part], qy[part], slack)
+                T[part], pid[part] = t_, p_
+                if j_ is not None:
+                    J = np.zeros(qx.shape + (4,), np.int64) if J is None else J
+                    J[part] = j_
+        m = self.source.m
+        if J is not None:  # the rest of the position, turned into exemplar offsets
+            J = J.astype(np.int64)
+            ex = (J[..., 0] * fx + J[..., 1] * fy) >> J_SHIFT
+            ey = (J[..., 2] * fx + J[..., 3] * fy) >> J_SHIFT
+        else:
+            ex, ey = fx, fy
+        Fx = T[..., 0].astype(np.int64) * Q + T[..., 2] + ex
+        Fy = T[..., 1].astype(np.int64) * Q + T[..., 3] + ey
+        ux, uy = (Fx + Q // 2) >> 8, (Fy + Q // 2) >> 8
+        out = np.empty(T.shape[:2] + (4,), np.int64)
+        out[..., 2], out[..., 3] = Fx - ux * Q, Fy - uy * Q
+        if self.source.wrap:
+            out[..., 0], out[..., 1] = ux & (m - 1), uy & (m - 1)
+        else:
+            out[..., 0], out[..., 1] = np.clip(ux, 0, m - 1), np.clip(uy, 0, m - 1)
+        # The patch the content belongs to decides when it comes in.
+        with np.errstate(over="ignore"):
+            s = lowbias32(np.uint32((self.seed ^ SALT ^ (key * 0x9E3779B9)) & 0xFFFFFFFF))
+            h = lowbias32(lowbias32(pid[..., 1].astype(np.uint32) ^ s) ^ pid[..., 0].astype(np.uint32))
+        return out, (h & np.uint32(0xFFFF)).astype(np.int64), d
+
+    def _lookup(self, qx: np.ndarray, qy: np.ndarray, slack: int):
+        """T, the patch ids and J at canvas pixels (qx, qy)."""
+        n = self.source.period
+        if n:
+            qx, qy = qx % n, qy % n
+            box = Rect(0, 0, n, n)
+        else:
+            box = Rect(int(qx.min()), int(qy.min()), int(qx.max()) + 1, int(qy.max()) + 1)
+        T, pid = self.source.window(box, slack)
+        J = self.source.jacobians(box)
+        iy, ix = qy - box.y0, qx - box.x0
+        return T[iy, ix], pid[iy, ix], (J[iy, ix] if J is not None else None)
+
+
+class SynthSource:
+    """The static texture of a :class:`~infinitex.engine.synth.Synthesizer`:
+    windows synthesized on demand (with slack, so that a chain's whole life is
+    one synthesis) and kept; or a toroidal tile of ``period`` px, made once."""
+
+    def __init__(self, synth, period: int = 0, keep: int = 6):
+        self.synth = synth
+        self.m = synth.analysis.size
+        self.wrap = bool(synth.analysis.toroidal)
+        self.period = int(period)
+        self.keep = keep
+        self._windows: list[tuple[Rect, np.ndarray, np.ndarray]] = []
+
+    def window(self, rect: Rect, slack: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        if self.period:
+            if not self._windows:
+                n = self.period
+                self._windows.append((Rect(0, 0, n, n), *self._synthesize(Rect(0, 0, n, n), n)))
+            return self._windows[0][1:]
+        for i, (r, c, p) in enumerate(self._windows):
+            if r.contains(rect):
+                self._windows.append(self._windows.pop(i))
+                y, x = slice(rect.y0 - r.y0, rect.y1 - r.y0), slice(rect.x0 - r.x0, rect.x1 - r.x0)
+                return c[y, x], p[y, x]
+        big = Rect(rect.x0 - slack, rect.y0 - slack, rect.x1 + slack, rect.y1 + slack)
+        c, p = self._synthesize(big, 0)
+        self._windows.append((big, c, p))
+        del self._windows[:-self.keep]
+        return c[slack:slack + rect.h, slack:slack + rect.w], p[slack:slack + rect.h, slack:slack + rect.w]
+
+    def _synthesize(self, rect: Rect, period: int) -> tuple[np.ndarray, np.ndarray]:
+        """The finest level over rect and the patch ids of level L - PATCH_LEVELS under it."""
+        from dataclasses import replace
+
+        from .pyramid import Pyramid
+        s = self.synth
+        L = s.L
+        params = replace(s.params, period=period) if period else s.params
+        k = min(PATCH_LEVELS, L)
+        pyr = Pyramid(s.gpu, s.gan, params, scrolling=False, controls=s.controls)
+        try:
+            pyr.request(L, rect)
+            fine = pyr.read(L, rect, True)
+            cr = Rect(rect.x0 >> k, rect.y0 >> k, ((rect.x1 - 1) >> k) + 1, ((rect.y1 - 1) >> k) + 1)
+            coarse = pyr.read(L - k, cr).astype(np.int64)
+        finally:
+            pyr.release()
+        ys, xs = np.mgrid[cr.y0:cr.y1, cr.x0:cr.x1]
+        h = 1 << k  # a coherent level-(L-k) patch: S(c) - h c is the same over it
+        pid = np.stack([coarse[..., 0] - h * xs, coarse[..., 1] - h * ys], -1)
+        if self.wrap:
+            pid &= self.m - 1
+        del pid
+        # A unit of renewal: one element of the exemplar (a pebble, a leaf) within one patch.
+        cells = self.cells[fine[..., 1], fine[..., 0]]
+        ys, xs = np.mgrid[rect.y0:rect.y1, rect.x0:rect.x1]
+        ox, oy = fine[..., 0].astype(np.int64) - xs, fine[..., 1].astype(np.int64) - ys
+        if self.wrap:
+            ox, oy = ox & (self.m - 1), oy & (self.m - 1)
+        return fine, np.stack([cells, (ox >> 3) * 4096 + (oy >> 3)], -1)
+
+    @cached_property
+    def cells(self) -> np.ndarray:
+        """(m, m) int64: the exemplar cut into its elements (watershed of the color
+        gradient, one seed per 8 x 8 px): what comes in at once."""
+        return exemplar_cells(self.synth.analysis.levels[self.synth.L].stack)
+
+    def jacobians(self, rect: Rect) -> np.ndarray | None:
+        ctl = self.synth.controls
+        if not ctl.directed:
+            return None
+        return ctl.direction.region(0, rect.x0, rect.y0, rect.w, rect.h, self.period)
+
+
+def exemplar_cells(img: np.ndarray, spacing: int = 8) -> np.ndarray:
+    """Elements of an exemplar (m, m, C) as labels (m, m) int64: the watershed of
+    its smoothed color gradient from the gradient's minimum in each spacing^2 cell."""
+    from scipy import ndimage
+    a = ndimage.gaussian_filter(np.asarray(img, np.float64)[..., :3], (1.0, 1.0, 0), mode="wrap")
+    g = sum(np.hypot(ndimage.sobel(a[..., c], 0, mode="wrap"), ndimage.sobel(a[..., c], 1, mode="wrap"))
+            for c in range(a.shape[2]))
+    g = np.rint(g / max(g.max(), 1e-9) * 65535).astype(np.uint16)
+    m = g.shape[0]
+    markers = np.zeros(g.shape, np.int32)
+    label = 1
+    for y in range(0, m, spacing):
+        for x in range(0, m, spacing):
+            block = g[y:y + spacing, x:x + spacing]
+            i = int(np.argmin(block))
+            markers[y + i // block.shape[1], x + i % block.shape[1]] = label
+            label += 1
+    return ndimage.watershed_ift(g, markers).astype(np.int64)

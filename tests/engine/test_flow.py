@@ -1,0 +1,141 @@
+"""Texture in motion (LH06 7; engine/advect.py, engine/controls/flow.py).
+
+A frame is a function of (document, flow, frame number, pixel): overlapping
+windows of a frame agree bit for bit near 0 and near +-2^30; a window of frame
+t computed alone equals the same window reached by playing from frame 0; a
+loop's frame N is its frame 0 (on the canvas and on a toroidal tile, which
+stays periodic in every frame); a uniform integer velocity slides the static
+texture rigidly; renewal replaces the old chain within a period without ever
+blending two textures; the velocity map is sampled exactly as documented."""
+import numpy as np
+import pytest
+
+from infinitex.engine.advect import FlowFrames, SynthSource
+from infinitex.engine.controls.flow import MAX_FRAME, Q, Flow, FlowError, VelocityMap
+from infinitex.engine.rect import Rect
+from infinitex.engine.synth import Synthesizer
+
+FAR = 2 ** 30
+
+
+def vortex(w: int, h: int, speed: float = 1.5, x: int = 0, y: int = 0) -> VelocityMap:
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    dx, dy = xs - w / 2, ys - h / 2
+    r = np.hypot(dx, dy) + 1e-9
+    s = speed * np.clip(r / (w / 4), 0, 1)
+    return VelocityMap(np.rint(np.stack([-dy / r * s, dx / r * s], -1) * Q).astype(np.int32), x, y)
+
+
+@pytest.fixture(scope="module")
+def synth(analyses, gpu):
+    s = Synthesizer(analyses["torus-appearance"], gpu=gpu)
+    yield s
+    s.release()
+
+
+def frames(synth, flow, period=0, seed=3):
+    return FlowFrames(SynthSource(synth, period), flow, seed)
+
+
+@pytest.mark.parametrize("near", [0, FAR, -FAR])
+def test_overlapping_windows_of_a_frame_agree(synth, near):
+    flow = Flow(map=vortex(48, 40, x=near - 10, y=near - 4), period=4)
+    a = frames(synth, flow).frame(6, Rect.of(near - 16, near - 16, 40, 32))
+    b = frames(synth, flow).frame(6, Rect.of(near, near - 8, 32, 40))
+    np.testing.assert_array_equal(a[8:, 16:], b[:24, :24])
+    assert a.shape == (32, 40, 4)
+
+
+def test_a_frame_alone_equals_the_frame_reached_by_playing(synth):
+    flow = Flow(map=vortex(40, 40, x=-4, y=-4), period=4)
+    rect = Rect.of(0, 0, 32, 32)
+    player = frames(synth, flow)
+    played = [player.frame(t, rect) for t in range(11)]
+    for t in (3, 4, 9, 10):  # within a period, at a renewal, and later
+        np.testing.assert_array_equal(frames(synth, flow).frame(t, rect), played[t])
+    moved = sum(int(np.any(played[t] != played[t + 1])) for t in range(10))
+    assert moved == 10  # the texture moves every frame
+
+
+def test_a_loop_closes_exactly(synth):
+    flow = Flow(map=vortex(40, 40, x=-4, y=-4), period=4, loop=8)
+    f = frames(synth, flow)
+    rect = Rect.of(0, 0, 32, 32)
+    np.testing.assert_array_equal(f.frame(8, rect), f.frame(0, rect))
+    np.testing.assert_array_equal(f.frame(13, rect), f.frame(5, rect))
+    assert np.any(f.frame(7, rect) != f.frame(0, rect))
+
+
+def test_a_flipbook_tile_stays_periodic_in_every_frame(synth):
+    n = 32
+    flow = Flow(map=vortex(n, n), period=4, loop=8)
+    f = frames(synth, flow, period=n)
+    for t in (1, 5, 7):
+        a = f.frame(t, Rect.of(0, 0, n, n))
+        b = f.frame(t, Rect.of(n - 8, 4, n, n))  # the same tile, one period on
+        np.testing.assert_array_equal(np.roll(a, (-4, -(n - 8)), (0, 1)), b)
+    np.testing.assert_array_equal(f.frame(8, Rect.of(0, 0, n, n)), f.frame(0, Rect.of(0, 0, n, n)))
+
+
+def test_a_uniform_velocity_slides_the_static_texture(synth):
+    flow = Flow.of(2.0, -1.0, period=4)
+    f = frames(synth, flow)
+    rect = Rect.of(100, 50, 24, 24)
+    static = synth.window(Rect.of(100 - 2 * 9, 50 + 9, 24, 24), remainder=True)
+    np.testing.assert_array_equal(f.frame(9, rect), static)  # frame t shows T(p - t V): no renewal seams
+    half = frames(synth, Flow.of(0.5, 0.0, period=4))
+    c = half.frame(1, rect)
+    assert np.all(np.abs(c[..., 2]) + np.abs(c[..., 3]) > 0)  # half a pixel: the rest as a remainder
+
+
+def test_renewal_swaps_chains_without_blending(synth):
+    flow = Flow(map=vortex(64, 64, speed=2.0, x=-16, y=-16), period=8, distortion=4.0)  # on schedule only
+    f = frames(synth, flow)
+    rect = Rect.of(0, 0, 32, 32)
+    (ko, bo, ao), (kn, bn, an) = f.chains(13)
+    assert (ao, an) == (13 - 0, 13 - 8) and bn == 8
+    frame = f.frame(13, rect)
+    v = 2  # the vote's margin
+    f._window(Rect(rect.x0 - v, rect.y0 - v, rect.x1 + v, rect.y1 + v))
+    old = f._chain(ko, bo, ao)[0][v:-v, v:-v]
+    new = f._chain(kn, bn, an)[0][v:-v, v:-v]
+    from_old = np.all(frame == old, -1)
+    from_new = np.all(frame == new, -1)
+    assert np.all(from_old | from_new)  # every pixel is one chain's, never a mix
+    assert from_new.mean() > 0.2 and from_old.mean() > 0.2  # halfway through the period: both show
+    last = f.frame(15, rect)  # the period's last frame: the new chain everywhere (it is the old one next)
+    f._window(Rect(rect.x0 - v, rect.y0 - v, rect.x1 + v, rect.y1 + v))
+    np.testing.assert_array_equal(last, f._chain(kn, bn, an + 2)[0][v:-v, v:-v])
+    # Where the old chain has stretched too far (LH06's distortion), it gives way early.
+    early = frames(synth, Flow(map=flow.map, period=8, distortion=0.3)).frame(13, rect)
+    assert np.all(early == new, -1).mean() > from_new.mean() + 0.1
+
+
+def test_velocity_map_sampling_is_bilinear_in_integers():
+    vals = np.zeros((2, 2, 2), np.int32)
+    vals[0, 0] = (256, 0)
+    vals[1, 1] = (0, -512)
+    flow = Flow(velocity=(10, 20), map=VelocityMap(vals, 5, 7))
+    vx, vy = flow.sample(np.array([5 * Q, 5 * Q + 128, 6 * Q, 4 * Q]), np.array([7 * Q, 7 * Q + 128, 8 * Q, 7 * Q]))
+    assert vx.tolist() == [10 + 256, 10 + 64, 10, 10 + 0]
+    assert vy.tolist() == [20, 20 - 128, 20 - 512, 20]
+    # The map convention: red right, green up (OpenGL) unless y_up is False; 0.5 is still.
+    up = VelocityMap.from_unit(np.array([[[1.0, 1.0], [0.5, 0.0]]]), speed=2.0)
+    assert up.values.tolist() == [[[512, -512], [0, 512]]]
+    down = VelocityMap.from_unit(np.array([[[127 / 255, 1.0]]]), speed=2.0, y_up=False)
+    assert down.values.tolist() == [[[0, 512]]]
+
+
+def test_bad_flows_get_one_sentence(synth):
+    for bad, words in [(dict(period=1), "renewal period"), (dict(period=6, loop=16), "divides"),
+                       (dict(distortion=0.0), "distortion")]:
+        with pytest.raises(FlowError, match=words):
+            Flow(**bad).validate()
+    with pytest.raises(FlowError, match="px per frame"):
+        Flow.of(40.0, 0.0)
+    with pytest.raises(FlowError, match="px per frame"):
+        Flow.of(float("nan"), 0.0)
+    with pytest.raises(FlowError, match="at most"):
+        VelocityMap(np.full((2, 2, 2), 33 * Q, np.int32))
+    with pytest.raises(FlowError, match="0 to"):
+        frames(synth, Flow()).chains(MAX_FRAME)
