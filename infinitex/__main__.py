@@ -7,9 +7,10 @@
     infinitex synth EXEMPLAR -o OUT.png [options]  synthesize a window or a toroidal tile, headless
     infinitex export PROJECT -o OUT.png [options]  export a project's texture, headless
     infinitex surface MODEL SOURCE -o OUT.glb      texture a model (synthesis in its atlas), headless
+    infinitex animate SOURCE -o OUT --frames N     the texture flowing along a velocity field, headless
     infinitex --version
 
-Run ``infinitex synth --help``, ``infinitex export --help`` or ``infinitex surface --help`` for the options.
+Run ``infinitex synth --help``, ``infinitex export --help``, ``infinitex surface --help`` or ``infinitex animate --help`` for the options.
 """
 from __future__ import annotations
 
@@ -23,7 +24,8 @@ PROG = "infinitex"
 
 def editor_main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog=PROG, description="Open the Infinitex editor.",
-                                epilog=f"Headless commands: {PROG} synth --help, {PROG} export --help, {PROG} surface --help")
+                                epilog=f"Headless commands: {PROG} synth --help, {PROG} export --help, {PROG} surface --help, "
+                                       f"{PROG} animate --help")
     p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     p.add_argument("file", nargs="?", help="an exemplar image or an .itex project (default: a bundled exemplar)")
     p.add_argument("--screenshot", metavar="OUT.png", help="save a PNG of the window once refined, then exit")
@@ -54,6 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     if argv and argv[0] == "export":
         from infinitex.cli.export import main as export_main
         return export_main(argv[1:])
+    if argv and argv[0] == "animate":
+        from infinitex.cli.animate import main as animate_main
+        return animate_main(argv[1:])
     if argv and argv[0] == "surface":
         from infinitex.cli.surface import main as surface_main
         return surface_main(argv[1:])

@@ -65,6 +65,7 @@ KEY_SPREAD = 16            # R_j is (hx, hy) * KEY_SPREAD px, hx, hy in [-1024, 
 PATCH_LEVELS = 3           # chains come in by the patches of the level 3 above the finest (8 x 8 px a texel)
 J_SHIFT = 12               # Jacobians are Q12
 VOTE = 2                   # a pixel shows the chain most of the (2 VOTE + 1)^2 around it show
+SEAM = 4                   # the correction mends what lies this close to a cut between chains
 
 
 class TextureSource(Protocol):
@@ -90,8 +91,9 @@ class FlowFrames:
     order over one window reuse the last frame's trajectories (the result is
     the same bit for bit)."""
 
-    def __init__(self, source: TextureSource, flow: Flow, seed: int = 0):
+    def __init__(self, source: TextureSource, flow: Flow, seed: int = 0, correct: bool = True):
         flow.validate()
+        self.correct = correct and hasattr(source, "correct")
         if source.period and not flow.uniform:
             n = source.period
             h, w = flow.map.values.shape[:2]
@@ -163,30 +165,77 @@ class FlowFrames:
     # -- a frame -------------------------------------------------------------
     def frame(self, t: int, rect: Rect) -> np.ndarray:
         """Coordinates (H, W, 4) int32 (exemplar texel x, y, remainders in 1/256 px) of frame t over rect."""
+        return self.frame_with_jacobians(t, rect, False)[0]
+
+    def frame_with_jacobians(self, t: int, rect: Rect, jacobians: bool = True):
+        """The coordinates and the observed Jacobian of each pixel's texture, (H, W, 4) Q12:
+        the direction field's J times the trajectory's ``I + D d`` (what turns a normal map)."""
+        if not self.correct:
+            return self._frame(t, rect, jacobians)[:2]
+        # Where renewal has cut one chain against the other, the composite is corrected
+        # on the finest level (LH06: regenerate by correction), as the synthesis mends its
+        # own seams; elsewhere each chain's content moves untouched (a correction there
+        # would re-decide moving texels at fixed canvas places: shimmer).
+        region = self.source.correction_region(rect)
+        raw, J, seam = self._frame(t, region, jacobians)
+        y, x = slice(rect.y0 - region.y0, rect.y1 - region.y0), slice(rect.x0 - region.x0, rect.x1 - region.x0)
+        out, seam = raw[y, x].copy(), seam[y, x]
+        if seam.any():
+            fixed = self.source.correct(rect, raw)
+            c = fixed.shape[2]  # without a direction field, each pixel keeps its sub-pixel rest
+            out[..., :c] = np.where(seam[..., None], fixed, out[..., :c])
+        return out, (J[y, x] if J is not None else None)
+
+    def _frame(self, t: int, rect: Rect, jacobians: bool):
+        """(coordinates, Jacobians or None, the seams: (H, W) bool, within SEAM px of
+        two chains that show different texels side by side) over rect."""
         old, new = self.chains(t)
-        v = VOTE
-        self._window(Rect(rect.x0 - v, rect.y0 - v, rect.x1 + v, rect.y1 + v))
+        v, e = VOTE, SEAM
+        self._window(Rect(rect.x0 - v - e, rect.y0 - v - e, rect.x1 + v + e, rect.y1 + v + e))
         keep = {old[2], new[2]}
-        c0, _, d0 = self._chain(*old)
-        c1, unit, _ = self._chain(*new)
+        c0, _, d0, j0 = self._chain(*old, jacobians)
+        c1, unit, d1, j1 = self._chain(*new, jacobians)
         self._paths = {a: d for a, d in self._paths.items() if a in keep}  # the next frame steps from these
         P = self.flow.period
-        due = unit < ((new[2] + 1) << 16) // P
-        # LH06's distortion of the old chain: || D d || (Frobenius, 1/256 px per px), compared squared.
+        # LH06's distortion of the old chain: || D d ||^2 (Frobenius, 1/256 px per px, squared);
+        # the schedule runs (1 + that / distortion^2) times faster where it has stretched.
         gx = d0[:-1, 1:] - d0[:-1, :-1]
         gy = d0[1:, :-1] - d0[:-1, :-1]
-        stretch = (gx * gx).sum(-1) + (gy * gy).sum(-1)
+        stretch = np.minimum((gx * gx).sum(-1) + (gy * gy).sum(-1), 1 << 40)
         limit = int(round((self.flow.distortion * Q) ** 2))
-        take = (due | (stretch > limit)).astype(np.int32)
+        due = unit * limit < (((new[2] + 1) << 16) // P) * (limit + stretch)
         # A vote over (2 VOTE + 1)^2 pixels: no pixel alone shows the other chain.
-        c = np.cumsum(np.cumsum(np.pad(take, ((1, 0), (1, 0))), 0), 1)
-        k = 2 * v + 1
-        votes = c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
-        take_new = votes * 2 > k * k
-        return np.where(take_new[..., None], c1[v:-v, v:-v], c0[v:-v, v:-v]).astype(np.int32)
+        take_new = _box_count(due, v) * 2 > (2 * v + 1) ** 2
+        c0, c1 = c0[v:-v, v:-v], c1[v:-v, v:-v]
+        coords = np.where(take_new[..., None], c1, c0).astype(np.int32)
+        differ = np.any(c0 != c1, axis=-1)
+        cut = np.zeros_like(take_new)
+        cut[:, 1:] |= (take_new[:, 1:] != take_new[:, :-1]) & (differ[:, 1:] | differ[:, :-1])
+        cut[1:, :] |= (take_new[1:, :] != take_new[:-1, :]) & (differ[1:, :] | differ[:-1, :])
+        seam = _box_count(cut, e) > 0
+        inner = (slice(e, -e), slice(e, -e))
+        if not jacobians:
+            return coords[inner], None, seam
+        J = np.where(take_new[..., None], self._observed(d1, j1)[v:-v, v:-v], self._observed(d0, j0)[v:-v, v:-v])
+        return coords[inner], J[inner], seam
 
-    def _chain(self, key: int, born: int, age: int):
-        """(coordinates (H, W, 4), the patch hash (H, W) in [0, 65536), the trajectory) of one chain."""
+    @staticmethod
+    def _observed(d: np.ndarray, J: np.ndarray | None) -> np.ndarray:
+        """(H, W, 4) Q12: J (I + D d), D d by forward differences of the trajectory (1/256 px per px)."""
+        gx = d[:-1, 1:] - d[:-1, :-1]  # d(p + e_x) - d(p): column x of D d
+        gy = d[1:, :-1] - d[:-1, :-1]
+        M = np.stack([(Q + gx[..., 0]) << 4, gy[..., 0] << 4, gx[..., 1] << 4, (Q + gy[..., 1]) << 4], -1)
+        if J is None:
+            return M
+        a = J.astype(np.int64)
+        return np.stack([(a[..., 0] * M[..., 0] + a[..., 1] * M[..., 2]) >> J_SHIFT,
+                         (a[..., 0] * M[..., 1] + a[..., 1] * M[..., 3]) >> J_SHIFT,
+                         (a[..., 2] * M[..., 0] + a[..., 3] * M[..., 2]) >> J_SHIFT,
+                         (a[..., 2] * M[..., 1] + a[..., 3] * M[..., 3]) >> J_SHIFT], -1)
+
+    def _chain(self, key: int, born: int, age: int, jacobians: bool = False):
+        """(coordinates (H, W, 4), the unit's hash (H, W) in [0, 65536), the trajectory, the
+        direction field's J at each pixel's content or None) of one chain."""
         r = self._rect
         d = self.trajectory(age)
         X, Y = self._base
@@ -236,7 +285,7 @@ class FlowFrames:
         with np.errstate(over="ignore"):
             s = lowbias32(np.uint32((self.seed ^ SALT ^ (key * 0x9E3779B9)) & 0xFFFFFFFF))
             h = lowbias32(lowbias32(pid[..., 1].astype(np.uint32) ^ s) ^ pid[..., 0].astype(np.uint32))
-        return out, (h & np.uint32(0xFFFF)).astype(np.int64), d
+        return out, (h & np.uint32(0xFFFF)).astype(np.int64), d, J
 
     def _lookup(self, qx: np.ndarray, qy: np.ndarray, slack: int):
         """T, the patch ids and J at canvas pixels (qx, qy)."""
@@ -250,6 +299,13 @@ class FlowFrames:
         J = self.source.jacobians(box)
         iy, ix = qy - box.y0, qx - box.x0
         return T[iy, ix], pid[iy, ix], (J[iy, ix] if J is not None else None)
+
+
+def _box_count(a: np.ndarray, r: int) -> np.ndarray:
+    """How many of the (2r + 1)^2 values around each pixel are set (the result is 2r smaller a side)."""
+    c = np.cumsum(np.cumsum(np.pad(a.astype(np.int32), ((1, 0), (1, 0))), 0), 1)
+    k = 2 * r + 1
+    return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
 
 
 class SynthSource:
@@ -318,6 +374,28 @@ class SynthSource:
         """(m, m) int64: the exemplar cut into its elements (watershed of the color
         gradient, one seed per 8 x 8 px): what comes in at once."""
         return exemplar_cells(self.synth.analysis.levels[self.synth.L].stack)
+
+    def correction_region(self, rect: Rect) -> Rect:
+        """What the finest level's correction of ``rect`` reads."""
+        return self._corrector.padded(self.synth.L, rect)
+
+    def correct(self, rect: Rect, state: np.ndarray) -> np.ndarray:
+        """The finest level's correction of ``state`` (over correction_region(rect)), over rect."""
+        return self._corrector.correct(self.synth.L, rect, state)
+
+    @cached_property
+    def _corrector(self):
+        from dataclasses import replace
+
+        from .pyramid import Pyramid
+        s = self.synth
+        params = replace(s.params, period=self.period) if self.period else s.params
+        return Pyramid(s.gpu, s.gan, params, scrolling=False, controls=s.controls)
+
+    def release(self) -> None:
+        if "_corrector" in self.__dict__:
+            self._corrector.release()
+            del self.__dict__["_corrector"]
 
     def jacobians(self, rect: Rect) -> np.ndarray | None:
         ctl = self.synth.controls

@@ -116,3 +116,26 @@ def load_direction_map(path: str, kind: str = "auto", y_up: bool = True, scale: 
                 rgb = np.asarray(band.convert("RGB")).astype(np.float64) / 255.0
                 out[y0:y0 + rgb.shape[0]] = flow_to_jacobians(rgb, y_up, scale, aspect)
         return out
+
+
+def load_velocity_map(path: str, speed: float, y_up: bool = True, x: int = 0, y: int = 0,
+                      size: tuple[int, int] | None = None):
+    """A velocity map (engine/controls/flow.py): red and green in [0, 1], 0.5 still,
+    ``speed`` px per frame at 0 and 1, green up unless ``y_up`` is False; placed at
+    (x, y); ``size``: resized to (w, h) first (a toroidal tile's). Same safeguards
+    as exemplars; a grayscale file is refused (it holds no direction)."""
+    from .flow import MAX_MAP_SIDE, FlowError, VelocityMap
+    with opened_map(path, "velocity map", direction_map_cost) as (name, img):
+        if img.mode in ("L", "LA", "I", "F", "1") or img.mode.startswith("I;16"):
+            raise ExemplarError(f"{name} is grayscale; a velocity map has its x and y in red and green.")
+        if max(img.size) > MAX_MAP_SIDE:
+            raise ExemplarError(f"{name} is {img.size[0]}x{img.size[1]} px; a velocity map is at most "
+                                f"{MAX_MAP_SIDE} px a side.")
+        img = img.convert("RGB")
+        if size is not None and img.size != tuple(size):
+            img = img.resize(tuple(size), Image.BILINEAR)
+        rgb = np.asarray(img).astype(np.float64) / 255.0
+    try:
+        return VelocityMap.from_unit(rgb, speed, y_up, x, y)
+    except FlowError as exc:
+        raise ExemplarError(f"{name}: {exc}") from None
