@@ -47,7 +47,6 @@ if HERE not in sys.path:
 
 ORIGIN = (4000, -3000)
 SPEED = 1.5
-PERIOD = 16
 
 
 def fields(size: int) -> dict[str, np.ndarray]:
@@ -163,7 +162,8 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=48)
     ap.add_argument("--strips", default=None, metavar="DIR")
     ap.add_argument("--no-speed", action="store_true")
-    ap.add_argument("--period", type=int, default=PERIOD, help=f"the renewal period (default {PERIOD})")
+    ap.add_argument("--period", type=int, default=0, help="the renewal period (default: what the field suggests, "
+                    "Flow.suggested_period)")
     ap.add_argument("--no-correction", action="store_true", help="ours without the finest level's correction")
     ap.add_argument("--exemplars", default="pebbles,caustics,granite")
     args = ap.parse_args()
@@ -187,7 +187,7 @@ def main() -> int:
     flows = fields(size)
     gpu = Gpu()
     period = args.period
-    results: dict = {"size": size, "frames": F, "period": period, "corrected": not args.no_correction, "speed_px_per_frame": SPEED, "runs": {},
+    results: dict = {"size": size, "frames": F, "period": period or "suggested", "corrected": not args.no_correction, "speed_px_per_frame": SPEED, "runs": {},
                      "renderer": gpu.renderer}
     rng = np.random.default_rng(7)
     key = {}
@@ -196,17 +196,18 @@ def main() -> int:
         an = analyze(ex)
         synth = Synthesizer(an, gpu=gpu)
         # The static texture around the window (for the baseline and the references).
-        pad = int(SPEED * 2 * PERIOD) + 4
+        pad = int(SPEED * 2 * 32) + 4  # the longest suggested life: 2 periods of 32
         big = Rect(rect.x0 - pad, rect.y0 - pad, rect.x1 + pad, rect.y1 + pad)
         static_big = synth.colors(synth.window(big, remainder=True)).astype(np.float64)
         static = static_big[pad:-pad, pad:-pad]
         e_static = neighborhood_energy(ex.pixels, static)[0]
         for fname, v in flows.items():
-            flow = Flow(map=velocity_map(v), period=period)
+            flow = Flow(map=velocity_map(v))
+            flow = Flow(map=flow.map, period=period or flow.suggested_period())
             ff = FlowFrames(SynthSource(synth), flow, seed=1, correct=not args.no_correction)
             ours = [synth.colors(ff.frame(t, rect)).astype(np.float64) for t in range(F)]
-            base = crossfade(static_big, pad, v, F, 2 * period)
-            row = {}
+            base = crossfade(static_big, pad, v, F, 2 * flow.period)
+            row = {"period": flow.period}
             for who, frames in (("ours", ours), ("crossfade", base)):
                 ang, ratio = motion(frames, v)
                 coh, jump, _ = coherence(frames, v)
@@ -219,7 +220,8 @@ def main() -> int:
             results["runs"][f"{ename}/{fname}"] = row
             print(f"{ename:9s} {fname:12s} " + "  ".join(
                 f"{who}: angle {r['angle_error_deg']:5.1f} speed {r['speed_ratio']:4.2f} coh {r['coherence']:4.2f} "
-                f"jump {r['jump']:4.2f} energy {r['energy_ratio']:4.2f}" for who, r in row.items()), flush=True)
+                f"jump {r['jump']:4.2f} energy {r['energy_ratio']:4.2f}" for who, r in row.items() if who != "period")
+                + f"  (period {flow.period})", flush=True)
             if args.strips and fname == "vortex":
                 os.makedirs(args.strips, exist_ok=True)
                 pair = [("ours", ours), ("crossfade", base)]
@@ -230,8 +232,9 @@ def main() -> int:
                     write_png(os.path.join(args.strips, f"{ename}_{label}.png"), to_u8(strip.astype(np.float32)))
                     key[f"{ename}_{label}"] = who
         # The loop: frame 32 is frame 0; its last step against the median step.
-        lf = FlowFrames(SynthSource(synth), Flow(map=velocity_map(flows["vortex"]), period=period, loop=32), seed=1,
-                        correct=not args.no_correction)
+        vortex = Flow(map=velocity_map(flows["vortex"]))
+        lf = FlowFrames(SynthSource(synth), Flow(map=vortex.map, period=period or vortex.suggested_period(32), loop=32),
+                        seed=1, correct=not args.no_correction)
         loop = [synth.colors(lf.frame(t, rect)).astype(np.float64) for t in range(33)]
         _, _, steps = coherence(loop, flows["vortex"])
         results["runs"][f"{ename}/loop"] = dict(exact=bool(np.array_equal(loop[32], loop[0])),
@@ -289,7 +292,8 @@ def speed(gpu, paths, flows, structure_params, SynthParams, names) -> dict:
     for preset in (0, 2):
         params = structure_params(SynthParams.default(an.L), preset)
         synth = Synthesizer(an, params, gpu=gpu)
-        flow = Flow(map=VelocityMap(np.rint(v * Q).astype(np.int32), *ORIGIN), period=PERIOD)
+        flow = Flow(map=VelocityMap(np.rint(v * Q).astype(np.int32), *ORIGIN))
+        flow = Flow(map=flow.map, period=flow.suggested_period())
         ff = FlowFrames(SynthSource(synth), flow, seed=1)
         top = an.levels[an.L].stack
         u8 = np.rint(np.clip(top, 0, 1) * 255).astype(np.uint8)

@@ -77,12 +77,15 @@ angle map, ``DirectionField.uniform`` / ``from_jacobians`` / ``painted`` build
 one, ``jacobian(degrees, scale, aspect)`` gives its values). Models:
 ``texture_model(model, exemplar, size)`` synthesizes in a model's atlas,
 seamless across its UV seams (``load_model``, ``Model``, ``AtlasDomain``).
+Texture in motion: ``animate(exemplar, frames, velocity=(vx, vy), size=..., toroidal=n, loop=True,
+velocity_map=...)`` gives the frames of the texture flowing along a velocity field (LH06 7), uint8
+(N, H, W, C); ``write_animation(path, frames, fps)`` writes a folder, a flipbook atlas, WebP, APNG or MP4.
 Projects: ``load_project``,
 ``save_project``; the editor's exports: ``infinitex export``. Runnable
 examples of each capability are in ``examples/`` of the source tree.
 
 Command line: ``infinitex`` (the editor), ``infinitex synth``, ``infinitex
-export``, ``infinitex surface``, ``infinitex --version``.
+export``, ``infinitex surface``, ``infinitex animate``, ``infinitex --version``.
 """
 from __future__ import annotations
 
@@ -107,7 +110,8 @@ _EXPORTS = {
     "ExemplarField": "engine.controls", "Feature": "engine.controls", "NEUTRAL": "engine.controls",
     "ExemplarLabels": "engine.controls", "CanvasLabels": "engine.controls",
     "DirectionField": "engine.controls.direction", "jacobian": "engine.controls.direction",
-    "direction_field": "api", "texture_model": "api",
+    "direction_field": "api", "texture_model": "api", "animate": "api", "write_animation": "api",
+    "Flow": "engine.controls.flow", "VelocityMap": "engine.controls.flow",
     "Model": "engine.surface", "load_model": "engine.surface", "AtlasDomain": "engine.surface",
     "Lattice": "engine.controls.lattice", "rectified_exemplar": "engine.controls.lattice", "render_original": "engine.controls.lattice",
     "original_geometry_box": "engine.controls.lattice",

@@ -299,3 +299,58 @@ def texture_model(model, exemplar, size: int = 1024, *, repeats: float | None = 
     with Synthesizer(an, params) as synth:
         coords = atlas_coords(synth, atlas)
     return atlas_image(an.levels[an.L].stack, coords, atlas, an.toroidal), coords, atlas
+
+
+def animate(exemplar, frames: int, velocity: tuple[float, float] = (1.0, 0.0), *, size: tuple[int, int] = (256, 256),
+            origin: tuple[int, int] = (0, 0), toroidal: int = 0, loop: bool = False, period: int | None = None,
+            velocity_map=None, speed: float = 1.0, velocity_origin: tuple[int, int] = (0, 0), y_up: bool = True,
+            start: int = 0, seed: int = 0, randomness: float | tuple[float, ...] | None = None,
+            controls: Controls = NO_CONTROLS, structure: int | str = DEFAULT_STRUCTURE) -> np.ndarray:
+    """Frames of the texture flowing (LH06 7, engine/advect.py), uint8 (N, H, W, C).
+
+    ``velocity``: uniform, canvas px per frame (+x right, +y down the rows);
+    ``velocity_map``: added over its rectangle (placed at ``velocity_origin``): an
+    image path (red, green in [0, 1], 0.5 still, ``speed`` px per frame at 0 and
+    1, green up unless ``y_up`` is False) or a float array (H, W, 2) of px per
+    frame. ``toroidal=n``: frames of an n x n seamless tile (the map is then
+    resized to the tile). ``loop``: frame ``frames`` is frame 0; ``period``: frames
+    between renewals (default: ``Flow.suggested_period``, from the field's shear).
+    ``write_animation(path, frames)`` writes them (folder, .png atlas, .webp,
+    .apng, .mp4). Other arguments as for :func:`synthesize` (no lattice)."""
+    from dataclasses import replace
+
+    from .engine.advect import FlowFrames, SynthSource
+    from .engine.controls.flow import Q, Flow, VelocityMap
+    from .engine.controls.maps import load_velocity_map
+    ex, _ = _exemplar(exemplar, None)
+    flow = Flow.of(*velocity)
+    if velocity_map is not None:
+        at = (0, 0) if toroidal else tuple(velocity_origin)
+        if isinstance(velocity_map, (str, os.PathLike)):
+            vmap = load_velocity_map(os.fspath(velocity_map), speed, y_up, *at,
+                                     size=(toroidal, toroidal) if toroidal else None)
+        else:
+            vmap = VelocityMap(np.rint(np.asarray(velocity_map, np.float64) * Q).astype(np.int32), *at)
+        flow = replace(flow, map=vmap)
+    flow = replace(flow, period=period or flow.suggested_period(frames if loop else 0), loop=frames if loop else 0)
+    flow.validate()
+    an = analyze(ex)
+    w, h = (toroidal, toroidal) if toroidal else size
+    rect = Rect(0, 0, w, h) if toroidal else Rect.of(origin[0], origin[1], w, h)
+    with Synthesizer(an, _params(an.L, seed, randomness, structure), controls=controls) as s:
+        source = SynthSource(s, toroidal)
+        try:
+            ff = FlowFrames(source, flow, seed)
+            return np.stack([to_u8(s.colors(ff.frame(start + i, rect))) for i in range(frames)])
+        finally:
+            source.release()
+
+
+def write_animation(path: str, frames: np.ndarray, fps: float = 24.0, loop: bool = False) -> list[str]:
+    """Write frames (N, H, W, C) uint8 as ``path``: a folder (frame_0000.png...), a
+    flipbook atlas .png with its .json, .webp, .apng or .mp4; returns the files."""
+    from .export.animation import AnimationWriter, animation_format
+    w = AnimationWriter(os.fspath(path), animation_format(os.fspath(path)), fps, loop)
+    for f in frames:
+        w.add(f)
+    return w.close()

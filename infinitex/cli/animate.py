@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from dataclasses import replace
 
 from infinitex.engine.safeio import ReadError, WriteError, printable
 
@@ -52,8 +53,8 @@ def build_parser() -> Parser:
     p.add_argument("--loop", action="store_true",
                    help="a seamless loop: frame N is frame 0 (the renewal period divides N)")
     p.add_argument("--period", type=integer, default=None, metavar="P",
-                   help="frames between renewals of the advected texture (2 to 128; default 16, or with --loop "
-                        "the divisor of N nearest 16)")
+                   help="frames between renewals of the advected texture (2 to 128; default: from the field's "
+                        "shear, 4 to 32, 16 for a uniform velocity; with --loop a divisor of N)")
     p.add_argument("--size", nargs=2, type=integer, default=[256, 256], metavar=("W", "H"),
                    help="frame size in px (default 256 256)")
     p.add_argument("--origin", nargs=2, type=integer, default=[0, 0], metavar=("X", "Y"),
@@ -71,17 +72,6 @@ def build_parser() -> Parser:
                    help="a project may read an exemplar outside its folder")
     p.add_argument("-q", "--quiet", action="store_true")
     return p
-
-
-def loop_period(n: int, asked: int | None) -> int:
-    """The renewal period of a loop of n frames: ``asked``, or the divisor of n nearest 16 (2 to 128)."""
-    if asked is not None:
-        return asked
-    divisors = [d for d in range(2, 129) if n % d == 0]
-    if not divisors:
-        raise CliError(f"A loop of {n} frames needs a renewal period from 2 to 128 that divides it; "
-                       "use a number of frames with such a divisor (32, 48, 64...).", EXIT_USAGE)
-    return min(divisors, key=lambda d: (abs(d - 16), d))
 
 
 def run_animate(argv: list[str]) -> int:
@@ -121,7 +111,6 @@ def run_animate(argv: list[str]) -> int:
             atlas_grid(n, w, h)
     except WriteError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    period = loop_period(n, args.period) if args.loop else (args.period or 16)
     velocity_map = None
     vx = vy = 0.0
     text = args.velocity.strip()
@@ -137,8 +126,10 @@ def run_animate(argv: list[str]) -> int:
         if not os.path.isfile(text):
             raise CliError(f"--velocity: {printable(text)} is neither VX,VY nor an image file.", EXIT_USAGE)
     try:
-        flow = Flow.of(vx, vy, period=period, loop=n if args.loop else 0)
+        flow = Flow.of(vx, vy, period=args.period or 16, loop=0)
         flow.validate()
+        if args.loop:
+            flow.suggested_period(n)  # a loop needs a period that divides it
     except FlowError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     if velocity_map is not None and not 0 < args.speed <= 32:
@@ -149,20 +140,22 @@ def run_animate(argv: list[str]) -> int:
         raise CliError("animate does not go with a lattice yet: a near-regular texture keeps its grid, which a "
                        "flow would bend.", EXIT_USAGE)
     if args.fidelity is not None:
-        from dataclasses import replace
         doc = replace(doc, structure=args.fidelity)
     if args.seed is not None:
-        from dataclasses import replace
         doc = replace(doc, seed=args.seed)
     if velocity_map is not None:
-        from dataclasses import replace
-
         from infinitex.engine.controls.maps import load_velocity_map
         inputs.append(velocity_map)
         size = (w, h) if args.toroidal is not None else None
         x, y = (0, 0) if args.toroidal is not None else args.velocity_origin
         vmap = load_velocity_map(velocity_map, args.speed, args.flow_y == "up", x, y, size)
         flow = replace(flow, map=vmap)
+    try:  # the period: asked for, or what the field's shear suggests (dividing a loop)
+        flow = replace(flow, period=args.period or flow.suggested_period(n if args.loop else 0),
+                       loop=n if args.loop else 0)
+        flow.validate()
+    except FlowError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
     # Decode and analyze before any GL: a bad exemplar fails fast.
     from infinitex.engine.analysis import analyze
     from infinitex.engine.gpu import Gpu

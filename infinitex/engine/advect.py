@@ -27,15 +27,20 @@ the direction field's Jacobian at ``round(X)`` (identity without one).
 
 **Renewal, not crossfade.** At frame t two chains are alive: the new one
 (age ``a`` in [0, period)) and the old one (age ``a + period``). A pixel shows
-the new chain where the new chain's patch has come due, ``h < (a + 1) / period``
-with ``h`` a hash of the patch (the static coordinate minus the canvas
-position, constant over a coherent patch: whole patches come in at once, along
-the seams the synthesis already hid), or where the old chain has stretched
-too far (LH06's distortion: the Frobenius norm of the observed Jacobian of its
-coordinates minus the desired one, ``|| D d_a ||``, above ``distortion``). By
-the end of the period every pixel shows the new chain, which then becomes the
-old one. No pixel ever blends two textures: no ghosting and no loss of
-contrast; each frame replaces about 1/period of the patches.
+the new chain where its unit has come due, ``h < (a + 1) / period`` with ``h`` a
+hash of the unit: one element of the exemplar (a watershed cell of its color
+gradient) within one patch of the synthesis, so whole elements come in at
+once. A vote over 5 x 5 pixels keeps single pixels from showing the other
+chain, and the finest level's correction mends the cuts where the two meet.
+By the end of the period every pixel shows the new chain, which then becomes
+the old one. No pixel ever blends two textures: no ghosting and no loss of
+contrast; each frame renews about 1/period of the units.
+
+**Distortion** (LH06: the Frobenius norm of the observed Jacobian minus the
+desired one; here ``|| D d_a ||``, the trajectory's stretch) bounds the period:
+``Flow.suggested_period`` is about the frames in which the field's shear
+stretches a chain to ``distortion`` over its two periods. Renewing stretched
+places sooner than others, per pixel, was measured to come in bursts.
 
 **Loops.** With ``loop = N`` (a multiple of the period), frames are taken
 modulo N and chain indices modulo N / period: frame N is frame 0 exactly, and
@@ -196,14 +201,9 @@ class FlowFrames:
         c0, _, d0, j0 = self._chain(*old, jacobians)
         c1, unit, d1, j1 = self._chain(*new, jacobians)
         self._paths = {a: d for a, d in self._paths.items() if a in keep}  # the next frame steps from these
-        P = self.flow.period
-        # LH06's distortion of the old chain: || D d ||^2 (Frobenius, 1/256 px per px, squared);
-        # the schedule runs (1 + that / distortion^2) times faster where it has stretched.
-        gx = d0[:-1, 1:] - d0[:-1, :-1]
-        gy = d0[1:, :-1] - d0[:-1, :-1]
-        stretch = np.minimum((gx * gx).sum(-1) + (gy * gy).sum(-1), 1 << 40)
-        limit = int(round((self.flow.distortion * Q) ** 2))
-        due = unit * limit < (((new[2] + 1) << 16) // P) * (limit + stretch)
+        # Each unit's turn comes at a steady rate, 1/period of them a frame (sooner where
+        # the old chain has stretched, measured, came in bursts: jumps of 2.6x the median).
+        due = unit < ((new[2] + 1) << 16) // self.flow.period
         # A vote over (2 VOTE + 1)^2 pixels: no pixel alone shows the other chain.
         take_new = _box_count(due, v) * 2 > (2 * v + 1) ** 2
         c0, c1 = c0[v:-v, v:-v], c1[v:-v, v:-v]

@@ -153,6 +153,29 @@ class Flow:
     def still(self) -> bool:
         return self.uniform and self.velocity == (0, 0)
 
+    def suggested_period(self, loop: int = 0) -> int:
+        """A renewal period for this field: about the frames in which its shear
+        (the velocity gradient's Frobenius norm, 75th percentile over the texels
+        that move) stretches a chain by ``distortion`` over its life of two
+        periods, 6 to 32 frames (16 for a uniform flow); for a loop of ``loop``
+        frames, the divisor of it nearest."""
+        want = DEFAULT_PERIOD
+        if not self.uniform:
+            v = self.map.values.astype(np.float64) / Q
+            if min(v.shape[:2]) > 1:
+                gx, gy = np.diff(v, axis=1)[:-1], np.diff(v, axis=0)[:, :-1]
+                g = np.sqrt((gx ** 2).sum(-1) + (gy ** 2).sum(-1))[self.map.moving[:-1, :-1]]
+                shear = float(np.percentile(g, 75)) if g.size else 0.0
+                if shear > 0:
+                    want = int(np.clip(round(self.distortion / (2 * shear)), 6, 32))
+        if not loop:
+            return want
+        divisors = [d for d in range(MIN_PERIOD, MAX_PERIOD + 1) if loop % d == 0]
+        if not divisors:
+            raise FlowError(f"A loop of {loop} frames needs a renewal period from {MIN_PERIOD} to {MAX_PERIOD} "
+                            "that divides it; use a number of frames with such a divisor (32, 48, 64...).")
+        return min(divisors, key=lambda d: (abs(d - want), -d))
+
     def reach(self, frames: int) -> int:
         """A bound on how far (px, either axis) content travels in ``frames`` frames, plus one."""
         return -(-frames * self.peak // Q) + 1
