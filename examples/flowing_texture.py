@@ -22,7 +22,8 @@ r = np.hypot(dx, dy) + 1e-9
 speed = 1.2 * np.clip(r / 24, 0, 1) * np.clip((n / 2 - r) / 24, 0, 1)  # still at the tile's edges
 vortex = np.stack([-dy / r * speed, dx / r * speed], -1)
 frames = itx.animate(gravel, 32, velocity=(0.0, 0.0), velocity_map=vortex, toroidal=n, loop=True)
-print("wrote", ", ".join(itx.write_animation(os.path.join(out, "vortex.png"), frames, fps=24, loop=True)))
+itx.write_animation(os.path.join(out, "vortex.png"), frames, fps=24, loop=True)  # and vortex.json
+print("wrote vortex.png 1024x512")  # a flipbook atlas: 8 x 4 frames of 128 x 128
 
 # A river 40 px wide along a sine, 2 px per frame, on a 256 x 192 window of the infinite canvas.
 h, w = 192, 256
@@ -32,4 +33,5 @@ slope = 30 * 2 * np.pi / w * np.cos(xs / w * 2 * np.pi)
 along = np.stack([np.ones_like(slope), slope], -1) / np.hypot(1, slope)[..., None]
 river = along * (2.0 * np.exp(-((ys - curve) / 20) ** 2))[..., None]
 frames = itx.animate(gravel, 24, velocity=(0.0, 0.0), velocity_map=river, size=(w, h), origin=(0, 0))
-print("wrote", ", ".join(itx.write_animation(os.path.join(out, "river.webp"), frames, fps=24)))
+itx.write_animation(os.path.join(out, "river.webp"), frames, fps=24)
+print(f"wrote river.webp {w}x{h}")  # 24 frames, animated

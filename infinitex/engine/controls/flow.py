@@ -81,6 +81,17 @@ class VelocityMap:
         return int(np.abs(self.values).max())
 
     @cached_property
+    def flat(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each component in a border of 2 zero texels, flattened (int32; Flow.sample's lookups)."""
+        h, w = self.values.shape[:2]
+        out = []
+        for c in (0, 1):
+            a = np.zeros((h + 4, w + 4), np.int32)
+            a[2:h + 2, 2:w + 2] = self.values[..., c]
+            out.append(a.ravel())
+        return out[0], out[1]
+
+    @cached_property
     def moving(self) -> np.ndarray:
         """(H, W) bool: texels with a velocity."""
         return np.any(self.values != 0, axis=2)
@@ -157,7 +168,7 @@ class Flow:
         """A renewal period for this field: about the frames in which its shear
         (the velocity gradient's Frobenius norm, 75th percentile over the texels
         that move) stretches a chain by ``distortion`` over its life of two
-        periods, 6 to 32 frames (16 for a uniform flow); for a loop of ``loop``
+        periods, 12 to 32 frames (16 for a uniform flow); for a loop of ``loop``
         frames, the divisor of it nearest."""
         want = DEFAULT_PERIOD
         if not self.uniform:
@@ -167,7 +178,7 @@ class Flow:
                 g = np.sqrt((gx ** 2).sum(-1) + (gy ** 2).sum(-1))[self.map.moving[:-1, :-1]]
                 shear = float(np.percentile(g, 75)) if g.size else 0.0
                 if shear > 0:
-                    want = int(np.clip(round(self.distortion / (2 * shear)), 6, 32))
+                    want = int(np.clip(round(self.distortion / (2 * shear)), 12, 32))
         if not loop:
             return want
         divisors = [d for d in range(MIN_PERIOD, MAX_PERIOD + 1) if loop % d == 0]
@@ -193,20 +204,25 @@ class Flow:
         if period:
             X = X % (period * Q)
             Y = Y % (period * Q)
-        ix, fx = X >> 8, X & (Q - 1)
-        iy, fy = Y >> 8, Y & (Q - 1)
-        sx = np.zeros(np.shape(X), np.int64)
-        sy = np.zeros(np.shape(X), np.int64)
-        for dx, dy, wgt in ((0, 0, (Q - fx) * (Q - fy)), (1, 0, fx * (Q - fy)), (0, 1, (Q - fx) * fy), (1, 1, fx * fy)):
-            gx, gy = ix + dx, iy + dy
-            if period:
-                gx, gy = gx % period, gy % period
-            tx, ty = gx - m.x, gy - m.y
-            inside = (tx >= 0) & (tx < w) & (ty >= 0) & (ty < h)
-            tx, ty = np.where(inside, tx, 0), np.where(inside, ty, 0)
-            v = m.values[ty, tx].astype(np.int64)
-            sx += np.where(inside, v[..., 0], 0) * wgt
-            sy += np.where(inside, v[..., 1], 0) * wgt
+        ix, fx = X >> 8, (X & (Q - 1)).astype(np.int32)
+        iy, fy = Y >> 8, (Y & (Q - 1)).astype(np.int32)
+        vx_map, vy_map = m.flat
+        row = w + 4
+        if period:  # texel indices wrap: each corner on its own
+            out = []
+            for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+                tx = np.clip((ix + dx) % period - m.x + 2, 1, w + 2)
+                ty = np.clip((iy + dy) % period - m.y + 2, 1, h + 2)
+                out.append((ty * row + tx).astype(np.intp))
+        else:  # the map sits in a border of 2 zeros: a clipped corner reads zeros
+            tx = np.clip(ix - m.x + 2, 0, w + 2)
+            ty = np.clip(iy - m.y + 2, 0, h + 2)
+            i00 = (ty * row + tx).astype(np.intp)
+            out = [i00, i00 + 1, i00 + row, i00 + row + 1]
+        gx, gy = Q - fx, Q - fy
+        wgt = (gx * gy, fx * gy, gx * fy, fx * fy)  # int32: |v| <= 2^13, the weights sum to 2^16
+        sx = sum(vx_map[i] * k for i, k in zip(out, wgt))
+        sy = sum(vy_map[i] * k for i, k in zip(out, wgt))
         return vx + (sx >> 16), vy + (sy >> 16)
 
     def moving_at(self, qx: np.ndarray, qy: np.ndarray, period: int = 0) -> np.ndarray:
