@@ -40,10 +40,12 @@ def build_parser() -> Parser:
     p.add_argument("-o", "--output", required=True,
                    help="a folder (OUT/frame_0000.png...), a .png flipbook atlas (with OUT.json), .webp, .apng or "
                         ".mp4; a material writes one per map (OUT_basecolor.png...)")
-    p.add_argument("--frames", type=integer, required=True, metavar="N", help="how many frames (1 to 4096)")
-    p.add_argument("--velocity", default="1,0", metavar="VX,VY|MAP",
-                   help="a uniform velocity in canvas px per frame (+x right, +y down the image's rows; default "
-                        "1,0), or a velocity map image (red and green in [0, 1], mid-gray still) scaled by --speed")
+    p.add_argument("--frames", type=integer, default=None, metavar="N",
+                   help="how many frames (1 to 4096; default: a project's animation's)")
+    p.add_argument("--velocity", default=None, metavar="VX,VY|MAP",
+                   help="a uniform velocity in canvas px per frame (+x right, +y down the image's rows), or a "
+                        "velocity map image (red and green in [0, 1], mid-gray still) scaled by --speed; default: "
+                        "a project's flow, else 1,0")
     p.add_argument("--speed", type=number, default=1.0, metavar="S",
                    help="with a velocity map: px per frame at red or green 0 and 1 (default 1)")
     p.add_argument("--velocity-origin", nargs=2, type=integer, default=[0, 0], metavar=("X", "Y"),
@@ -62,7 +64,8 @@ def build_parser() -> Parser:
     p.add_argument("--toroidal", type=integer, default=None, metavar="N",
                    help="frames of an N x N tile that tiles seamlessly (N a power of two, 32 to 4096); with "
                         "--loop, a flipbook that tiles in space and loops in time")
-    p.add_argument("--fps", type=number, default=24.0, help="frames per second of the file (default 24)")
+    p.add_argument("--fps", type=number, default=None,
+                   help="frames per second of the file (default: a project's animation's, else 24)")
     p.add_argument("--start", type=integer, default=0, metavar="T", help="the first frame's number (default 0)")
     p.add_argument("--seed", type=integer, default=None, help="the synthesis seed (default: the project's, or 0)")
     p.add_argument("--maps", default=None, metavar="all|basecolor,height,...",
@@ -80,15 +83,22 @@ def run_animate(argv: list[str]) -> int:
     from infinitex.engine.rect import Rect
     from infinitex.export.animation import MAX_FRAMES, animation_format, check_folder_output
 
-    # Arguments first: nothing is read or computed before they are all good.
-    n = args.frames
+    # Arguments first: nothing is computed before they are all good (a project's
+    # animation gives the defaults).
+    doc, inputs = _document(args)
+    motion = doc.motion if args.velocity is None else None
+    n = args.frames if args.frames is not None else doc.motion.frames if doc.motion is not None else None
+    if n is None:
+        raise CliError("--frames N is needed: the source holds no animation.", EXIT_USAGE)
+    fps = args.fps if args.fps is not None else doc.motion.fps if doc.motion is not None else 24.0
+    loop = args.loop or (motion is not None and motion.flow.loop > 0)
     if not 1 <= n <= MAX_FRAMES:
         raise CliError(f"--frames is 1 to {MAX_FRAMES}, not {n}.", EXIT_USAGE)
     if not 0 <= args.start or args.start + n > MAX_FRAME:
         raise CliError(f"Frames are numbered 0 to {MAX_FRAME - 1}; --start {args.start} with {n} frames is outside.",
                        EXIT_USAGE)
-    if not 0 < args.fps <= 240:
-        raise CliError(f"--fps is more than 0 and at most 240, not {args.fps:g}.", EXIT_USAGE)
+    if not 0 < fps <= 240:
+        raise CliError(f"--fps is more than 0 and at most 240, not {fps:g}.", EXIT_USAGE)
     if args.toroidal is not None:
         check_toroidal(args.toroidal)
         w = h = args.toroidal
@@ -113,7 +123,7 @@ def run_animate(argv: list[str]) -> int:
         raise CliError(str(exc), EXIT_USAGE) from None
     velocity_map = None
     vx = vy = 0.0
-    text = args.velocity.strip()
+    text = (args.velocity or "1,0").strip()
     parts = text.split(",")
     if len(parts) == 2 and not os.path.exists(text):
         try:
@@ -126,16 +136,15 @@ def run_animate(argv: list[str]) -> int:
         if not os.path.isfile(text):
             raise CliError(f"--velocity: {printable(text)} is neither VX,VY nor an image file.", EXIT_USAGE)
     try:
-        flow = Flow.of(vx, vy, period=args.period or 16, loop=0)
-        flow.validate()
-        if args.loop:
+        flow = motion.flow if motion is not None else Flow.of(vx, vy)
+        replace(flow, period=args.period or 16, loop=0).validate()
+        if loop:
             flow.suggested_period(n)  # a loop needs a period that divides it
     except FlowError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     if velocity_map is not None and not 0 < args.speed <= 32:
         raise CliError(f"--speed is more than 0 and at most 32 px per frame, not {args.speed:g}.", EXIT_USAGE)
 
-    doc, inputs = _document(args)
     if doc.lattice is not None:
         raise CliError("animate does not go with a lattice yet: a near-regular texture keeps its grid, which a "
                        "flow would bend.", EXIT_USAGE)
@@ -150,9 +159,10 @@ def run_animate(argv: list[str]) -> int:
         x, y = (0, 0) if args.toroidal is not None else args.velocity_origin
         vmap = load_velocity_map(velocity_map, args.speed, args.flow_y == "up", x, y, size)
         flow = replace(flow, map=vmap)
-    try:  # the period: asked for, or what the field's shear suggests (dividing a loop)
-        flow = replace(flow, period=args.period or flow.suggested_period(n if args.loop else 0),
-                       loop=n if args.loop else 0)
+    kept = motion is not None and (not loop or n % motion.flow.period == 0)  # the project's own period
+    try:  # the period: asked for, the project's, or what the field's shear suggests (dividing a loop)
+        flow = replace(flow, period=args.period or (flow.period if kept else flow.suggested_period(n if loop else 0)),
+                       loop=n if loop else 0)
         flow.validate()
     except FlowError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
@@ -182,7 +192,7 @@ def run_animate(argv: list[str]) -> int:
     session = LoadedDocument(gpu)
     try:
         session.install(doc, ex, an, material)
-        return _render(session, flow, rect, args, fmt, roles, outputs, gpu.renderer)
+        return _render(session, flow, rect, args, n, fps, fmt, roles, outputs, gpu.renderer)
     finally:
         session.release()
         gpu.release()
@@ -232,13 +242,12 @@ def _check_not_inputs(outputs, inputs) -> None:
         raise CliError(str(exc), EXIT_USAGE) from None
 
 
-def _render(session, flow, rect, args, fmt: str, roles, outputs, renderer: str) -> int:
+def _render(session, flow, rect, args, n: int, fps: float, fmt: str, roles, outputs, renderer: str) -> int:
     from infinitex.engine.advect import FlowFrames, SynthSource
     from infinitex.engine.imagefile import to_u8
     from infinitex.export.animation import AnimationWriter
-    n = args.frames
     frames = FlowFrames(SynthSource(session.synth, args.toroidal or 0), flow, session.params.seed)
-    writers = {role: AnimationWriter(path, fmt, args.fps, args.loop) for role, path in outputs}
+    writers = {role: AnimationWriter(path, fmt, fps, bool(flow.loop)) for role, path in outputs}
     bar = ProgressBar(f"animate {n} frames", args.quiet)
     t0 = time.perf_counter()
     for i in range(n):

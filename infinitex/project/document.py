@@ -166,6 +166,7 @@ class Document:
     direction: DirectionField | None = None            # direction and scale over the canvas (sparse tiles)
     surface: object | None = None                      # a model to texture (project/surface.py SurfaceSettings)
     plane: PlaneControls | None = None                 # with a model: the plane's controls, set aside
+    motion: object | None = None                       # texture in motion (project/flow_json.py Motion)
 
     def with_model(self, settings) -> Document:
         """This document texturing a model: what is painted and placed on the
@@ -358,6 +359,10 @@ class Document:
             self.surface.validate()
             if self.lattice is not None:  # (a direction field is combed over the model: its atlas texels)
                 raise ProjectError("Texture on a model does not work with a lattice; turn one of them off.")
+        if self.motion is not None:
+            self.motion.validate()
+            if self.lattice is not None:
+                raise ProjectError("Texture in motion does not work on a lattice (a flow would bend its grid).")
         if self.weights is not None:
             roles = {r for r, _ in self.sources()}
             if any(r not in roles or not (is_number(v) and 0.0 <= v <= 4.0) for r, v in self.weights) \

@@ -42,6 +42,7 @@ from infinitex.engine.safeio import (
 
 from .labels_json import labels_from_json, labels_to_json, palette_from_json, palette_to_json, tiles_from_json
 from .direction_json import direction_from_json, direction_to_json
+from .flow_json import motion_from_json, motion_to_json
 from .lattice_json import lattice_from_json, lattice_to_json
 from .surface import surface_from_json, surface_to_json
 from .document import (
@@ -60,7 +61,7 @@ from .document import (
 )
 
 FORMAT = "infinitex-project"
-VERSION = 11             # 11: a model ("surface"); 10: a direction field ("direction"); 9: a palette of exemplars ("palette"); 8: texture by numbers ("labels"); 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
+VERSION = 12             # 12: texture in motion ("motion"); 11: a model ("surface"); 10: a direction field ("direction"); 9: a palette of exemplars ("palette"); 8: texture by numbers ("labels"); 2: painted randomness ("randomness") and placed features ("features"); 3: a lattice ("lattice"); 4: a material ("material"); 5: avoided exemplar regions ("avoid") or passes per level (synthesis.level_passes); 6: a Structure preset other than Variety (synthesis.structure); 7: an exemplar made tileable (exemplar.make_tileable); files without them are written as 1
 PROJECT_SUFFIX = ".itex"
 EMBED_LIMIT = 16 * 1024 * 1024  # exemplar files up to this size are embedded
 MATERIAL_EMBED_TOTAL = 64 * 1024 * 1024  # a material's maps are embedded while their total stays under this
@@ -159,7 +160,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         "png16": _png16(doc.avoid_exemplar.values)}
     return {
         "format": FORMAT,
-        "version": 11 if doc.surface is not None else 10 if doc.direction is not None and not doc.direction.identity else 9 if doc.palette else 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
+        "version": 12 if doc.motion is not None else 11 if doc.surface is not None else 10 if doc.direction is not None and not doc.direction.identity else 9 if doc.palette else 8 if doc.labels else 7 if doc.make_tileable else 6 if doc.structure else 5 if avoid or doc.level_passes else 4 if material else 3 if doc.lattice else (
             2 if fields or doc.features else 1),
         "exemplar": {
             "name": ex.name,
@@ -188,6 +189,7 @@ def _to_json(project: Project, path: str | None, embeds) -> dict:
         **({"palette": palette_to_json(doc, entry_json)} if doc.palette else {}),
         **({"direction": direction_to_json(doc.direction)} if doc.direction and not doc.direction.identity else {}),
         **({"surface": surface_to_json(doc.surface)} if doc.surface is not None else {}),
+        **({"motion": motion_to_json(doc.motion)} if doc.motion is not None else {}),
         **({"plane": _plane_to_json(doc.plane)} if doc.surface is not None and doc.plane is not None else {}),
         "view": asdict(project.view),
         "display": asdict(project.display),
@@ -546,6 +548,7 @@ def _project_from_json(d: object, path: str | None, allow_outside) -> Project:
         direction=direction_from_json(d.get("direction")),
         surface=surface_from_json(d.get("surface")),
         plane=_plane_from_json(d.get("plane")),
+        motion=motion_from_json(d.get("motion")),
     )
     doc.validate()
     view, display = View(), Display()
