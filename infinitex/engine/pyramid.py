@@ -379,43 +379,6 @@ class Pyramid(LocalUpdates, SpreadRequests, StateAccess, QuickLooks):
         finally:
             rp.release()
 
-    def correct(self, l: int, strip: Rect, state: np.ndarray) -> np.ndarray:
-        """Level l's correction (and fidelity stage) run on a given state instead
-        of the upsampled one: ``state`` (H, W, channels) over ``padded(l, strip)``;
-        returns the corrected strip, exact (a function of the state within the
-        correction's reach; engine/advect.py corrects the frames of a flow so)."""
-        region = self.padded(l, strip)
-        if state.shape[:2] != (region.h, region.w):
-            raise SynthesisError(f"The state to correct covers {state.shape[1]}x{state.shape[0]}, not the "
-                                 f"padded {region.w}x{region.h}.")
-        self.gpu.activate()
-        scratch = self._scratch_pair(region)
-        rp = self._region_pass(l, strip, scratch)
-        try:
-            s = self.params.subgrid
-            bstride, boff, size = rp.layout
-            ys, xs = np.mgrid[0:region.h, 0:region.w]
-            ty = boff[1] + (ys % s) * bstride[1] + ys // s
-            tx = boff[0] + (xs % s) * bstride[0] + xs // s
-            packed = np.zeros((size[1], size[0], self.channels), np.int16)
-            packed[ty, tx] = state[..., :self.channels]
-            scratch[0].write(packed.tobytes(), viewport=(0, 0, size[0], size[1]), alignment=1)
-            draws = []
-            if rp.level_corrected:
-                draws += correction_draws(rp, self.params.walk_steps(self.an.k, self.controls.avoid is not None))
-            if self.params.fidelity_at(l):
-                draws += fidelity_draws(rp)
-            for d in draws:
-                for _ in d.steps():
-                    pass
-            data = scratch[1].read(viewport=(0, 0, size[0], size[1]), components=self.channels, dtype="i2",
-                                   alignment=1)
-            out = np.frombuffer(data, np.int16).reshape(size[1], size[0], self.channels)
-            y, x = slice(strip.y0 - region.y0, strip.y1 - region.y0), slice(strip.x0 - region.x0, strip.x1 - region.x0)
-            return out[ty[y, x], tx[y, x]].astype(np.int32)
-        finally:
-            rp.release()
-
     def _region_pass(self, l: int, strip: Rect, scratch) -> RegionPass:
         """What every pass over ``strip``'s padded region reads (stages.RegionPass)."""
         p, an = self.params, self.an
