@@ -67,7 +67,8 @@ from .rect import Rect
 SALT = 0x2545F491          # keeps the flow's hashes apart from the synthesis'
 ENDLESS_KEYS = 8           # distinct chain offsets R_j of an endless animation
 KEY_SPREAD = 16            # R_j is (hx, hy) * KEY_SPREAD px, hx, hy in [-1024, 1024)
-PATCH_LEVELS = 3           # chains come in by the patches of the level 3 above the finest (8 x 8 px a texel)
+BLOB = 32                  # px between the points whose Voronoi cells come in together (renewal_turns)
+UNIT_NUDGE = 6             # px a unit's pixels are nudged by before their blob is found
 J_SHIFT = 12               # Jacobians are Q12
 VOTE = 2                   # a pixel shows the chain most of the (2 VOTE + 1)^2 around it show
 SEAM = 4                   # the correction mends what lies this close to a cut between chains
@@ -82,9 +83,9 @@ class TextureSource(Protocol):
 
     def window(self, rect: Rect, slack: int) -> tuple[np.ndarray, np.ndarray]:
         """Over ``rect``: the coordinates (H, W, 4) int32 with remainders, and
-        which coarse patch each pixel belongs to, (H, W, 2) int64 (the same
-        over a coherent patch of level L - PATCH_LEVELS). ``slack``: how much
-        more around it later calls will likely ask for."""
+        which unit each pixel belongs to, (H, W, 2) int64 (the same over one
+        element of the exemplar within one patch). ``slack``: how much more
+        around it later calls will likely ask for."""
 
     def jacobians(self, rect: Rect) -> np.ndarray | None:
         """(H, W, 4) Q12 direction-field Jacobians over ``rect``, or None (identity)."""
@@ -281,11 +282,7 @@ class FlowFrames:
             out[..., 0], out[..., 1] = ux & (m - 1), uy & (m - 1)
         else:
             out[..., 0], out[..., 1] = np.clip(ux, 0, m - 1), np.clip(uy, 0, m - 1)
-        # The patch the content belongs to decides when it comes in.
-        with np.errstate(over="ignore"):
-            s = lowbias32(np.uint32((self.seed ^ SALT ^ (key * 0x9E3779B9)) & 0xFFFFFFFF))
-            h = lowbias32(lowbias32(pid[..., 1].astype(np.uint32) ^ s) ^ pid[..., 0].astype(np.uint32))
-        return out, (h & np.uint32(0xFFFF)).astype(np.int64), d, J
+        return out, renewal_turns(qx, qy, pid, key, self.seed, n), d, J
 
     def _lookup(self, qx: np.ndarray, qy: np.ndarray, slack: int):
         """T, the patch ids and J at canvas pixels (qx, qy)."""
@@ -299,6 +296,49 @@ class FlowFrames:
         J = self.source.jacobians(box)
         iy, ix = qy - box.y0, qx - box.x0
         return T[iy, ix], pid[iy, ix], (J[iy, ix] if J is not None else None)
+
+
+def _hash(*parts, seed: int) -> np.ndarray:
+    """lowbias32 of the integer arrays ``parts`` chained with ``seed`` (uint32)."""
+    with np.errstate(over="ignore"):
+        h = lowbias32(np.uint32(seed & 0xFFFFFFFF))
+        for p in parts:
+            h = lowbias32(h ^ np.asarray(p).astype(np.uint32))
+    return h
+
+
+def renewal_turns(qx: np.ndarray, qy: np.ndarray, unit: np.ndarray, key: int, seed: int,
+                  period: int = 0) -> np.ndarray:
+    """When each pixel of a chain comes in, in [0, 65536): the value of the blob
+    its content lies in. Blobs are the Voronoi cells of one jittered point per
+    BLOB x BLOB px of the chain's own positions (qx, qy), so they move with the
+    content; each pixel's position is first nudged by up to UNIT_NUDGE px by a
+    hash of its unit (``unit``, (H, W, 2): an exemplar element within a patch),
+    so a blob's edge runs along the elements' outlines rather than straight.
+    A blob's value is uniform: about 1/period of the area comes in each frame.
+    On a toroidal tile of ``period`` px (a multiple of BLOB) the blobs repeat with it."""
+    s = seed ^ SALT ^ ((key * 0x9E3779B9) & 0xFFFFFFFF)
+    if period:
+        qx, qy = qx % period, qy % period
+    u = _hash(unit[..., 0], unit[..., 1], seed=s)
+    n = 2 * UNIT_NUDGE + 1
+    px = qx + (u % n).astype(np.int64) - UNIT_NUDGE
+    py = qy + ((u >> np.uint32(8)) % n).astype(np.int64) - UNIT_NUDGE
+    cx, cy = np.floor_divide(px, BLOB), np.floor_divide(py, BLOB)
+    best = np.full(px.shape, np.iinfo(np.int64).max, np.int64)
+    value = np.zeros(px.shape, np.uint32)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            gx, gy = cx + dx, cy + dy
+            g = _hash(gx % (period // BLOB), gy % (period // BLOB), seed=s ^ 0x5BD1E995) if period else \
+                _hash(gx, gy, seed=s ^ 0x5BD1E995)
+            sx = gx * BLOB + (g % BLOB).astype(np.int64)
+            sy = gy * BLOB + ((g >> np.uint32(8)) % BLOB).astype(np.int64)
+            dist = (px - sx) ** 2 + (py - sy) ** 2
+            closer = dist < best
+            best = np.where(closer, dist, best)
+            value = np.where(closer, g >> np.uint32(16), value)
+    return value.astype(np.int64)
 
 
 def _box_count(a: np.ndarray, r: int) -> np.ndarray:
@@ -339,29 +379,20 @@ class SynthSource:
         return c[slack:slack + rect.h, slack:slack + rect.w], p[slack:slack + rect.h, slack:slack + rect.w]
 
     def _synthesize(self, rect: Rect, period: int) -> tuple[np.ndarray, np.ndarray]:
-        """The finest level over rect and the patch ids of level L - PATCH_LEVELS under it."""
-        from dataclasses import replace
-
-        from .pyramid import Pyramid
+        """The finest level over rect, and each pixel's unit: (its exemplar element, its patch)."""
         s = self.synth
-        L = s.L
-        params = replace(s.params, period=period) if period else s.params
-        k = min(PATCH_LEVELS, L)
-        pyr = Pyramid(s.gpu, s.gan, params, scrolling=False, controls=s.controls)
-        try:
-            pyr.request(L, rect)
-            fine = pyr.read(L, rect, True)
-            cr = Rect(rect.x0 >> k, rect.y0 >> k, ((rect.x1 - 1) >> k) + 1, ((rect.y1 - 1) >> k) + 1)
-            coarse = pyr.read(L - k, cr).astype(np.int64)
-        finally:
-            pyr.release()
-        ys, xs = np.mgrid[cr.y0:cr.y1, cr.x0:cr.x1]
-        h = 1 << k  # a coherent level-(L-k) patch: S(c) - h c is the same over it
-        pid = np.stack([coarse[..., 0] - h * xs, coarse[..., 1] - h * ys], -1)
-        if self.wrap:
-            pid &= self.m - 1
-        del pid
-        # A unit of renewal: one element of the exemplar (a pebble, a leaf) within one patch.
+        if period:
+            from dataclasses import replace
+            saved = s.params
+            s.params = replace(saved, period=period)
+            try:
+                fine = _with_remainders(s.window(rect, remainder=True))
+            finally:
+                s.params = saved
+        else:
+            fine = _with_remainders(s.window(rect, remainder=True))
+        # A unit: one element of the exemplar (a pebble, a leaf) within one patch (the
+        # coordinate less the position, constant over a coherent patch, to 8 px).
         cells = self.cells[fine[..., 1], fine[..., 0]]
         ys, xs = np.mgrid[rect.y0:rect.y1, rect.x0:rect.x1]
         ox, oy = fine[..., 0].astype(np.int64) - xs, fine[..., 1].astype(np.int64) - ys
@@ -422,3 +453,11 @@ def exemplar_cells(img: np.ndarray, spacing: int = 8) -> np.ndarray:
             markers[y + i // block.shape[1], x + i % block.shape[1]] = label
             label += 1
     return ndimage.watershed_ift(g, markers).astype(np.int64)
+
+
+def _with_remainders(c: np.ndarray) -> np.ndarray:
+    if c.shape[-1] == 4:
+        return c.astype(np.int32, copy=False)
+    out = np.zeros(c.shape[:2] + (4,), np.int32)
+    out[..., :2] = c
+    return out
