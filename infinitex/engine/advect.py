@@ -27,14 +27,19 @@ the direction field's Jacobian at ``round(X)`` (identity without one).
 
 **Renewal, not crossfade.** At frame t two chains are alive: the new one
 (age ``a`` in [0, period)) and the old one (age ``a + period``). A pixel shows
-the new chain where its unit has come due, ``h < (a + 1) / period`` with ``h`` a
-hash of the unit: one element of the exemplar (a watershed cell of its color
-gradient) within one patch of the synthesis, so whole elements come in at
-once. A vote over 5 x 5 pixels keeps single pixels from showing the other
-chain, and the finest level's correction mends the cuts where the two meet.
-By the end of the period every pixel shows the new chain, which then becomes
-the old one. No pixel ever blends two textures: no ghosting and no loss of
-contrast; each frame renews about 1/period of the units.
+the new chain where its blob has come due, ``h < (a + 1) / period``: blobs are
+Voronoi cells of about BLOB px in the new chain's own positions (they move
+with its content), their edges nudged along the exemplar's elements (a
+watershed cell of its color gradient, within one patch), each with a uniform
+random turn ``h`` (renewal_turns). A vote over 5 x 5 pixels keeps single
+pixels from showing the other chain, and the finest level's correction mends
+the cuts where the two meet. By the end of the period every pixel shows the
+new chain, which then becomes the old one. No pixel ever blends two
+textures: no ghosting and no loss of contrast; each frame renews about
+1/period of the area. (Units of single elements made many short cuts:
+neighborhood energy 1.47 of the static texture's on the pebbles vortex,
+against 1.25 with blobs; a wide majority vote instead renewed everything at
+mid-period, steps 3x the median.)
 
 **Distortion** (LH06: the Frobenius norm of the observed Jacobian minus the
 desired one; here ``|| D d_a ||``, the trajectory's stretch) bounds the period:
@@ -75,7 +80,9 @@ SEAM = 4                   # the correction mends what lies this close to a cut 
 
 
 class TextureSource(Protocol):
-    """The static texture T that flows."""
+    """The static texture T that flows. A source that can also correct a state
+    (``correction_region(rect)``, ``correct(rect, state)``, as SynthSource) has
+    the cuts between chains mended."""
 
     m: int          # exemplar size
     wrap: bool      # the exemplar tiles (coordinates wrap) or not (they clamp)
