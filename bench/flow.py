@@ -24,7 +24,8 @@ half a cycle apart, the second one offset so that the two differ).
 - loop: with --loop 32, frame 32 equals frame 0, and the step 31 -> 32 over the median step;
 - speed (ours): 512 x 512 frames played in order (coordinates and 8-bit
   colors), frames per second over 48 frames, the static windows' syntheses
-  included, at Variety and Balanced.
+  included, at Variety and Balanced, corrected at the cuts (what exports
+  write) and not (``--speed-only`` runs this part alone).
 
 ``--strips DIR`` writes, per exemplar and the vortex, every 4th frame of 32
 as a strip for ours and for the baseline, under neutral names, with a key
@@ -162,6 +163,7 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=48)
     ap.add_argument("--strips", default=None, metavar="DIR")
     ap.add_argument("--no-speed", action="store_true")
+    ap.add_argument("--speed-only", action="store_true", help="only the speed (adds its figures to --json's file)")
     ap.add_argument("--period", type=int, default=0, help="the renewal period (default: what the field suggests, "
                     "Flow.suggested_period)")
     ap.add_argument("--no-correction", action="store_true", help="ours without the finest level's correction")
@@ -191,7 +193,14 @@ def main() -> int:
                      "renderer": gpu.renderer}
     rng = np.random.default_rng(7)
     key = {}
-    for ename, path in paths.items():
+    if args.speed_only:
+        paths_q = {}
+        if args.json and os.path.exists(args.json):
+            with open(args.json) as f:
+                results = json.load(f)
+    else:
+        paths_q = paths
+    for ename, path in paths_q.items():
         ex = load_exemplar(path)
         an = analyze(ex)
         synth = Synthesizer(an, gpu=gpu)
@@ -242,7 +251,7 @@ def main() -> int:
         print(f"{ename:9s} loop 32: exact {np.array_equal(loop[32], loop[0])}, "
               f"last step / median {steps[31] / np.median(steps):.2f}", flush=True)
         synth.release()
-    if args.strips:
+    if args.strips and key:
         with open(os.path.join(args.strips, "..", "flow_strips_key.json"), "w") as f:
             json.dump(key, f, indent=1)
     if not args.no_speed:
@@ -294,20 +303,21 @@ def speed(gpu, paths, flows, structure_params, SynthParams, names) -> dict:
         synth = Synthesizer(an, params, gpu=gpu)
         flow = Flow(map=VelocityMap(np.rint(v * Q).astype(np.int32), *ORIGIN))
         flow = Flow(map=flow.map, period=flow.suggested_period())
-        ff = FlowFrames(SynthSource(synth), flow, seed=1)
         top = an.levels[an.L].stack
         u8 = np.rint(np.clip(top, 0, 1) * 255).astype(np.uint8)
-        times = []
-        for t in range(48):
-            t0 = time.perf_counter()
-            colors_u8([u8], ff.frame(t, rect), 0, an.toroidal)
-            times.append(time.perf_counter() - t0)
+        for mode, correct in (("corrected", True), ("uncorrected", False)):
+            ff = FlowFrames(SynthSource(synth), flow, seed=1, correct=correct)
+            times = []
+            for t in range(48):
+                t0 = time.perf_counter()
+                colors_u8([u8], ff.frame(t, rect), 0, an.toroidal)
+                times.append(time.perf_counter() - t0)
+            ff.release()
+            key = f"{names[preset]} {mode}"
+            out[key] = dict(fps=48 / sum(times), worst_ms=max(times) * 1000, median_ms=float(np.median(times)) * 1000)
+            print(f"speed {key:22s} 512x512: {out[key]['fps']:.1f} fps (median {out[key]['median_ms']:.0f} ms, "
+                  f"worst {out[key]['worst_ms']:.0f} ms)", flush=True)
         synth.release()
-        out[names[preset]] = dict(fps=48 / sum(times), worst_ms=max(times) * 1000,
-                                  median_ms=float(np.median(times)) * 1000)
-        print(f"speed {names[preset]:9s} 512x512: {out[names[preset]]['fps']:.1f} fps "
-              f"(median {out[names[preset]]['median_ms']:.0f} ms, worst {out[names[preset]]['worst_ms']:.0f} ms)",
-              flush=True)
     return out
 
 

@@ -56,7 +56,9 @@ velocity whose travel over N frames is a multiple of n loops without renewal.
 
 **Cost.** A frame is a gather: two trajectories (one step each when frames are
 played in order: the trajectories of the last frame are kept), two lookups in
-static windows that are synthesized once per chain, and the choice.
+static windows that are synthesized once per chain, and the choice; composed
+in GL by engine/advect_gl.py (this module's numpy composition is its oracle,
+and composes alone with a direction field), then corrected at the cuts.
 """
 from __future__ import annotations
 
@@ -104,7 +106,7 @@ class FlowFrames:
     order over one window reuse the last frame's trajectories (the result is
     the same bit for bit)."""
 
-    def __init__(self, source: TextureSource, flow: Flow, seed: int = 0, correct: bool = True):
+    def __init__(self, source: TextureSource, flow: Flow, seed: int = 0, correct: bool = True, gl: bool = True):
         flow.validate()
         self.correct = correct and hasattr(source, "correct")
         if source.period and not flow.uniform:
@@ -118,6 +120,17 @@ class FlowFrames:
         self._rect: Rect | None = None
         self._paths: dict[int, np.ndarray] = {}  # age -> trajectory (H+1, W+1, 2) over the window
         self._base: tuple[np.ndarray, np.ndarray] | None = None
+        # Composed in GL (engine/advect_gl.py) on a Synthesizer's context, without a direction
+        # field; this module's numpy composition is its oracle (gl=False).
+        self._gl = None
+        if gl and getattr(source, "synth", None) is not None and not source.synth.controls.directed:
+            from .advect_gl import GpuComposer
+            self._gl = GpuComposer(self, source, VOTE, SEAM, BLOB, UNIT_NUDGE)
+
+    def release(self) -> None:
+        if self._gl is not None:
+            self._gl.release()
+            self._gl = None
 
     # -- which chains --------------------------------------------------------
     def chains(self, t: int) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
@@ -138,6 +151,10 @@ class FlowFrames:
             else:
                 out.append((j % ENDLESS_KEYS, j * P, a))
         return out[0], out[1]
+
+    def turn_seed(self, key: int) -> int:
+        """The seed of chain ``key``'s turns (renewal_turns)."""
+        return (self.seed ^ SALT ^ ((key * 0x9E3779B9) & 0xFFFFFFFF)) & 0xFFFFFFFF
 
     def key_offset(self, key: int) -> tuple[int, int]:
         """R_j in px (0 for a uniform flow)."""
@@ -202,6 +219,9 @@ class FlowFrames:
     def _frame(self, t: int, rect: Rect, jacobians: bool):
         """(coordinates, Jacobians or None, the seams: (H, W) bool, within SEAM px of
         two chains that show different texels side by side) over rect."""
+        if self._gl is not None and not jacobians:
+            coords, seam = self._gl.frame(t, rect)
+            return coords, None, seam
         old, new = self.chains(t)
         v, e = VOTE, SEAM
         self._window(Rect(rect.x0 - v - e, rect.y0 - v - e, rect.x1 + v + e, rect.y1 + v + e))
@@ -289,7 +309,7 @@ class FlowFrames:
             out[..., 0], out[..., 1] = ux & (m - 1), uy & (m - 1)
         else:
             out[..., 0], out[..., 1] = np.clip(ux, 0, m - 1), np.clip(uy, 0, m - 1)
-        return out, renewal_turns(qx, qy, pid, key, self.seed, n), d, J
+        return out, renewal_turns(qx, qy, pid, self.turn_seed(key), n), d, J
 
     def _lookup(self, qx: np.ndarray, qy: np.ndarray, slack: int):
         """T, the patch ids and J at canvas pixels (qx, qy)."""
@@ -314,8 +334,7 @@ def _hash(*parts, seed: int) -> np.ndarray:
     return h
 
 
-def renewal_turns(qx: np.ndarray, qy: np.ndarray, unit: np.ndarray, key: int, seed: int,
-                  period: int = 0) -> np.ndarray:
+def renewal_turns(qx: np.ndarray, qy: np.ndarray, unit: np.ndarray, s: int, period: int = 0) -> np.ndarray:
     """When each pixel of a chain comes in, in [0, 65536): the value of the blob
     its content lies in. Blobs are the Voronoi cells of one jittered point per
     BLOB x BLOB px of the chain's own positions (qx, qy), so they move with the
@@ -323,8 +342,8 @@ def renewal_turns(qx: np.ndarray, qy: np.ndarray, unit: np.ndarray, key: int, se
     hash of its unit (``unit``, (H, W, 2): an exemplar element within a patch),
     so a blob's edge runs along the elements' outlines rather than straight.
     A blob's value is uniform: about 1/period of the area comes in each frame.
-    On a toroidal tile of ``period`` px (a multiple of BLOB) the blobs repeat with it."""
-    s = seed ^ SALT ^ ((key * 0x9E3779B9) & 0xFFFFFFFF)
+    On a toroidal tile of ``period`` px (a multiple of BLOB) the blobs repeat with it.
+    ``s``: the chain's seed (FlowFrames.turn_seed)."""
     if period:
         qx, qy = qx % period, qy % period
     u = _hash(unit[..., 0], unit[..., 1], seed=s)

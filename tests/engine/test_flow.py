@@ -90,7 +90,7 @@ def test_a_uniform_velocity_slides_the_static_texture(synth):
 
 def test_renewal_swaps_chains_without_blending(synth):
     flow = Flow(map=vortex(160, 160, speed=0.5, x=-32, y=-32), period=8)
-    f = frames(synth, flow)
+    f = FlowFrames(SynthSource(synth), flow, 3, gl=False)  # the numpy composition, whose parts are read here
     rect = Rect.of(0, 0, 96, 96)  # several blobs (engine/advect.py BLOB)
     (ko, bo, ao), (kn, bn, an) = f.chains(11)
     assert (ao, an) == (11 - 0, 11 - 8) and bn == 8
@@ -149,3 +149,59 @@ def test_the_suggested_period_follows_the_shear():
     assert 48 % Flow(map=gentle).suggested_period(loop=48) == 0
     with pytest.raises(FlowError, match="divides it"):
         Flow(map=gentle).suggested_period(loop=131)
+
+
+@pytest.mark.parametrize("near", [0, -FAR])
+def test_the_cuts_are_corrected_as_the_numpy_oracle_corrects(synth, near):
+    """The GL part of a frame (the finest level's correction of the composite)
+    against tests/oracle.py's subpasses on the same state."""
+    import oracle
+    from infinitex.engine.params import subpass_order
+    flow = Flow(map=vortex(128, 112, speed=1.0, x=near - 16, y=near - 16), period=8)
+    f = frames(synth, flow)
+    rect = Rect.of(near, near, 96, 80)
+    region = f.source.correction_region(rect)
+    raw, _, seam = f._frame(11, region, False)
+    assert seam.any()
+    gl = f.source.correct(rect, raw)
+    an, p, L = synth.analysis, synth.params, synth.L
+    S = raw[..., :2].astype(np.int64)
+    n = 0
+    for order in subpass_order(p.subgrid, p.passes_at(L)):
+        for phase in order:
+            S = oracle.correct_subpass(S, phase, (region.x0, region.y0), an, p, L, synth.controls, n)
+            n += 1
+    if p.fidelity_at(L):
+        S = oracle.fidelity_stage(S, (region.x0, region.y0), an, p, L, synth.controls)
+    y, x = slice(rect.y0 - region.y0, rect.y1 - region.y0), slice(rect.x0 - region.x0, rect.x1 - region.x0)
+    np.testing.assert_array_equal(gl[..., :2], S[y, x])
+    assert np.any(gl[..., :2] != raw[y, x, :2])  # it did correct something
+
+
+@pytest.mark.parametrize("near", [0, FAR, -FAR])
+def test_gl_composes_frames_as_the_numpy_oracle(synth, near):
+    """engine/advect_gl.py (the passes the frames are made with) against
+    engine/advect.py's numpy composition: coordinates and seams, bit for bit,
+    within a period, at a renewal and played in order."""
+    flow = Flow(map=vortex(96, 96, x=near - 16, y=near - 8), period=8)
+    rect = Rect.of(near, near, 64, 48)
+    gl, ref = frames(synth, flow), FlowFrames(SynthSource(synth), flow, 3, gl=False)
+    assert gl._gl is not None and ref._gl is None
+    for t in (0, 5, 11, 12):
+        a, b = gl._frame(t, rect, False), ref._frame(t, rect, False)
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(a[2], b[2])
+    gl.release()
+
+
+def test_gl_composes_tiles_and_uniform_flows_as_the_oracle(synth):
+    n = 32
+    for flow, period, rect in ((Flow(map=vortex(n, n), period=4, loop=8), n, Rect(0, 0, n, n)),
+                               (Flow.of(1.5, -0.5, period=4), 0, Rect.of(100, 50, 40, 40))):
+        gl = FlowFrames(SynthSource(synth, period), flow, 3)
+        ref = FlowFrames(SynthSource(synth, period), flow, 3, gl=False)
+        for t in (1, 6):
+            a, b = gl._frame(t, rect, False), ref._frame(t, rect, False)
+            np.testing.assert_array_equal(a[0], b[0])
+            np.testing.assert_array_equal(a[2], b[2])
+        gl.release()

@@ -1,0 +1,90 @@
+// One chain of a flowing texture over a window (engine/advect.py
+// FlowFrames._chain and renewal_turns): where the static texture T showed each
+// pixel's content, its coordinate with the sub-pixel rest as a remainder, and
+// the chain's turn: the value of the blob its content lies in.
+//
+//   e = d - born_frac,  q0 = p - born_px + floor((e + 128) / 256),  rest = e + 128 mod 256 - 128
+//   q = q0 + R where the map moves at q0 (R: the chain's key offset), else q0
+//   S = T[q] + rest (nearest texel and remainder; wrapped or clamped to the exemplar)
+
+uniform isampler2D path;      // the chain's trajectories over the window plus one, RG32I
+uniform isampler2D still;     // T where no key offset applies: coordinates and remainders, RGBA16I
+uniform isampler2D still_units;   // their units (exemplar element, patch), RG32I
+uniform ivec2 still_origin;   // canvas pixel of their texel (0, 0)
+uniform isampler2D moved;     // T where the key offset applies (the same as still if R = 0)
+uniform isampler2D moved_units;
+uniform ivec2 moved_origin;
+uniform isampler2D vmap;      // the velocity map with its border (flow_step.frag), for where it moves
+uniform ivec2 map_xy;
+uniform ivec2 map_wh;
+uniform int has_offset;       // R != 0
+uniform ivec2 offset;         // R, px
+uniform ivec2 origin;         // canvas pixel of the window's texel (0, 0)
+uniform ivec2 born_px;        // V0 t_j = 256 born_px + born_frac
+uniform ivec2 born_frac;
+uniform int period;           // a toroidal tile's size, 0: none
+uniform int m;                // exemplar size
+uniform int wrap;             // the exemplar tiles
+uniform uint seed;            // renewal_turns' s
+uniform int blob;             // BLOB
+uniform int nudge;            // UNIT_NUDGE
+
+layout(location = 0) out ivec4 coords;
+layout(location = 1) out int turn;
+
+uint chained(uint h, uint a) {
+    return lowbias32(h ^ a);
+}
+
+bool moving_at(ivec2 q) {
+    ivec2 t = (period > 0 ? (q & (period - 1)) : q) - map_xy;
+    if (t.x < 0 || t.y < 0 || t.x >= map_wh.x || t.y >= map_wh.y) {
+        return false;
+    }
+    return any(notEqual(texelFetch(vmap, t + 2, 0).xy, ivec2(0)));
+}
+
+void main() {
+    ivec2 P = ivec2(gl_FragCoord.xy);
+    ivec2 e = texelFetch(path, P, 0).xy - born_frac;
+    ivec2 k = floor_shift(ivec4(e + 128, 0, 0), 8).xy;
+    ivec2 rest = e - k * 256;
+    ivec2 q = origin + P - born_px + k;
+    bool apart = has_offset != 0 && moving_at(q);
+    if (apart) {
+        q += offset;
+    }
+    if (period > 0) {
+        q &= period - 1;
+    }
+    ivec4 t = apart ? texelFetch(moved, q - moved_origin, 0) : texelFetch(still, q - still_origin, 0);
+    ivec2 unit = apart ? texelFetch(moved_units, q - moved_origin, 0).xy : texelFetch(still_units, q - still_origin, 0).xy;
+    ivec2 F = t.xy * 256 + t.zw + rest;
+    ivec2 u = floor_shift(ivec4(F + 128, 0, 0), 8).xy;
+    coords = ivec4(wrap != 0 ? (u & (m - 1)) : clamp(u, ivec2(0), ivec2(m - 1)), F - u * 256);
+
+    // The blob (renewal_turns): the nearest of one jittered point per blob x blob px
+    // to the position nudged by the unit's hash.
+    uint hu = chained(chained(lowbias32(seed), uint(unit.x)), uint(unit.y));
+    uint n = uint(2 * nudge + 1);
+    ivec2 pp = q + ivec2(int(hu % n), int((hu >> 8) % n)) - nudge;
+    ivec2 c = (pp - (pp & (blob - 1))) / blob;  // floor(pp / blob), exact near +-2^31 too
+    int best = 0x7fffffff;
+    uint value = 0u;
+    uint gseed = seed ^ 0x5BD1E995u;
+    for (int dy = -1; dy <= 1; dy++) {
+        for (int dx = -1; dx <= 1; dx++) {
+            ivec2 gc = c + ivec2(dx, dy);
+            ivec2 hc = period > 0 ? (gc & (period / blob - 1)) : gc;
+            uint g = chained(chained(lowbias32(gseed), uint(hc.x)), uint(hc.y));
+            ivec2 s = gc * blob + ivec2(int(g % uint(blob)), int((g >> 8) % uint(blob)));
+            ivec2 dd = pp - s;
+            int dist = dd.x * dd.x + dd.y * dd.y;
+            if (dist < best) {
+                best = dist;
+                value = g >> 16;
+            }
+        }
+    }
+    turn = int(value);
+}
