@@ -334,15 +334,20 @@ def animate(exemplar, frames: int, velocity: tuple[float, float] = (1.0, 0.0), *
         flow = replace(flow, map=vmap)
     flow = replace(flow, period=period or flow.suggested_period(frames if loop else 0), loop=frames if loop else 0)
     flow.validate()
-    an = analyze(ex)
+    from .engine.advect import static_side
     w, h = (toroidal, toroidal) if toroidal else size
+    if static_side(flow, w, h) > 16384:
+        raise ValueError(f"Content travels up to {flow.reach(2 * flow.period)} px in a chain's life: with {w}x{h} "
+                         "frames one synthesis would pass 16384 px a side; use a shorter period or smaller frames.")
+    an = analyze(ex)
     rect = Rect(0, 0, w, h) if toroidal else Rect.of(origin[0], origin[1], w, h)
     with Synthesizer(an, _params(an.L, seed, randomness, structure), controls=controls) as s:
         source = SynthSource(s, toroidal)
+        ff = FlowFrames(source, flow, seed)
         try:
-            ff = FlowFrames(source, flow, seed)
             return np.stack([to_u8(s.colors(ff.frame(start + i, rect))) for i in range(frames)])
         finally:
+            ff.release()
             source.release()
 
 

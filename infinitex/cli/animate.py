@@ -31,6 +31,8 @@ from .common import (
     number,
 )
 
+MAX_STATIC_SIDE = 16384  # a chain's static window and the GL textures of a frame (GL_MAX_TEXTURE_SIZE here)
+
 
 def build_parser() -> Parser:
     p = Parser(prog="infinitex animate",
@@ -56,7 +58,7 @@ def build_parser() -> Parser:
                    help="a seamless loop: frame N is frame 0 (the renewal period divides N)")
     p.add_argument("--period", type=integer, default=None, metavar="P",
                    help="frames between renewals of the advected texture (2 to 128; default: from the field's "
-                        "shear, 4 to 32, 16 for a uniform velocity; with --loop a divisor of N)")
+                        "shear, 12 to 32, 16 for a uniform velocity; with --loop a divisor of N)")
     p.add_argument("--size", nargs=2, type=integer, default=[256, 256], metavar=("W", "H"),
                    help="frame size in px (default 256 256)")
     p.add_argument("--origin", nargs=2, type=integer, default=[0, 0], metavar=("X", "Y"),
@@ -112,13 +114,18 @@ def run_animate(argv: list[str]) -> int:
     try:
         fmt = animation_format(args.output)
         if fmt == "folder":
-            check_folder_output(args.output)
+            from infinitex.engine.material import ROLES
+            check_folder_output(args.output, ROLES if doc.maps else ())
         else:
             from infinitex.engine.safeio import check_output
             check_output(args.output, (os.path.splitext(args.output)[1].lower(),), "animation")
         if fmt == "atlas":
             from infinitex.export.animation import atlas_grid
             atlas_grid(n, w, h)
+        from infinitex.export.animation import MAX_WEBP_SIDE
+        if fmt == "webp" and max(w, h) > MAX_WEBP_SIDE:
+            raise WriteError(f"A WebP is at most {MAX_WEBP_SIDE} px a side, not {max(w, h)}; write a folder, "
+                             "an APNG or a video.")
     except WriteError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     velocity_map = None
@@ -166,6 +173,12 @@ def run_animate(argv: list[str]) -> int:
         flow.validate()
     except FlowError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
+    from infinitex.engine.advect import static_side
+    if static_side(flow, w, h) > MAX_STATIC_SIDE:
+        raise CliError(f"Content travels up to {flow.reach(2 * flow.period)} px in a chain's life of "
+                       f"{2 * flow.period} frames: with {w}x{h} frames that is more than the {MAX_STATIC_SIDE} px a "
+                       "side one synthesis covers; use a shorter --period, a lower speed or smaller frames.",
+                       EXIT_USAGE)
     # Decode and analyze before any GL: a bad exemplar fails fast.
     from infinitex.engine.analysis import analyze
     from infinitex.engine.gpu import Gpu
@@ -244,10 +257,21 @@ def _check_not_inputs(outputs, inputs) -> None:
 
 def _render(session, flow, rect, args, n: int, fps: float, fmt: str, roles, outputs, renderer: str) -> int:
     from infinitex.engine.advect import FlowFrames, SynthSource
+    source = SynthSource(session.synth, args.toroidal or 0)
+    frames = FlowFrames(source, flow, session.params.seed)
+    try:
+        return _play(frames, session, rect, args, n, fps, fmt, outputs, renderer, flow)
+    finally:
+        frames.release()
+        source.release()
+
+
+def _play(frames, session, rect, args, n: int, fps: float, fmt: str, outputs, renderer: str, flow) -> int:
     from infinitex.engine.imagefile import to_u8
+    from infinitex.engine.material import IMAGE
     from infinitex.export.animation import AnimationWriter
-    frames = FlowFrames(SynthSource(session.synth, args.toroidal or 0), flow, session.params.seed)
-    writers = {role: AnimationWriter(path, fmt, fps, bool(flow.loop)) for role, path in outputs}
+    writers = {role: AnimationWriter(path, fmt, fps, bool(flow.loop), make_parent=role != IMAGE)
+               for role, path in outputs}
     bar = ProgressBar(f"animate {n} frames", args.quiet)
     t0 = time.perf_counter()
     for i in range(n):
@@ -275,5 +299,7 @@ def _render(session, flow, rect, args, n: int, fps: float, fmt: str, roles, outp
 
 
 def main(argv: list[str]) -> int:
+    import moderngl
+
     from infinitex.engine.controls.flow import FlowError
-    return guarded(run_animate, argv, (FlowError,))
+    return guarded(run_animate, argv, (FlowError, moderngl.Error))

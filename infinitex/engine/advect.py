@@ -264,7 +264,6 @@ class FlowFrames:
     def _chain(self, key: int, born: int, age: int, jacobians: bool = False):
         """(coordinates (H, W, 4), the unit's hash (H, W) in [0, 65536), the trajectory, the
         direction field's J at each pixel's content or None) of one chain."""
-        r = self._rect
         d = self.trajectory(age)
         X, Y = self._base
         vx, vy = self.flow.velocity
@@ -280,7 +279,7 @@ class FlowFrames:
             Y = Y + np.where(moving, ry * Q, 0)
         qx, qy = (X + Q // 2) >> 8, (Y + Q // 2) >> 8
         fx, fy = X - qx * Q, Y - qy * Q
-        slack = self.flow.reach(2 * self.flow.period) + r.w // 4
+        slack = self.flow.reach(2 * self.flow.period) + 32
         if moving is None or moving.all() or not moving.any():
             T, pid, J = self._lookup(qx, qy, slack)
         else:  # two far-apart places of T: one window each
@@ -323,6 +322,13 @@ class FlowFrames:
         J = self.source.jacobians(box)
         iy, ix = qy - box.y0, qx - box.x0
         return T[iy, ix], pid[iy, ix], (J[iy, ix] if J is not None else None)
+
+
+def static_side(flow: Flow, w: int, h: int) -> int:
+    """The largest side of what a w x h frame's composition reads at once: a
+    chain's static window (the frame, the vote's and seams' margins, two periods
+    of travel each way) and the GL textures made of it."""
+    return max(w, h) + 2 * (VOTE + SEAM + 1) + 2 * (flow.reach(2 * flow.period) + 2) + 64
 
 
 def _hash(*parts, seed: int) -> np.ndarray:

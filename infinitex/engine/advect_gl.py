@@ -117,7 +117,7 @@ class GpuComposer:
                 else:
                     box = Rect(win.x0 - bx + ox - reach, win.y0 - by + oy - reach,
                                win.x1 - bx + ox + reach, win.y1 - by + oy + reach)
-                coords, units = src.window(box, flow.reach(2 * flow.period))
+                coords, units = src.window(box, 0)  # (the box covers the chain's life)
                 u32 = (np.asarray(units, np.int64) & 0xFFFFFFFF).astype(np.uint32).view(np.int32)
                 parts += [self._tex(box.w, box.h, 4, "i2", coords.astype(np.int16)),
                           self._tex(box.w, box.h, 2, "i4", np.ascontiguousarray(u32)), (box.x0, box.y0)]

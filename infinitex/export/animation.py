@@ -10,7 +10,7 @@ Y = rows, frame count, cycles from the frame rate), Unreal's SubUV (sub images
 horizontal and vertical), Godot's animated sprite frames (hframes, vframes)::
 
     {"image": "lava.png", "frame_width": 256, "frame_height": 256, "frames": 32,
-     "columns": 6, "rows": 6, "fps": 24, "loop": true, "order": "row-major, top-left first",
+     "columns": 8, "rows": 4, "fps": 24, "loop": true, "order": "row-major, top-left first",
      "sha256": "..."}
 
 ``sha256`` is the atlas file's: a description that does not match its atlas
@@ -36,6 +36,7 @@ from infinitex.engine.safeio import WriteError, atomic_write, printable
 FORMATS = {".png": "atlas", ".webp": "webp", ".apng": "apng", ".mp4": "mp4"}
 FRAME_NAME = "frame_{:04d}.png"
 MAX_ATLAS_SIDE = 16384
+MAX_WEBP_SIDE = 16383  # the WebP format's limit
 MAX_FRAMES = 4096
 
 
@@ -63,14 +64,20 @@ def atlas_grid(frames: int, w: int, h: int) -> tuple[int, int]:
     return min(fits, key=lambda cr: (cr[0] * cr[1] - frames, abs(math.log(cr[0] * w / (cr[1] * h))), -cr[0]))
 
 
-def check_folder_output(out: str) -> None:
-    """An image sequence replaces a folder only if it holds an earlier sequence (frame_NNNN.png) and nothing else."""
+def check_folder_output(out: str, roles: tuple[str, ...] = ()) -> None:
+    """An image sequence replaces a folder only if it holds an earlier sequence
+    (frame_NNNN.png) and nothing else; a material's (``roles``) only if it holds
+    such sequences in folders named by its roles."""
     if os.path.lexists(out) and not os.path.isdir(out):
         raise WriteError(f"{printable(out)} exists and is not a folder; it is not replaced.")
-    if os.path.isdir(out):
-        alien = [n for n in os.listdir(out) if not _is_frame_name(n)]
-        if alien:
-            raise WriteError(f"{printable(out)} holds other files ({printable(alien[0])}...); an image sequence "
+    if not os.path.isdir(out):
+        return
+    for name in os.listdir(out):
+        sub = os.path.join(out, name)
+        if roles and name in roles and os.path.isdir(sub) and not os.path.islink(sub):
+            check_folder_output(sub)
+        elif roles or not _is_frame_name(name):
+            raise WriteError(f"{printable(out)} holds other files ({printable(name)}...); an image sequence "
                              "replaces only a folder of frames.")
 
 
@@ -81,8 +88,9 @@ def _is_frame_name(name: str) -> bool:
 class AnimationWriter:
     """Collects frames (uint8 (H, W, C)) and writes them all in :meth:`close`."""
 
-    def __init__(self, out: str, fmt: str, fps: float, loop: bool):
+    def __init__(self, out: str, fmt: str, fps: float, loop: bool, make_parent: bool = False):
         self.out, self.fmt, self.fps, self.loop = out, fmt, float(fps), bool(loop)
+        self.make_parent = make_parent  # a material's sequence: OUT/ROLE, OUT made if missing
         self.frames: list[np.ndarray] = []
 
     def add(self, frame: np.ndarray) -> None:
@@ -97,29 +105,37 @@ class AnimationWriter:
         return getattr(self, "_" + self.fmt)()
 
     def _folder(self) -> list[str]:
+        from infinitex.engine.safeio import TMP_SUFFIX
         from infinitex.export.formats import png_bytes
         out = os.path.abspath(self.out.rstrip(os.sep) or self.out)
-        check_folder_output(out)
         parent = os.path.dirname(out)
-        tmp = os.path.join(parent, f".{os.path.basename(out)[:64]}.{os.getpid()}.{secrets.token_hex(6)}.tmp")
+        if self.make_parent:
+            try:
+                os.makedirs(parent, exist_ok=True)  # a material's OUT, holding one folder per map
+            except OSError as exc:
+                raise WriteError(f"Cannot make the folder of {printable(self.out)}: {exc.strerror or exc}.") from None
+        check_folder_output(out)
+        tmp = os.path.join(parent, f".{os.path.basename(out)[:64]}.{os.getpid()}.{secrets.token_hex(6)}{TMP_SUFFIX}")
+        old = None
         try:
             os.mkdir(tmp)
             for i, f in enumerate(self.frames):
                 with open(os.path.join(tmp, FRAME_NAME.format(i)), "wb") as fh:
                     fh.write(png_bytes(f))
-            old = None
             if os.path.isdir(out):
-                old = tmp + ".old"
+                old = tmp + ".old" + TMP_SUFFIX
                 os.rename(out, old)
             os.rename(tmp, out)
-            if old:
-                shutil.rmtree(old, ignore_errors=True)
-        except OSError as exc:
+        except BaseException as exc:
+            if old is not None and not os.path.exists(out):
+                os.rename(old, out)  # the earlier sequence back in place
+                old = None
             shutil.rmtree(tmp, ignore_errors=True)
-            raise WriteError(f"Writing {printable(self.out)} failed: {exc.strerror or exc}.") from None
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
+            if isinstance(exc, OSError):
+                raise WriteError(f"Writing {printable(self.out)} failed: {exc.strerror or exc}.") from None
             raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
         return [out]
 
     def _atlas(self) -> list[str]:
@@ -135,8 +151,10 @@ class AnimationWriter:
                     columns=cols, rows=rows, fps=self.fps, loop=self.loop, order="row-major, top-left first",
                     sha256=hashlib.sha256(data).hexdigest())
         meta = os.path.splitext(self.out)[0] + ".json"
-        atomic_write(self.out, data)
+        # The description first: a run stopped between the two leaves the old atlas
+        # beside a description whose sha256 names the new one, which shows.
         atomic_write(meta, (json.dumps(desc, indent=1) + "\n").encode())
+        atomic_write(self.out, data)
         return [self.out, meta]
 
     def _animated(self, fmt: str) -> list[str]:
@@ -145,8 +163,11 @@ class AnimationWriter:
         buf = io.BytesIO()
         ms = max(1, int(round(1000.0 / self.fps)))
         extra = dict(lossless=True, quality=90, method=4) if fmt == "WEBP" else {}
-        imgs[0].save(buf, format=fmt, save_all=True, append_images=imgs[1:], duration=ms,
-                     loop=0 if self.loop else 1, **extra)
+        try:
+            imgs[0].save(buf, format=fmt, save_all=True, append_images=imgs[1:], duration=ms,
+                         loop=0 if self.loop else 1, **extra)
+        except (RuntimeError, ValueError, OSError) as exc:
+            raise WriteError(f"Encoding {printable(self.out)} failed: {exc}.") from None
         atomic_write(self.out, buf.getvalue())
         return [self.out]
 

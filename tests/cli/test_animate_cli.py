@@ -145,3 +145,24 @@ def test_a_failed_write_leaves_what_was_there(tmp_path):
         w.close()
     assert sorted(os.listdir(seq)) == before and sorted(os.listdir(tmp_path)) == ["seq"]
     check_folder_output(str(seq))
+
+
+def test_a_materials_image_sequences_and_limits(tmp_path):
+    ex = np.asarray(Image.open(GRAVEL).convert("L"))
+    Image.fromarray(np.stack([ex, ex, ex], -1)).save(tmp_path / "stone_basecolor.png")
+    Image.fromarray(ex).save(tmp_path / "stone_height.png")
+    out = tmp_path / "seq"
+    for _ in range(2):  # made, then replaced
+        r = run(tmp_path / "stone_basecolor.png", "-o", out, "--frames", "2", "--size", "24", "16", "-q")
+        assert r.returncode == 0, r.stderr
+        assert sorted(os.listdir(out)) == ["basecolor", "height"]
+        assert sorted(os.listdir(out / "height")) == ["frame_0000.png", "frame_0001.png"]
+    # Where one synthesis could not cover a chain's travel, or WebP cannot hold the frames: one line, before work.
+    r = run(GRAVEL, "-o", tmp_path / "o.png", "--frames", "2", "--velocity", "32,0", "--period", "128")
+    assert r.returncode == 2 and "shorter --period" in r.stderr
+    r = run(GRAVEL, "-o", tmp_path / "o.webp", "--frames", "2", "--size", "16384", "8")
+    assert r.returncode == 2 and "WebP is at most" in r.stderr
+    vmap = tmp_path / "v.png"
+    Image.fromarray(np.full((4, 4, 3), 200, np.uint8)).save(vmap)
+    r = run(GRAVEL, "-o", tmp_path / "o.png", "--frames", "2", "--velocity", vmap, "--velocity-origin", "2147483000", "0")
+    assert r.returncode in (2, 3) and r.stderr.count("\n") == 1 and "outside" in r.stderr

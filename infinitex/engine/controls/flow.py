@@ -63,6 +63,10 @@ class VelocityMap:
         object.__setattr__(self, "values", np.ascontiguousarray(v, np.int32))
         object.__setattr__(self, "x", int(self.x))
         object.__setattr__(self, "y", int(self.y))
+        limit = 2 ** 31 - 2 ** 24  # where canvas positions end (engine/pyramid.py COORD_LIMIT)
+        if not (-limit <= self.x and self.x + v.shape[1] <= limit and -limit <= self.y and self.y + v.shape[0] <= limit):
+            raise FlowError(f"A velocity map lies within +-{limit} px of the canvas origin; "
+                            f"({self.x}, {self.y}) is outside.")
 
     @classmethod
     def from_unit(cls, rgb: np.ndarray, speed: float, y_up: bool = True, x: int = 0, y: int = 0) -> VelocityMap:
