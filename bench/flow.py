@@ -164,6 +164,8 @@ def main() -> int:
     ap.add_argument("--strips", default=None, metavar="DIR")
     ap.add_argument("--no-speed", action="store_true")
     ap.add_argument("--speed-only", action="store_true", help="only the speed (adds its figures to --json's file)")
+    ap.add_argument("--speed-size", nargs=2, type=int, default=[512, 512], metavar=("W", "H"),
+                    help="the frames' size for the speed (default 512 512; a lent GPU: 1920 1080)")
     ap.add_argument("--period", type=int, default=0, help="the renewal period (default: what the field suggests, "
                     "Flow.suggested_period)")
     ap.add_argument("--no-correction", action="store_true", help="ours without the finest level's correction")
@@ -255,7 +257,7 @@ def main() -> int:
         with open(os.path.join(args.strips, "..", "flow_strips_key.json"), "w") as f:
             json.dump(key, f, indent=1)
     if not args.no_speed:
-        results["speed"] = speed(gpu, paths, flows, structure_params, SynthParams, STRUCTURE_NAMES)
+        results["speed"] = speed(gpu, paths, structure_params, SynthParams, STRUCTURE_NAMES, *args.speed_size)
     gpu.release()
     if args.json:
         with open(args.json, "w") as f:
@@ -284,7 +286,7 @@ def crossfade(static_big: np.ndarray, pad: int, v: np.ndarray, frames: int, cycl
     return out
 
 
-def speed(gpu, paths, flows, structure_params, SynthParams, names) -> dict:
+def speed(gpu, paths, structure_params, SynthParams, names, w: int = 512, h: int = 512) -> dict:
     from infinitex.engine.advect import FlowFrames, SynthSource
     from infinitex.engine.analysis import analyze
     from infinitex.engine.controls.flow import Flow, Q, VelocityMap
@@ -294,9 +296,8 @@ def speed(gpu, paths, flows, structure_params, SynthParams, names) -> dict:
     from infinitex.export.window import colors_u8
     path = next(iter(paths.values()))
     an = analyze(load_exemplar(path))
-    n = 512
-    v = fields(n)["vortex"]
-    rect = Rect.of(*ORIGIN, n, n)
+    v = fields(max(w, h))["vortex"][:h, :w]
+    rect = Rect.of(*ORIGIN, w, h)
     out = {}
     for preset in (0, 2):
         params = structure_params(SynthParams.default(an.L), preset)
@@ -315,7 +316,7 @@ def speed(gpu, paths, flows, structure_params, SynthParams, names) -> dict:
             ff.release()
             key = f"{names[preset]} {mode}"
             out[key] = dict(fps=48 / sum(times), worst_ms=max(times) * 1000, median_ms=float(np.median(times)) * 1000)
-            print(f"speed {key:22s} 512x512: {out[key]['fps']:.1f} fps (median {out[key]['median_ms']:.0f} ms, "
+            print(f"speed {key:22s} {w}x{h}: {out[key]['fps']:.1f} fps (median {out[key]['median_ms']:.0f} ms, "
                   f"worst {out[key]['worst_ms']:.0f} ms)", flush=True)
         synth.release()
     return out
