@@ -334,11 +334,12 @@ def animate(exemplar, frames: int, velocity: tuple[float, float] = (1.0, 0.0), *
         flow = replace(flow, map=vmap)
     flow = replace(flow, period=period or flow.suggested_period(frames if loop else 0), loop=frames if loop else 0)
     flow.validate()
-    from .engine.advect import static_side
+    from .engine.advect import MAX_STATIC_SIDE, static_side
     w, h = (toroidal, toroidal) if toroidal else size
-    if static_side(flow, w, h) > 16384:
+    if static_side(flow, w, h) > MAX_STATIC_SIDE:
         raise ValueError(f"Content travels up to {flow.reach(2 * flow.period)} px in a chain's life: with {w}x{h} "
-                         "frames one synthesis would pass 16384 px a side; use a shorter period or smaller frames.")
+                         f"frames one synthesis would pass {MAX_STATIC_SIDE} px a side; use a shorter period or "
+                         "smaller frames.")
     an = analyze(ex)
     rect = Rect(0, 0, w, h) if toroidal else Rect.of(origin[0], origin[1], w, h)
     with Synthesizer(an, _params(an.L, seed, randomness, structure), controls=controls) as s:

@@ -14,10 +14,9 @@ import sys
 import time
 from dataclasses import replace
 
-from infinitex.engine.safeio import ReadError, WriteError, printable
+from infinitex.engine.safeio import WriteError, printable
 
 from .common import (
-    EXIT_INPUT,
     EXIT_USAGE,
     CliError,
     Parser,
@@ -29,9 +28,9 @@ from .common import (
     guarded,
     integer,
     number,
+    source_document,
 )
 
-MAX_STATIC_SIDE = 16384  # a chain's static window and the GL textures of a frame (GL_MAX_TEXTURE_SIZE here)
 
 
 def build_parser() -> Parser:
@@ -87,7 +86,8 @@ def run_animate(argv: list[str]) -> int:
 
     # Arguments first: nothing is computed before they are all good (a project's
     # animation gives the defaults).
-    doc, inputs = _document(args)
+    doc, inputs = source_document(args.source, args.allow_outside_exemplar,
+                                  " Pass --allow-outside-exemplar to read it.")
     motion = doc.motion if args.velocity is None else None
     n = args.frames if args.frames is not None else doc.motion.frames if doc.motion is not None else None
     if n is None:
@@ -173,7 +173,7 @@ def run_animate(argv: list[str]) -> int:
         flow.validate()
     except FlowError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    from infinitex.engine.advect import static_side
+    from infinitex.engine.advect import MAX_STATIC_SIDE, static_side
     if static_side(flow, w, h) > MAX_STATIC_SIDE:
         raise CliError(f"Content travels up to {flow.reach(2 * flow.period)} px in a chain's life of "
                        f"{2 * flow.period} frames: with {w}x{h} frames that is more than the {MAX_STATIC_SIDE} px a "
@@ -209,27 +209,6 @@ def run_animate(argv: list[str]) -> int:
     finally:
         session.release()
         gpu.release()
-
-
-def _document(args):
-    """(the Document, the input paths) of the source argument."""
-    from infinitex.project import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
-    if is_project_file(args.source):
-        try:
-            proj = load_project(args.source, allow_outside=args.allow_outside_exemplar)
-        except ExemplarOutside as exc:
-            raise CliError(f"{exc} Pass --allow-outside-exemplar to read it.", EXIT_INPUT) from None
-        return proj.document, [args.source, *proj.document.input_paths()]
-    from infinitex.engine.material import IMAGE, assign_roles
-    try:
-        found = assign_roles([args.source])
-        maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
-    except ReadError as exc:
-        raise CliError(str(exc), EXIT_INPUT) from None
-    doc = Document(maps[0][1])
-    if list(found) != [IMAGE]:
-        doc = doc.with_maps(maps)
-    return doc, list(found.values())
 
 
 def _outputs(out: str, fmt: str, roles: list[str]) -> list[tuple[str, str]]:

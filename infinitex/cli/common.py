@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from infinitex.engine.pyramid import COORD_LIMIT
-from infinitex.engine.safeio import WriteError, check_output, printable
+from infinitex.engine.safeio import ReadError, WriteError, check_output, printable
 from infinitex.engine.synth import MAX_WINDOW_PIXELS, MAX_WINDOW_SIDE
 
 EXIT_USAGE = 2
@@ -408,6 +408,27 @@ def randomness_controls(args, fit: str, m: int, base=None):
             raise CliError("The avoid mask covers the whole exemplar: leave some of it usable (black).", EXIT_USAGE)
         avoid = ExemplarMask(mask.astype(np.uint8))
     return Controls(e, c, feats, base.lattice, avoid).normalized()
+
+
+def source_document(source: str, allow_outside: bool = False, outside_hint: str = ""):
+    """(the Document, the files it reads) of a command's source: an .itex project,
+    or an exemplar image or material (one map, its siblings coming along, or its
+    folder) with default settings; read errors are a CliError."""
+    from infinitex.engine.material import IMAGE, assign_roles
+    from infinitex.project import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
+    if is_project_file(source):
+        try:
+            proj = load_project(source, allow_outside=allow_outside)
+        except ExemplarOutside as exc:
+            raise CliError(f"{exc}{outside_hint}", EXIT_INPUT) from None
+        return proj.document, [source, *proj.document.input_paths()]
+    try:
+        found = assign_roles([source])
+        maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
+    except ReadError as exc:
+        raise CliError(str(exc), EXIT_INPUT) from None
+    doc = Document(maps[0][1])
+    return (doc if list(found) == [IMAGE] else doc.with_maps(maps)), list(found.values())
 
 
 class ProgressBar:

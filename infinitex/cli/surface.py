@@ -14,7 +14,7 @@ import sys
 import time
 from dataclasses import replace
 
-from infinitex.engine.safeio import ReadError, printable
+from infinitex.engine.safeio import printable
 
 from .common import (
     EXIT_INPUT,
@@ -28,6 +28,7 @@ from .common import (
     guarded,
     integer,
     number,
+    source_document,
 )
 
 
@@ -70,23 +71,6 @@ def build_parser() -> Parser:
     return p
 
 
-def _document(source: str):
-    from infinitex.engine.material import assign_roles
-    from infinitex.project import Document, ExemplarOutside, ExemplarSource, is_project_file, load_project
-    if is_project_file(source):
-        try:
-            return load_project(source).document
-        except ExemplarOutside as exc:
-            raise CliError(str(exc), EXIT_INPUT) from None
-    try:
-        found = assign_roles([source])
-        maps = [(role, ExemplarSource.from_file(p)) for role, p in found.items()]
-    except ReadError as exc:
-        raise CliError(str(exc), EXIT_INPUT) from None
-    doc = Document(maps[0][1])
-    return doc.with_maps(maps) if len(maps) > 1 or maps[0][0] != "image" else doc
-
-
 def run_surface(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     from infinitex.engine.surface.mesh import MODEL_SUFFIXES
@@ -113,7 +97,7 @@ def run_surface(argv: list[str]) -> int:
     from infinitex.export.window import OwnInputError, Writes, check_own_inputs
     from infinitex.project.realize import exemplar_for, material_or_none
 
-    doc = _document(args.source)
+    doc = source_document(args.source)[0]
     if args.fidelity is not None:
         doc = replace(doc, structure=args.fidelity)
     if args.seed is not None:

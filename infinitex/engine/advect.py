@@ -226,7 +226,7 @@ class FlowFrames:
         v, e = VOTE, SEAM
         self._window(Rect(rect.x0 - v - e, rect.y0 - v - e, rect.x1 + v + e, rect.y1 + v + e))
         keep = {old[2], new[2]}
-        c0, _, d0, j0 = self._chain(*old, jacobians)
+        c0, _, d0, j0 = self._chain(*old, jacobians, turns=False)  # (the old chain's turns have passed)
         c1, unit, d1, j1 = self._chain(*new, jacobians)
         self._paths = {a: d for a, d in self._paths.items() if a in keep}  # the next frame steps from these
         # Each unit's turn comes at a steady rate, 1/period of them a frame (sooner where
@@ -261,9 +261,10 @@ class FlowFrames:
                          (a[..., 2] * M[..., 0] + a[..., 3] * M[..., 2]) >> J_SHIFT,
                          (a[..., 2] * M[..., 1] + a[..., 3] * M[..., 3]) >> J_SHIFT], -1)
 
-    def _chain(self, key: int, born: int, age: int, jacobians: bool = False):
-        """(coordinates (H, W, 4), the unit's hash (H, W) in [0, 65536), the trajectory, the
-        direction field's J at each pixel's content or None) of one chain."""
+    def _chain(self, key: int, born: int, age: int, jacobians: bool = False, turns: bool = True):
+        """(coordinates (H, W, 4), its blobs' turns (H, W) in [0, 65536) (None without
+        ``turns``), the trajectory, the direction field's J at each pixel's content or
+        None) of one chain."""
         d = self.trajectory(age)
         X, Y = self._base
         vx, vy = self.flow.velocity
@@ -308,7 +309,7 @@ class FlowFrames:
             out[..., 0], out[..., 1] = ux & (m - 1), uy & (m - 1)
         else:
             out[..., 0], out[..., 1] = np.clip(ux, 0, m - 1), np.clip(uy, 0, m - 1)
-        return out, renewal_turns(qx, qy, pid, self.turn_seed(key), n), d, J
+        return out, (renewal_turns(qx, qy, pid, self.turn_seed(key), n) if turns else None), d, J
 
     def _lookup(self, qx: np.ndarray, qy: np.ndarray, slack: int):
         """T, the patch ids and J at canvas pixels (qx, qy)."""
@@ -322,6 +323,9 @@ class FlowFrames:
         J = self.source.jacobians(box)
         iy, ix = qy - box.y0, qx - box.x0
         return T[iy, ix], pid[iy, ix], (J[iy, ix] if J is not None else None)
+
+
+MAX_STATIC_SIDE = 16384  # what one synthesis and the frame's GL textures cover (GL_MAX_TEXTURE_SIZE here)
 
 
 def static_side(flow: Flow, w: int, h: int) -> int:
@@ -413,16 +417,7 @@ class SynthSource:
     def _synthesize(self, rect: Rect, period: int) -> tuple[np.ndarray, np.ndarray]:
         """The finest level over rect, and each pixel's unit: (its exemplar element, its patch)."""
         s = self.synth
-        if period:
-            from dataclasses import replace
-            saved = s.params
-            s.params = replace(saved, period=period)
-            try:
-                fine = _with_remainders(s.window(rect, remainder=True))
-            finally:
-                s.params = saved
-        else:
-            fine = _with_remainders(s.window(rect, remainder=True))
+        fine = _with_remainders(s.toroidal(period) if period else s.window(rect, remainder=True))
         # A unit: one element of the exemplar (a pebble, a leaf) within one patch (the
         # coordinate less the position, constant over a coherent patch, to 8 px).
         cells = self.cells[fine[..., 1], fine[..., 0]]

@@ -127,8 +127,8 @@ class GpuComposer:
             self._chains[ck] = tuple(parts)
         return self._chains[ck]
 
-    def _chain(self, key: int, born: int, age: int, win: Rect):
-        """(coordinates RGBA16I, turns R32I) of one chain over the window."""
+    def _chain(self, key: int, born: int, age: int, win: Rect, turns_wanted: bool = True):
+        """(coordinates RGBA16I, turns R32I: 0 without ``turns_wanted``) of one chain over the window."""
         flow, src = self.frames.flow, self.source
         still, still_u, still_o, moved, moved_u, moved_o = self._static(key, born, win)
         bpx, bfx = _split(flow.velocity[0] * born)
@@ -144,7 +144,7 @@ class GpuComposer:
                    still_origin=still_o, moved_origin=moved_o, map_xy=self._map_xy, map_wh=self._map_wh,
                    has_offset=int(bool(rx or ry)), offset=(rx, ry), origin=(win.x0, win.y0),
                    born_px=(bpx, bpy), born_frac=(bfx, bfy), period=src.period, m=src.m, wrap=int(src.wrap),
-                   seed=seed, blob=self.blob, nudge=self.nudge)
+                   seed=seed, blob=self.blob, nudge=self.nudge, want_turns=int(turns_wanted))
         return coords, turns
 
     # -- a frame ------------------------------------------------------------------
@@ -157,7 +157,7 @@ class GpuComposer:
         self._window(win)
         made = []
         try:
-            c0, _ = self._chain(*old, win)
+            c0, _ = self._chain(*old, win, turns_wanted=False)  # (the old chain's turns have passed)
             c1, turns = self._chain(*new, win)
             made += [c0, _, c1, turns]
             self._drop_paths(keep={old[2], new[2]})

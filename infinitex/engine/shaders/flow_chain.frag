@@ -28,6 +28,7 @@ uniform int wrap;             // the exemplar tiles
 uniform uint seed;            // renewal_turns' s
 uniform int blob;             // BLOB
 uniform int nudge;            // UNIT_NUDGE
+uniform int want_turns;       // 0: the old chain, whose turns have passed (turn = 0)
 
 layout(location = 0) out ivec4 coords;
 layout(location = 1) out int turn;
@@ -63,6 +64,10 @@ void main() {
     ivec2 u = floor_shift(ivec4(F + 128, 0, 0), 8).xy;
     coords = ivec4(wrap != 0 ? (u & (m - 1)) : clamp(u, ivec2(0), ivec2(m - 1)), F - u * 256);
 
+    if (want_turns == 0) {
+        turn = 0;
+        return;
+    }
     // The blob (renewal_turns): the nearest of one jittered point per blob x blob px
     // to the position nudged by the unit's hash.
     uint hu = chained(chained(lowbias32(seed), uint(unit.x)), uint(unit.y));
