@@ -192,7 +192,8 @@ def run_animate(argv: list[str]) -> int:
         raise CliError(str(exc), EXIT_USAGE) from None
     if material is None and args.maps is not None and args.maps.strip().lower() not in ("all", IMAGE):
         raise CliError("--maps chooses among a material's maps; this exemplar is a single image.", EXIT_USAGE)
-    outputs = _outputs(args.output, fmt, roles)
+    from infinitex.export.animation import animation_outputs
+    outputs = animation_outputs(args.output, fmt, roles)
     _check_not_inputs(outputs, inputs)
     ex, settings = exemplar_for(doc, None, material)
     try:
@@ -209,16 +210,6 @@ def run_animate(argv: list[str]) -> int:
     finally:
         session.release()
         gpu.release()
-
-
-def _outputs(out: str, fmt: str, roles: list[str]) -> list[tuple[str, str]]:
-    """[(role, path)]: one output per map of a material (OUT_basecolor.png, OUT/basecolor/ for a sequence)."""
-    from infinitex.engine.material import IMAGE, map_path
-    if roles == [IMAGE]:
-        return [(IMAGE, out)]
-    if fmt == "folder":
-        return [(r, os.path.join(out, r)) for r in roles]
-    return [(r, map_path(out, r)) for r in roles]
 
 
 def _check_not_inputs(outputs, inputs) -> None:
@@ -246,29 +237,14 @@ def _render(session, flow, rect, args, n: int, fps: float, fmt: str, roles, outp
 
 
 def _play(frames, session, rect, args, n: int, fps: float, fmt: str, outputs, renderer: str, flow) -> int:
-    from infinitex.engine.imagefile import to_u8
     from infinitex.engine.material import IMAGE
-    from infinitex.export.animation import AnimationWriter
+    from infinitex.export.animation import AnimationWriter, render_animation
     writers = {role: AnimationWriter(path, fmt, fps, bool(flow.loop), make_parent=role != IMAGE)
                for role, path in outputs}
     bar = ProgressBar(f"animate {n} frames", args.quiet)
     t0 = time.perf_counter()
-    for i in range(n):
-        t = args.start + i
-        if "normal" in writers:
-            coords, jac = frames.frame_with_jacobians(t, rect)
-        else:
-            coords, jac = frames.frame(t, rect), None
-        for role, writer in writers.items():
-            px = session.material.lookup(role, coords)
-            if role == "normal" and jac is not None:
-                from infinitex.engine.subpixel import turn_normals
-                px = turn_normals(px, jac)
-            writer.add(to_u8(px))
-        bar((i + 1) / (n + 1), f"frame {t}")
-    written = []
-    for writer in writers.values():
-        written += writer.close()
+    written = render_animation(frames, session.material, rect, args.start, n, writers,
+                               progress=lambda f, t: bar(f, f"frame {t}"))
     bar(1.0)
     if not args.quiet:
         dt = time.perf_counter() - t0

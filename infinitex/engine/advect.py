@@ -111,7 +111,7 @@ class FlowFrames:
         self.correct = correct and hasattr(source, "correct")
         if source.period and not flow.uniform:
             n = source.period
-            h, w = flow.map.values.shape[:2]
+            h, w = flow.map.h, flow.map.w
             if (flow.map.x, flow.map.y, w, h) != (0, 0, n, n):
                 raise FlowError(f"On a toroidal tile of {n} px the velocity map covers the tile: {n}x{n} at (0, 0).")
         self.source = source

@@ -197,3 +197,45 @@ class AnimationWriter:
                     box.mux(packet)
         atomic_write(self.out, writer=write)
         return [self.out]
+
+
+def animation_outputs(out: str, fmt: str, roles: list[str]) -> list[tuple[str, str]]:
+    """[(role, path)]: one output per map of a material (OUT_basecolor.png, OUT/basecolor/ for a sequence)."""
+    from infinitex.engine.material import IMAGE, map_path
+    if list(roles) == [IMAGE]:
+        return [(IMAGE, out)]
+    if fmt == "folder":
+        return [(r, os.path.join(out, r)) for r in roles]
+    return [(r, map_path(out, r)) for r in roles]
+
+
+def render_animation(frames, material, rect, start: int, n: int, writers: dict, progress=None,
+                     cancelled=None) -> list[str] | None:
+    """Frames ``start`` .. ``start + n - 1`` of ``frames`` (engine/advect.py
+    FlowFrames) over ``rect``, each map of ``material`` to its writer (a
+    normal map turned with the texture), written at the end; returns the
+    files written, or None when ``cancelled()`` stopped it (nothing written).
+    ``progress(fraction, t)`` after each frame."""
+    from infinitex.engine.imagefile import to_u8
+    from infinitex.engine.subpixel import turn_normals
+    for i in range(n):
+        if cancelled is not None and cancelled():
+            return None
+        t = start + i
+        if "normal" in writers:
+            coords, jac = frames.frame_with_jacobians(t, rect)
+        else:
+            coords, jac = frames.frame(t, rect), None
+        for role, writer in writers.items():
+            px = material.lookup(role, coords)
+            if role == "normal" and jac is not None:
+                px = turn_normals(px, jac)
+            writer.add(to_u8(px))
+        if progress is not None:
+            progress((i + 1) / (n + 1), t)
+    if cancelled is not None and cancelled():
+        return None
+    written = []
+    for writer in writers.values():
+        written += writer.close()
+    return written

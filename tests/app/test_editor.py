@@ -196,6 +196,14 @@ def test_direction_tool_driven_by_the_test_engine(tmp_path, xdisplay):
     _drive("gui_direction.py", tmp_path, xdisplay, 12)
 
 
+def test_motion_driven_by_the_test_engine(tmp_path, xdisplay):
+    """Texture in motion: a Flow comb stroke (one undo step, the velocity along
+    it, no still texel changed), Play and pause (Space) while the editor keeps
+    drawing, a pan while playing, a step whose frame is the engine's bit for
+    bit, Export animation (an atlas and its JSON), undo (tests/app/gui_motion.py)."""
+    _drive("gui_motion.py", tmp_path, xdisplay, 18)
+
+
 def test_model_view_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     """Open a model, orbit, paint on it, place a feature on it, comb it, undo,
     export a GLB, close it (tests/app/gui_surface.py); the atlas the editor

@@ -205,3 +205,44 @@ def test_gl_composes_tiles_and_uniform_flows_as_the_oracle(synth):
             np.testing.assert_array_equal(a[0], b[0])
             np.testing.assert_array_equal(a[2], b[2])
         gl.release()
+
+
+def test_a_velocity_map_is_tiles_shared_between_edits():
+    """A map is held as tiles on the canvas grid: dense in, dense out, the
+    same key however it was made; a dab changes only the tiles it touches
+    (the others are the same objects: an undo step costs what it changed)
+    and moves each texel toward the target by its weight, growing the map."""
+    from infinitex.engine.controls.fields import dab_weights
+    from infinitex.engine.controls.flow import TILE
+    rng = np.random.default_rng(3)
+    vals = rng.integers(-900, 900, (150, 170, 2)).astype(np.int32)
+    vals[40:110, 20:90] = 0  # a still hole: tiles there are not kept
+    m = VelocityMap(vals, -77, 45)
+    np.testing.assert_array_equal(m.values, vals)
+    assert (m.x, m.y, m.w, m.h) == (-77, 45, 170, 150) and m.peak == int(np.abs(vals).max())
+    assert m == VelocityMap(m.values.copy(), -77, 45) and m != VelocityMap(vals, -76, 45)
+    w = dab_weights(300.5, 120.0, 30.0, 0.5, 270, 90, 62, 62)
+    p = m.painted(270, 90, w, (512, -256))
+    assert (p.x, p.y, p.w, p.h) == (-77, 45, 270 + 62 + 77, 150)  # grown to hold the dab
+    expect = np.zeros((p.h, p.w, 2), np.float64)
+    expect[:150, :170] = vals
+    sub = expect[90 - 45:152 - 45, 270 + 77:332 + 77]
+    sub += (np.array([512, -256]) - sub) * w[..., None]
+    np.testing.assert_array_equal(p.values, np.rint(expect).astype(np.int32))
+    touched = {(tx, ty) for tx in range(270 // TILE, -(-332 // TILE)) for ty in range(90 // TILE, -(-152 // TILE))}
+    assert all(p.tiles[k] is m.tiles[k] for k in m.tiles if k not in touched)
+    # Sampling the painted map is sampling its dense values.
+    X = rng.integers(-100 * Q, 400 * Q, 500)
+    Y = rng.integers(30 * Q, 210 * Q, 500)
+    a = Flow(map=p).sample(X, Y)
+    b = Flow(map=VelocityMap(np.array(p.values), p.x, p.y)).sample(X, Y)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    # Laid over: the other map's rectangle replaced; erased to still, no tile is left.
+    top = VelocityMap(np.full((10, 20, 2), 7, np.int32), 0, 100)
+    merged = m.merged(top)
+    assert np.all(merged.values[55:65, 77:97] == 7)
+    np.testing.assert_array_equal(merged.values[:55], vals[:55])
+    full = np.ones((m.h, m.w))
+    assert not m.painted(m.x, m.y, full, (0, 0)).tiles
+    with pytest.raises(FlowError, match="at most 256 px"):
+        m.painted(400, 90, w, (1, 1), limit=256)

@@ -18,6 +18,7 @@ from infinitex.engine.material import IMAGE
 
 from .tools import Tool
 from .tools.direction import DirectionTool, draw_field
+from .tools.flow import draw_flow
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD, FeatureTool
 
 
@@ -142,6 +143,8 @@ class CanvasInputMixin:
             a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
             dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
         draw_field(dl, self.doc.direction, self.view, p0, w, h, self.tools.of(DirectionTool).axis)
+        if self.doc.motion is not None:
+            draw_flow(dl, self.doc.motion.flow, self.view, p0, w, h)
         dl.pop_clip_rect()
 
     # -- small helpers for panels -----------------------------------------

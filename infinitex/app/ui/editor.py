@@ -31,6 +31,7 @@ from infinitex.export.jobs import BackgroundExport, StreamedExport
 from infinitex.export.window import ExportJob
 from infinitex.project import Autosave, Display, History, View
 
+from ..player import Playback
 from ..render.canvas import Canvas
 from ..render.overlays import FieldOverlay, LabelOverlay
 from ..session import Frame, Session, frame_for
@@ -102,6 +103,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self._close_requested = False
         self._init_canvas_refine()
         self._init_model_mode()
+        self.playback = Playback()  # texture in motion: the playhead and its player process
         self.panels = panels.Panels(self)
         self.tools = make_tools(self)
         self.tool = self.tools[0]
@@ -232,6 +234,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
                 pass  # no window: nothing to keep
         self._keep_unsaved_work()
         self._stop_exports()
+        self.playback.close()
+        self.panels.motion_layer.release()
         if self.session is not None:
             self.session.release()
         if self.canvas is not None:
@@ -359,6 +363,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self.screen_fbo.use()
         imgui.set_cursor_screen_pos(p0)
         imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
+        self.panels.motion_tick(p0, w, h)  # a flowing frame over the still canvas
         self._canvas_overlays(p0, w, h, hovered)
 
     def _update_title(self) -> None:
@@ -386,7 +391,9 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         # the cores more than a full frame rate: a few frames a second show progress.
         background = (self.exporting_apart()
                       or (self.export_settings.estimate is not None and not self.export_settings.estimate.poll()))
-        self.waits.frame_ended(busy=busy, analyzing=analyzing, working=working, background=background)
+        playing = self.doc.motion.fps if self.playback.playing and self.doc is not None and self.doc.motion else 0.0
+        self.waits.frame_ended(busy=busy, analyzing=analyzing, working=working, background=background,
+                               playing=playing)
         if self.quit_requested:
             self.params.app_shall_exit = True
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)

@@ -234,6 +234,7 @@ class FilesMixin:
         self.history = History(doc)
         for tool in self.tools:  # what a tool held of the last document (a lattice message...) goes
             tool.new_document()
+        self.playback.stop()
         self.autosave.clear()  # a new document: the autosave of the one it replaces goes
         if kind == "project":
             self.viewer.show(proj.view, proj.display)

@@ -89,11 +89,16 @@ class InputWait:
     def frame_began(self) -> None:
         self.last_frame_t = time.monotonic()
 
-    def frame_ended(self, *, busy: bool, analyzing: bool, working: bool, background: bool) -> None:
+    def frame_ended(self, *, busy: bool, analyzing: bool, working: bool, background: bool,
+                    playing: float = 0.0) -> None:
         """What runs now: ``busy`` (something to refine or a job), ``analyzing``
         (the analysis thread), ``working`` (a job sliced into frames: frames stay
-        short), ``background`` (worker processes export: a few frames a second)."""
+        short), ``background`` (worker processes export: a few frames a second),
+        ``playing`` (an animation plays at this many frames a second: the editor
+        wakes twice as often, and sleeps between, while its player composes)."""
         self.fps = BACKGROUND_FPS if background else IDLE_FPS
+        if playing:
+            self.fps = max(self.fps, min(60.0, 2.0 * playing))
         if analyzing and not busy:
             # Only the analysis thread works: a few frames a second show its
             # progress and leave it the cores (full frames would starve it).

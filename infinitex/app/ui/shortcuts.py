@@ -19,6 +19,7 @@ SHORTCUTS = [
     ("H", "Show or hide what is painted (randomness, labels, directions)"),
     ("T", "Tile mode: the periodic texture of the export tile size"),
     ("M", "Show the next map of a material"),
+    ("Space", "Play or pause the texture flowing (Motion panel)"), (",  /  .", "A frame back / on"),
     ("[  /  ]", "Brush smaller / larger (painting)"), ("Alt+click", "Pick the painted value (painting)"),
     ("F1  or  ?", "This list"),
 ]
@@ -84,6 +85,13 @@ class ShortcutsMixin:
             roles = self.session.material.roles  # the next map of a material
             cur = self.session.shown_map(self.display.map)
             self.viewer.set_display(map=roles[(roles.index(cur) + 1) % len(roles)])
+        if keys.plain(K.space):
+            from .panels.motion import toggle
+            toggle(self)
+        if self.doc is not None and self.doc.motion is not None:
+            for key, d in ((K.comma, -1), (K.period, 1)):
+                if keys.plain(key):
+                    self.playback.step(d, self.doc.motion.frames)
         self.tool.keys()
 
     def _zoom_keys(self) -> None:

@@ -21,6 +21,7 @@ unless the map is DirectX-style.
 """
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -43,30 +44,40 @@ class FlowError(ValueError):
     """A flow that cannot be made: one sentence for the user."""
 
 
-@dataclass(frozen=True, eq=False)
+TILE = 64                 # a velocity map's tiles (canvas pixels a side), shared between its edits
+_DERIVED: OrderedDict = OrderedDict()  # (map key, what) -> dense arrays of the maps lately used
+
+
 class VelocityMap:
-    """Velocities (H, W, 2) int32 in 1/256 px per frame; texel (0, 0) is the
-    canvas pixel (x, y)."""
+    """Velocities in 1/256 px per frame over the canvas rectangle of ``w`` x
+    ``h`` pixels at (``x``, ``y``), texel (0, 0) at that pixel; zero outside it.
 
-    values: np.ndarray
-    x: int = 0
-    y: int = 0
+    Held as TILE x TILE tiles on the canvas' grid (int16 pairs; a tile that is
+    all still is not kept), so a brush dab makes a map that shares every tile
+    it did not touch with the one before (an undo step costs what it changed).
+    ``values`` is the dense (h, w, 2) int32 array, made when asked for."""
 
-    def __post_init__(self):
-        v = np.asarray(self.values)
-        if v.ndim != 3 or v.shape[2] != 2 or not v.shape[0] or not v.shape[1]:
-            raise FlowError("A velocity map is an (H, W, 2) array of velocities.")
-        if max(v.shape[:2]) > MAX_MAP_SIDE:
-            raise FlowError(f"A velocity map is at most {MAX_MAP_SIDE} px a side, not {v.shape[1]}x{v.shape[0]}.")
-        if not np.issubdtype(v.dtype, np.integer) or np.abs(v.astype(np.int64)).max() > MAX_SPEED * Q:
-            raise FlowError(f"A velocity map holds integers in 1/256 px per frame, at most {MAX_SPEED} px a side.")
-        object.__setattr__(self, "values", np.ascontiguousarray(v, np.int32))
-        object.__setattr__(self, "x", int(self.x))
-        object.__setattr__(self, "y", int(self.y))
+    def __init__(self, values: np.ndarray | None = None, x: int = 0, y: int = 0, *,
+                 tiles: dict | None = None, size: tuple[int, int] | None = None):
+        if tiles is None:
+            v = np.asarray(values)
+            if v.ndim != 3 or v.shape[2] != 2 or not v.shape[0] or not v.shape[1]:
+                raise FlowError("A velocity map is an (H, W, 2) array of velocities.")
+            if max(v.shape[:2]) > MAX_MAP_SIDE:
+                raise FlowError(f"A velocity map is at most {MAX_MAP_SIDE} px a side, not {v.shape[1]}x{v.shape[0]}.")
+            if not np.issubdtype(v.dtype, np.integer) or np.abs(v.astype(np.int64)).max() > MAX_SPEED * Q:
+                raise FlowError(f"A velocity map holds integers in 1/256 px per frame, at most {MAX_SPEED} px a side.")
+            w, h = int(v.shape[1]), int(v.shape[0])
+        else:
+            w, h = (int(size[0]), int(size[1]))
+            if not (0 < w <= MAX_MAP_SIDE and 0 < h <= MAX_MAP_SIDE):
+                raise FlowError(f"A velocity map is at most {MAX_MAP_SIDE} px a side, not {w}x{h}.")
+        self.x, self.y, self.w, self.h = int(x), int(y), w, h
         limit = 2 ** 31 - 2 ** 24  # where canvas positions end (engine/pyramid.py COORD_LIMIT)
-        if not (-limit <= self.x and self.x + v.shape[1] <= limit and -limit <= self.y and self.y + v.shape[0] <= limit):
+        if not (-limit <= self.x and self.x + w <= limit and -limit <= self.y and self.y + h <= limit):
             raise FlowError(f"A velocity map lies within +-{limit} px of the canvas origin; "
                             f"({self.x}, {self.y}) is outside.")
+        self.tiles = _split(v, self.x, self.y) if tiles is None else tiles
 
     @classmethod
     def from_unit(cls, rgb: np.ndarray, speed: float, y_up: bool = True, x: int = 0, y: int = 0) -> VelocityMap:
@@ -79,32 +90,63 @@ class VelocityMap:
             v[..., 1] = -v[..., 1]  # canvas y runs down
         return cls(np.rint(np.clip(v, -1.0, 1.0) * speed * Q).astype(np.int32), x, y)
 
+    # -- what the engine reads ----------------------------------------------------
+
+    @property
+    def values(self) -> np.ndarray:
+        """(h, w, 2) int32, 1/256 px per frame (read-only)."""
+        return self._derived("values", self._dense)
+
+    @property
+    def flat(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each component in a border of 2 zero texels, flattened (int32; Flow.sample's lookups)."""
+        def make():
+            out = []
+            for c in (0, 1):
+                a = np.zeros((self.h + 4, self.w + 4), np.int32)
+                a[2:self.h + 2, 2:self.w + 2] = self.values[..., c]
+                out.append(a.ravel())
+            return out[0], out[1]
+        return self._derived("flat", make)
+
+    @property
+    def moving(self) -> np.ndarray:
+        """(h, w) bool: texels with a velocity."""
+        return self._derived("moving", lambda: np.any(self.values != 0, axis=2))
+
+    def _derived(self, what: str, make):
+        k = (self.key, what)
+        if k in _DERIVED:
+            _DERIVED.move_to_end(k)
+            return _DERIVED[k]
+        value = make()
+        _DERIVED[k] = value
+        while len(_DERIVED) > 9:  # the maps of the last few edits (an undo, the player's)
+            _DERIVED.popitem(last=False)
+        return value
+
+    def _dense(self) -> np.ndarray:
+        out = np.zeros((self.h, self.w, 2), np.int32)
+        for (tx, ty), t in self.tiles.items():
+            x0, y0 = tx * TILE - self.x, ty * TILE - self.y
+            a0, b0 = max(0, -x0), max(0, -y0)
+            a1, b1 = min(TILE, self.w - x0), min(TILE, self.h - y0)
+            out[y0 + b0:y0 + b1, x0 + a0:x0 + a1] = t[b0:b1, a0:a1]
+        out.flags.writeable = False
+        return out
+
     @cached_property
     def peak(self) -> int:
         """The largest |component| (1/256 px per frame)."""
-        return int(np.abs(self.values).max())
-
-    @cached_property
-    def flat(self) -> tuple[np.ndarray, np.ndarray]:
-        """Each component in a border of 2 zero texels, flattened (int32; Flow.sample's lookups)."""
-        h, w = self.values.shape[:2]
-        out = []
-        for c in (0, 1):
-            a = np.zeros((h + 4, w + 4), np.int32)
-            a[2:h + 2, 2:w + 2] = self.values[..., c]
-            out.append(a.ravel())
-        return out[0], out[1]
-
-    @cached_property
-    def moving(self) -> np.ndarray:
-        """(H, W) bool: texels with a velocity."""
-        return np.any(self.values != 0, axis=2)
+        return max((int(np.abs(t).max()) for t in self.tiles.values()), default=0)
 
     @cached_property
     def key(self) -> bytes:
         import hashlib
-        h = hashlib.sha256(self.values.tobytes())
-        h.update(np.array([*self.values.shape, self.x, self.y], np.int64).tobytes())
+        h = hashlib.sha256(np.array([self.w, self.h, self.x, self.y], np.int64).tobytes())
+        for k in sorted(self.tiles):
+            h.update(np.array(k, np.int64).tobytes())
+            h.update(self.tiles[k].tobytes())
         return h.digest()
 
     def __eq__(self, other):
@@ -112,6 +154,80 @@ class VelocityMap:
 
     def __hash__(self):
         return hash(self.key)
+
+    def __repr__(self) -> str:
+        return f"VelocityMap({self.w}x{self.h} at ({self.x}, {self.y}), {len(self.tiles)} tiles)"
+
+    # -- edits (the editor's Flow tool) -------------------------------------------
+
+    def _grown(self, x0: int, y0: int, x1: int, y1: int, limit: int) -> tuple[int, int, int, int]:
+        nx0, ny0 = min(self.x, x0), min(self.y, y0)
+        nx1, ny1 = max(self.x + self.w, x1), max(self.y + self.h, y1)
+        if max(nx1 - nx0, ny1 - ny0) > limit:
+            raise FlowError(f"A painted flow covers at most {limit} px a side; erase or clear some first.")
+        return nx0, ny0, nx1, ny1
+
+    def painted(self, x0: int, y0: int, weights: np.ndarray, target: tuple[int, int],
+                limit: int = MAX_MAP_SIDE) -> VelocityMap:
+        """The map after a dab: each texel of the rectangle at (x0, y0) the size of
+        ``weights`` (coverage in [0, 1]) moved toward ``target`` (1/256 px per
+        frame) by its weight; the map grows to hold the dab (at most ``limit``
+        px a side)."""
+        hh, ww = weights.shape
+        nx0, ny0, nx1, ny1 = self._grown(x0, y0, x0 + ww, y0 + hh, limit)
+        tiles = dict(self.tiles)
+        tgt = np.array(target, np.float64)
+        for ty in range(y0 // TILE, -(-(y0 + hh) // TILE)):
+            for tx in range(x0 // TILE, -(-(x0 + ww) // TILE)):
+                a0, b0 = max(x0, tx * TILE), max(y0, ty * TILE)
+                a1, b1 = min(x0 + ww, (tx + 1) * TILE), min(y0 + hh, (ty + 1) * TILE)
+                wt = weights[b0 - y0:b1 - y0, a0 - x0:a1 - x0, None]
+                if not wt.any():
+                    continue
+                old = tiles.get((tx, ty))
+                t = np.zeros((TILE, TILE, 2), np.int16) if old is None else old.copy()
+                sub = t[b0 - ty * TILE:b1 - ty * TILE, a0 - tx * TILE:a1 - tx * TILE]
+                sub[...] = np.rint(sub + (tgt - sub) * wt).astype(np.int16)
+                _keep(tiles, (tx, ty), t)
+        return VelocityMap(tiles=tiles, size=(nx1 - nx0, ny1 - ny0), x=nx0, y=ny0)
+
+    def merged(self, other: VelocityMap, limit: int = MAX_MAP_SIDE) -> VelocityMap:
+        """This map with ``other`` laid over it (its rectangle replaced by ``other``'s texels)."""
+        nx0, ny0, nx1, ny1 = self._grown(other.x, other.y, other.x + other.w, other.y + other.h, limit)
+        tiles = dict(self.tiles)
+        dense = other.values
+        for ty in range(other.y // TILE, -(-(other.y + other.h) // TILE)):
+            for tx in range(other.x // TILE, -(-(other.x + other.w) // TILE)):
+                a0, b0 = max(other.x, tx * TILE), max(other.y, ty * TILE)
+                a1, b1 = min(other.x + other.w, (tx + 1) * TILE), min(other.y + other.h, (ty + 1) * TILE)
+                old = tiles.get((tx, ty))
+                t = np.zeros((TILE, TILE, 2), np.int16) if old is None else old.copy()
+                t[b0 - ty * TILE:b1 - ty * TILE, a0 - tx * TILE:a1 - tx * TILE] = \
+                    dense[b0 - other.y:b1 - other.y, a0 - other.x:a1 - other.x]
+                _keep(tiles, (tx, ty), t)
+        return VelocityMap(tiles=tiles, size=(nx1 - nx0, ny1 - ny0), x=nx0, y=ny0)
+
+
+def _keep(tiles: dict, k: tuple[int, int], t: np.ndarray) -> None:
+    if t.any():
+        t.flags.writeable = False
+        tiles[k] = t
+    else:
+        tiles.pop(k, None)
+
+
+def _split(v: np.ndarray, x: int, y: int) -> dict:
+    """A dense map's tiles on the canvas grid (all-still tiles left out)."""
+    h, w = v.shape[:2]
+    tiles: dict = {}
+    for ty in range(y // TILE, -(-(y + h) // TILE)):
+        for tx in range(x // TILE, -(-(x + w) // TILE)):
+            a0, b0 = max(x, tx * TILE), max(y, ty * TILE)
+            a1, b1 = min(x + w, (tx + 1) * TILE), min(y + h, (ty + 1) * TILE)
+            t = np.zeros((TILE, TILE, 2), np.int16)
+            t[b0 - ty * TILE:b1 - ty * TILE, a0 - tx * TILE:a1 - tx * TILE] = v[b0 - y:b1 - y, a0 - x:a1 - x]
+            _keep(tiles, (tx, ty), t)
+    return tiles
 
 
 @dataclass(frozen=True)
@@ -202,7 +318,7 @@ class Flow:
         if self.uniform:
             return vx, vy
         m = self.map
-        h, w = m.values.shape[:2]
+        h, w = m.h, m.w
         X = np.asarray(X, np.int64)
         Y = np.asarray(Y, np.int64)
         if period:
@@ -234,7 +350,7 @@ class Flow:
         if self.uniform:
             return np.zeros(np.shape(qx), bool)
         m = self.map
-        h, w = m.values.shape[:2]
+        h, w = m.h, m.w
         if period:
             qx, qy = qx % period, qy % period
         tx, ty = np.asarray(qx, np.int64) - m.x, np.asarray(qy, np.int64) - m.y

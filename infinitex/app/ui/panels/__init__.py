@@ -2,7 +2,7 @@
 
 One module per panel: menu (the menu bar, Open dialogs, Open Recent), toolbar,
 exemplar, material, randomness, synthesis
-(the Advanced section), display, export (and the File menu's view and tile
+(the Advanced section), display, motion (texture in motion: play, scrub, export), export (and the File menu's view and tile
 exports), tileset (the tile-set dialog), status (the status bar, canvas overlay and export progress window);
 widgets holds what they share (``tip``, ``LAST_TIP``, ``size_combo``). Each
 panel is a function taking the ``Panels`` object below: the editor's one handle
@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.params import DEFAULT_JITTER
 
-from . import display, exemplar, export, material, menu, model, randomness, status, synthesis, tileset, toolbar
+from . import display, exemplar, export, material, menu, model, motion, randomness, status, synthesis, tileset, toolbar
 from .display import MAGNIFY_LABELS, MODE_LABELS, MODE_TIPS
 from .exemplar import FIT_LABELS, PANEL_IMAGE, TOROIDAL_LABELS
 from .export import DEPTH_CHOICES, EXPORT_FORMATS, MAGNIFY_CHOICES, TILE_SIZES
@@ -37,6 +37,9 @@ class Panels:
         self._goto_open = False        # View > Go to coordinates was chosen: open its popup
         self._tile_prompt = 0          # File > Export toroidal tile: 1 = open its window, 2 = open
         self.tileset = tileset.TileSetDialog()  # File > Export tile set: its settings, set and preview
+        self.motion_size = (512, 512)  # the Motion panel's exported frame size
+        self.auto_period = True        # a Flow stroke sets the renewal period its field suggests
+        self.motion_layer = motion.MotionLayer()  # the flowing frame drawn over the canvas
 
     # The panels: each module's function takes this object first, so it serves
     # as a method as it is (``ed.panels.export_view()`` is export.export_view(panels)).
@@ -47,6 +50,7 @@ class Panels:
     material_panel = material.draw
     model_panel = model.draw
     display_panel = display.draw
+    motion_panel, motion_tick = motion.draw, motion.tick_and_draw
     export_panel, rectangle_export = export.draw, export.rectangle
     export_view, export_tile, tile_prompt, tile_prompt_window = (export.export_view, export.export_tile,
                                                                  export.tile_prompt, export.tile_prompt_window)
@@ -72,7 +76,8 @@ class Panels:
                 self.model_panel()
         for name, draw in (("Randomness", self.randomness_panel), ("Exemplar", self.exemplar_panel),
                            ("Material", self.material_panel),
-                           ("Display", self.display_panel), ("Export", self.export_panel),
+                           ("Display", self.display_panel), ("Motion", self.motion_panel),
+                           ("Export", self.export_panel),
                            ("Advanced", self.synthesis_panel)):
             imgui.set_next_item_open(name in ed.panels_open, imgui.Cond_.once)
             opened = imgui.collapsing_header(name)

@@ -157,9 +157,10 @@ def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tu
 def make_tools(ed) -> Tools:
     from .direction import DirectionTool
     from .feature import FeatureTool
+    from .flow import FlowTool
     from .labels import LabelTool
     from .lattice import LatticeTool
     from .navigate import NavigateTool
     from .paint import PaintCanvasTool, PaintExemplarTool
     return Tools([NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed), LabelTool(ed),
-                  DirectionTool(ed), LatticeTool(ed)])
+                  DirectionTool(ed), FlowTool(ed), LatticeTool(ed)])

@@ -1,0 +1,315 @@
+"""Texture in motion, live: the frames the canvas shows while a flow plays,
+rendered in a process of its own (its own headless GL context, the analysis
+from the disk cache), so the editor's frames never wait for one: pans, strokes
+and menus go on while a frame is composed, and the canvas shows each frame as
+it arrives, over the still texture, at its place on the canvas.
+
+The frames are engine/advect.py's ``FlowFrames`` (composed in GL), exactly the
+frames an export writes: the same document gives the same frame bit for bit
+here, in ``infinitex animate`` and through the API.
+
+:class:`FlowPlayer` talks to the process (a pickled document, then requests of
+a frame over a window; each answer is the frame's RGB pixels);
+:class:`Playback` is the clock: which frame is due, played in order at the
+document's frame rate (or slower, as fast as frames come), paused, stepped or
+scrubbed. Neither imports imgui; the Motion panel and the canvas drive them.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from infinitex.engine.rect import Rect
+from infinitex.project import Document
+
+MAX_PLAY_PIXELS = 1 << 20  # canvas pixels a played frame covers (the middle of a larger view)
+
+
+@dataclass
+class PlayedFrame:
+    """A frame as it came back: frame ``t`` of the document sent as ``doc_id`` over ``rect``."""
+
+    t: int
+    rect: Rect
+    rgb: np.ndarray       # (h, w, 3) uint8
+    doc_id: int
+    seconds: float        # what composing it took
+
+
+def play_rect(view_rect: Rect) -> Rect:
+    """The canvas rectangle a frame covers for a view: all of it, or its middle
+    when it is larger than MAX_PLAY_PIXELS (zoomed out)."""
+    w, h = view_rect.w, view_rect.h
+    if w * h <= MAX_PLAY_PIXELS:
+        return view_rect
+    s = (MAX_PLAY_PIXELS / (w * h)) ** 0.5
+    nw, nh = max(16, int(w * s)), max(16, int(h * s))
+    x0, y0 = view_rect.x0 + (w - nw) // 2, view_rect.y0 + (h - nh) // 2
+    return Rect(x0, y0, x0 + nw, y0 + nh)
+
+
+def _still_part(doc: Document) -> Document:
+    return replace(doc, motion=None)
+
+
+def _player_main(conn) -> None:
+    """The player process: documents and requests in, frames out, until told to stop."""
+    try:
+        os.nice(10)  # the editor's own frames first
+    except (AttributeError, OSError):
+        pass
+    from infinitex.engine.advect import FlowFrames, SynthSource
+    from infinitex.engine.gpu import Gpu
+    from infinitex.engine.imagefile import to_u8
+    from infinitex.export.loaded import LoadedDocument
+    gpu = Gpu()
+    loaded = LoadedDocument(gpu)
+    doc = doc_id = None
+    period = 0
+    frames = source = None
+    made_for = None  # (doc, period) the frames were made for
+    try:
+        while True:
+            want = None
+            msg = conn.recv()
+            while True:
+                kind = msg[0]
+                if kind == "quit":
+                    return
+                if kind == "doc":
+                    _, doc_id, doc, period = msg
+                elif kind == "want":
+                    want = msg
+                if not conn.poll():
+                    break
+                msg = conn.recv()  # only the latest request counts
+            if want is None or doc is None:
+                continue
+            _, want_doc, t, rect, role = want
+            t0 = time.perf_counter()
+            try:
+                if made_for is None or made_for[0] is not doc or made_for[1] != period:
+                    if frames is not None:
+                        frames.release()
+                        source.release()
+                        frames = source = None
+                    still = _still_part(doc)
+                    loaded.period = period
+                    if loaded.key != doc.analysis_key():
+                        loaded.load_now(still)
+                    elif loaded.synced_doc is None or _still_part(loaded.synced_doc) != still:
+                        loaded.install(still, loaded.exemplar, loaded.analysis, loaded.material)
+                    source = SynthSource(loaded.synth, period)
+                    frames = FlowFrames(source, doc.motion.flow, loaded.params.seed)
+                    made_for = (doc, period)
+                coords = frames.frame(t, rect)
+                role = loaded.shown_map(role)
+                rgb = to_u8(loaded.material.lookup(role, coords))
+                if rgb.ndim == 2:
+                    rgb = rgb[..., None]
+                rgb = np.ascontiguousarray(np.broadcast_to(rgb[..., :3], rgb.shape[:2] + (3,))
+                                           if rgb.shape[2] < 3 else rgb[..., :3])
+                conn.send(("frame", doc_id, t, (rect.x0, rect.y0, rect.x1, rect.y1), rgb,
+                           time.perf_counter() - t0))
+            except Exception as exc:  # noqa: BLE001 - one line for the editor
+                made_for = None
+                conn.send(("error", doc_id, (str(exc).strip().splitlines() or [type(exc).__name__])[0]))
+    except (EOFError, OSError, KeyboardInterrupt):
+        return
+    finally:
+        if frames is not None:
+            frames.release()
+            source.release()
+        loaded.release()
+        gpu.release()
+
+
+class FlowPlayer:
+    """The player process, started on the first request. ``request`` never
+    blocks; ``poll`` returns the frames and errors that came back."""
+
+    def __init__(self):
+        self.proc = None
+        self.conn = None
+        self._sent: tuple | None = None   # (doc, period) last sent
+        self.doc_id = 0
+        self.asked: tuple | None = None   # (doc_id, t, rect, role) of the request in flight
+        self.error: str | None = None
+
+    @property
+    def busy(self) -> bool:
+        """A request is in flight."""
+        return self.asked is not None
+
+    def request(self, doc: Document, period: int, t: int, rect: Rect, role: str) -> None:
+        if self.proc is None or not self.proc.is_alive():
+            self._start()
+        if self._sent is None or not (self._sent[0] is doc or self._sent[0] == doc) or self._sent[1] != period:
+            self.doc_id += 1
+            self.conn.send(("doc", self.doc_id, doc, period))
+            self._sent = (doc, period)
+        self.asked = (self.doc_id, t, rect, role)
+        self.conn.send(("want", self.doc_id, t, rect, role))
+
+    def poll(self) -> PlayedFrame | None:
+        """The newest frame that came back since the last poll (errors go to ``error``)."""
+        got = None
+        if self.conn is None:
+            return None
+        try:
+            while self.conn.poll():
+                msg = self.conn.recv()
+                self.asked = None
+                if msg[0] == "frame":
+                    _, doc_id, t, r, rgb, seconds = msg
+                    got = PlayedFrame(t, Rect(*r), rgb, doc_id, seconds)
+                    self.error = None
+                else:
+                    self.error = msg[2]
+        except (EOFError, OSError):
+            self._died()
+        if self.proc is not None and not self.proc.is_alive() and self.asked is not None:
+            self._died()
+        return got
+
+    def _died(self) -> None:
+        self.error = "The motion preview stopped; press Play to start it again."
+        self.asked = None
+        self.close()
+
+    def _start(self) -> None:
+        ctx = multiprocessing.get_context("spawn")  # a fresh interpreter: no inherited GL state
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_player_main, args=(child,), daemon=True, name="infinitex-player")
+        self.proc.start()
+        child.close()
+        self._sent = None
+        self.asked = None
+
+    def close(self) -> None:
+        if self.conn is not None:
+            try:
+                self.conn.send(("quit",))
+            except (OSError, ValueError):
+                pass
+        if self.proc is not None:
+            self.proc.join(1.0)
+            if self.proc.is_alive():
+                self.proc.terminate()
+                self.proc.join(1.0)
+        if self.conn is not None:
+            self.conn.close()
+        self.proc = self.conn = None
+        self._sent = None
+        self.asked = None
+
+
+class Playback:
+    """The playhead: frame ``t`` of the document's animation, shown over the
+    canvas while ``active``; playing, it moves on a frame at the document's
+    frame rate, or as soon as each frame comes when they come slower (never
+    skipping one, so what plays is what an export writes). A loop (or the
+    animation's frame count) wraps back to frame 0."""
+
+    def __init__(self, player: FlowPlayer | None = None):
+        self.player = player or FlowPlayer()
+        self.active = False
+        self.playing = False
+        self.t = 0
+        self.shown: PlayedFrame | None = None   # the frame on the canvas
+        self.ready: PlayedFrame | None = None   # the next frame, come early: shown when due
+        self._shown_at = 0.0
+        self._rates: list[float] = []           # when frames were shown (the rate measured)
+        self._asked: tuple | None = None        # the request in flight
+        self._failed: tuple | None = None       # the request that failed (not made again as it is)
+
+    # -- controls ---------------------------------------------------------------
+    def play(self) -> None:
+        self.active = self.playing = True
+        self._rates = []
+
+    def pause(self) -> None:
+        self.playing = False
+        self.ready = None
+
+    def toggle(self) -> None:
+        self.pause() if self.playing else self.play()
+
+    def stop(self) -> None:
+        """Back to the still texture (frame 0 next time)."""
+        self.active = self.playing = False
+        self.t = 0
+        self.shown = self.ready = None
+
+    def seek(self, t: int, count: int) -> None:
+        """Show frame ``t`` (wrapped into the animation's ``count`` frames), paused."""
+        self.active = True
+        self.playing = False
+        self.ready = None
+        self.t = int(t) % max(1, count)
+
+    def step(self, d: int, count: int) -> None:
+        self.seek(self.t + d, count)
+
+    @property
+    def rate(self) -> float | None:
+        """Frames per second shown lately while playing."""
+        r = self._rates
+        return (len(r) - 1) / (r[-1] - r[0]) if len(r) >= 3 and r[-1] > r[0] else None
+
+    # -- each editor frame ---------------------------------------------------------
+    def tick(self, doc: Document | None, period: int, rect: Rect, role: str, now: float | None = None) -> bool:
+        """Ask for and take frames; True when the canvas has a new frame to show."""
+        now = time.monotonic() if now is None else now
+        motion = getattr(doc, "motion", None)
+        if not self.active or motion is None:
+            if self.active and motion is None:
+                self.stop()
+            return False
+        count = motion.frames
+        self.t %= count
+        player = self.player
+        got = player.poll()
+        changed = False
+        if got is not None:
+            if self.playing and self.shown is not None and got.t != self.t:
+                self.ready = got   # the next frame: shown when due
+            else:
+                self.shown, changed = got, True
+                self._shown_at = now
+        if self.playing and self.ready is not None and now - self._shown_at >= 1.0 / motion.fps:
+            self.shown, self.ready, changed = self.ready, None, True
+            self.t = self.shown.t
+            self._shown_at = now
+            self._rates = (self._rates + [now])[-24:]
+        if player.error is not None and got is None and self._asked is not None:
+            self._failed, self._asked = self._asked, None  # not asked again until something changes
+        if player.busy:
+            return changed
+        # What to ask for next: the frame shown, over this view, of this document; then, playing, the next.
+        sent = player._sent
+        same = (self.shown is not None and self.shown.rect == rect and self.shown.doc_id == player.doc_id
+                and sent is not None and (sent[0] is doc or sent[0] == doc) and sent[1] == period)
+        want = None
+        if not same or self.shown.t != self.t:
+            want = self.t
+        elif self.playing and self.ready is None:
+            want = (self.t + 1) % count
+        if want is not None:
+            req = (doc, period, want, rect, role)
+            if self._failed is None or not _same_request(self._failed, req):
+                self._failed = None
+                self._asked = req
+                player.request(*req)
+        return changed
+
+    def close(self) -> None:
+        self.player.close()
+
+
+def _same_request(a: tuple, b: tuple) -> bool:
+    return (a[0] is b[0] or a[0] == b[0]) and a[1:] == b[1:]
