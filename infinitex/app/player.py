@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import queue
+import threading
 import time
 from dataclasses import dataclass, replace
 
@@ -27,6 +29,7 @@ from infinitex.engine.rect import Rect
 from infinitex.project import Document
 
 MAX_PLAY_PIXELS = 1 << 20  # canvas pixels a played frame covers (the middle of a larger view)
+SNAP = 64                  # a played frame's window is on this grid of canvas pixels
 
 
 @dataclass
@@ -38,18 +41,22 @@ class PlayedFrame:
     rgb: np.ndarray       # (h, w, 3) uint8
     doc_id: int
     seconds: float        # what composing it took
+    exact: bool = True    # its cuts mended (a draft while playing is not)
 
 
 def play_rect(view_rect: Rect) -> Rect:
     """The canvas rectangle a frame covers for a view: all of it, or its middle
-    when it is larger than MAX_PLAY_PIXELS (zoomed out)."""
+    when it is larger than MAX_PLAY_PIXELS (zoomed out), widened to the SNAP
+    grid, so that a small pan keeps the window (its trajectories and static
+    texture) and the frame shown simply moves with the canvas."""
     w, h = view_rect.w, view_rect.h
-    if w * h <= MAX_PLAY_PIXELS:
-        return view_rect
-    s = (MAX_PLAY_PIXELS / (w * h)) ** 0.5
-    nw, nh = max(16, int(w * s)), max(16, int(h * s))
-    x0, y0 = view_rect.x0 + (w - nw) // 2, view_rect.y0 + (h - nh) // 2
-    return Rect(x0, y0, x0 + nw, y0 + nh)
+    r = view_rect
+    if w * h > MAX_PLAY_PIXELS:
+        s = (MAX_PLAY_PIXELS / (w * h)) ** 0.5
+        nw, nh = int(w * s) - 2 * SNAP, int(h * s) - 2 * SNAP  # (room for the grid)
+        x0, y0 = view_rect.x0 + (w - nw) // 2, view_rect.y0 + (h - nh) // 2
+        r = Rect(x0, y0, x0 + max(16, nw), y0 + max(16, nh))
+    return Rect(r.x0 // SNAP * SNAP, r.y0 // SNAP * SNAP, -(-r.x1 // SNAP) * SNAP, -(-r.y1 // SNAP) * SNAP)
 
 
 def _still_part(doc: Document) -> Document:
@@ -89,7 +96,7 @@ def _player_main(conn) -> None:
                 msg = conn.recv()  # only the latest request counts
             if want is None or doc is None:
                 continue
-            _, want_doc, t, rect, role = want
+            _, want_doc, t, rect, role, correct = want
             t0 = time.perf_counter()
             try:
                 if made_for is None or made_for[0] is not doc or made_for[1] != period:
@@ -106,6 +113,7 @@ def _player_main(conn) -> None:
                     source = SynthSource(loaded.synth, period)
                     frames = FlowFrames(source, doc.motion.flow, loaded.params.seed)
                     made_for = (doc, period)
+                frames.correct = correct
                 coords = frames.frame(t, rect)
                 role = loaded.shown_map(role)
                 rgb = to_u8(loaded.material.lookup(role, coords))
@@ -114,7 +122,7 @@ def _player_main(conn) -> None:
                 rgb = np.ascontiguousarray(np.broadcast_to(rgb[..., :3], rgb.shape[:2] + (3,))
                                            if rgb.shape[2] < 3 else rgb[..., :3])
                 conn.send(("frame", doc_id, t, (rect.x0, rect.y0, rect.x1, rect.y1), rgb,
-                           time.perf_counter() - t0))
+                           time.perf_counter() - t0, correct))
             except Exception as exc:  # noqa: BLE001 - one line for the editor
                 made_for = None
                 conn.send(("error", doc_id, (str(exc).strip().splitlines() or [type(exc).__name__])[0]))
@@ -128,6 +136,17 @@ def _player_main(conn) -> None:
         gpu.release()
 
 
+def _sender(conn, out: queue.Queue) -> None:
+    while True:
+        msg = out.get()
+        if msg is None:
+            return
+        try:
+            conn.send(msg)
+        except (OSError, ValueError):
+            return
+
+
 class FlowPlayer:
     """The player process, started on the first request. ``request`` never
     blocks; ``poll`` returns the frames and errors that came back."""
@@ -135,6 +154,7 @@ class FlowPlayer:
     def __init__(self):
         self.proc = None
         self.conn = None
+        self._out: queue.Queue | None = None  # messages to the process, sent by a thread of their own
         self._sent: tuple | None = None   # (doc, period) last sent
         self.doc_id = 0
         self.asked: tuple | None = None   # (doc_id, t, rect, role) of the request in flight
@@ -145,15 +165,16 @@ class FlowPlayer:
         """A request is in flight."""
         return self.asked is not None
 
-    def request(self, doc: Document, period: int, t: int, rect: Rect, role: str) -> None:
+    def request(self, doc: Document, period: int, t: int, rect: Rect, role: str, correct: bool = True) -> None:
+        """Ask for frame ``t`` over ``rect`` (``correct`` False: a draft, its cuts not mended)."""
         if self.proc is None or not self.proc.is_alive():
             self._start()
         if self._sent is None or not (self._sent[0] is doc or self._sent[0] == doc) or self._sent[1] != period:
             self.doc_id += 1
-            self.conn.send(("doc", self.doc_id, doc, period))
+            self._out.put(("doc", self.doc_id, doc, period))
             self._sent = (doc, period)
         self.asked = (self.doc_id, t, rect, role)
-        self.conn.send(("want", self.doc_id, t, rect, role))
+        self._out.put(("want", self.doc_id, t, rect, role, correct))
 
     def poll(self) -> PlayedFrame | None:
         """The newest frame that came back since the last poll (errors go to ``error``)."""
@@ -165,8 +186,8 @@ class FlowPlayer:
                 msg = self.conn.recv()
                 self.asked = None
                 if msg[0] == "frame":
-                    _, doc_id, t, r, rgb, seconds = msg
-                    got = PlayedFrame(t, Rect(*r), rgb, doc_id, seconds)
+                    _, doc_id, t, r, rgb, seconds, exact = msg
+                    got = PlayedFrame(t, Rect(*r), rgb, doc_id, seconds, exact)
                     self.error = None
                 else:
                     self.error = msg[2]
@@ -189,15 +210,18 @@ class FlowPlayer:
         child.close()
         self._sent = None
         self.asked = None
+        # A document is megabytes (its exemplar, a painted flow): the pipe takes it while the
+        # process reads, never while the editor's frame waits.
+        self._out = queue.Queue()
+        threading.Thread(target=_sender, args=(self.conn, self._out), daemon=True, name="player-send").start()
 
     def close(self) -> None:
-        if self.conn is not None:
-            try:
-                self.conn.send(("quit",))
-            except (OSError, ValueError):
-                pass
+        if self._out is not None:
+            self._out.put(("quit",))
+            self._out.put(None)
+            self._out = None
         if self.proc is not None:
-            self.proc.join(1.0)
+            self.proc.join(2.0)
             if self.proc.is_alive():
                 self.proc.terminate()
                 self.proc.join(1.0)
@@ -225,6 +249,7 @@ class Playback:
         self._shown_at = 0.0
         self._rates: list[float] = []           # when frames were shown (the rate measured)
         self._asked: tuple | None = None        # the request in flight
+        self.drafts = True                      # playing shows drafts (cuts not mended: twice as fast)
         self._failed: tuple | None = None       # the request that failed (not made again as it is)
 
     # -- controls ---------------------------------------------------------------
@@ -292,15 +317,17 @@ class Playback:
             return changed
         # What to ask for next: the frame shown, over this view, of this document; then, playing, the next.
         sent = player._sent
+        exact = not (self.playing and self.drafts)
         same = (self.shown is not None and self.shown.rect == rect and self.shown.doc_id == player.doc_id
-                and sent is not None and (sent[0] is doc or sent[0] == doc) and sent[1] == period)
+                and sent is not None and (sent[0] is doc or sent[0] == doc) and sent[1] == period
+                and (self.shown.exact or not exact))
         want = None
         if not same or self.shown.t != self.t:
             want = self.t
         elif self.playing and self.ready is None:
             want = (self.t + 1) % count
         if want is not None:
-            req = (doc, period, want, rect, role)
+            req = (doc, period, want, rect, role, exact)
             if self._failed is None or not _same_request(self._failed, req):
                 self._failed = None
                 self._asked = req

@@ -19,10 +19,12 @@ static coordinate found by tracing ``p`` back ``a`` frames along the field
     S_j(p) = T[round(X)] + J (X - round(X))       (the sub-pixel rest as a remainder)
 
 ``V0`` is the uniform velocity: where the field is uniform every chain is the
-same rigid slide of ``T`` and renewal changes nothing. ``R_j``, a pseudo-random
-offset per chain (8 distinct ones in an endless animation, one per chain in a
-loop), applies where the velocity map moves: there a renewed chain brings new
-content instead of rewinding the old (the pulse of flow-map shaders). ``J`` is
+same rigid slide of ``T`` and renewal changes nothing. ``R_j``, an offset per
+chain (8 points on a circle of KEY_RADIUS px, taken in turn: 8 distinct ones,
+consecutive chains 236 px apart), applies where the velocity map moves: there
+a renewed chain brings new content instead of rewinding the old (the pulse of
+flow-map shaders), and one synthesis of the static texture, KEY_RADIUS wider,
+serves every chain of a window (no new synthesis when a chain is born). ``J`` is
 the direction field's Jacobian at ``round(X)`` (identity without one).
 
 **Renewal, not crossfade.** At frame t two chains are alive: the new one
@@ -73,7 +75,8 @@ from .rect import Rect
 
 SALT = 0x2545F491          # keeps the flow's hashes apart from the synthesis'
 ENDLESS_KEYS = 8           # distinct chain offsets R_j of an endless animation
-KEY_SPREAD = 16            # R_j is (hx, hy) * KEY_SPREAD px, hx, hy in [-1024, 1024)
+KEY_RADIUS = 128           # px: R_j is a point of KEY_RING, 8 points on a circle of this radius
+KEY_RING = ((128, 0), (91, 91), (0, 128), (-91, 91), (-128, 0), (-91, -91), (0, -128), (91, -91))
 BLOB = 32                  # px between the points whose Voronoi cells come in together (renewal_turns)
 UNIT_NUDGE = 6             # px a unit's pixels are nudged by before their blob is found
 J_SHIFT = 12               # Jacobians are Q12
@@ -125,7 +128,7 @@ class FlowFrames:
         self._gl = None
         if gl and getattr(source, "synth", None) is not None and not source.synth.controls.directed:
             from .advect_gl import GpuComposer
-            self._gl = GpuComposer(self, source, VOTE, SEAM, BLOB, UNIT_NUDGE)
+            self._gl = GpuComposer(self, source, VOTE, SEAM, BLOB, UNIT_NUDGE, KEY_RADIUS)
 
     def release(self) -> None:
         if self._gl is not None:
@@ -157,11 +160,14 @@ class FlowFrames:
         return (self.seed ^ SALT ^ ((key * 0x9E3779B9) & 0xFFFFFFFF)) & 0xFFFFFFFF
 
     def key_offset(self, key: int) -> tuple[int, int]:
-        """R_j in px (0 for a uniform flow)."""
+        """R_j in px (0 for a uniform flow): a point of KEY_RING, three eighths of a
+        turn from the last chain's (236 px away; any two at least 98 px apart, more
+        than the texture's elements), where the seed says the ring starts. All
+        within KEY_RADIUS: one synthesis of the static texture serves every chain."""
         if self.flow.uniform:
             return 0, 0
-        hx, hy = hash2(np.int64(key), np.int64(0), 0, self.seed ^ SALT)
-        rx, ry = int(hx) * KEY_SPREAD, int(hy) * KEY_SPREAD
+        start = int(hash2(np.int64(0), np.int64(0), 0, self.seed ^ SALT)[0]) & 7
+        rx, ry = KEY_RING[(3 * key + start) % 8]
         n = self.source.period
         return (rx % n, ry % n) if n else (rx, ry)
 
@@ -280,7 +286,7 @@ class FlowFrames:
             Y = Y + np.where(moving, ry * Q, 0)
         qx, qy = (X + Q // 2) >> 8, (Y + Q // 2) >> 8
         fx, fy = X - qx * Q, Y - qy * Q
-        slack = self.flow.reach(2 * self.flow.period) + 32
+        slack = self.flow.reach(2 * self.flow.period) + 32 + (KEY_RADIUS if rx or ry else 0)
         if moving is None or moving.all() or not moving.any():
             T, pid, J = self._lookup(qx, qy, slack)
         else:  # two far-apart places of T: one window each

@@ -22,11 +22,12 @@ from .rect import Rect
 class GpuComposer:
     """Composes FlowFrames' windows on ``source``'s GL context."""
 
-    def __init__(self, frames, source, vote: int, seam: int, blob: int, nudge: int):
+    def __init__(self, frames, source, vote: int, seam: int, blob: int, nudge: int, key_radius: int):
         self.frames = frames  # (FlowFrames: the flow, its chains and their key offsets and seeds)
         self.source = source
         self.gpu = source.synth.gpu
         self.vote, self.seam, self.blob, self.nudge = vote, seam, blob, nudge
+        self.key_radius = key_radius  # px: every R_j is within it (engine/advect.py)
         self._rect: Rect | None = None
         self._paths: dict[int, object] = {}  # age -> RG32I texture of the trajectories
         self._chains: dict[tuple, tuple] = {}  # (key, born) -> (still, still units, origin, moved, ..., origin)
@@ -111,6 +112,8 @@ class GpuComposer:
             reach = flow.reach(2 * flow.period) + 2
             parts = []
             rx, ry = self.frames.key_offset(key)
+            if not n:  # one synthesis for this chain and the next few: every R_j, four periods of travel
+                src.window(self._union(win, born, reach), 0)
             for ox, oy in ((0, 0), (rx, ry)):
                 if n:
                     box = Rect(0, 0, n, n)
@@ -126,6 +129,19 @@ class GpuComposer:
                     break
             self._chains[ck] = tuple(parts)
         return self._chains[ck]
+
+    def _union(self, win: Rect, born: int, reach: int) -> Rect:
+        """What the static windows of the chains born at ``born`` and in the next
+        four periods read over ``win``: one synthesis (SynthSource keeps it)."""
+        flow = self.frames.flow
+        pad = reach + (self.key_radius if not flow.uniform else 0)
+        x0 = win.x0 - _split(flow.velocity[0] * born)[0] - pad
+        y0 = win.y0 - _split(flow.velocity[1] * born)[0] - pad
+        ahead = [-(-abs(v) * 4 * flow.period // Q) for v in flow.velocity]  # px, up
+        ex = (ahead[0] if flow.velocity[0] < 0 else 0, ahead[0] if flow.velocity[0] > 0 else 0)
+        ey = (ahead[1] if flow.velocity[1] < 0 else 0, ahead[1] if flow.velocity[1] > 0 else 0)
+        # (later chains read farther against the velocity: T at p - V0 t_j)
+        return Rect(x0 - ex[1], y0 - ey[1], x0 + win.w + 2 * pad + ex[0], y0 + win.h + 2 * pad + ey[0])
 
     def _chain(self, key: int, born: int, age: int, win: Rect, turns_wanted: bool = True):
         """(coordinates RGBA16I, turns R32I: 0 without ``turns_wanted``) of one chain over the window."""

@@ -49,9 +49,21 @@ def motion_to_json(m: Motion) -> dict:
         v = f.map.values
         if max(v.shape[:2]) > MAX_STORED_MAP_SIDE:
             raise ProjectError(f"A velocity map over {MAX_STORED_MAP_SIDE} px a side is not kept in a project.")
-        out["map"] = {"x": f.map.x, "y": f.map.y, "w": int(v.shape[1]), "h": int(v.shape[0]),
-                      "v16": base64.b64encode(zlib.compress(np.ascontiguousarray(v, "<i2").tobytes(), 6)).decode()}
+        out["map"] = {"x": f.map.x, "y": f.map.y, "w": int(v.shape[1]), "h": int(v.shape[0]), "v16": _encoded(f.map)}
     return out
+
+
+_ENCODED: dict = {}  # the last map's encoding: an autosave of an unchanged map encodes nothing
+
+
+def _encoded(vmap: VelocityMap) -> str:
+    text = _ENCODED.get(vmap.key)
+    if text is None:
+        raw = np.ascontiguousarray(vmap.values, "<i2").tobytes()
+        text = base64.b64encode(zlib.compress(raw, 1)).decode()
+        _ENCODED.clear()
+        _ENCODED[vmap.key] = text
+    return text
 
 
 def _int(d: dict, key: str, lo: int, hi: int) -> int:

@@ -102,7 +102,11 @@ def test_renewal_swaps_chains_without_blending(synth):
     from_new = np.all(composite == new, -1)
     assert np.all(from_old | from_new)  # every pixel is one chain's, never a mix
     assert from_new.mean() > 0.2 and from_old.mean() > 0.2  # halfway through the period: both show
-    # The correction mends the cuts between them, and touches nothing else.
+    # The correction mends the cuts between them, and touches nothing else (the seams
+    # as frame() finds them: over the correction's region, so those near rect's edge too).
+    region = f.source.correction_region(rect)
+    seam = f._frame(11, region, False)[2][rect.y0 - region.y0:rect.y1 - region.y0,
+                                           rect.x0 - region.x0:rect.x1 - region.x0]
     shown = f.frame(11, rect)
     changed = np.any(shown != composite, -1)
     assert changed.any() and not np.any(changed & ~seam) and seam.mean() < 0.9
