@@ -1,7 +1,8 @@
 """The Export panel: the coordinate map, depth and scale of exports, Export
 view, a rectangle of the canvas (one PNG, PNG tiles, BigTIFF or Zarr, its
-size and time estimated first) and the seamless (toroidal) tile; also the
-File menu's Export view and Export toroidal tile."""
+size and time estimated first), the seamless (toroidal) tile and, when the
+texture flows, its animation (panels/motion.py); also the File menu's Export
+view and Export toroidal tile."""
 from __future__ import annotations
 
 import os
@@ -77,6 +78,13 @@ def draw(p: Panels) -> None:
         p.tileset_dialog()
     tip("Tiles that fit together in any valid order (a corner Wang set), so a level never shows the same tile "
         "twice in a row; previewed before the file is chosen")
+    m = ed.doc.motion
+    if m is not None and not m.flow.still and ed.doc.lattice is None:
+        from .motion import ANIMATION_FILTER, FORMAT_NOTE, start_export
+        if imgui.button("Animation (flipbook, video)...", (-1, 0)):
+            ed.dialogs.ask_path("Export animation", True, ANIMATION_FILTER, lambda path: start_export(ed, path),
+                                default="animation.png")
+        tip(f"The texture flowing, {m.frames} frames (the Motion panel sets them). " + FORMAT_NOTE)
     lat = ed.session.controls.lattice if ed.session is not None and ed.session.ready else None
     if lat is not None:
         cx, cy = lat.cell(ed.session.analysis.size)
