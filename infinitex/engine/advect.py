@@ -78,6 +78,24 @@ ENDLESS_KEYS = 8           # distinct chain offsets R_j of an endless animation
 KEY_RADIUS = 128           # px: R_j is a point of KEY_RING, 8 points on a circle of this radius
 KEY_RING = ((128, 0), (91, 91), (0, 128), (-91, 91), (-128, 0), (-91, -91), (0, -128), (91, -91))
 BLOB = 32                  # px between the points whose Voronoi cells come in together (renewal_turns)
+BLUE_NOISE = np.array([
+    16, 159, 220, 57, 150, 91, 135, 105, 12, 224, 112, 27, 218, 10, 246, 44,
+    232, 133, 26, 117, 248, 2, 192, 215, 58, 180, 146, 203, 95, 59, 151, 85,
+    110, 67, 181, 198, 76, 168, 39, 126, 83, 252, 41, 72, 233, 169, 123, 200,
+    172, 40, 236, 98, 47, 142, 231, 178, 17, 157, 119, 3, 138, 29, 241, 14,
+    222, 147, 8, 161, 210, 25, 92, 66, 204, 99, 219, 176, 196, 107, 77, 54,
+    93, 121, 74, 253, 130, 111, 244, 148, 33, 239, 60, 86, 46, 211, 153, 185,
+    22, 213, 191, 30, 61, 183, 5, 193, 124, 162, 24, 134, 237, 7, 131, 245,
+    170, 50, 101, 165, 141, 82, 221, 51, 75, 216, 104, 189, 164, 97, 37, 68,
+    145, 223, 1, 205, 230, 19, 154, 115, 177, 9, 254, 43, 70, 226, 206, 109,
+    250, 79, 129, 55, 114, 94, 249, 31, 207, 90, 152, 120, 15, 140, 179, 13,
+    42, 197, 158, 242, 35, 173, 195, 65, 136, 228, 53, 199, 240, 87, 56, 118,
+    149, 28, 88, 184, 69, 144, 6, 102, 167, 23, 81, 175, 36, 160, 217, 188,
+    235, 106, 209, 11, 127, 238, 212, 45, 247, 128, 214, 108, 132, 20, 100, 71,
+    171, 49, 137, 225, 52, 84, 155, 116, 73, 187, 0, 62, 251, 194, 227, 4,
+    125, 255, 21, 166, 113, 182, 18, 201, 34, 139, 234, 156, 80, 38, 143, 63,
+    186, 78, 96, 202, 32, 229, 64, 243, 163, 89, 48, 190, 122, 174, 103, 208,
+], np.int64)  # 16 x 16 ranks (void and cluster, Ulichney 1993)
 UNIT_NUDGE = 6             # px a unit's pixels are nudged by before their blob is found
 J_SHIFT = 12               # Jacobians are Q12
 VOTE = 2                   # a pixel shows the chain most of the (2 VOTE + 1)^2 around it show
@@ -368,19 +386,30 @@ def renewal_turns(qx: np.ndarray, qy: np.ndarray, unit: np.ndarray, s: int, peri
     py = qy + ((u >> np.uint32(8)) % n).astype(np.int64) - UNIT_NUDGE
     cx, cy = np.floor_divide(px, BLOB), np.floor_divide(py, BLOB)
     best = np.full(px.shape, np.iinfo(np.int64).max, np.int64)
-    value = np.zeros(px.shape, np.uint32)
+    value = np.zeros(px.shape, np.int64)
+    phase = int(lowbias32(np.uint32(s ^ 0x5BD1E995)))
+    ox, oy = phase & 15, (phase >> 4) & 15  # where the chain's blue-noise table starts
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
             gx, gy = cx + dx, cy + dy
-            g = _hash(gx % (period // BLOB), gy % (period // BLOB), seed=s ^ 0x5BD1E995) if period else \
-                _hash(gx, gy, seed=s ^ 0x5BD1E995)
-            sx = gx * BLOB + (g % BLOB).astype(np.int64)
-            sy = gy * BLOB + ((g >> np.uint32(8)) % BLOB).astype(np.int64)
+            if period:
+                gx, gy = gx % (period // BLOB), gy % (period // BLOB)
+                sx0, sy0 = cx + dx, cy + dy
+            else:
+                sx0, sy0 = gx, gy
+            g = _hash(gx, gy, seed=s ^ 0x5BD1E995)
+            sx = sx0 * BLOB + (g % BLOB).astype(np.int64)
+            sy = sy0 * BLOB + ((g >> np.uint32(8)) % BLOB).astype(np.int64)
             dist = (px - sx) ** 2 + (py - sy) ** 2
             closer = dist < best
             best = np.where(closer, dist, best)
-            value = np.where(closer, g >> np.uint32(16), value)
-    return value.astype(np.int64)
+            # Stratified turns: a cell's turn is its rank in a 16 x 16 blue-noise
+            # table (placed by the seed), its low bits a hash, so any window renews
+            # about the same number of blobs every frame, spread evenly (uniform
+            # turns came in clumps: steps up to 2.2x the median).
+            rank = BLUE_NOISE[((gy + oy) & 15) * 16 + ((gx + ox) & 15)]
+            value = np.where(closer, (rank << 8) | (g >> np.uint32(24)).astype(np.int64), value)
+    return value
 
 
 def _box_count(a: np.ndarray, r: int) -> np.ndarray:
