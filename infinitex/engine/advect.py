@@ -32,8 +32,9 @@ the direction field's Jacobian at ``round(X)`` (identity without one).
 the new chain where its blob has come due, ``h < (a + 1) / period``: blobs are
 Voronoi cells of about BLOB px in the new chain's own positions (they move
 with its content), their edges nudged along the exemplar's elements (a
-watershed cell of its color gradient, within one patch), each with a uniform
-random turn ``h`` (renewal_turns). A vote over 5 x 5 pixels keeps single
+watershed cell of its color gradient, within one patch), each with a turn
+``h``: its cell's rank in a blue-noise table, so about the same share comes
+in every frame, spread evenly (renewal_turns). A vote over 5 x 5 pixels keeps single
 pixels from showing the other chain, and the finest level's correction mends
 the cuts where the two meet. By the end of the period every pixel shows the
 new chain, which then becomes the old one. No pixel ever blends two
@@ -375,7 +376,8 @@ def renewal_turns(qx: np.ndarray, qy: np.ndarray, unit: np.ndarray, s: int, peri
     content; each pixel's position is first nudged by up to UNIT_NUDGE px by a
     hash of its unit (``unit``, (H, W, 2): an exemplar element within a patch),
     so a blob's edge runs along the elements' outlines rather than straight.
-    A blob's value is uniform: about 1/period of the area comes in each frame.
+    A blob's value is its cell's rank in BLUE_NOISE (then a hash): about
+    1/period of the area comes in each frame, spread evenly.
     On a toroidal tile of ``period`` px (a multiple of BLOB) the blobs repeat with it.
     ``s``: the chain's seed (FlowFrames.turn_seed)."""
     if period:
