@@ -27,6 +27,7 @@ import os
 import re
 import secrets
 import stat
+import threading
 import time
 from dataclasses import dataclass
 
@@ -134,9 +135,12 @@ class Autosave:
     state folder); the file is removed on a clean exit, so finding one whose
     writer is gone means that session did not end cleanly."""
 
-    def __init__(self, path: str | None = None, interval: float = 10.0):
+    def __init__(self, path: str | None = None, interval: float = 10.0, background: bool = False):
         self.path = os.path.abspath(path or autosave_path())
         self.interval = interval
+        self.background = background  # write in a thread of its own (the editor)
+        self._thread: threading.Thread | None = None
+        self._error: ProjectError | None = None
         self._last = time.monotonic()
         self._written: Document | None = None
         self._locks: dict[str, int] = {}  # autosave file -> descriptor holding its lock (ours, and claimed ones)
@@ -268,13 +272,31 @@ class Autosave:
     # -- this process's own autosave ----------------------------------------
 
     def tick(self, project: Project, dirty: bool, force: bool = False) -> bool:
-        """Write when due; returns True when written."""
+        """Write when due; returns True when written (or, ``background``,
+        started). With ``background`` the write runs in a thread of its own,
+        so a large document (a painted flow, big fields) never holds up the
+        editor's frame; ``force`` writes now, after any write under way. An
+        error of a write in the background is raised by the next tick."""
+        if force:
+            self._join()
+        elif self._thread is not None and self._thread.is_alive():
+            return False
+        self._raise_error()
         now = time.monotonic()
         if not force and (now - self._last < self.interval):
             return False
         self._last = now
         if not dirty or project.document == self._written:
             return False
+        if self.background and not force:
+            self._thread = threading.Thread(target=self._write_caught, args=(project,), daemon=True,
+                                            name="autosave")
+            self._thread.start()
+            return True
+        self._write(project)
+        return True
+
+    def _write(self, project: Project) -> None:
         try:
             os.makedirs(os.path.dirname(self.path), mode=0o700, exist_ok=True)
         except OSError as exc:
@@ -284,7 +306,24 @@ class Autosave:
         save_project(self.path, project, store=lambda src: self._store(src, stored))
         _remove(p for p in stored_files(self.path) if os.path.basename(p) not in stored)  # earlier documents'
         self._written = project.document
-        return True
+
+    def _write_caught(self, project: Project) -> None:
+        try:
+            self._write(project)
+        except ProjectError as exc:
+            self._error = exc
+        except Exception as exc:  # noqa: BLE001 - one line, raised as the tick's own
+            self._error = ProjectError(f"The autosave failed ({exc}).")
+
+    def _join(self) -> None:
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def _raise_error(self) -> None:
+        err, self._error = self._error, None
+        if err is not None:
+            raise err
 
     def _store(self, src: ExemplarSource, names: set[str]) -> str:
         """Keep a file too large to embed beside this process's autosave; its name."""
@@ -320,6 +359,7 @@ class Autosave:
     def clear(self) -> None:
         """Remove this process's own autosave (saved, or nothing left unsaved);
         never another's. The lock stays for the next write."""
+        self._join()  # (a write under way would put it back)
         self._written = None
         _remove([self.path, *stored_files(self.path)])
 
@@ -331,6 +371,7 @@ class Autosave:
     def release(self) -> None:
         """Let go of every lock without removing any autosave, as the end of the
         process does (what is left is offered at the next start)."""
+        self._join()
         for path in list(self._locks):
             self._release(path)
 

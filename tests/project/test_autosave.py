@@ -356,6 +356,8 @@ def FakeEditor(doc, project_path=None):
     ed.viewer = Viewer()
     ed.dialogs, ed.autosave, ed.prefs, ed.pending = FakeDialogs(), Autosave(), Preferences(Settings()), None
     ed.tools = []  # (the canvas tools: none without a window)
+    from infinitex.app.player import Playback
+    ed.playback = Playback()  # (its process starts only when a frame is asked for)
     return ed
 
 
@@ -426,3 +428,36 @@ def test_autosave_names_are_per_process(state):
     for _ in range(3):
         assert Autosave().pending_all() == []
     assert time.monotonic() - t0 < 30
+
+
+def test_a_background_autosave_writes_beside_the_frames_and_reports_its_error(state, doc, monkeypatch):
+    """The editor's autosave writes in a thread: the tick returns at once, the
+    file is there once it ends, a forced write (exit) waits for it, clearing
+    never races it, and a failed write is the next tick's ProjectError."""
+    import threading
+    a = Autosave(background=True, interval=0.0)
+    gate = threading.Event()
+    real = fmt.save_project
+
+    def slow(*args, **kw):
+        gate.wait(10)
+        return real(*args, **kw)
+    monkeypatch.setattr("infinitex.project.autosave.save_project", slow)
+    t0 = time.monotonic()
+    assert a.tick(Project(replace(doc, seed=1)), True)
+    assert time.monotonic() - t0 < 1.0 and not os.path.exists(a.path)  # under way, not waited for
+    assert not a.tick(Project(replace(doc, seed=2)), True)  # one write at a time
+    gate.set()
+    a.tick(Project(replace(doc, seed=3)), True, force=True)  # waits for the first, then writes
+    assert load_project(a.path).document.seed == 3
+    a.clear()
+    assert not os.path.exists(a.path)
+
+    def broken(*args, **kw):
+        raise ProjectError("The disk is full.")
+    monkeypatch.setattr("infinitex.project.autosave.save_project", broken)
+    assert a.tick(Project(replace(doc, seed=4)), True)
+    a._join()
+    with pytest.raises(ProjectError, match="disk is full"):
+        a.tick(Project(replace(doc, seed=5)), True)
+    a.release()

@@ -84,7 +84,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self.dialogs = Dialogs()
         if self.prefs.settings.recent:  # the file browser starts in the folder last used
             self.dialogs.last_dir = os.path.dirname(self.prefs.settings.recent[0])
-        self.autosave = Autosave()
+        self.autosave = Autosave(background=True)  # written beside the frames, never holding one up
         self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
         self.found_lattice = None  # the Detection that put the open image on its lattice (Exemplar panel)
         self.export_job: ExportJob | StreamedExport | BackgroundExport | None = None
