@@ -79,6 +79,7 @@ def _player_main(conn) -> None:
     period = 0
     frames = source = None
     made_for = None  # (doc, period) the frames were made for
+    still_for = None  # (the document without its motion, period) the static texture is of
     try:
         while True:
             want = None
@@ -96,21 +97,29 @@ def _player_main(conn) -> None:
                 msg = conn.recv()  # only the latest request counts
             if want is None or doc is None:
                 continue
-            _, want_doc, t, rect, role, correct = want
+            _, _, t, rect, role, correct = want
             t0 = time.perf_counter()
             try:
                 if made_for is None or made_for[0] is not doc or made_for[1] != period:
-                    if frames is not None:
-                        frames.release()
-                        source.release()
-                        frames = source = None
                     still = _still_part(doc)
-                    loaded.period = period
-                    if loaded.key != doc.analysis_key():
-                        loaded.load_now(still)
-                    elif loaded.synced_doc is None or _still_part(loaded.synced_doc) != still:
-                        loaded.install(still, loaded.exemplar, loaded.analysis, loaded.material)
-                    source = SynthSource(loaded.synth, period)
+                    if source is None or still_for != (still, period):
+                        # Another still texture: install it (the analysis kept when it is the same).
+                        if frames is not None:
+                            frames.release()
+                            frames = None
+                        if source is not None:
+                            source.release()
+                            source = None
+                        loaded.period = period
+                        if loaded.key != doc.analysis_key():
+                            loaded.load_now(still)
+                        elif (loaded.synced_doc is None or _still_part(loaded.synced_doc) != still
+                              or (loaded.params.period or 0) != period):
+                            loaded.install(still, loaded.exemplar, loaded.analysis, loaded.material)
+                        source = SynthSource(loaded.synth, period)
+                        still_for = (still, period)
+                    if frames is not None:  # only the flow changed (a stroke): the static texture is kept
+                        frames.release()
                     frames = FlowFrames(source, doc.motion.flow, loaded.params.seed)
                     made_for = (doc, period)
                 frames.correct = correct
@@ -124,7 +133,7 @@ def _player_main(conn) -> None:
                 conn.send(("frame", doc_id, t, (rect.x0, rect.y0, rect.x1, rect.y1), rgb,
                            time.perf_counter() - t0, correct))
             except Exception as exc:  # noqa: BLE001 - one line for the editor
-                made_for = None
+                made_for = still_for = None
                 conn.send(("error", doc_id, (str(exc).strip().splitlines() or [type(exc).__name__])[0]))
     except (EOFError, OSError, KeyboardInterrupt):
         return

@@ -155,8 +155,8 @@ def status(ed) -> str:
 
 def toggle(ed) -> None:
     """Play or pause (Space)."""
-    if ed.doc is None or ed.doc.lattice is not None:
-        return
+    if ed.doc is None or ed.doc.lattice is not None or ed.model_mode:
+        return  # (a model shows the still texture)
     if ed.doc.motion is None or ed.doc.motion.flow.still:
         ed.tell("Nothing flows yet: set a velocity in the Motion panel or paint one with the Flow tool (W).")
         return
