@@ -306,12 +306,15 @@ def speed(gpu, paths, structure_params, SynthParams, names, w: int = 512, h: int
         flow = Flow(map=flow.map, period=flow.suggested_period())
         top = an.levels[an.L].stack
         u8 = np.rint(np.clip(top, 0, 1) * 255).astype(np.uint8)
-        for mode, correct in (("corrected", True), ("uncorrected", False)):
+        for mode, correct in (("corrected", True), ("uncorrected", False), ("draft", False)):
             ff = FlowFrames(SynthSource(synth), flow, seed=1, correct=correct)
             times = []
             for t in range(48):
                 t0 = time.perf_counter()
-                colors_u8([u8], ff.frame(t, rect), 0, an.toroidal)
+                if mode == "draft":  # what the editor plays: uncorrected, colored in GL
+                    ff.draft_rgb(t, rect, u8)
+                else:
+                    colors_u8([u8], ff.frame(t, rect), 0, an.toroidal)
                 times.append(time.perf_counter() - t0)
             ff.release()
             key = f"{names[preset]} {mode}"

@@ -66,7 +66,7 @@ def _still_part(doc: Document) -> Document:
 def _player_main(conn) -> None:
     """The player process: documents and requests in, frames out, until told to stop."""
     try:
-        os.nice(10)  # the editor's own frames first
+        os.nice(15)  # the editor's own frames first (and anything else the user runs)
     except (AttributeError, OSError):
         pass
     from infinitex.engine.advect import FlowFrames, SynthSource
@@ -122,14 +122,13 @@ def _player_main(conn) -> None:
                         frames.release()
                     frames = FlowFrames(source, doc.motion.flow, loaded.params.seed)
                     made_for = (doc, period)
-                frames.correct = correct
-                coords = frames.frame(t, rect)
                 role = loaded.shown_map(role)
-                rgb = to_u8(loaded.material.lookup(role, coords))
-                if rgb.ndim == 2:
-                    rgb = rgb[..., None]
-                rgb = np.ascontiguousarray(np.broadcast_to(rgb[..., :3], rgb.shape[:2] + (3,))
-                                           if rgb.shape[2] < 3 else rgb[..., :3])
+                if correct:  # the exact frame: the export's, bit for bit
+                    rgb = to_u8(loaded.material.lookup(role, frames.frame(t, rect)))
+                    rgb = np.ascontiguousarray(np.repeat(rgb[..., :1], 3, axis=2) if rgb.shape[2] < 3
+                                               else rgb[..., :3])
+                else:  # a draft: its cuts not mended, its colors looked up in GL
+                    rgb = frames.draft_rgb(t, rect, loaded.display_stack(role)[-1])
                 conn.send(("frame", doc_id, t, (rect.x0, rect.y0, rect.x1, rect.y1), rgb,
                            time.perf_counter() - t0, correct))
             except Exception as exc:  # noqa: BLE001 - one line for the editor

@@ -241,6 +241,17 @@ class FlowFrames:
             out[..., :c] = np.where(seam[..., None], fixed, out[..., :c])
         return out, (J[y, x] if J is not None else None)
 
+    def draft_rgb(self, t: int, rect: Rect, palette: np.ndarray) -> np.ndarray:
+        """Frame t over rect without the correction of its cuts, as RGB8 colors of
+        ``palette`` (a map, uint8 (m, m, C)): what the editor plays (twice as
+        fast; the colors bilinear in the map's 8 bits, within a level of the
+        exports'). Composed and colored in GL when the frames are."""
+        if self._gl is not None:
+            return self._gl.draft_colors(t, rect, palette)
+        from .subpixel import sample
+        px = sample(palette, self._frame(t, rect, False)[0], self.source.wrap)
+        return np.repeat(px[..., :1], 3, axis=2) if px.shape[2] < 3 else np.ascontiguousarray(px[..., :3])
+
     def _frame(self, t: int, rect: Rect, jacobians: bool):
         """(coordinates, Jacobians or None, the seams: (H, W) bool, within SEAM px of
         two chains that show different texels side by side) over rect."""

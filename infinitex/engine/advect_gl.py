@@ -43,6 +43,7 @@ class GpuComposer:
         bordered[2:-2, 2:-2] = vals
         self._vmap = self.gpu.texture((bordered.shape[1], bordered.shape[0]), 2, bordered, "i4")
         self._has_map = int(not flow.uniform)
+        self._palette = None  # (key, texture, array) of draft_colors' map
 
     # -- textures ---------------------------------------------------------------
     def _tex(self, w: int, h: int, comps: int, dtype: str, data=None):
@@ -166,33 +167,11 @@ class GpuComposer:
     # -- a frame ------------------------------------------------------------------
     def frame(self, t: int, rect: Rect) -> tuple[np.ndarray, np.ndarray]:
         """(coordinates (H, W, 4) int32, seams (H, W) bool) of frame t over rect, as FlowFrames._frame."""
-        old, new = self.frames.chains(t)
-        v, e = self.vote, self.seam
-        win = Rect(rect.x0 - v - e, rect.y0 - v - e, rect.x1 + v + e, rect.y1 + v + e)
-        self.gpu.activate()
-        self._window(win)
+        e = self.seam
         made = []
         try:
-            c0, _ = self._chain(*old, win, turns_wanted=False)  # (the old chain's turns have passed)
-            c1, turns = self._chain(*new, win)
-            made += [c0, _, c1, turns]
-            self._drop_paths(keep={old[2], new[2]})
+            chosen, seams = self._compose(t, rect, made, seams_wanted=True)
             H, W = rect.h + 2 * e, rect.w + 2 * e
-            due = ((new[2] + 1) << 16) // self.frames.flow.period
-            take = self._tex(W, H, 1, "i4")
-            junk = self._tex(W, H, 4, "i2")
-            chosen = self._tex(W, H, 4, "i2")
-            cuts = self._tex(W, H, 1, "i4")
-            seams = self._tex(rect.w, rect.h, 1, "i4")
-            junk2 = self._tex(rect.w, rect.h, 4, "i2")
-            made += [take, junk, chosen, cuts, seams, junk2]
-            defines = dict(SUB_S=2, VOTE=v, SEAM=e)
-            prog, vao = self.gpu.program("flow_pick.frag", STAGE=0, **defines)
-            self._draw(prog, vao, [junk, take], W, H, {0: turns}, a=0, due=due, margin=v)
-            prog, vao = self.gpu.program("flow_pick.frag", STAGE=1, **defines)
-            self._draw(prog, vao, [chosen, cuts], W, H, {0: take, 1: c0, 2: c1}, a=0, c0=1, c1=2, margin=v)
-            prog, vao = self.gpu.program("flow_pick.frag", STAGE=2, **defines)
-            self._draw(prog, vao, [junk2, seams], rect.w, rect.h, {0: cuts}, a=0, margin=e)
             coords = self._read(chosen, W, H, 4, "i2", np.int16)[e:-e or None, e:-e or None].astype(np.int32)
             seam = self._read(seams, rect.w, rect.h, 1, "i4", np.int32)[..., 0] != 0
             return coords, seam
@@ -200,7 +179,71 @@ class GpuComposer:
             for tex in made:
                 tex.release()
 
+    def draft_colors(self, t: int, rect: Rect, palette: np.ndarray) -> np.ndarray:
+        """Frame t over rect as RGB8 without the correction of its cuts, its colors
+        sampled here (``palette``: the map, uint8 (m, m, C)): what the editor plays.
+        The same coordinates as :meth:`frame`; the colors within a level of
+        8 bits of engine/subpixel.py's (bilinear in the map's 8 bits, not in floats)."""
+        e = self.seam
+        made = []
+        try:
+            chosen, _ = self._compose(t, rect, made, seams_wanted=False)
+            key = (palette.__array_interface__["data"][0], palette.shape)
+            if self._palette is None or self._palette[0] != key:
+                if self._palette is not None:
+                    self._palette[1].release()
+                m = palette.shape[0]
+                tex = self.gpu.ctx.texture((m, m), palette.shape[2], np.ascontiguousarray(palette).tobytes(),
+                                           dtype="f1", alignment=1)
+                self._palette = (key, tex, palette)  # (the array kept: its address stays its own)
+            rgba = self._tex(rect.w, rect.h, 4, "f1")
+            made.append(rgba)
+            prog, vao = self.gpu.program("flow_color.frag", SUB_S=2)  # (common.glsl wants it)
+            self._draw(prog, vao, [rgba], rect.w, rect.h, {0: chosen, 1: self._palette[1]}, coords=0, palette=1,
+                       m=self.source.m, wrap=int(self.source.wrap), channels=int(palette.shape[2]), margin=e)
+            return self._read(rgba, rect.w, rect.h, 4, "f1", np.uint8)[..., :3].copy()
+        finally:
+            for tex in made:
+                tex.release()
+
+    def _compose(self, t: int, rect: Rect, made: list, seams_wanted: bool):
+        """The chosen coordinates over rect plus SEAM a side (RGBA16I) and the
+        seams over rect (R32I; None without ``seams_wanted``); every texture
+        made goes to ``made``."""
+        old, new = self.frames.chains(t)
+        v, e = self.vote, self.seam
+        win = Rect(rect.x0 - v - e, rect.y0 - v - e, rect.x1 + v + e, rect.y1 + v + e)
+        self.gpu.activate()
+        self._window(win)
+        c0, _ = self._chain(*old, win, turns_wanted=False)  # (the old chain's turns have passed)
+        c1, turns = self._chain(*new, win)
+        made += [c0, _, c1, turns]
+        self._drop_paths(keep={old[2], new[2]})
+        H, W = rect.h + 2 * e, rect.w + 2 * e
+        due = ((new[2] + 1) << 16) // self.frames.flow.period
+        take = self._tex(W, H, 1, "i4")
+        junk = self._tex(W, H, 4, "i2")
+        chosen = self._tex(W, H, 4, "i2")
+        cuts = self._tex(W, H, 1, "i4")
+        made += [take, junk, chosen, cuts]
+        defines = dict(SUB_S=2, VOTE=v, SEAM=e)
+        prog, vao = self.gpu.program("flow_pick.frag", STAGE=0, **defines)
+        self._draw(prog, vao, [junk, take], W, H, {0: turns}, a=0, due=due, margin=v)
+        prog, vao = self.gpu.program("flow_pick.frag", STAGE=1, **defines)
+        self._draw(prog, vao, [chosen, cuts], W, H, {0: take, 1: c0, 2: c1}, a=0, c0=1, c1=2, margin=v)
+        if not seams_wanted:
+            return chosen, None
+        seams = self._tex(rect.w, rect.h, 1, "i4")
+        junk2 = self._tex(rect.w, rect.h, 4, "i2")
+        made += [seams, junk2]
+        prog, vao = self.gpu.program("flow_pick.frag", STAGE=2, **defines)
+        self._draw(prog, vao, [junk2, seams], rect.w, rect.h, {0: cuts}, a=0, margin=e)
+        return chosen, seams
+
     def release(self) -> None:
+        if self._palette is not None:
+            self._palette[1].release()
+            self._palette = None
         self._drop_paths()
         for parts in self._chains.values():
             _release(parts)

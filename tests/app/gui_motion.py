@@ -95,7 +95,10 @@ def main(out: str) -> int:
               f"{ang:.1f} degrees, {math.hypot(vx[0], vy[0]) / Q:.2f} px/frame")
         check("painting a flow changes no still texel", np.array_equal(canvas(ctx), before), "canvas changed")
 
-        # Play: frames come while the editor draws its own.
+        # Play: frames come while the editor draws its own (at 200%: a quarter of the
+        # pixels to compose, this driver's load on a machine running others).
+        ed.viewer.zoom_to(2.0)
+        ctx.yield_(2)
         ctx.key_press(imgui.Key.space)
         ctx.yield_(2)
         pb = ed.playback
@@ -170,6 +173,7 @@ def main(out: str) -> int:
         check("undo takes the stroke away", ed.doc.motion is None or ed.doc.motion.flow.map is None,
               "flow left")
         pb.stop()
+        ed.viewer.zoom_to(1.0)
         check("back to the still texture, unchanged", np.array_equal(canvas(ctx), before), "canvas differs")
         time.sleep(0)
 

@@ -250,3 +250,23 @@ def test_a_velocity_map_is_tiles_shared_between_edits():
     assert not m.painted(m.x, m.y, full, (0, 0)).tiles
     with pytest.raises(FlowError, match="at most 256 px"):
         m.painted(400, 90, w, (1, 1), limit=256)
+
+
+def test_a_draft_is_the_uncorrected_frame_colored_within_a_level(synth):
+    """What the editor plays: the uncorrected frame's coordinates, colored in GL
+    from the map's 8 bits; within one level of the exports' float colors, the
+    same in the numpy composition."""
+    from infinitex.engine.imagefile import to_u8
+    from infinitex.engine.subpixel import sample
+    flow = Flow(map=vortex(48, 48, x=-8, y=-8), velocity=(100, -30), period=4)
+    rect = Rect.of(-4, 2, 40, 36)
+    pal = to_u8(synth.analysis.levels[synth.L].stack)
+    ref_coords = FlowFrames(SynthSource(synth), flow, 3, correct=False).frame(6, rect)
+    ref = to_u8(sample(synth.analysis.levels[synth.L].stack, ref_coords, synth.analysis.toroidal))
+    ref = np.repeat(ref[..., :1], 3, axis=2) if ref.shape[2] < 3 else ref[..., :3]
+    for gl in (True, False):
+        draft = FlowFrames(SynthSource(synth), flow, 3, gl=gl).draft_rgb(6, rect, pal)
+        assert draft.shape == (36, 40, 3) and draft.dtype == np.uint8
+        diff = np.abs(draft.astype(int) - ref.astype(int))
+        assert diff.max() <= 1, (gl, diff.max())
+        assert np.any(ref_coords[..., 2:] != 0)  # (sub-pixel rests were sampled)

@@ -95,10 +95,11 @@ class InputWait:
         (the analysis thread), ``working`` (a job sliced into frames: frames stay
         short), ``background`` (worker processes export: a few frames a second),
         ``playing`` (an animation plays at this many frames a second: the editor
-        wakes twice as often, and sleeps between, while its player composes)."""
+        wakes as often, at most 30 times, and sleeps between while its player
+        composes)."""
         self.fps = BACKGROUND_FPS if background else IDLE_FPS
-        if playing:
-            self.fps = max(self.fps, min(60.0, 2.0 * playing))
+        if playing:  # as often as frames are due (input wakes it at once anyway): the player needs the cores
+            self.fps = max(self.fps, min(30.0, playing))
         if analyzing and not busy:
             # Only the analysis thread works: a few frames a second show its
             # progress and leave it the cores (full frames would starve it).

@@ -29,7 +29,7 @@ from infinitex.engine.controls.fields import FieldTooLarge, dab_rect, dab_weight
 from infinitex.engine.exemplar import ExemplarError
 
 from . import MAX_CANVAS_RADIUS, Tool
-from .paint import Brush, brush_keys, dab_centers
+from .paint import Brush, brush_keys, headed_dabs
 from ..tips import tip
 
 MODES = (("comb", "Comb", "Drag the way the texture should run"),
@@ -137,25 +137,20 @@ class DirectionTool(Tool):
         if self._group is None:
             return
         r = self.radius_canvas()
-        dabs = dab_centers(self._last, pos, 0.25 * r)
+        dabs = headed_dabs(self._last, pos, 0.25 * r)
         if not dabs:
             return
         field = self.field
-        prev = self._last
         rects = []
         try:
-            for cx, cy in dabs:
-                heading = None
-                if prev is not None and (cx, cy) != prev:
-                    heading = math.degrees(math.atan2(cy - prev[1], cx - prev[0]))
+            for cx, cy, heading in dabs:
                 field = self.dab(field, cx, cy, heading)
                 rects.append(dab_rect(cx, cy, r))
-                prev = (cx, cy)
         except FieldTooLarge as exc:
             self.ed.tell(str(exc))
             self.release()
             return
-        self._last = dabs[-1]
+        self._last = dabs[-1][:2]
         self.dabs += len(dabs)
         if field is not self.field:
             self._set(field, {"comb": "Comb direction", "smooth": "Smooth direction", "grow": "Grow texture",

@@ -22,7 +22,7 @@ from infinitex.engine.exemplar import ExemplarError
 from infinitex.project.flow_json import MAX_STORED_MAP_SIDE, Motion
 
 from . import MAX_CANVAS_RADIUS, Tool
-from .paint import Brush, brush_keys, dab_centers
+from .paint import Brush, brush_keys, headed_dabs
 from ..tips import tip
 
 MODES = (("comb", "Comb", "Drag the way the texture should flow: it moves along your stroke at the speed set"),
@@ -120,24 +120,18 @@ class FlowTool(Tool):
     def drag(self, pos, screen) -> None:
         if self._group is None:
             return
-        r = self.radius_canvas()
-        dabs = dab_centers(self._last, pos, 0.25 * r)
+        dabs = headed_dabs(self._last, pos, 0.25 * self.radius_canvas())
         if not dabs:
             return
         flow = before = flow_of(self.ed.doc)
-        prev = self._last
         try:
-            for cx, cy in dabs:
-                heading = None
-                if prev is not None and (cx, cy) != prev:
-                    heading = math.degrees(math.atan2(cy - prev[1], cx - prev[0]))
+            for cx, cy, heading in dabs:
                 flow = self.dab(flow, cx, cy, heading)
-                prev = (cx, cy)
         except FlowError as exc:
             self.ed.tell(str(exc))
             self.release()
             return
-        self._last = dabs[-1]
+        self._last = dabs[-1][:2]
         self.dabs += len(dabs)
         if flow != before:
             self._set(flow, LABELS[self.mode], self._group)

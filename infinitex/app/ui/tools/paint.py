@@ -74,6 +74,21 @@ def dab_centers(last: tuple[float, float] | None, pos: tuple[float, float], spac
     return [(last[0] + (pos[0] - last[0]) * i / n, last[1] + (pos[1] - last[1]) * i / n) for i in range(1, n + 1)]
 
 
+def headed_dabs(last: tuple[float, float] | None, pos: tuple[float, float],
+                spacing: float) -> list[tuple[float, float, float | None]]:
+    """:func:`dab_centers` with the stroke's heading at each (degrees, canvas y
+    down; None at a first dab, which has none yet): what a comb paints."""
+    out = []
+    prev = last
+    for c in dab_centers(last, pos, spacing):
+        heading = None
+        if prev is not None and c != prev:
+            heading = math.degrees(math.atan2(c[1] - prev[1], c[0] - prev[0]))
+        out.append((c[0], c[1], heading))
+        prev = c
+    return out
+
+
 def model_stroke(field: CanvasField | None, atlas, n: int, last: tuple[float, float] | None,
                  pos: tuple[float, float], radius: float, brush: Brush) -> tuple[CanvasField, tuple | None, int, list]:
     """A Paint canvas stroke on a model carried on to ``pos`` (finest atlas
