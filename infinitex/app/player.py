@@ -145,26 +145,46 @@ def _player_main(conn) -> None:
 
 
 def _sender(conn, out: queue.Queue) -> None:
+    """Sends what the editor queued (a document is megabytes: the pipe takes it while
+    the process reads, never while the editor's frame waits)."""
     while True:
         msg = out.get()
         if msg is None:
             return
         try:
             conn.send(msg)
-        except (OSError, ValueError):
+        except Exception:  # noqa: BLE001 - the process or the pipe is gone: the receiver says so
+            return
+
+
+def _receiver(conn, inbox: queue.Queue) -> None:
+    """Receives the process' answers whole (a frame is megabytes: never read on the editor's frame)."""
+    while True:
+        try:
+            inbox.put(conn.recv())
+        except Exception:  # noqa: BLE001 - EOF: the process ended (or the pipe was closed)
+            inbox.put(("died",))
             return
 
 
 class FlowPlayer:
     """The player process, started on the first request. ``request`` never
-    blocks; ``poll`` returns the frames and errors that came back."""
+    blocks; ``poll`` returns the frames and errors that came back. Each
+    document sent has an id, and its still part is kept: a frame fits a
+    document with the same still texture (:meth:`fits`; a stroke of the flow
+    keeps it, so the frames of the last flow show until the new one's come)."""
 
     def __init__(self):
         self.proc = None
         self.conn = None
-        self._out: queue.Queue | None = None  # messages to the process, sent by a thread of their own
+        self._out: queue.Queue | None = None    # messages to the process (a sender thread)
+        self._inbox: queue.Queue | None = None  # its answers (a receiver thread)
+        self._threads: list[threading.Thread] = []
         self._sent: tuple | None = None   # (doc, period) last sent
         self.doc_id = 0
+        self._gens: dict[int, tuple] = {}  # doc id -> (its still part, period)
+        self._fit_key: tuple | None = None
+        self._fit_still = self._fit_doc = None
         self.asked: tuple | None = None   # (doc_id, t, rect, role) of the request in flight
         self.error: str | None = None
 
@@ -176,39 +196,60 @@ class FlowPlayer:
     def request(self, doc: Document, period: int, t: int, rect: Rect, role: str, correct: bool = True) -> None:
         """Ask for frame ``t`` over ``rect`` (``correct`` False: a draft, its cuts not mended)."""
         if self.proc is None or not self.proc.is_alive():
+            self.close()
             self._start()
-        if self._sent is None or not (self._sent[0] is doc or self._sent[0] == doc) or self._sent[1] != period:
+        sent = self._sent
+        if sent is None or not (sent[0] is doc or sent[0] == doc) or sent[1] != period:
+            still = _still_part(doc)
+            last = self._gens.get(self.doc_id)
+            if last is not None and last[1] == period and last[0] == still:
+                still = last[0]  # (the same still texture: the same object, compared at once)
             self.doc_id += 1
+            self._gens = {k: v for k, v in self._gens.items() if k > self.doc_id - 64}
+            self._gens[self.doc_id] = (still, period)
             self._out.put(("doc", self.doc_id, doc, period))
             self._sent = (doc, period)
         self.asked = (self.doc_id, t, rect, role)
+        self.error = None
         self._out.put(("want", self.doc_id, t, rect, role, correct))
+
+    def fits(self, frame: PlayedFrame, doc: Document, period: int) -> bool:
+        """The frame shows ``doc``'s still texture (its flow may be an earlier one: a
+        stroke while it plays), with ``period``."""
+        made = self._gens.get(frame.doc_id)
+        if made is None or made[1] != period:
+            return False
+        key = (id(doc), period)
+        if self._fit_key != key:  # (once per document: documents are immutable)
+            self._fit_key, self._fit_still = key, _still_part(doc)
+            self._fit_doc = doc  # (kept: its id stays its own)
+        return made[0] is self._fit_still or made[0] == self._fit_still
 
     def poll(self) -> PlayedFrame | None:
         """The newest frame that came back since the last poll (errors go to ``error``)."""
         got = None
-        if self.conn is None:
+        if self._inbox is None:
             return None
-        try:
-            while self.conn.poll():
-                msg = self.conn.recv()
-                self.asked = None
-                if msg[0] == "frame":
-                    _, doc_id, t, r, rgb, seconds, exact = msg
-                    got = PlayedFrame(t, Rect(*r), rgb, doc_id, seconds, exact)
-                    self.error = None
-                else:
-                    self.error = msg[2]
-        except (EOFError, OSError):
-            self._died()
-        if self.proc is not None and not self.proc.is_alive() and self.asked is not None:
-            self._died()
+        while True:
+            try:
+                msg = self._inbox.get_nowait()
+            except queue.Empty:
+                break
+            if msg[0] == "died":
+                self._died()
+                return got
+            self.asked = None
+            if msg[0] == "frame":
+                _, doc_id, t, r, rgb, seconds, exact = msg
+                got = PlayedFrame(t, Rect(*r), rgb, doc_id, seconds, exact)
+                self.error = None
+            else:
+                self.error = msg[2]
         return got
 
     def _died(self) -> None:
-        self.error = "The motion preview stopped; press Play to start it again."
-        self.asked = None
         self.close()
+        self.error = "The motion preview stopped; press Play to start it again."
 
     def _start(self) -> None:
         ctx = multiprocessing.get_context("spawn")  # a fresh interpreter: no inherited GL state
@@ -218,24 +259,30 @@ class FlowPlayer:
         child.close()
         self._sent = None
         self.asked = None
-        # A document is megabytes (its exemplar, a painted flow): the pipe takes it while the
-        # process reads, never while the editor's frame waits.
-        self._out = queue.Queue()
-        threading.Thread(target=_sender, args=(self.conn, self._out), daemon=True, name="player-send").start()
+        self._out, self._inbox = queue.Queue(), queue.Queue()
+        self._threads = [threading.Thread(target=_sender, args=(self.conn, self._out), daemon=True,
+                                          name="player-send"),
+                         threading.Thread(target=_receiver, args=(self.conn, self._inbox), daemon=True,
+                                          name="player-receive")]
+        for th in self._threads:
+            th.start()
 
     def close(self) -> None:
+        """End the process: asked to quit, then stopped after a moment (it keeps nothing)."""
         if self._out is not None:
             self._out.put(("quit",))
             self._out.put(None)
-            self._out = None
         if self.proc is not None:
-            self.proc.join(2.0)
+            self.proc.join(0.5)
             if self.proc.is_alive():
                 self.proc.terminate()
                 self.proc.join(1.0)
+        for th in self._threads:
+            th.join(0.5)  # (the process is gone: its pipe's reads and writes end)
         if self.conn is not None:
             self.conn.close()
-        self.proc = self.conn = None
+        self.proc = self.conn = self._out = self._inbox = None
+        self._threads = []
         self._sent = None
         self.asked = None
 
@@ -307,6 +354,12 @@ class Playback:
         self.t %= count
         player = self.player
         got = player.poll()
+        if got is not None and not player.fits(got, doc, period):
+            got = None  # another document's still texture (opened or edited since it was asked for)
+        if self.ready is not None and not player.fits(self.ready, doc, period):
+            self.ready = None
+        if self.shown is not None and not player.fits(self.shown, doc, period):
+            self.shown = None
         changed = False
         if got is not None:
             if self.playing and self.shown is not None and got.t != self.t:

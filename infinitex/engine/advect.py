@@ -186,7 +186,11 @@ class FlowFrames:
         if self.flow.uniform:
             return 0, 0
         start = int(hash2(np.int64(0), np.int64(0), 0, self.seed ^ SALT)[0]) & 7
-        rx, ry = KEY_RING[(3 * key + start) % 8]
+        step = 3 * key
+        chains = self.flow.loop // self.flow.period if self.flow.loop else 0
+        if chains > 1 and chains % 8 == 1 and key == chains - 1:
+            step += 4  # (a loop's last chain runs into its first: never from the same place)
+        rx, ry = KEY_RING[(step + start) % 8]
         n = self.source.period
         return (rx % n, ry % n) if n else (rx, ry)
 

@@ -215,9 +215,10 @@ class GpuComposer:
         win = Rect(rect.x0 - v - e, rect.y0 - v - e, rect.x1 + v + e, rect.y1 + v + e)
         self.gpu.activate()
         self._window(win)
-        c0, _ = self._chain(*old, win, turns_wanted=False)  # (the old chain's turns have passed)
-        c1, turns = self._chain(*new, win)
-        made += [c0, _, c1, turns]
+        made += self._chain(*old, win, turns_wanted=False)  # (the old chain's turns have passed)
+        c0 = made[-2]
+        made += self._chain(*new, win)
+        c1, turns = made[-2], made[-1]
         self._drop_paths(keep={old[2], new[2]})
         H, W = rect.h + 2 * e, rect.w + 2 * e
         due = ((new[2] + 1) << 16) // self.frames.flow.period

@@ -82,3 +82,20 @@ class AnimationExport(BackgroundExport):
         self.error: str | None = None
         self.thread: threading.Thread | None = None
         self.frames = doc.motion.frames
+
+    def start(self) -> None:
+        """Start the process from a thread: spawning it writes the document into its
+        pipe and waits for a new interpreter, never on the editor's frame."""
+        self.started = time.monotonic()
+        self.thread = threading.Thread(target=self._start_and_wait, name="animation-export", daemon=True)
+        self.thread.start()
+
+    def _start_and_wait(self) -> None:
+        try:
+            self.proc.start()
+        except Exception as exc:  # noqa: BLE001 - one line for the editor
+            self.error = f"The export could not start ({exc})."
+            self.finished = self.done = True
+            return
+        self._send.close()
+        self._wait()

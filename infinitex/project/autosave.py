@@ -279,6 +279,7 @@ class Autosave:
         error of a write in the background is raised by the next tick."""
         if force:
             self._join()
+            self._error = None  # (this write is made now: an earlier one's failure is not its own)
         elif self._thread is not None and self._thread.is_alive():
             return False
         self._raise_error()
@@ -360,7 +361,7 @@ class Autosave:
         """Remove this process's own autosave (saved, or nothing left unsaved);
         never another's. The lock stays for the next write."""
         self._join()  # (a write under way would put it back)
-        self._written = None
+        self._written = self._error = None
         _remove([self.path, *stored_files(self.path)])
 
     def close(self) -> None:

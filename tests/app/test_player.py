@@ -77,7 +77,7 @@ def test_played_frames_are_the_engines_in_order(gpu, doc, playback):
     # Another window (a pan) and an edit of the flow are taken at the next request.
     moved = Rect(RECT.x0 + 17, RECT.y0 - 9, RECT.x1 + 17, RECT.y1 - 9)
     faster = replace(doc, motion=replace(doc.motion, flow=replace(doc.motion.flow, velocity=(300, 0))))
-    _until(pb, faster, moved, lambda: pb.shown.rect == moved and not pb.player.busy
+    _until(pb, faster, moved, lambda: pb.shown is not None and pb.shown.rect == moved and not pb.player.busy
            and pb.shown.doc_id == pb.player.doc_id)
     np.testing.assert_array_equal(pb.shown.rgb, _engine(gpu, faster, 3, moved))
 
@@ -92,7 +92,7 @@ def test_what_cannot_play_is_one_line_asked_once(doc, playback):
     for _ in range(20):
         pb.tick(doc, 64, Rect(0, 0, 64, 64), "")
     assert pb.player.asked is None and (pb.player.doc_id, pb.player.asked) == asked  # not asked again
-    _until(pb, doc, RECT, lambda: pb.shown.rect == RECT and pb.shown.t == 2)  # without tile mode it plays
+    _until(pb, doc, RECT, lambda: pb.shown is not None and pb.shown.rect == RECT and pb.shown.t == 2)  # no tile mode: it plays
     assert pb.player.error is None
 
 
@@ -104,3 +104,22 @@ def test_a_zoomed_out_view_plays_its_middle():
     r = play_rect(big)
     assert r.w * r.h <= MAX_PLAY_PIXELS and abs(r.w / r.h - 2.0) < 0.25
     assert abs((r.x0 + r.x1) // 2) <= SNAP and abs((r.y0 + r.y1) // 2) <= SNAP
+
+
+def test_a_frame_of_another_document_is_never_shown(gpu, doc, playback):
+    pb = playback
+    other = replace(doc, seed=doc.seed + 11)  # another still texture
+    pb.seek(4, doc.motion.frames)
+    pb.tick(doc, 0, RECT, "")  # asked for doc's frame...
+    assert pb.player.busy
+    # ...then the document changes before it comes: what shows is only ever the new one's.
+    shown_ids = set()
+    t0 = time.monotonic()
+    while not (pb.shown is not None and pb.shown.doc_id == pb.player.doc_id and not pb.player.busy):
+        assert time.monotonic() - t0 < 120, pb.player.error
+        pb.tick(other, 0, RECT, "")
+        if pb.shown is not None:
+            shown_ids.add(pb.shown.doc_id)
+        time.sleep(0.005)
+    assert shown_ids == {pb.player.doc_id}  # the first document's frame came, and was dropped
+    np.testing.assert_array_equal(pb.shown.rgb, _engine(gpu, other, 4, RECT))

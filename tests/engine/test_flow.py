@@ -270,3 +270,18 @@ def test_a_draft_is_the_uncorrected_frame_colored_within_a_level(synth):
         diff = np.abs(draft.astype(int) - ref.astype(int))
         assert diff.max() <= 1, (gl, diff.max())
         assert np.any(ref_coords[..., 2:] != 0)  # (sub-pixel rests were sampled)
+
+
+def test_an_erased_corner_gives_its_room_back_and_loops_never_rewind(synth):
+    from infinitex.engine.controls.fields import dab_weights
+    w = dab_weights(16.0, 16.0, 12.0, 0.5, 0, 0, 32, 32)
+    m = VelocityMap(np.zeros((1, 1, 2), np.int32), 0, 0).painted(0, 0, w, (300, 0))
+    m = m.painted(1000, 0, w, (300, 0))
+    assert m.w > 1000
+    m = m.painted(1000, 0, np.ones((32, 32)), (0, 0))  # erased: the map is the first dab's again
+    assert m.w <= 64 and m.x == 0 and np.array_equal(m.values[:32, :32, 0] > 0, w > 0)
+    # A loop of 9 chains (9 = 1 mod 8): its last chain, which runs into its first, starts elsewhere.
+    loop = FlowFrames(SynthSource(synth), Flow(map=vortex(32, 32), period=4, loop=36), 3)
+    offsets = [loop.key_offset(k) for k in range(9)]
+    assert offsets[8] != offsets[0] and offsets[8] != offsets[7]
+    assert all(offsets[k] != offsets[k + 1] for k in range(8))

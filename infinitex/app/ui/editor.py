@@ -391,7 +391,10 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         # the cores more than a full frame rate: a few frames a second show progress.
         background = (self.exporting_apart()
                       or (self.export_settings.estimate is not None and not self.export_settings.estimate.poll()))
-        playing = self.doc.motion.fps if self.playback.playing and self.doc is not None and self.doc.motion else 0.0
+        pb = self.playback  # a flow playing: wake as often as its frames are due; a frame asked for: 10 a second
+        playing = 0.0
+        if pb.active and self.doc is not None and self.doc.motion is not None:
+            playing = self.doc.motion.fps if pb.playing else 10.0 if pb.player.busy else 0.0
         self.waits.frame_ended(busy=busy, analyzing=analyzing, working=working, background=background,
                                playing=playing)
         if self.quit_requested:

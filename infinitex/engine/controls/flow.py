@@ -21,6 +21,7 @@ unless the map is DirectX-style.
 """
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import cached_property
@@ -46,6 +47,7 @@ class FlowError(ValueError):
 
 TILE = 64                 # a velocity map's tiles (canvas pixels a side), shared between its edits
 _DERIVED: OrderedDict = OrderedDict()  # (map key, what) -> dense arrays of the maps lately used
+_DERIVED_LOCK = threading.Lock()        # (the editor's autosave thread reads them too)
 
 
 class VelocityMap:
@@ -116,13 +118,16 @@ class VelocityMap:
 
     def _derived(self, what: str, make):
         k = (self.key, what)
-        if k in _DERIVED:
-            _DERIVED.move_to_end(k)
-            return _DERIVED[k]
+        with _DERIVED_LOCK:
+            value = _DERIVED.get(k)
+            if value is not None:
+                _DERIVED.move_to_end(k)
+                return value
         value = make()
-        _DERIVED[k] = value
-        while len(_DERIVED) > 9:  # the maps of the last few edits (an undo, the player's)
-            _DERIVED.popitem(last=False)
+        with _DERIVED_LOCK:
+            _DERIVED[k] = value
+            while len(_DERIVED) > 9:  # the maps of the last few edits (an undo, the player's)
+                _DERIVED.popitem(last=False)
         return value
 
     def _dense(self) -> np.ndarray:
@@ -138,16 +143,29 @@ class VelocityMap:
     @cached_property
     def peak(self) -> int:
         """The largest |component| (1/256 px per frame)."""
-        return max((int(np.abs(t).max()) for t in self.tiles.values()), default=0)
+        return max((_tile_facts(t)[0] for t in self.tiles.values()), default=0)
 
     @cached_property
     def key(self) -> bytes:
+        """A digest of the rectangle and every tile's (each tile's own digest is
+        kept with it: a map made by a dab hashes only the tiles it changed)."""
         import hashlib
         h = hashlib.sha256(np.array([self.w, self.h, self.x, self.y], np.int64).tobytes())
         for k in sorted(self.tiles):
             h.update(np.array(k, np.int64).tobytes())
-            h.update(self.tiles[k].tobytes())
+            h.update(_tile_facts(self.tiles[k])[1])
         return h.digest()
+
+    def nearest(self, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
+        """(N, 2) int32: the velocity of the texel at each canvas pixel (qx, qy), read
+        from the tiles (no dense array made: what the Flow tool's arrows draw)."""
+        out = np.zeros((len(qx), 2), np.int32)
+        inside = (qx >= self.x) & (qx < self.x + self.w) & (qy >= self.y) & (qy < self.y + self.h)
+        for i in np.nonzero(inside)[0]:
+            t = self.tiles.get((int(qx[i]) // TILE, int(qy[i]) // TILE))
+            if t is not None:
+                out[i] = t[int(qy[i]) % TILE, int(qx[i]) % TILE]
+        return out
 
     def __eq__(self, other):
         return isinstance(other, VelocityMap) and self.key == other.key
@@ -189,7 +207,12 @@ class VelocityMap:
                 sub = t[b0 - ty * TILE:b1 - ty * TILE, a0 - tx * TILE:a1 - tx * TILE]
                 sub[...] = np.rint(sub + (tgt - sub) * wt).astype(np.int16)
                 _keep(tiles, (tx, ty), t)
-        return VelocityMap(tiles=tiles, size=(nx1 - nx0, ny1 - ny0), x=nx0, y=ny0)
+        if tiles:  # the rectangle shrinks to what still moves (an erased corner gives its room back)
+            xs = [k[0] for k in tiles]
+            ys = [k[1] for k in tiles]
+            nx0, ny0 = max(nx0, min(xs) * TILE), max(ny0, min(ys) * TILE)
+            nx1, ny1 = min(nx1, (max(xs) + 1) * TILE), min(ny1, (max(ys) + 1) * TILE)
+        return VelocityMap(tiles=tiles, size=(max(1, nx1 - nx0), max(1, ny1 - ny0)), x=nx0, y=ny0)
 
     def merged(self, other: VelocityMap, limit: int = MAX_MAP_SIDE) -> VelocityMap:
         """This map with ``other`` laid over it (its rectangle replaced by ``other``'s texels)."""
@@ -206,6 +229,24 @@ class VelocityMap:
                     dense[b0 - other.y:b1 - other.y, a0 - other.x:a1 - other.x]
                 _keep(tiles, (tx, ty), t)
         return VelocityMap(tiles=tiles, size=(nx1 - nx0, ny1 - ny0), x=nx0, y=ny0)
+
+
+_FACTS: dict = {}  # id of a tile -> (a weak reference to it, its peak, its digest)
+
+
+def _tile_facts(t: np.ndarray) -> tuple[int, bytes]:
+    """A tile's largest |component| and its digest, computed once per tile."""
+    got = _FACTS.get(id(t))
+    if got is None or got[0]() is not t:
+        import hashlib
+        import weakref
+        got = (weakref.ref(t), int(np.abs(t).max()), hashlib.sha256(t.tobytes()).digest())
+        with _DERIVED_LOCK:  # (the autosave thread hashes maps too)
+            if len(_FACTS) > 65536:  # the tiles gone are forgotten
+                for k in [k for k, v in _FACTS.items() if v[0]() is None]:
+                    del _FACTS[k]
+            _FACTS[id(t)] = got
+    return got[1], got[2]
 
 
 def _keep(tiles: dict, k: tuple[int, int], t: np.ndarray) -> None:

@@ -106,7 +106,7 @@ def draw(p: Panels) -> None:
     changed, loop = imgui.checkbox("Seamless loop", bool(flow.loop))
     tip("The last frame runs into the first: a flipbook that loops without a jump")
     if changed:
-        _set_frames(ed, m, m.frames, loop)
+        _set_frames(ed, m, m.frames, loop, group=None)
     changed, period = imgui.slider_int("Renewal", flow.period, MIN_PERIOD, MAX_PERIOD, "every %d frames")
     tip("How often new texture takes over from the texture carried along (a frame depends on at most twice "
         "this many before it): shorter stays closer to the exemplar where the flow stretches it, longer "
@@ -121,7 +121,7 @@ def draw(p: Panels) -> None:
         "distortion), dividing a loop")
     if changed and p.auto_period:
         try:
-            _set_period(ed, m, flow.suggested_period(m.frames if flow.loop else 0))
+            _set_period(ed, m, flow.suggested_period(m.frames if flow.loop else 0), group=None)
         except FlowError as exc:
             ed.tell(str(exc))
     imgui.pop_item_width()
@@ -163,7 +163,7 @@ def toggle(ed) -> None:
     ed.playback.toggle()
 
 
-def _set_frames(ed, m: Motion, n: int, loop: bool) -> None:
+def _set_frames(ed, m: Motion, n: int, loop: bool, group="motion-frames") -> None:
     flow = m.flow
     try:
         if loop:
@@ -171,18 +171,18 @@ def _set_frames(ed, m: Motion, n: int, loop: bool) -> None:
             flow = replace(flow, loop=n, period=period)
         else:
             flow = replace(flow, loop=0)
-        _edit(ed, replace(m, flow=flow, frames=n), "Animation frames", group="motion-frames")
+        _edit(ed, replace(m, flow=flow, frames=n), "Animation frames", group=group)
     except FlowError as exc:
         ed.tell(str(exc))
 
 
-def _set_period(ed, m: Motion, period: int) -> None:
+def _set_period(ed, m: Motion, period: int, group="motion-period") -> None:
     flow = m.flow
     n = m.frames
     if flow.loop and n % period:  # a loop's length stays a multiple of the period
         n = max(period, round(n / period) * period)
         flow = replace(flow, loop=n)
-    _edit(ed, replace(m, flow=replace(flow, period=period), frames=n), "Renewal period", group="motion-period")
+    _edit(ed, replace(m, flow=replace(flow, period=period), frames=n), "Renewal period", group=group)
 
 
 # -- the canvas ---------------------------------------------------------------------

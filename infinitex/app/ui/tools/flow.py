@@ -257,8 +257,11 @@ def draw_flow(draw_list, flow: Flow | None, view, p0, w: int, h: int) -> None:
     if xs.size * ys.size > 6000:
         return
     X, Y = np.meshgrid(xs, ys)
-    vx, vy = flow.sample(np.rint(X * Q).astype(np.int64), np.rint(Y * Q).astype(np.int64))
-    vx, vy = vx / Q, vy / Q
+    v = np.zeros(X.shape + (2,), np.float64) + np.array(flow.velocity, np.float64)
+    if flow.map is not None:  # (the nearest texel, read from the tiles: no dense map made while painting)
+        qx, qy = np.floor(X).astype(np.int64).ravel(), np.floor(Y).astype(np.int64).ravel()
+        v += flow.map.nearest(qx, qy).reshape(X.shape + (2,))
+    vx, vy = v[..., 0] / Q, v[..., 1] / Q
     speed = np.hypot(vx, vy)
     dark, light = imgui.get_color_u32((0, 0, 0, 0.7)), imgui.get_color_u32((0.3, 0.8, 1.0, 0.95))
     for iy, ix in zip(*np.nonzero(speed > 0.01)):
