@@ -82,7 +82,7 @@ def run_animate(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     from infinitex.engine.controls.flow import MAX_FRAME, Flow, FlowError
     from infinitex.engine.rect import Rect
-    from infinitex.export.animation import MAX_FRAMES, animation_format, check_folder_output
+    from infinitex.export.animation import MAX_FRAMES, animation_format
 
     # Arguments first: nothing is computed before they are all good (a project's
     # animation gives the defaults).
@@ -112,20 +112,10 @@ def run_animate(argv: list[str]) -> int:
     if w * h * n > (1 << 30):
         raise CliError(f"{n} frames of {w}x{h} are over 1 Gpixel in all; write fewer or smaller frames.", EXIT_USAGE)
     try:
+        from infinitex.engine.material import ROLES
+        from infinitex.export.animation import check_animation_output
         fmt = animation_format(args.output)
-        if fmt == "folder":
-            from infinitex.engine.material import ROLES
-            check_folder_output(args.output, ROLES if doc.maps else ())
-        else:
-            from infinitex.engine.safeio import check_output
-            check_output(args.output, (os.path.splitext(args.output)[1].lower(),), "animation")
-        if fmt == "atlas":
-            from infinitex.export.animation import atlas_grid
-            atlas_grid(n, w, h)
-        from infinitex.export.animation import MAX_WEBP_SIDE
-        if fmt == "webp" and max(w, h) > MAX_WEBP_SIDE:
-            raise WriteError(f"A WebP is at most {MAX_WEBP_SIDE} px a side, not {max(w, h)}; write a folder, "
-                             "an APNG or a video.")
+        check_animation_output(args.output, fmt, [("", args.output)], n, w, h, ROLES if doc.maps else ())
     except WriteError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
     velocity_map = None

@@ -81,6 +81,24 @@ def check_folder_output(out: str, roles: tuple[str, ...] = ()) -> None:
                              "replaces only a folder of frames.")
 
 
+def check_animation_output(out: str, fmt: str, outputs: list[tuple[str, str]], frames: int, w: int, h: int,
+                           roles: tuple[str, ...] = ()) -> None:
+    """Everything about writing ``frames`` frames of w x h to ``out`` that can be
+    checked before any work (WriteError): the folder a sequence replaces (a
+    material's: ``roles``), each file's name, the atlas' grid, WebP's size."""
+    from infinitex.engine.safeio import check_output
+    if fmt == "folder":
+        check_folder_output(out, roles)
+    else:
+        for _, path in outputs:
+            check_output(path, (os.path.splitext(out)[1].lower(),), "animation")
+    if fmt == "atlas":
+        atlas_grid(frames, w, h)
+    if fmt == "webp" and max(w, h) > MAX_WEBP_SIDE:
+        raise WriteError(f"A WebP is at most {MAX_WEBP_SIDE} px a side, not {max(w, h)}; write a folder, "
+                         "an APNG or a video.")
+
+
 def _is_frame_name(name: str) -> bool:
     return name.startswith("frame_") and name.endswith(".png") and name[6:-4].isdigit()
 

@@ -18,7 +18,7 @@ from imgui_bundle import imgui
 
 from infinitex.engine.controls.flow import MAX_PERIOD, MIN_PERIOD, Q, Flow, FlowError
 from infinitex.engine.rect import Rect
-from infinitex.engine.safeio import WriteError, check_output, printable
+from infinitex.engine.safeio import WriteError, printable
 from infinitex.project.flow_json import Motion
 
 from ...player import play_rect
@@ -250,13 +250,7 @@ def start_export(ed, path: str, confirmed: bool = False) -> None:
     """Export the document's animation to ``path`` in a process of its own (progress and cancel in the export window)."""
     from infinitex.engine.advect import MAX_STATIC_SIDE, static_side
     from infinitex.engine.material import IMAGE, ROLES
-    from infinitex.export.animation import (
-        MAX_WEBP_SIDE,
-        animation_format,
-        animation_outputs,
-        atlas_grid,
-        check_folder_output,
-    )
+    from infinitex.export.animation import animation_format, animation_outputs, check_animation_output
     from infinitex.export.animation_job import AnimationExport
     from infinitex.export.window import Writes, check_own_inputs
     doc = ed.doc
@@ -273,15 +267,7 @@ def start_export(ed, path: str, confirmed: bool = False) -> None:
         mat = ed.session.material
         roles = [IMAGE] if mat is None or mat.single else list(mat.roles)
         outputs = animation_outputs(path, fmt, roles)
-        if fmt == "folder":
-            check_folder_output(path, ROLES if len(roles) > 1 else ())
-        else:
-            for _, out in outputs:
-                check_output(out, (os.path.splitext(path)[1].lower(),), "animation")
-        if fmt == "atlas":
-            atlas_grid(m.frames, rect.w, rect.h)
-        if fmt == "webp" and max(rect.w, rect.h) > MAX_WEBP_SIDE:
-            raise WriteError(f"A WebP is at most {MAX_WEBP_SIDE} px a side.")
+        check_animation_output(path, fmt, outputs, m.frames, rect.w, rect.h, ROLES if len(roles) > 1 else ())
         flow = m.flow
         if static_side(flow, rect.w, rect.h) > MAX_STATIC_SIDE:
             raise WriteError("The flow carries content farther than one synthesis covers in a renewal; use a "
