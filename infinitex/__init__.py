@@ -30,7 +30,9 @@ labels=None, label_strength=1.0)``
     (2 colours: 16 tiles, 3: 81) whose tiles meet without a seam wherever
     their corner colours agree, or (colors=1, variants=K) K tiles with the
     borders of one toroidal tile. ``arrange(atlas, description, cols, rows,
-    seed=0)`` lays them out at random, as an engine would.
+    seed=0)`` lays them out at random, as an engine would;
+    ``save_tile_set(atlas, description, "set.png")`` writes it as the command
+    line does, with Tiled's .tsx/.tmx and Godot's .tres.
 
 Step by step (an analysis and a GL context made once, many windows)::
 
@@ -97,7 +99,7 @@ ASSETS = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "assets")  
 # Names resolved on first use (PEP 562), so ``import infinitex`` and
 # ``infinitex --version`` stay fast and need no GL.
 _EXPORTS = {
-    "synthesize": "api", "tile": "api", "tile_set": "api", "arrange": "api", "label_controls": "api", "palette": "api",
+    "synthesize": "api", "tile": "api", "tile_set": "api", "arrange": "api", "save_tile_set": "api", "label_controls": "api", "palette": "api",
     "PaletteLayout": "engine.palette",
     "Exemplar": "engine.exemplar", "ExemplarError": "engine.exemplar", "load_exemplar": "engine.exemplar",
     "from_array": "engine.exemplar", "load_full": "engine.exemplar", "write_png": "engine.imagefile",

@@ -258,6 +258,50 @@ def arrange(atlas: np.ndarray, description: dict, cols: int, rows: int, seed: in
     return assemble(atlas, plan, plan.arrangement(cols, rows, seed))
 
 
+def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | tuple[str, ...] = "all",
+                  seed: int = 0) -> list[str]:
+    """Write a set made by :func:`tile_set` as ``infinitex export --wang``
+    does: the atlas ``path`` (.png), its ``.json`` description, the preview
+    (8 x 8 tiles at random by ``seed``, also the example map's layout) and
+    the ``engines``' resources ("tiled", "godot", "all" or "none": the .tsx
+    and .tmx, the .tres). Returns the files written."""
+    import json
+
+    from .engine.imagefile import write_png
+    from .engine.safeio import atomic_write
+    from .export.engines import engine_files, parse_engines, write_engine_files
+    from .export.tileset import PREVIEW_TILES, set_paths
+    from .export.wang import TileSetPlan, assemble
+    path = os.fspath(path)
+    if not path.lower().endswith(".png"):
+        raise ValueError(f"A tile set's atlas is written as PNG: {path!r} does not end in .png.")
+    d = description
+    plan = TileSetPlan(d["colors"], d["tile"], d["count"] if d["colors"] == 1 else 0)
+    cols, rows = plan.grid
+    if atlas.dtype != np.uint8 or atlas.shape[:2] != (rows * plan.tile, cols * plan.tile):
+        raise ValueError(f"The atlas of this set is uint8 {cols * plan.tile}x{rows * plan.tile}, "
+                         f"not {atlas.dtype} {atlas.shape[1]}x{atlas.shape[0]}.")
+    files = engine_files(path, [("image", path, 8)], "image", parse_engines(engines) if isinstance(engines, str)
+                         else tuple(engines))
+    side = set_paths(path)
+    layout = plan.arrangement(PREVIEW_TILES, PREVIEW_TILES, seed)
+    write_png(path, atlas)
+    write_png(side["preview"], assemble(atlas, plan, layout))
+    write_engine_files(plan, files, {"image": (path, (atlas.shape[1], atlas.shape[0]))}, "image", layout)
+    base = os.path.dirname(path) or os.curdir
+    rel = lambda p: os.path.relpath(p, base)  # noqa: E731
+    engines_desc = {}
+    if files.tmx:
+        engines_desc["tiled"] = {"tilesets": {"image": rel(files.tilesets["image"])}, "map": rel(files.tmx)}
+    if files.tres:
+        engines_desc["godot"] = {"tileset": rel(files.tres)}
+    full = {"format": "infinitex-tile-set", "version": 1, **{k: v for k, v in d.items() if k != "tiles"},
+            "atlas_tiles": plan.colors > 1, "maps": {"image": rel(path)}, "preview": rel(side["preview"]),
+            "engines": engines_desc, "tiles": d["tiles"]}
+    atomic_write(side["json"], (json.dumps(full, indent=1) + "\n").encode())
+    return [path, side["preview"]] + files.files + [side["json"]]
+
+
 def _params(L: int, seed: int, randomness, structure: int | str) -> SynthParams:
     return structure_params(_jitter_params(L, seed, randomness), structure_index(structure))
 

@@ -5,13 +5,19 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # --bench: also install the benchmark-only packages (requirements-bench.txt: the G'MIC peer, plenoptic on CPU torch).
+# --tests: also the Debian packages only the tests use (tiled: its renderer tmxrasterizer
+# checks the Tiled tile sets we write).
 BENCH=0
+TESTS=0
 if [ "${1:-}" = "--bench" ]; then BENCH=1; fi
+if [ "${1:-}" = "--tests" ]; then TESTS=1; fi
 
 if command -v dpkg >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1; then
   missing=()
   # xvfb + xauth: the editor runs (and its tests drive it) on a virtual display.
-  for pkg in libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri xvfb xauth; do
+  pkgs=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri xvfb xauth)
+  if [ "$TESTS" = 1 ]; then pkgs+=(tiled); fi
+  for pkg in "${pkgs[@]}"; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
   done
   # Debian's python3 ships without venv/ensurepip unless python3-venv is installed.

@@ -6,7 +6,7 @@
 # Other arguments go to pytest (e.g. tests/engine, -k lattice, -x).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh --tests
 args=()
 if [ "${1:-}" = "--fast" ]; then
   shift

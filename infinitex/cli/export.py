@@ -73,6 +73,11 @@ def build_parser() -> Parser:
     g.add_argument("--variants", type=integer, metavar="K",
                    help="K tiles (2 to 64) with the borders of one toroidal tile and different insides: any "
                         "of them fits next to any other. Files as with --wang")
+    p.add_argument("--for", dest="engines", default=None, metavar="tiled|godot|all|none",
+                   help="--wang/--variants: the game engines' own terrain resources beside the atlas (default all): "
+                        "tiled: OUT.tsx (a tileset with a corner Wang set; per map for a material) and OUT.tmx (an "
+                        "example map of the preview's arrangement); godot: OUT.tres (a Godot 4 TileSet with a "
+                        "Match Corners terrain set); none: the atlas and JSON only")
     p.add_argument("--per-tile", action="store_true",
                    help="--wang/--variants: also one file per tile, OUT_0110.png (corner colours nw ne sw se) "
                         "or OUT_v3.png")
@@ -367,8 +372,12 @@ def check_own_inputs(args, size: tuple[int, int], sources: dict[str, str], input
         from infinitex.export.tileset import set_paths, tile_file
         paths = set_paths(args.output)
         tiles = plan.tiles() if args.per_tile else []
-        writes.files += [paths["json"], paths["preview"]] + [tile_file(f, t) for f in list(writes.files)
-                                                             for t in tiles]
+        atlases = list(writes.files)
+        writes.files += [paths["json"], paths["preview"]] + [tile_file(f, t) for f in atlases for t in tiles]
+        if args.engines:  # the engine resources (export/engines.py) of the PNG atlases
+            base = os.path.splitext(args.output)[0]
+            writes.files += [os.path.splitext(f)[0] + ".tsx" for f in atlases if f.lower().endswith(".png")
+                             and "tiled" in args.engines] + [base + ".tmx", base + ".tres"]
     try:
         check(writes, inputs)
     except OwnInputError as exc:
@@ -424,9 +433,15 @@ def _tileset_plan(args):
     before any work (its lattice cell is checked once the document is loaded);
     None for other exports."""
     if args.wang is None and args.variants is None:
-        if args.per_tile:
-            raise CliError("--per-tile goes with --wang or --variants.", EXIT_USAGE)
+        if args.per_tile or args.engines is not None:
+            raise CliError(f"{'--per-tile' if args.per_tile else '--for'} goes with --wang or --variants.", EXIT_USAGE)
         return None
+    from infinitex.export.engines import parse_engines
+    try:
+        if not isinstance(args.engines, tuple):  # parsed once
+            args.engines = parse_engines("all" if args.engines is None else args.engines)
+    except ValueError as exc:
+        raise CliError(str(exc), EXIT_USAGE) from None
     from infinitex.export.wang import TileSetError, TileSetPlan
     flag = "--wang" if args.wang is not None else "--variants"
     if args.format != "png" or args.coords or args.magnify != 1 or args.workers or args.scheduler is not None:
@@ -449,15 +464,19 @@ def _run_tileset(session, plan, view, roles, args, renderer: str) -> int:
         plan = plan_for(session, plan.colors, plan.tile, plan.variants, origin)
     except TileSetError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    job = TileSetJob(session, plan, args.output, maps=roles, depth=args.depth, per_tile=args.per_tile)
+    job = TileSetJob(session, plan, args.output, maps=roles, depth=args.depth, per_tile=args.per_tile,
+                     engines=args.engines)
     seconds = _run_job(job, "tile set", args.quiet)
     if not args.quiet:
-        files = [p for _, p, _ in job.outputs] + [job.paths["json"], job.paths["preview"]]
+        files = [p for _, p, _ in job.outputs] + [job.paths["json"], job.paths["preview"]] + job.engines.files
         names = ", ".join(printable(os.path.basename(p)) for p in files)
         kind = (f"corner Wang, {plan.colors} colours" if plan.colors > 1 else "variants of one toroidal tile")
         each = ", and each tile's own file" if args.per_tile else ""
         sys.stderr.write(f"{names}: {plan.count} tiles of {plan.tile} px ({kind}{each}) in "
                          f"{seconds:.1f} s ({renderer})\n")
+        if args.engines and job.engines.skipped:
+            sys.stderr.write(f"note: no engine resource for {', '.join(job.engines.skipped)}: Tiled and Godot "
+                             "read PNG atlases (use --depth 8 or 16)\n")
     return 0
 
 

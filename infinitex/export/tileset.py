@@ -17,6 +17,7 @@ from infinitex.engine.imagefile import write_image
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import atomic_write
 
+from .engines import ENGINES, engine_files, write_engine_files
 from .loaded import LoadedDocument
 from .window import export_outputs
 from .wang import TileSetBuilder, TileSetError, TileSetPlan, assemble
@@ -62,7 +63,7 @@ class TileSetJob:
 
     def __init__(self, session: LoadedDocument, plan: TileSetPlan, out_path: str | None = None, *,
                  maps: list[str] | None = None, depth: int | None = None, per_tile: bool = False,
-                 preview_seed: int = 0):
+                 preview_seed: int = 0, engines: tuple[str, ...] = ENGINES):
         if session.synth is None:
             raise SynthesisError("Nothing to export yet: the exemplar is still being analyzed.")
         if session.controls.directed:
@@ -73,7 +74,8 @@ class TileSetJob:
         self.out_path: str | None = None
         self.outputs: list[tuple[str, str, int]] = []
         if out_path is not None:
-            self.set_output(out_path, maps=maps, depth=depth, per_tile=per_tile, preview_seed=preview_seed)
+            self.set_output(out_path, maps=maps, depth=depth, per_tile=per_tile, preview_seed=preview_seed,
+                            engines=engines)
         self.L = session.analysis.L
         params = session.params
         self.pyramid = Pyramid(session.gpu, session.synth.gan, params, scrolling=True, prefetch=0, chunk=16,
@@ -98,10 +100,12 @@ class TileSetJob:
         self.started = time.monotonic()
 
     def set_output(self, out_path: str, *, maps: list[str] | None = None, depth: int | None = None,
-                   per_tile: bool = False, preview_seed: int = 0) -> None:
+                   per_tile: bool = False, preview_seed: int = 0, engines: tuple[str, ...] = ENGINES) -> None:
         """Where (and how) the set is written: every map's atlas at ``out_path``
-        (``OUT_ROLE.png`` for a material), its description and preview beside it."""
+        (``OUT_ROLE.png`` for a material), its description and preview beside it,
+        and the ``engines``' resources (``engines.py``: Tiled, Godot)."""
         self.outputs = export_outputs(self.material, out_path, maps, depth)
+        self.engines = engine_files(out_path, self.outputs, self.material.primary, tuple(engines))
         self.out_path, self.per_tile, self.preview_seed = out_path, per_tile, preview_seed
         self.paths = set_paths(out_path)
         cols, rows = self.plan.grid
@@ -110,7 +114,7 @@ class TileSetJob:
 
     @property
     def writes(self) -> list[str]:
-        files = [p for _, p, _ in self.outputs] + [self.paths["json"], self.paths["preview"]]
+        files = [p for _, p, _ in self.outputs] + [self.paths["json"], self.paths["preview"]] + self.engines.files
         if self.per_tile:
             files += [tile_file(p, t) for _, p, _ in self.outputs for t in self.plan.tiles()]
         return files
@@ -119,7 +123,7 @@ class TileSetJob:
         """What was written, for the editor's notice."""
         p = self.plan
         kind = f"corner Wang, {p.colors} colours" if p.colors > 1 else "variants"
-        others = ", ".join(os.path.basename(f) for f in (self.paths["json"], self.paths["preview"]))
+        others = ", ".join(os.path.basename(f) for f in [self.paths["json"], self.paths["preview"]] + self.engines.files)
         return (f"Exported {p.count} tiles of {p.tile} px ({kind}) to {os.path.abspath(self.out_path)} "
                 f"(and {others})")
 
@@ -238,8 +242,18 @@ class TileSetJob:
             "atlas_tiles": p.colors > 1,
             "maps": {role: rel(path) for role, path, _ in self.outputs},
             "preview": rel(self.paths["preview"]),
+            "engines": self._engine_description(rel),
             "tiles": tiles,
         }
+
+    def _engine_description(self, rel) -> dict:
+        e = self.engines
+        out = {}
+        if e.tilesets:
+            out["tiled"] = {"tilesets": {role: rel(p) for role, p in e.tilesets.items()}, "map": rel(e.tmx)}
+        if e.tres:
+            out["godot"] = {"tileset": rel(e.tres)}
+        return out
 
     def write(self) -> None:
         """Write every map's atlas (and each tile's file), the preview and the description."""
@@ -254,6 +268,11 @@ class TileSetJob:
         primary = self.material.primary
         write_image(self.paths["preview"], self.arranged(self.preview_seed, role=primary), 8,
                     self.material.maps[primary].exemplar.value_range)
+        if self.engines.files:
+            cols, rows = p.grid
+            size = (cols * p.tile, rows * p.tile)
+            write_engine_files(p, self.engines, {role: (path, size) for role, path, _ in self.outputs}, primary,
+                               p.arrangement(PREVIEW_TILES, PREVIEW_TILES, self.preview_seed))
         atomic_write(self.paths["json"], (json.dumps(self.description(), indent=1) + "\n").encode())
 
     def _close(self) -> None:

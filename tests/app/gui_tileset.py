@@ -4,7 +4,7 @@ test_editor.py):
     xvfb-run -a python tests/app/gui_tileset.py OUT_DIR
 
 File > Export tile set: the settings, a preview made while the editor keeps
-drawing frames, Shuffle, then Export... to a typed path; the files written
+drawing frames, Shuffle, Tiled's files without Godot's, then Export... to a typed path; the files written
 and the notice saying where. test_editor.py compares the atlas with the same
 set made by the command line. Writes "ok NAME" / "FAIL NAME: why" lines to
 OUT_DIR/report.txt.
@@ -75,6 +75,9 @@ def main(out: str) -> int:
         ctx.yield_(3)
         check("Shuffle lays the tiles out anew", d.seed == 1 and d.tex_seed == 1 and d.tex is not None,
               f"{d.seed} {d.tex_seed} {first}")
+        ctx.item_click("Godot 4 terrain")  # Tiled's files only
+        ctx.yield_(2)
+        check("a ticked engine is chosen", d.tiled and not d.godot, f"{d.tiled} {d.godot}")
         ctx.item_click("Export...")
         ctx.yield_(2)
         target = os.path.join(out, "set.png")
@@ -85,8 +88,9 @@ def main(out: str) -> int:
               and type(ed.export_job).__name__ == "BackgroundExport", f"{ed.export_job} {ed.export_queue}")
         done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 540)  # (a loaded machine: minutes)
         ctx.yield_(2)
-        files = ["big.png", "set.png", "set.json", "set_preview.png"]
-        check("the set is written", done and all(os.path.isfile(os.path.join(out, f)) for f in files),
+        files = ["big.png", "set.png", "set.json", "set_preview.png", "set.tsx", "set.tmx"]
+        check("the set is written, with Tiled's files and not Godot's", done and not os.path.exists(
+              os.path.join(out, "set.tres")) and all(os.path.isfile(os.path.join(out, f)) for f in files),
               str(os.listdir(out)))
         check("the notice says where", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
               and "16 tiles of 64 px" in ed.notice[0], str(ed.notice))

@@ -129,13 +129,14 @@ def test_tile_set_dialog_driven_by_the_test_engine(tmp_path, xdisplay):
     from PIL import Image
 
     from clirun import infinitex
-    _drive("gui_tileset.py", tmp_path, xdisplay, 11, timeout=960)  # (behind a 1536^2 export: minutes on a loaded machine)
+    _drive("gui_tileset.py", tmp_path, xdisplay, 12, timeout=960)  # (behind a 1536^2 export: minutes on a loaded machine)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     (tmp_path / "cli").mkdir()
     r = infinitex("export", gravel, "-o", tmp_path / "cli" / "set.png", "--wang", "2", "--tile", "64", "-q")
     assert r.returncode == 0, r.stderr
     assert np.array_equal(np.asarray(Image.open(tmp_path / "set.png")),
                           np.asarray(Image.open(tmp_path / "cli" / "set.png")))
+    assert (tmp_path / "set.tsx").read_bytes() == (tmp_path / "cli" / "set.tsx").read_bytes()
 
 
 def test_material_session_driven_by_the_test_engine(tmp_path, xdisplay):

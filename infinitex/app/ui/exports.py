@@ -17,6 +17,7 @@ from infinitex.engine.material import export_depths, map_path, output_paths
 from infinitex.engine.pyramid import Rect, SynthesisError
 from infinitex.engine.safeio import WriteError, check_output, printable
 from infinitex.export import check_zarr_output, udim_name
+from infinitex.export.engines import ENGINES
 from infinitex.export.jobs import BackgroundExport, ExportEstimate, StreamedExport
 from infinitex.export.window import (
     ExportJob,
@@ -154,7 +155,7 @@ class ExportsMixin:
             self.dialogs.message("Export", str(exc))
 
     def start_tileset_export(self, path: str, job, per_tile: bool = False, seed: int = 0,
-                             confirmed: bool = False) -> None:
+                             confirmed: bool = False, engines: tuple[str, ...] = ENGINES) -> None:
         """Write a tile set (made, or being made, by ``job``: the tile-set
         dialog's) to ``path``; it is finished and written while the editor stays live."""
         chosen = path
@@ -163,12 +164,13 @@ class ExportsMixin:
             path += ".tif" if self.export_settings.depth == 32 and single else ".png"
         try:
             check_output(path, (".png", ".tif", ".tiff"), "export")
-            job.set_output(path, depth=self.export_settings.depth, per_tile=per_tile, preview_seed=seed)
+            job.set_output(path, depth=self.export_settings.depth, per_tile=per_tile, preview_seed=seed,
+                           engines=engines)
             writes = Writes(files=job.writes)
             check_own_inputs(writes, self.export_inputs())
             if not confirmed and not self._confirm_replace(
                     writes, self._asked(chosen, path),
-                    lambda: self.start_tileset_export(path, job, per_tile, seed, True)):
+                    lambda: self.start_tileset_export(path, job, per_tile, seed, True, engines)):
                 return
             self.queue_export(job)
         except (SynthesisError, ValueError, WriteError) as exc:

@@ -44,6 +44,8 @@ class TileSetDialog:
         self.size = 256
         self.variants = 4
         self.per_tile = False
+        self.tiled = True       # Tiled's .tsx (per map) and an example .tmx
+        self.godot = True       # Godot 4's TileSet .tres
         self.job = None
         self.key = None
         self.seed = 0
@@ -128,6 +130,13 @@ def window(p: Panels) -> None:
         tip("How many tiles: the same borders, different insides")
     _, d.per_tile = imgui.checkbox("Also one file per tile", d.per_tile)
     tip("Beside the atlas: NAME_0110.png (corner colours nw ne sw se) or NAME_v3.png; the JSON lists them")
+    _, d.tiled = imgui.checkbox("Tiled terrain", d.tiled)
+    tip("NAME.tsx: a Tiled tileset whose corner Wang set the Terrain brush paints with (one per map of a "
+        "material), and NAME.tmx: an example map of the preview's layout")
+    imgui.same_line()
+    _, d.godot = imgui.checkbox("Godot 4 terrain", d.godot)
+    tip("NAME.tres: a Godot 4 TileSet over the atlas with a Match Corners terrain set (the normal map of a "
+        "material lights it): drop the folder into a project and paint with the terrain")
     problem = None
     try:
         plan = _plan(p)
@@ -146,7 +155,7 @@ def window(p: Panels) -> None:
     go = imgui.button("Export...", (140, 0))
     imgui.end_disabled()
     tip("Choose the file: the atlas (NAME.png; a material: one per map), NAME.json (each tile's corner colours "
-        "and place) and NAME_preview.png (8 x 8 tiles at random)")
+        "and place), NAME_preview.png (8 x 8 tiles at random) and the engines' files ticked above")
     imgui.same_line()
     close = imgui.button("Close", (100, 0)) or imgui.is_key_pressed(imgui.Key.escape, False)
     if go or close:
@@ -161,8 +170,9 @@ def window(p: Panels) -> None:
         job, d.job, d.key = d.job, None, None
         d._release_tex()
         per_tile, seed = d.per_tile, d.seed
+        engines = tuple(e for e, on in (("tiled", d.tiled), ("godot", d.godot)) if on)
         ed.dialogs.ask_path("Export tile set", True, PNG_FILTER,
-                            lambda path: ed.start_tileset_export(path, job, per_tile, seed),
+                            lambda path: ed.start_tileset_export(path, job, per_tile, seed, engines=engines),
                             default=f"tileset{d.size}.png")
 
 
