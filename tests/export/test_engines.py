@@ -1,6 +1,6 @@
 """A tile set as the game engines' own resources (infinitex/export/engines.py):
-Tiled's .tsx/.tmx checked by Tiled's own renderer (tmxrasterizer draws the
-example map exactly as we assemble it), Godot's .tres parsed by an
+Tiled's .tsx/.tmx checked by Tiled itself (tmxrasterizer draws the example
+map exactly as we assemble it; tiled --export-tileset reads the Wang set), Godot's .tres parsed by an
 independent parser (godot_parser) and checked against the engine's
 documented keys and each tile's corners."""
 from __future__ import annotations
@@ -151,6 +151,15 @@ def test_tiled_draws_the_example_map_as_we_assemble_it(tmp_path):
     assert drawn.shape == ours.shape == (512, 512, 3)
     assert np.array_equal(drawn, ours)
     assert np.array_equal(ours, np.asarray(Image.open(tmp_path / "set_preview.png").convert("RGB")))
+    # Tiled reads the corner Wang set as we mean it (its own export of the tileset to JSON)
+    r = subprocess.run([shutil.which("tiled") or "tiled", "--export-tileset", "json", "set.tsx", "set.tsj"],
+                       cwd=tmp_path, env=env, capture_output=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    wangset, = json.loads((tmp_path / "set.tsj").read_text())["wangsets"]
+    assert wangset["type"] == "corner" and len(wangset["colors"]) == 2
+    read = {w["tileid"]: w["wangid"] for w in wangset["wangtiles"]}
+    assert read == {i: [0, t["ne"] + 1, 0, t["se"] + 1, 0, t["sw"] + 1, 0, t["nw"] + 1]
+                    for i, t in enumerate(desc["tiles"])}
     tiles = plan.tiles()  # the example map is a valid arrangement: shared corners agree
     for j in range(8):
         for i in range(7):
