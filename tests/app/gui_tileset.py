@@ -75,6 +75,14 @@ def main(out: str) -> int:
         ctx.yield_(3)
         check("Shuffle lays the tiles out anew", d.seed == 1 and d.tex_seed == 1 and d.tex is not None,
               f"{d.seed} {d.tex_seed} {first}")
+        ctx.item_click("1:1")
+        ctx.yield_(3)
+        mip = d.tex is not None and d.tex.filter[0] == 0x2703  # GL_LINEAR_MIPMAP_LINEAR: fitted, filtered
+        check("the preview zooms to 1:1 and its fitted view is filtered", d.zoom == 1.0 and mip
+              and ctx.item_exists("tileset-preview"), f"{d.zoom} {d.tex and d.tex.filter}")
+        testing.capture(ctx, os.path.join(out, "tileset-dialog-1to1.png"))
+        ctx.item_click("Fit")
+        ctx.yield_(2)
         ctx.item_click("Godot 4 terrain")  # Tiled's files only
         ctx.yield_(2)
         check("a ticked engine is chosen", d.tiled and not d.godot, f"{d.tiled} {d.godot}")

@@ -129,7 +129,7 @@ def test_tile_set_dialog_driven_by_the_test_engine(tmp_path, xdisplay):
     from PIL import Image
 
     from clirun import infinitex
-    _drive("gui_tileset.py", tmp_path, xdisplay, 12, timeout=960)  # (behind a 1536^2 export: minutes on a loaded machine)
+    _drive("gui_tileset.py", tmp_path, xdisplay, 13, timeout=960)  # (behind a 1536^2 export: minutes on a loaded machine)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     (tmp_path / "cli").mkdir()
     r = infinitex("export", gravel, "-o", tmp_path / "cli" / "set.png", "--wang", "2", "--tile", "64", "-q")

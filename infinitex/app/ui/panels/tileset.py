@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
@@ -51,6 +52,7 @@ class TileSetDialog:
         self.seed = 0
         self.tex = None
         self.tex_seed: int | None = None
+        self.zoom = 0.0         # the preview's screen px per preview px; 0: fit, filtered
         self.error: str | None = None
 
     @property
@@ -108,6 +110,8 @@ def _show_preview(p: Panels) -> None:
     if img.shape[2] == 3:
         img = np.concatenate([img, np.full(img.shape[:2] + (1,), 255, np.uint8)], axis=2)
     d.tex = p.ed.session.gpu.ctx.texture((img.shape[1], img.shape[0]), 4, np.ascontiguousarray(img).tobytes())
+    d.tex.build_mipmaps()  # fitted, a 2048 px layout is filtered down, not point-sampled into noise
+    d.tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.NEAREST)
     d.tex_seed = d.seed
 
 
@@ -187,14 +191,21 @@ def _preview_area(p: Panels, plan, problem: str | None) -> None:
         job = None
     if job is not None and job.built:
         _show_preview(p)
-        imgui.image(imgui.ImTextureRef(d.tex.glo), (PREVIEW_PX, PREVIEW_PX))
+        _zoomable(d)
         cols, rows = job.plan.grid
         n = job.plan.tile
+        side = 8 * n
+        scale = d.tex.width / side
         imgui.text_disabled(f"{job.plan.count} tiles of {n} px, an atlas of {cols * n} x {rows * n}; "
-                            f"8 x 8 of them at random above")
+                            f"8 x 8 of them at random above" + ("" if scale == 1 else f" (at 1:{round(1 / scale)})"))
         if imgui.button("Shuffle", (140, 0)):
             d.seed += 1
         tip("Another random layout of the same tiles (the preview file is written with the one shown)")
+        imgui.same_line()
+        if imgui.button("Fit" if d.zoom else "1:1", (70, 0)):
+            d.zoom = 0.0 if d.zoom else 1.0
+        tip("1:1: every pixel of the layout shown (drag it, or the scroll bars, to look around; the wheel "
+            "zooms); Fit: the whole layout, filtered")
         return
     imgui.dummy((PREVIEW_PX, 8))
     if job is not None:
@@ -213,3 +224,28 @@ def _preview_area(p: Panels, plan, problem: str | None) -> None:
             d.error = str(exc)
     imgui.end_disabled()
     tip("Make the set now and show 8 x 8 of its tiles laid out at random, as an engine would")
+
+
+def _zoomable(d: TileSetDialog) -> None:
+    """The preview: fitted (filtered by its mipmaps) or zoomed in a scrolling
+    view that a drag pans and the mouse wheel zooms (1/4x to 4x)."""
+    w = d.tex.width
+    if not d.zoom:
+        imgui.image(imgui.ImTextureRef(d.tex.glo), (PREVIEW_PX, PREVIEW_PX))
+        if imgui.is_item_hovered() and imgui.get_io().mouse_wheel > 0:
+            d.zoom = 1.0
+        return
+    imgui.begin_child("tileset-preview", (PREVIEW_PX, PREVIEW_PX), imgui.ChildFlags_.borders,
+                      imgui.WindowFlags_.horizontal_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse)
+    imgui.image(imgui.ImTextureRef(d.tex.glo), (w * d.zoom, w * d.zoom))
+    io = imgui.get_io()
+    if imgui.is_item_hovered():
+        if imgui.is_mouse_dragging(imgui.MouseButton_.left, 0.0):
+            imgui.set_scroll_x(imgui.get_scroll_x() - io.mouse_delta.x)
+            imgui.set_scroll_y(imgui.get_scroll_y() - io.mouse_delta.y)
+        if io.mouse_wheel:
+            step = 2.0 if io.mouse_wheel > 0 else 0.5
+            fit = PREVIEW_PX / w
+            zoom = min(4.0, max(0.25, d.zoom * step))
+            d.zoom = 0.0 if zoom <= fit else zoom
+    imgui.end_child()
