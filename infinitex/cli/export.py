@@ -295,6 +295,9 @@ def run_export(argv: list[str]) -> int:
     if args.labels_exemplar or args.labels_canvas or args.label_strength is not None:
         doc = replace(doc, labels=label_maps(args, ex.original_size, doc.fit, ex.size, doc.labels))
     if args.direction_map:  # replaces the project's
+        if tileset:
+            raise CliError("A tile set follows no direction field (its tiles meet in any order): --direction-map "
+                           "goes with none of --wang and --variants.", EXIT_USAGE)
         doc = replace(doc, direction=direction_field(args, doc.direction))
     try:  # the project with every argument applied (--make-tileable, --lattice, labels...)
         doc.validate()
@@ -442,8 +445,11 @@ def _tileset_plan(args):
             args.engines = parse_engines("all" if args.engines is None else args.engines)
     except ValueError as exc:
         raise CliError(str(exc), EXIT_USAGE) from None
-    from infinitex.export.wang import TileSetError, TileSetPlan
+    from infinitex.export.wang import WANG_COLORS, TileSetError, TileSetPlan
     flag = "--wang" if args.wang is not None else "--variants"
+    if args.wang is not None and args.wang not in WANG_COLORS:
+        raise CliError(f"A corner Wang set has 2 or 3 corner colours (--wang 2 or --wang 3), not {args.wang}; "
+                       "--variants K makes variants of one tile.", EXIT_USAGE)
     if args.format != "png" or args.coords or args.magnify != 1 or args.workers or args.scheduler is not None:
         raise CliError(f"{flag} writes PNG (or 32-bit TIFF) atlases at 1:1: it goes with none of --format, "
                        "--coords, --magnify, --workers and --scheduler.", EXIT_USAGE)

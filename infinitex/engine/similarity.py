@@ -10,6 +10,13 @@ from scipy.spatial import cKDTree
 # Approximate nearest neighbors, as LH05 (Arya et al. 1998): each match is
 # within (1 + eps) of the exact one; 4x faster than exact search at 512^2.
 ANN_EPS = 1.0
+# At most this many texels with one same neighborhood descriptor go into the
+# search tree. Identical points cannot be split by a k-d tree: a flat area
+# (a logo, a clean graphic, a painted-out half) made one leaf of 10^5 points
+# that every query scanned (a 512^2 flat image never finished). Equal
+# neighborhoods are interchangeable matches, so keeping a spread of them
+# loses no match, only copies; images without such runs are unchanged.
+MAX_EQUAL = 64
 
 
 def border_margin(m: int, h: int) -> int:
@@ -17,6 +24,25 @@ def border_margin(m: int, h: int) -> int:
     may use at a level with spacing h: the pixel's descendants (h/2) plus the
     finest neighborhood (2), at most m/8 so coarse levels keep an interior."""
     return int(min(h // 2 + 2, m // 8))
+
+
+def spread_equal(desc: np.ndarray, pool: np.ndarray, most: int) -> np.ndarray:
+    """``pool`` (ascending texel indices) with at most ``most`` texels of any
+    one descriptor value: of a larger group of equal descriptors, ``most``
+    spread evenly through it in raster order (a deterministic rule)."""
+    rows = np.ascontiguousarray(desc[pool])
+    keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+    _, group, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    if counts.max() <= most:
+        return pool
+    order = np.argsort(group, kind="stable")             # members of a group in raster order
+    rank = np.empty(pool.size, np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    rank[order] = np.arange(pool.size) - np.repeat(starts, counts)
+    n = counts[group]
+    stride = np.maximum(1, -(-n // most))                 # every stride-th member, at most ``most``
+    keep = (rank % stride == 0) & (rank // stride < most)
+    return pool[keep]
 
 
 def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
@@ -43,6 +69,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     pool = np.nonzero(usable & lattice)[0]
     if pool.size == 0:
         pool = np.nonzero(usable)[0]
+    pool = spread_equal(desc, pool, MAX_EQUAL)
     tree = cKDTree(desc[pool])
     spacing = max(1.0, spacing_frac * m)
 

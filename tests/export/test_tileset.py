@@ -178,10 +178,13 @@ def test_variants_share_the_toroidal_borders():
     (["--wang", "3", "--tile", "1024"], "Mpixel atlas"),
     (["--wang", "2", "--format", "tiff"], "goes with none of"),
     (["--per-tile"], "--per-tile goes with"),
+    (["--wang", "1"], "2 or 3 corner colours (--wang 2 or --wang 3), not 1"),
+    (["--wang", "0"], "not 0; --variants K"),
+    (["--wang", "2", "--direction-map", GRAVEL], "follows no direction field"),
 ])
 def test_cli_refuses_bad_sets(tmp_path, args, message):
     r = infinitex("export", GRAVEL, "-o", tmp_path / "set.png", *args)
-    assert r.returncode != 0 and message in r.stderr and not os.listdir(tmp_path)
+    assert r.returncode == 2 and message in r.stderr and not os.listdir(tmp_path), r.stderr
 
 
 def test_cli_writes_a_corner_set(tmp_path):
