@@ -152,12 +152,22 @@ def traced(session: LoadedDocument, colors: int, n: int, variants: int = 0) -> n
         yield
         y, x = np.mgrid[:n, :n]
         return np.concatenate([synth.toroidal(n)[..., :2], np.stack([x - 10 ** 6, y], -1)], axis=-1).astype(np.int32)
-    work = TileSetBuilder(plan, render, lambda c: synth.colors(c[..., :2]), toroidal).build()
-    while True:
-        try:
-            next(work)
-        except StopIteration as stop:
-            return stop.value
+    from dataclasses import replace
+
+    from infinitex.engine.pyramid import Pyramid
+    from infinitex.export.tileset import correct_tile
+    params = replace(session.params, period=n) if variants else session.params
+    pyr = Pyramid(session.gpu, synth.gan, params, scrolling=False, controls=session.controls)
+    work = TileSetBuilder(plan, render, lambda c: synth.colors(c[..., :2]), toroidal,
+                          lambda padded, q, at: correct_tile(pyr, session.analysis.L, padded, q, at)).build()
+    try:
+        while True:
+            try:
+                next(work)
+            except StopIteration as stop:
+                return stop.value
+    finally:
+        pyr.release()
 
 
 def _breaks(field: np.ndarray) -> np.ndarray:

@@ -221,11 +221,14 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
     itself a valid arrangement. ``arrange(atlas, description, cols, rows)``
     lays tiles out at random. Other arguments as for :func:`synthesize`; the
     windows are taken from around ``origin``."""
+    from dataclasses import replace
+
+    from .engine.pyramid import Pyramid
+    from .export.tileset import correct_tile
     from .export.wang import TileSetBuilder, TileSetPlan
     ex, lat = _whole_cells(exemplar, lattice, controls, n)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
     if lat is not None:
-        from dataclasses import replace
         controls = replace(controls, lattice=lat)
     cell = tuple(lat.cell(an.size)) if lat is not None else (1, 1)
     plan = TileSetPlan(colors, n, variants if colors == 1 else 0, cell, origin)
@@ -237,13 +240,20 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
         def toroidal():
             yield
             return s.toroidal(n)[..., :2]
-        work = TileSetBuilder(plan, render, s.colors, toroidal).build()
-        while True:
-            try:
-                next(work)
-            except StopIteration as stop:
-                coords = stop.value
-                break
+        # the cuts inside tiles mended by the finest level's correction
+        mender = Pyramid(s.gpu, s.gan, replace(s.params, period=n) if colors == 1 else s.params, scrolling=False,
+                         controls=s.controls)
+        work = TileSetBuilder(plan, render, s.colors, toroidal,
+                              lambda padded, q, at: correct_tile(mender, an.L, padded, q, at)).build()
+        try:
+            while True:
+                try:
+                    next(work)
+                except StopIteration as stop:
+                    coords = stop.value
+                    break
+        finally:
+            mender.release()
         atlas = to_u8(s.colors(coords))
     cols, rows = plan.grid
     return atlas, {"kind": "corner-wang" if colors > 1 else "variants", "colors": colors, "tile": n,

@@ -22,6 +22,11 @@ def seam_cost(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def seam(cost: np.ndarray) -> np.ndarray:
     """(L,) columns of the least-cost 8-connected path through ``cost`` (L, W)."""
+    return seam_and_cost(cost)[0]
+
+
+def seam_and_cost(cost: np.ndarray) -> tuple[np.ndarray, float]:
+    """The least-cost path's columns (L,) and its total cost."""
     length, width = cost.shape
     acc = cost.astype(np.float64).copy()
     back = np.zeros((length, width), np.int8)
@@ -36,7 +41,7 @@ def seam(cost: np.ndarray) -> np.ndarray:
     c[-1] = int(np.argmin(acc[-1]))
     for i in range(length - 1, 0, -1):
         c[i - 1] = c[i] + back[i, c[i]]
-    return c
+    return c, float(acc[-1, c[-1]])
 
 
 def before_seam(cost: np.ndarray) -> np.ndarray:

@@ -53,6 +53,17 @@ def plan_for(session: LoadedDocument, colors: int, tile: int, variants: int = 0,
     return plan
 
 
+def correct_tile(pyr: Pyramid, L: int, padded: np.ndarray, q: int, origin: tuple[int, int]) -> np.ndarray:
+    """The finest level's correction of a composed N x N tile of coordinates
+    (``padded``: with q px around it), placed at ``origin`` of the canvas: (N, N, 2)."""
+    n = padded.shape[0] - 2 * q
+    rect = Rect(origin[0], origin[1], origin[0] + n, origin[1] + n)
+    region = pyr.padded(L, rect)
+    ys = np.clip(np.arange(region.y0, region.y1) - rect.y0 + q, 0, n + 2 * q - 1)
+    xs = np.clip(np.arange(region.x0, region.x1) - rect.x0 + q, 0, n + 2 * q - 1)
+    return pyr.correct(L, rect, padded[ys[:, None], xs[None, :]])
+
+
 class TileSetJob:
     """Make a tile set, a piece of work per ``step`` within a time budget
     (editor) or to the end (``run``: CLI); ``built`` once the set is made
@@ -87,7 +98,8 @@ class TileSetJob:
             self.periodic = Pyramid(session.gpu, session.synth.gan, periodic, scrolling=True, prefetch=0,
                                     chunk=16, controls=session.controls)
         self.builder = TileSetBuilder(plan, lambda r: self._render(self.pyramid, r), self._appearance,
-                                      lambda: self._render(self.periodic, Rect(0, 0, plan.tile, plan.tile)))
+                                      lambda: self._render(self.periodic, Rect(0, 0, plan.tile, plan.tile)),
+                                      self._correct)
         self._work = self.builder.build()
         self._piece = 0.0  # fraction of the current window done
         self.atlas: np.ndarray | None = None
@@ -132,6 +144,9 @@ class TileSetJob:
         b = self.builder
         part = min(1.0, (b.work_done + self._piece) / max(1, b.work_total))
         return part if not self.outputs else part * 0.85 + (0.15 if self.done else 0.0)
+
+    def _correct(self, padded: np.ndarray, q: int, origin: tuple[int, int]) -> np.ndarray:
+        return correct_tile(self.periodic or self.pyramid, self.L, padded, q, origin)
 
     def _appearance(self, coords: np.ndarray) -> np.ndarray:
         return self.material.lookup(self.material.primary, coords)

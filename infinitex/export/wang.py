@@ -18,8 +18,14 @@ that share the edge's corners show the same pixels on both sides of it:
   pixels are one continuous piece of texture;
 - the tile's interior is a window of its own, joined to its four strips by a
   least-cost cut inside the tile, in a ring between ``margin`` and
-  ``margin + band`` from the edges. The cut never reaches the margin, so the
-  edges stay exact, and every tile's interior differs.
+  ``margin + band`` from the edges: of CANDIDATES windows, the one whose cut
+  costs least (image quilting's choice of the block that agrees with its
+  overlap). The cut never reaches the margin, so the edges stay exact, and
+  every tile's interior differs;
+- the composed tile is then *mended*: the finest level's correction of the
+  synthesis runs on it (with what its neighbours show around it), so the
+  texture on both sides of a cut is re-matched to the exemplar as the
+  synthesis matches its own seams; the pixels within the margin are kept.
 
 Variants (``colors == 1``): K tiles that share the borders of one toroidal
 tile (the synthesis's own, LH05 6) and differ inside; tile 0 is the toroidal
@@ -39,12 +45,14 @@ import numpy as np
 
 from infinitex.engine.rect import Rect
 
-from .seamcut import before_seam, seam_cost
+from .seamcut import before_seam, seam_and_cost, seam_cost
 
 WANG_SIZES = (64, 128, 256, 512, 1024, 2048)
 WANG_COLORS = (2, 3)
 MAX_VARIANTS = 64
 MAX_SET_PIXELS = 64 * 1024 * 1024   # the atlas is made in memory, like a window export
+CANDIDATES = 2                       # interior windows tried per tile: the one whose cuts cost least is kept
+MEND_PAD = 16                        # px of neighbours' texture around a tile when its cuts are mended
 
 # Corner colours on the points of a C^2 x C^2 torus in which every 2 x 2
 # combination appears once (a de Bruijn torus): the atlas laid out by it is
@@ -108,8 +116,11 @@ class TileSetPlan:
 
     @property
     def band(self) -> int:
-        """Width of the bands the cuts run in."""
-        return self.tile // 8
+        """Width of the bands the cuts run in: 3N/16 in a corner set (room to go
+        round large elements: N/8 cut pebbles and caustics' lines more, N/4
+        showed the shared frames more often, bench.tileset); N/8 for variants,
+        whose whole ring is the one toroidal tile's."""
+        return self.tile // 8 if self.colors == 1 else self.tile * 3 // 16
 
     @property
     def grid(self) -> tuple[int, int]:
@@ -174,9 +185,11 @@ class TileSetBuilder:
     ``toroidal()`` one returning the N x N toroidal tile (variants only)."""
 
     def __init__(self, plan: TileSetPlan, render: Render, appearance: Appearance,
-                 toroidal: Callable[[], Iterator] | None = None):
+                 toroidal: Callable[[], Iterator] | None = None, correct=None):
         plan.validate()
         self.plan, self.render, self.appearance, self.toroidal = plan, render, appearance, toroidal
+        self.correct = correct  # correct(padded coords, pad, origin) -> the tile's corrected coords, or None
+        self._origin = (0, 0)   # the canvas place of the last window made
         n, cx, cy = plan.tile, *plan.cell
         self.reach = plan.margin + plan.band           # a corner window's half side, a strip's half width
         self.lead = (_up(self.reach, cx), _up(self.reach, cy))  # window reference points sit on lattice points
@@ -208,6 +221,7 @@ class TileSetBuilder:
         oy -= oy % self.plan.cell[1]
         coords = yield from self.render(Rect(ox + rel.x0, oy + rel.y0, ox + rel.x1, oy + rel.y1))
         self.work_done += 1
+        self._origin = (ox + rel.x0, oy + rel.y0)
         return coords
 
     def _before(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -221,15 +235,16 @@ class TileSetBuilder:
         p = self.plan
         n = p.tile
         if p.colors == 1 and self.toroidal is not None:
-            self.work_total = p.variants
+            self.work_total = 1 + (p.variants - 1) * CANDIDATES
             frame = yield from self.toroidal()
             self.work_done += 1
             tiles = [frame]
             for _ in range(1, p.variants):
-                tiles.append((yield from self._interior(frame)))
+                tile = yield from self._interior(frame)
+                tiles.append(self._mend(tile, lambda t, q: np.pad(t, ((q, q), (q, q), (0, 0)), mode="wrap")))
         else:
             c = p.colors
-            self.work_total = c + 2 * c * c + p.count
+            self.work_total = c + 2 * c * c + p.count * CANDIDATES
             r = self.reach
             corners = []
             for _ in range(c):
@@ -242,12 +257,45 @@ class TileSetBuilder:
             tiles = []
             for t in p.tiles():
                 frame = self._frame(strips, t["nw"], t["ne"], t["sw"], t["se"])
-                tiles.append((yield from self._interior(frame)))
+                tile = yield from self._interior(frame)
+                tiles.append(self._mend(tile, lambda tl, q, t=t: self._surround(tl, q, strips, corners, t)))
         cols, rows = p.grid
         atlas = np.zeros((rows * n, cols * n, tiles[0].shape[2]), np.int32)
         for t, coords in zip(p.tiles(), tiles):
             atlas[t["y"]:t["y"] + n, t["x"]:t["x"] + n] = coords
         return atlas
+
+    def _surround(self, tile: np.ndarray, q: int, strips: dict, corners: list, t: dict) -> np.ndarray:
+        """The tile with q px around it as any neighbour shows them near the
+        shared edge: the other halves of its strips, the corner windows."""
+        n, r = self.plan.tile, self.reach
+        out = np.zeros((n + 2 * q, n + 2 * q, tile.shape[2]), tile.dtype)
+        out[q:q + n, q:q + n] = tile
+        out[:q, q:q + n] = strips["h", t["nw"], t["ne"]][r - q:r]
+        out[q + n:, q:q + n] = strips["h", t["sw"], t["se"]][r:r + q]
+        out[q:q + n, :q] = strips["v", t["nw"], t["sw"]][:, r - q:r]
+        out[q:q + n, q + n:] = strips["v", t["ne"], t["se"]][:, r:r + q]
+        out[:q, :q] = corners[t["nw"]][r - q:r, r - q:r]
+        out[:q, q + n:] = corners[t["ne"]][r - q:r, r:r + q]
+        out[q + n:, :q] = corners[t["sw"]][r:r + q, r - q:r]
+        out[q + n:, q + n:] = corners[t["se"]][r:r + q, r:r + q]
+        return out
+
+    def _mend(self, tile: np.ndarray, surround) -> np.ndarray:
+        """The tile's cuts mended by the synthesis's own correction, run on
+        the tile as composed (with what neighbours show around it) at its
+        interior window's canvas place (each tile's correction draws its own
+        random choices: at one shared place, interiors converged to the same
+        texels); pixels within the margin of an edge stay as they are, so
+        edges stay exact."""
+        if self.correct is None:
+            return tile
+        q = min(MEND_PAD, self.reach)
+        fixed = self._grid[4] < self.plan.margin
+        mended = self.correct(surround(tile, q)[..., :2], q, self._origin)
+        out = tile.copy()
+        out[..., :2] = np.where(fixed[..., None], tile[..., :2], mended)
+        return out
 
     def _strip(self, ka: np.ndarray, kb: np.ndarray, vertical: bool) -> Iterator:
         """The strip of an edge whose first corner (left, or top) has window
@@ -294,24 +342,36 @@ class TileSetBuilder:
 
     def _interior(self, frame: np.ndarray) -> Iterator:
         """A tile from its frame and an interior window of its own, joined by a
-        least-cost cut in the ring between margin and margin + band."""
+        least-cost cut in the ring between margin and margin + band: of
+        CANDIDATES windows, the one whose four cuts cost least (image
+        quilting's choice of the block that agrees with its overlap)."""
         n, m, bw = self.plan.tile, self.plan.margin, self.plan.band
-        inner = yield from self._window(Rect(0, 0, n, n))
         y, x, _, _, d = self._grid
         ring = d < m + bw
-        looks = self.appearance(frame[ring][None])[0], self.appearance(inner[ring][None])[0]
-        fa, ia = (np.zeros((n, n, look.shape[-1]), np.float32) for look in looks)
-        fa[ring], ia[ring] = looks
-        side = d < m
-        # one seam along each side, from the frame (before it) to the interior:
-        # the frame is what any side's seam leaves outside, so the four close
-        across = np.arange(m, m + bw)
-        for rows, cols in ((across[None, :], x[0][:, None]),              # top: along x, down
-                           (n - 1 - across[None, :], x[0][:, None]),      # bottom: up
-                           (y[:, 0][:, None], across[None, :]),           # left: along y, right
-                           (y[:, 0][:, None], n - 1 - across[None, :])):  # right: leftwards
-            rr, cc = np.broadcast_arrays(rows, cols)
-            take = before_seam(seam_cost(fa[rr, cc], ia[rr, cc]))
-            side[rr[take], cc[take]] = True
-        yield
-        return np.where(side[..., None], frame, inner)
+        fl = self.appearance(frame[ring][None])[0]
+        fa = np.zeros((n, n, fl.shape[-1]), np.float32)
+        fa[ring] = fl
+        best = None
+        for _ in range(CANDIDATES):
+            inner = yield from self._window(Rect(0, 0, n, n))
+            ia = np.zeros_like(fa)
+            ia[ring] = self.appearance(inner[ring][None])[0]
+            side = d < m
+            total = 0.0
+            # one seam along each side, from the frame (before it) to the interior:
+            # the frame is what any side's seam leaves outside, so the four close
+            across = np.arange(m, m + bw)
+            for rows, cols in ((across[None, :], x[0][:, None]),              # top: along x, down
+                               (n - 1 - across[None, :], x[0][:, None]),      # bottom: up
+                               (y[:, 0][:, None], across[None, :]),           # left: along y, right
+                               (y[:, 0][:, None], n - 1 - across[None, :])):  # right: leftwards
+                rr, cc = np.broadcast_arrays(rows, cols)
+                c, cost = seam_and_cost(seam_cost(fa[rr, cc], ia[rr, cc]))
+                take = np.arange(bw)[None, :] < c[:, None]
+                side[rr[take], cc[take]] = True
+                total += cost
+            if best is None or total < best[0]:
+                best = (total, np.where(side[..., None], frame, inner), self._origin)
+            yield
+        self._origin = best[2]  # where the tile is mended: its interior's own place
+        return best[1]

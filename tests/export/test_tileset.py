@@ -130,6 +130,43 @@ def test_corner_set_edges_continue_the_texture(corner_set):
                 assert np.array_equal(tile(a)[:, -m:], tile(b)[:, -m:])
 
 
+def test_mending_sees_the_neighbours_and_keeps_the_edges():
+    """The mend (the synthesis's correction of a composed tile) is given the
+    tile with what its neighbours show around it: across every edge the
+    surround continues the canvas positions of the tile's margin (the other
+    half of the same strip). Whatever it returns, the margins stay as they
+    were, so edges stay exact; inside, its answer is taken."""
+    plan = TileSetPlan(2, 64, origin=(300, -5000))
+    seen = []
+
+    def scramble(padded, q, origin):
+        seen.append((padded.copy(), q))
+        return np.full((64, 64, 2), -7, np.int32)
+    gen = TileSetBuilder(plan, _positions, _looks, None, scramble).build()
+    while True:
+        try:
+            next(gen)
+        except StopIteration as stop:
+            atlas = stop.value
+            break
+    plain = _build(plan)
+    n, m = plan.tile, plan.margin
+    assert len(seen) == plan.count
+    ring = np.zeros((n, n), bool)
+    ring[:m], ring[-m:], ring[:, :m], ring[:, -m:] = True, True, True, True
+    for t, (padded, q) in zip(plan.tiles(), seen):
+        mine = atlas[t["y"]:t["y"] + n, t["x"]:t["x"] + n]
+        assert np.array_equal(mine[ring], plain[t["y"]:t["y"] + n, t["x"]:t["x"] + n][ring])
+        assert np.all(mine[~ring] == -7)
+        assert np.array_equal(padded[q:q + n, q:q + n][ring], mine[ring])
+        r = m + plan.band  # away from the corners, where strips meet corner windows by a cut
+        inner = slice(q + r, q + n - r)
+        assert np.all(padded[q - 1, inner] == padded[q, inner] - np.array([0, 1]))      # above the top edge
+        assert np.all(padded[q + n, inner] == padded[q + n - 1, inner] + np.array([0, 1]))  # below the bottom
+        assert np.all(padded[inner, q - 1] == padded[inner, q] - np.array([1, 0]))      # left of the left edge
+        assert np.all(padded[inner, q + n] == padded[inner, q + n - 1] + np.array([1, 0]))  # right
+
+
 def test_corner_set_interiors_differ(corner_set):
     plan, atlas = corner_set
     n, inner = plan.tile, plan.margin + plan.band
