@@ -277,8 +277,8 @@ def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | 
     and .tmx, the .tres). Returns the files written."""
     import json
 
-    from .engine.imagefile import write_png
-    from .engine.safeio import atomic_write
+    from .engine.imagefile import png_writer
+    from .engine.safeio import StagedFiles
     from .export.engines import engine_files, parse_engines, write_engine_files
     from .export.tileset import PREVIEW_TILES, set_paths
     from .export.wang import TileSetPlan, assemble
@@ -295,9 +295,7 @@ def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | 
                          else tuple(engines))
     side = set_paths(path)
     layout = plan.arrangement(PREVIEW_TILES, PREVIEW_TILES, seed)
-    write_png(path, atlas)
-    write_png(side["preview"], assemble(atlas, plan, layout))
-    write_engine_files(plan, files, {"image": (path, (atlas.shape[1], atlas.shape[0]))}, "image", layout)
+    written = [path, side["preview"]] + files.files + [side["json"]]
     base = os.path.dirname(path) or os.curdir
     rel = lambda p: os.path.relpath(p, base)  # noqa: E731
     engines_desc = {}
@@ -308,8 +306,15 @@ def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | 
     full = {"format": "infinitex-tile-set", "version": 1, **{k: v for k, v in d.items() if k != "tiles"},
             "atlas_tiles": plan.colors > 1, "maps": {"image": rel(path)}, "preview": rel(side["preview"]),
             "engines": engines_desc, "tiles": d["tiles"]}
-    atomic_write(side["json"], (json.dumps(full, indent=1) + "\n").encode())
-    return [path, side["preview"]] + files.files + [side["json"]]
+    StagedFiles.check(written)
+    with StagedFiles() as stage:  # one unit: the old set stays whole until every file is written
+        stage.write(path, writer=png_writer(atlas))
+        stage.write(side["preview"], writer=png_writer(assemble(atlas, plan, layout)))
+        write_engine_files(plan, files, {"image": (path, (atlas.shape[1], atlas.shape[0]))}, "image", layout,
+                           stage.write)
+        stage.write(side["json"], (json.dumps(full, indent=1) + "\n").encode())
+        stage.commit()
+    return written
 
 
 def _params(L: int, seed: int, randomness, structure: int | str) -> SynthParams:

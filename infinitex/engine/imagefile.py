@@ -72,8 +72,13 @@ def write_image(path: str, pixels: np.ndarray, depth: int = 8, value_range: tupl
     atomic_write(path, data)
 
 
-def write_png(path: str, pixels: np.ndarray) -> None:
-    """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
+def png_writer(pixels: np.ndarray):
+    """A writer (file object -> None) of uint8 (H, W, C) pixels as a PNG."""
     arr = pixels[..., 0] if pixels.shape[2] == 1 else pixels
     img = Image.fromarray(np.ascontiguousarray(arr), mode=PIL_MODES[pixels.shape[2]])
-    atomic_write(path, writer=lambda f: img.save(f, format="PNG"))
+    return lambda f: img.save(f, format="PNG")
+
+
+def write_png(path: str, pixels: np.ndarray) -> None:
+    """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
+    atomic_write(path, writer=png_writer(pixels))

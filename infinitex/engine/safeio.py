@@ -16,6 +16,9 @@ exemplars) goes through :func:`read_limited`, and every file it writes (PNG,
   permissions an ordinary write would give (``0666 & ~umask``, or the old
   file's mode). Temporary files left by killed writes of ours (their process
   is gone, or they are a day old) are removed on the next write to that folder.
+- :class:`StagedFiles` writes several files as one unit (a tile set): all
+  written beside their names first, renamed only once every one is written;
+  their names' links are replaced, never written through.
 - :func:`check_output` validates an output path (folder, extension, target
   kind) before any work starts; :func:`printable` makes names safe to print on
   one line.
@@ -271,6 +274,52 @@ def clean_stale_temporaries(folder: str) -> int:
     return removed
 
 
+def _write_temporary(folder: str, name: str, shown: str, mode: int, data: bytes | None, writer) -> str:
+    """Write a temporary file of ours in ``folder`` (flushed to disk, with
+    ``mode``); its path. On failure it is removed (WriteError with a sentence;
+    exceptions of ``writer`` other than OSError propagate)."""
+    clean_stale_temporaries(folder)
+    tmp = os.path.join(folder, f".{name[:64]}.{os.getpid()}.{secrets.token_hex(6)}{TMP_SUFFIX}")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
+    except OSError as exc:
+        raise WriteError(f"Cannot write in the folder of {shown}: {exc.strerror or exc}.") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            if writer is not None:
+                writer(f)
+            else:
+                f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+            os.fchmod(f.fileno(), mode)
+    except BaseException as exc:
+        _unlink(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+            raise WriteError(f"Saving {shown} failed: {exc.strerror or exc}.") from None
+        raise
+    return tmp
+
+
+def _unlink(path: str) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def _sync_folder(folder: str) -> None:
+    """Make the renames in ``folder`` durable."""
+    try:
+        dfd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
+
+
 def atomic_write(path: str, data: bytes | None = None, *, writer=None) -> None:
     """Write ``data`` (or call ``writer(fileobj)``) to ``path`` atomically.
 
@@ -286,36 +335,86 @@ def atomic_write(path: str, data: bytes | None = None, *, writer=None) -> None:
     if st is not None and not stat.S_ISREG(st.st_mode):
         raise WriteError(f"{printable(path)} exists and is not a regular file; it is not overwritten.")
     mode = stat.S_IMODE(st.st_mode) if st is not None else (0o666 & ~_UMASK)
-    clean_stale_temporaries(folder)
-    base = os.path.basename(real)[:64]
-    tmp = os.path.join(folder, f".{base}.{os.getpid()}.{secrets.token_hex(6)}{TMP_SUFFIX}")
+    tmp = _write_temporary(folder, os.path.basename(real), shown, mode, data, writer)
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
-    except OSError as exc:
-        raise WriteError(f"Cannot write in the folder of {shown}: {exc.strerror or exc}.") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            if writer is not None:
-                writer(f)
-            else:
-                f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-            os.fchmod(f.fileno(), mode)
         os.replace(tmp, real)
-    except BaseException as exc:
+    except OSError as exc:
+        _unlink(tmp)
+        raise WriteError(f"Saving {shown} failed: {exc.strerror or exc}.") from None
+    _sync_folder(folder)
+
+
+class StagedFiles:
+    """Files written as one unit (a tile set: atlases, their side files):
+    each is written in full to a temporary file beside its name, and only
+    once every one is written are they renamed over their names, one after
+    another (microseconds apart), so a kill, a full disk or a name that
+    cannot be written while the set is being written leaves the old files
+    whole. A name that is a symbolic link is replaced by the new file, never
+    written through (nor a dangling link's target created); a name held by a
+    folder, pipe or device, or too long for its folder, is refused by
+    ``check`` before anything is written. Leaving ``with`` discards what was
+    not committed."""
+
+    def __init__(self):
+        self._staged: list[tuple[str, str]] = []  # (temporary, final), in order
+
+    @staticmethod
+    def check(paths: list[str]) -> None:
+        for path in paths:
+            path = os.path.abspath(os.fspath(path))
+            shown = printable(path)
+            folder, name = os.path.split(path)
+            try:
+                most = os.pathconf(folder, "PC_NAME_MAX")
+            except (OSError, ValueError):
+                most = 255
+            if len(os.fsencode(name)) > most:
+                raise WriteError(f"The name {shown} is longer than its folder allows ({most} bytes).")
+            try:
+                st = os.lstat(path)
+            except FileNotFoundError:
+                continue
+            except OSError as exc:
+                raise WriteError(f"{shown} cannot be checked: {exc.strerror or exc}.") from None
+            if not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode)):
+                raise WriteError(f"{shown} exists and is not a regular file (a folder, device or pipe); "
+                                 "nothing was written.")
+
+    def write(self, path: str, data: bytes | None = None, *, writer=None) -> None:
+        path = os.path.abspath(os.fspath(path))
+        self.check([path])
         try:
-            os.unlink(tmp)
+            st = os.lstat(path)
+            mode = stat.S_IMODE(st.st_mode) if stat.S_ISREG(st.st_mode) else (0o666 & ~_UMASK)
         except OSError:
-            pass
-        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
-            raise WriteError(f"Saving {shown} failed: {exc.strerror or exc}.") from None
-        raise
-    try:  # make the rename itself durable
-        dfd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+            mode = 0o666 & ~_UMASK
+        folder, name = os.path.split(path)
+        self._staged.append((_write_temporary(folder, name, name_of(path), mode, data, writer), path))
+
+    def commit(self) -> list[str]:
+        """Rename every staged file over its name; the names."""
+        done = []
         try:
-            os.fsync(dfd)
+            for tmp, final in self._staged:
+                os.replace(tmp, final)
+                done.append(final)
+        except OSError as exc:
+            raise WriteError(f"Saving {name_of(final)} failed: {exc.strerror or exc}.") from None
         finally:
-            os.close(dfd)
-    except OSError:
-        pass
+            self.discard()
+        for folder in sorted({os.path.dirname(f) for f in done}):
+            _sync_folder(folder)
+        return done
+
+    def discard(self) -> None:
+        for tmp, _ in self._staged:
+            if os.path.lexists(tmp):
+                _unlink(tmp)
+        self._staged = []
+
+    def __enter__(self) -> StagedFiles:
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        self.discard()  # whatever was not committed (an exception, or no commit)

@@ -186,20 +186,21 @@ def godot_tileset(plan: TileSetPlan, name: str, textures: dict[str, str]) -> byt
 
 
 def write_engine_files(plan: TileSetPlan, files: EngineFiles, atlases: dict[str, tuple[str, tuple[int, int]]],
-                       primary: str, layout: np.ndarray) -> None:
-    """Write ``files``: ``atlases`` maps each role to its atlas path and size;
-    ``layout`` is the example map's arrangement (the preview's)."""
+                       primary: str, layout: np.ndarray, write=atomic_write) -> None:
+    """Write ``files`` (with ``write(path, data)``: the set's staged writes):
+    ``atlases`` maps each role to its atlas path and size; ``layout`` is the
+    example map's arrangement (the preview's)."""
     name = os.path.splitext(os.path.basename(atlases[primary][0]))[0]
     for role, tsx in files.tilesets.items():
         path, size = atlases[role]
         rel = os.path.relpath(path, os.path.dirname(tsx) or os.curdir)
-        atomic_write(tsx, tiled_tileset(plan, os.path.splitext(os.path.basename(path))[0], rel, size))
+        write(tsx, tiled_tileset(plan, os.path.splitext(os.path.basename(path))[0], rel, size))
     if files.tmx:
         rel = os.path.relpath(files.tilesets[primary], os.path.dirname(files.tmx) or os.curdir)
-        atomic_write(files.tmx, tiled_map(plan, rel, layout, name))
+        write(files.tmx, tiled_map(plan, rel, layout, name))
     if files.tres:
         here = os.path.dirname(files.tres) or os.curdir
         textures = {"diffuse": os.path.relpath(atlases[primary][0], here)}
         if "normal" in atlases and primary != "normal":
             textures["normal"] = os.path.relpath(atlases["normal"][0], here)
-        atomic_write(files.tres, godot_tileset(plan, name, textures))
+        write(files.tres, godot_tileset(plan, name, textures))

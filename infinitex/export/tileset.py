@@ -13,9 +13,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from infinitex.engine.imagefile import write_image
+from infinitex.engine.imagefile import encode_image
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
-from infinitex.engine.safeio import atomic_write
+from infinitex.engine.safeio import StagedFiles
 
 from .engines import ENGINES, engine_files, write_engine_files
 from .loaded import LoadedDocument
@@ -271,24 +271,31 @@ class TileSetJob:
         return out
 
     def write(self) -> None:
-        """Write every map's atlas (and each tile's file), the preview and the description."""
+        """Write every map's atlas (and each tile's file), the preview, the
+        engines' files and the description, as one unit (safeio.StagedFiles:
+        all written beside their names first, then renamed; a failure or a
+        kill before then leaves the old set whole)."""
         p = self.plan
-        for role, path, depth in self.outputs:
-            px = self.map_pixels(role)
-            rng = self.material.maps[role].exemplar.value_range
-            write_image(path, px, depth, rng)
-            if self.per_tile:
-                for t in p.tiles():
-                    write_image(tile_file(path, t), px[t["y"]:t["y"] + p.tile, t["x"]:t["x"] + p.tile], depth, rng)
-        primary = self.material.primary
-        write_image(self.paths["preview"], self.arranged(self.preview_seed, role=primary), 8,
-                    self.material.maps[primary].exemplar.value_range)
-        if self.engines.files:
-            cols, rows = p.grid
-            size = (cols * p.tile, rows * p.tile)
-            write_engine_files(p, self.engines, {role: (path, size) for role, path, _ in self.outputs}, primary,
-                               p.arrangement(PREVIEW_TILES, PREVIEW_TILES, self.preview_seed))
-        atomic_write(self.paths["json"], (json.dumps(self.description(), indent=1) + "\n").encode())
+        StagedFiles.check(self.writes)
+        with StagedFiles() as stage:
+            for role, path, depth in self.outputs:
+                px = self.map_pixels(role)
+                rng = self.material.maps[role].exemplar.value_range
+                stage.write(path, encode_image(px, depth, rng))
+                if self.per_tile:
+                    for t in p.tiles():
+                        stage.write(tile_file(path, t),
+                                    encode_image(px[t["y"]:t["y"] + p.tile, t["x"]:t["x"] + p.tile], depth, rng))
+            primary = self.material.primary
+            stage.write(self.paths["preview"], encode_image(self.arranged(self.preview_seed, role=primary), 8,
+                                                            self.material.maps[primary].exemplar.value_range))
+            if self.engines.files:
+                cols, rows = p.grid
+                size = (cols * p.tile, rows * p.tile)
+                write_engine_files(p, self.engines, {role: (path, size) for role, path, _ in self.outputs}, primary,
+                                   p.arrangement(PREVIEW_TILES, PREVIEW_TILES, self.preview_seed), stage.write)
+            stage.write(self.paths["json"], (json.dumps(self.description(), indent=1) + "\n").encode())
+            stage.commit()
 
     def _close(self) -> None:
         for name in ("pyramid", "periodic"):
