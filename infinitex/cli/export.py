@@ -250,7 +250,10 @@ def run_export(argv: list[str]) -> int:
     image = found = None
     if args.lattice and doc.maps:
         raise CliError("A lattice works on a single image, not on a material.", EXIT_USAGE)
-    if args.lattice:  # replaces the project's lattice ('none' removes it)
+    if args.lattice and args.lattice.strip().lower() == "none":  # removes the project's (nothing to decode)
+        doc = replace(doc, lattice=None)
+        sys.stdout.write("lattice: none\n")
+    elif args.lattice:  # replaces the project's lattice
         from infinitex.engine.exemplar import decode_full
         image = decode_full(doc.exemplar.data, doc.exemplar.name)
         doc = replace(doc, lattice=resolve_lattice(args.lattice, image, args.lattice_levels))
@@ -258,11 +261,16 @@ def run_export(argv: list[str]) -> int:
         sys.stdout.write(f"lattice: {doc.lattice.to_text()}\n")
     elif not project and not doc.maps and finds_lattice(args) \
             and not (streamed and not tor and (args.geometry or geometry) != "rectified"):
-        # An image is searched for a lattice (regular textures right by default).
-        from infinitex.engine.exemplar import decode_full
+        # An image is searched for a lattice (regular textures right by default),
+        # unless it is too large to search whole: then it is synthesized without one.
+        from infinitex.engine.exemplar import ExemplarError, decode_full
         from infinitex.project.realize import with_found_lattice
-        image = decode_full(doc.exemplar.data, doc.exemplar.name)
-        doc, found = with_found_lattice(doc, image)
+        try:
+            image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        except ExemplarError:
+            image = None  # (a file that cannot be read at all says so below)
+        if image is not None:
+            doc, found = with_found_lattice(doc, image)
     material = material_or_none(doc)
     ex, settings = exemplar_for(doc, image, material)
     whole = tor or (tileset.tile if tileset else 0)  # a tile of whole cells

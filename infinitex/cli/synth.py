@@ -138,18 +138,24 @@ def run_synth(argv: list[str]) -> int:
     tor = {"auto": None, "yes": True, "no": False}[args.exemplar_toroidal]
     lattice = image = None
     found = None  # the lattice found without being asked for (regular textures right by default)
-    if args.lattice:
+    if asked:
         from infinitex.engine.controls.lattice import rectified_exemplar
         from infinitex.engine.exemplar import load_full
         image = load_full(args.exemplar)
         lattice = resolve_lattice(args.lattice, image, args.lattice_levels)
+    elif args.lattice:  # --lattice none: nothing to decode whole
+        sys.stdout.write("lattice: none\n")
     elif finds_lattice(args):
         from infinitex.engine.controls.lattice import rectified_exemplar
         from infinitex.engine.controls.lattice_detect import detect
-        from infinitex.engine.exemplar import load_full
-        image = load_full(args.exemplar)
-        found = detect(image)
-        lattice = found.lattice
+        from infinitex.engine.exemplar import ExemplarError, load_full
+        try:  # an image too large to search whole is synthesized without a lattice
+            image = load_full(args.exemplar)
+        except ExemplarError:
+            image = None  # (a file that cannot be read at all says so below)
+        if image is not None:
+            found = detect(image)
+            lattice = found.lattice
     palette = None
     if args.palette:
         if lattice is not None or args.make_tileable:

@@ -114,7 +114,10 @@ def with_found_lattice(doc: Document, image: np.ndarray | None = None) -> tuple[
     if not may_find_lattice(doc):
         return doc, None
     if image is None:
-        image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        try:
+            image = decode_full(doc.exemplar.data, doc.exemplar.name)
+        except ExemplarError:  # too large to search whole (over FULL_MAX_PIXELS): synthesized without a lattice
+            return doc, None
     found = detect(image)
     if found.lattice is None:
         return doc, found

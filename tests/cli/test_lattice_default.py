@@ -93,3 +93,20 @@ def test_an_opened_image_gets_its_lattice(brick_png):
     assert tileable.wait(120) and gravel.wait(120)
     assert tileable.doc.lattice is None and tileable.found is None
     assert gravel.doc.lattice is None and gravel.found is not None and gravel.found.lattice is None
+
+
+@pytest.mark.slow
+def test_an_image_too_large_to_search_whole_is_synthesized_without_a_lattice(tmp_path):
+    """Over 16 Mpixels (what the lattice search decodes whole), the search is
+    skipped and --lattice none decodes nothing whole: synth and export accept
+    what synthesis accepts (up to 64 Mpixels), as they did below the limit."""
+    tile = (np.random.default_rng(4).random((64, 64, 3)) * 255).astype(np.uint8)
+    big = tmp_path / "big.png"
+    Image.fromarray(np.tile(tile, (66, 66, 1))).save(big)  # 4224^2 = 17.8 Mpixels
+    for args in (["synth", big, "-o", tmp_path / "a.png", "--size", "64", "64"],
+                 ["export", big, "-o", tmp_path / "d.png", "--size", "64", "64", "--lattice", "none"]):
+        r = infinitex(*args)
+        assert r.returncode == 0, r.stderr
+        assert "Mpixels" not in r.stderr and _lattice_line(r.stdout) in (None, "none")
+    r = infinitex("synth", big, "-o", tmp_path / "e.png", "--lattice", "auto")  # asked for: refused in one line
+    assert r.returncode != 0 and "at most 16 Mpixels" in r.stderr
