@@ -388,9 +388,32 @@ def decoding(name: str):
         raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
 
 
+PNG_MIN_CHUNK = 256  # average bytes per PNG chunk below which a file is refused (encoders write 8-64 KB)
+
+
+def check_png_chunks(data: bytes, name: str) -> None:
+    """Refuse a PNG cut into so many chunks that decoding them one by one
+    would take minutes (1-byte IDAT chunks: 10^5 a second), counted from the
+    chunk headers alone and at most ``len / PNG_MIN_CHUNK`` of them read."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        return
+    most = max(4096, len(data) // PNG_MIN_CHUNK)
+    pos, count = 8, 0
+    while pos + 8 <= len(data):
+        count += 1
+        if count > most:
+            raise ExemplarError(f"{name} is cut into more than {most} PNG chunks (under {PNG_MIN_CHUNK} bytes each "
+                                "on average): too fragmented to decode in reasonable time; save it again.")
+        length = int.from_bytes(data[pos:pos + 4], "big")
+        if data[pos + 4:pos + 8] == b"IEND":
+            return
+        pos += 12 + length
+
+
 def open_image(data: bytes, name: str) -> Image.Image:
     """The image in ``data``, opened with the allow-listed decoders only and its
     size checked from the header (nothing decoded yet). Use inside decoding."""
+    check_png_chunks(data, name)
     img = Image.open(io.BytesIO(data), formats=DECODERS)
     w, h = img.size
     if w * h > MAX_INPUT_PIXELS:
