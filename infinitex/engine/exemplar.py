@@ -41,7 +41,7 @@ from PIL import Image, UnidentifiedImageError
 
 from .imagefile import to_u8
 from .safeio import ReadError, printable, read_limited
-from .tiffinfo import block_bytes, is_tiff, loses_precision, quiet_libtiff
+from .tiffinfo import block_bytes, is_tiff, loses_precision, quiet_libtiff, quiet_pillow_logs
 from .wrap import guess_toroidal, seams_like_an_edge
 
 MIN_SIZE = 32
@@ -61,6 +61,7 @@ FIT_MODES = ("resize", "crop", "resize-2048", "crop-2048")
 
 
 quiet_libtiff()
+quiet_pillow_logs()
 
 
 class ExemplarError(ValueError):

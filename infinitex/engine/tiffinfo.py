@@ -20,6 +20,16 @@ WIDTH, LENGTH, BITS, PHOTOMETRIC, SAMPLES, ROWS_PER_STRIP, PLANAR, TILE_WIDTH, T
     256, 257, 258, 262, 277, 278, 284, 322, 323)
 
 
+def quiet_pillow_logs() -> None:
+    """Pillow logs some refusals (a TIFF's samples per pixel beyond its
+    limit) as errors before raising them; with no logging set up, Python's
+    last-resort handler printed them on stderr above our one-line message. A
+    NullHandler on Pillow's logger ends that; an application that configures
+    logging still receives them (they propagate)."""
+    import logging
+    logging.getLogger("PIL").addHandler(logging.NullHandler())
+
+
 def quiet_libtiff() -> None:
     """Stop libtiff printing warnings and errors about damaged TIFFs on stderr.
 

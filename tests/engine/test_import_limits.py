@@ -444,3 +444,16 @@ def test_a_png_cut_into_tiny_chunks_is_refused_from_its_headers():
     assert "\n" not in str(err.value) and "frag.png" in str(err.value)
     ex = load_exemplar_bytes(_png_in_chunks(px, 1024), name="ok.png", fit="crop")
     assert ex.size == 64
+
+
+@pytest.mark.parametrize("planar", ["contig", "separate"])
+def test_a_tiff_of_too_many_channels_is_refused_in_one_line(tmp_path, planar):
+    """Pillow logs its own refusal (samples per pixel beyond its limit) before
+    raising: without logging set up, Python printed it above ours (a process
+    of its own: pytest's log capture would hide it)."""
+    shape = (64, 64, 17) if planar == "contig" else (17, 64, 64)
+    tifffile.imwrite(tmp_path / "many.tif", np.zeros(shape, np.uint8), planarconfig=planar)
+    r = subprocess.run([sys.executable, "-m", "infinitex", "synth", str(tmp_path / "many.tif"), "-o",
+                        str(tmp_path / "out.png"), "--size", "32", "32"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 3 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "many.tif" in r.stderr and "not supported" in r.stderr
