@@ -2,6 +2,8 @@
 known answers on a cube and a cylinder, coverage, J, continuity across every
 seam against a naive per-chart synthesis, determinism, hostile model files."""
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -453,6 +455,23 @@ def test_unwrapping_runs_apart_with_limits(tmp_path, monkeypatch):
     monkeypatch.setattr(mesh_module, "UNWRAP_PER_FACE", 0.0)
     with pytest.raises(ModelError, match="took over 0 s"):
         mesh_module.unwrap(P, F, "quad")
+
+
+def test_unwrapping_works_under_an_inherited_address_space_limit(tmp_path):
+    """Under a hard address-space limit below the child's own (ulimit -v, common
+    in CI), the unwrapping child lowers its limit to the one it inherits
+    instead of failing to raise it."""
+    script = tmp_path / "unwrap_quad.py"
+    script.write_text(
+        "import numpy as np\n"
+        "from infinitex.engine.surface import mesh\n"
+        "if __name__ == '__main__':\n"
+        "    P = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float64)\n"
+        "    m = mesh.unwrap(P, np.array([[0, 1, 2], [0, 2, 3]]), 'quad')\n"
+        "    print('faces', len(m.faces))\n")
+    r = subprocess.run(["bash", "-c", f"ulimit -v {5 << 19}; exec {sys.executable} {script}"],  # 2.5 GB
+                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert r.returncode == 0 and "faces 2" in r.stdout, r.stderr[-500:]
 
 
 def test_unwrapping_refuses_what_would_spin_or_blow_up_in_one_line(tmp_path):

@@ -160,6 +160,9 @@ def _unwrappable(positions, faces, name: str) -> tuple[np.ndarray, np.ndarray]:
 def _unwrap_child(conn, P, F, limit: int) -> None:
     try:
         import resource
+        _, hard = resource.getrlimit(resource.RLIMIT_AS)
+        if hard != resource.RLIM_INFINITY:  # a hard limit inherited (ulimit -v): never above it
+            limit = min(limit, hard)
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
         import xatlas
         conn.send(("ok", xatlas.parametrize(P, F)))
