@@ -226,6 +226,10 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
     from .engine.pyramid import Pyramid
     from .export.tileset import correct_tile
     from .export.wang import TileSetBuilder, TileSetPlan
+    if controls.directed:
+        raise ValueError("A tile set follows no direction field (its tiles meet in any order): pass controls "
+                         "without one.")
+    TileSetPlan(colors, n, variants if colors == 1 else 0).validate()  # before any analysis
     ex, lat = _whole_cells(exemplar, lattice, controls, n)
     an = analyze(ex, AnalysisSettings(lattice=(lat.nx, lat.ny) if lat else (0, 0)))
     if lat is not None:
@@ -262,10 +266,27 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
 
 def arrange(atlas: np.ndarray, description: dict, cols: int, rows: int, seed: int = 0) -> np.ndarray:
     """A random valid arrangement of a tile set's tiles (``cols`` x ``rows``), as one image."""
-    from .export.wang import TileSetPlan, assemble
-    d = description
-    plan = TileSetPlan(d["colors"], d["tile"], d["count"] if d["colors"] == 1 else 0)
+    from .export.wang import assemble
+    plan = _described_plan(atlas, description)
+    if not (1 <= cols <= 4096 and 1 <= rows <= 4096):
+        raise ValueError(f"An arrangement is 1 to 4096 tiles a side, not {cols} x {rows}.")
     return assemble(atlas, plan, plan.arrangement(cols, rows, seed))
+
+
+def _described_plan(atlas: np.ndarray, d: dict):
+    """The plan of a set :func:`tile_set` described, checked against its atlas (ValueError, one sentence)."""
+    from .export.wang import TileSetPlan
+    try:
+        plan = TileSetPlan(int(d["colors"]), int(d["tile"]), int(d["count"]) if int(d["colors"]) == 1 else 0)
+        plan.validate()
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"Not the description of a tile set made by tile_set ({exc}).") from None
+    cols, rows = plan.grid
+    want = (rows * plan.tile, cols * plan.tile)
+    if not isinstance(atlas, np.ndarray) or atlas.ndim != 3 or atlas.shape[:2] != want:
+        got = getattr(atlas, "shape", type(atlas).__name__)
+        raise ValueError(f"The atlas of this set is an array of {want[1]}x{want[0]} px with channels, not {got}.")
+    return plan
 
 
 def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | tuple[str, ...] = "all",
@@ -281,16 +302,14 @@ def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | 
     from .engine.safeio import StagedFiles
     from .export.engines import engine_files, parse_engines, write_engine_files
     from .export.tileset import PREVIEW_TILES, set_paths
-    from .export.wang import TileSetPlan, assemble
+    from .export.wang import assemble
     path = os.fspath(path)
     if not path.lower().endswith(".png"):
         raise ValueError(f"A tile set's atlas is written as PNG: {path!r} does not end in .png.")
     d = description
-    plan = TileSetPlan(d["colors"], d["tile"], d["count"] if d["colors"] == 1 else 0)
-    cols, rows = plan.grid
-    if atlas.dtype != np.uint8 or atlas.shape[:2] != (rows * plan.tile, cols * plan.tile):
-        raise ValueError(f"The atlas of this set is uint8 {cols * plan.tile}x{rows * plan.tile}, "
-                         f"not {atlas.dtype} {atlas.shape[1]}x{atlas.shape[0]}.")
+    plan = _described_plan(atlas, d)
+    if atlas.dtype != np.uint8:
+        raise ValueError(f"A tile set's atlas is written from uint8 pixels, not {atlas.dtype}.")
     files = engine_files(path, [("image", path, 8)], "image", parse_engines(engines) if isinstance(engines, str)
                          else tuple(engines))
     side = set_paths(path)

@@ -113,3 +113,27 @@ def test_staged_files_check_refuses_before_writing(tmp_path):
         stage.write(str(tmp_path / "a.txt"), b"a")
     assert not os.path.exists(tmp_path / "a.txt")  # never committed: discarded
     assert not [f for f in os.listdir(tmp_path) if f.endswith(TMP_SUFFIX)]
+
+
+def test_the_api_checks_what_it_is_given(tmp_path):
+    """tile_set refuses a direction field as the command line does (before any
+    analysis); arrange and save_tile_set check the description against the atlas."""
+    from infinitex.engine.controls import NO_CONTROLS
+    atlas, desc = _set(4)
+    directed = type("Directed", (), {"directed": True})()
+    with pytest.raises(ValueError, match="no direction field"):
+        itx.tile_set("never-read.png", controls=directed)
+    with pytest.raises(ValueError, match="2 or 3 corner colours"):
+        itx.tile_set("never-read.png", colors=5, controls=NO_CONTROLS)
+    assert itx.arrange(atlas, desc, 3, 2).shape == (128, 192, 3)
+    for bad_atlas, bad_desc, says in ((atlas[:64], desc, "atlas of this set"),
+                                      (atlas, {**desc, "tile": 100}, "Not the description"),
+                                      (atlas, {"colors": 2}, "Not the description"),
+                                      (atlas.tolist(), desc, "atlas of this set")):
+        with pytest.raises(ValueError, match=says):
+            itx.arrange(bad_atlas, bad_desc, 2, 2)
+        with pytest.raises(ValueError, match=says):
+            itx.save_tile_set(bad_atlas, bad_desc, tmp_path / "x.png")
+    with pytest.raises(ValueError, match="1 to 4096 tiles"):
+        itx.arrange(atlas, desc, 0, 2)
+    assert not os.listdir(tmp_path)
