@@ -284,10 +284,9 @@ class TileSetBuilder:
     def _mend(self, tile: np.ndarray, surround) -> np.ndarray:
         """The tile's cuts mended by the synthesis's own correction, run on
         the tile as composed (with what neighbours show around it) at its
-        interior window's canvas place (each tile's correction draws its own
-        random choices: at one shared place, interiors converged to the same
-        texels); pixels within the margin of an edge stay as they are, so
-        edges stay exact."""
+        interior window's canvas place (where that window was synthesized, so
+        the controls painted there apply alike); pixels within the margin of
+        an edge stay as they are, so edges stay exact."""
         if self.correct is None:
             return tile
         q = min(MEND_PAD, self.reach)
