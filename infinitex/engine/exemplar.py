@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
-from .imagefile import to_u8
+from .imagefile import PNG_MIN_CHUNK, fragmented_png, png_bit_depth, to_u8
 from .safeio import ReadError, printable, read_limited
 from .tiffinfo import block_bytes, is_tiff, loses_precision, quiet_libtiff, quiet_pillow_logs
 from .wrap import guess_toroidal, seams_like_an_edge
@@ -389,32 +389,13 @@ def decoding(name: str):
         raise ExemplarError(f"{name} could not be read: the file looks damaged ({detail}).") from None
 
 
-PNG_MIN_CHUNK = 256  # average bytes per PNG chunk below which a file is refused (encoders write 8-64 KB)
-
-
-def check_png_chunks(data: bytes, name: str) -> None:
-    """Refuse a PNG cut into so many chunks that decoding them one by one
-    would take minutes (1-byte IDAT chunks: 10^5 a second), counted from the
-    chunk headers alone and at most ``len / PNG_MIN_CHUNK`` of them read."""
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        return
-    most = max(4096, len(data) // PNG_MIN_CHUNK)
-    pos, count = 8, 0
-    while pos + 8 <= len(data):
-        count += 1
-        if count > most:
-            raise ExemplarError(f"{name} is cut into more than {most} PNG chunks (under {PNG_MIN_CHUNK} bytes each "
-                                "on average): too fragmented to decode in reasonable time; save it again.")
-        length = int.from_bytes(data[pos:pos + 4], "big")
-        if data[pos + 4:pos + 8] == b"IEND":
-            return
-        pos += 12 + length
-
-
 def open_image(data: bytes, name: str) -> Image.Image:
     """The image in ``data``, opened with the allow-listed decoders only and its
     size checked from the header (nothing decoded yet). Use inside decoding."""
-    check_png_chunks(data, name)
+    most = fragmented_png(data)
+    if most:
+        raise ExemplarError(f"{name} is cut into more than {most} PNG chunks (under {PNG_MIN_CHUNK} bytes each "
+                            "on average): too fragmented to decode in reasonable time; save it again.")
     img = Image.open(io.BytesIO(data), formats=DECODERS)
     w, h = img.size
     if w * h > MAX_INPUT_PIXELS:
@@ -483,13 +464,6 @@ def _fit_decoded(px: np.ndarray, fit: str, toroidal: bool | None, size: tuple[in
         px = small_pattern(px, toroidal)
     out, hires = fit_square(px, fit)
     return out, hires, size
-
-
-def _png_bit_depth(data: bytes) -> int:
-    """The bit depth in a PNG's IHDR (0 if ``data`` is not a PNG)."""
-    if data[:8] != b"\x89PNG\r\n\x1a\n" or len(data) < 29 or data[12:16] != b"IHDR":
-        return 0
-    return data[24]
 
 
 def _decode_png16(data: bytes, name: str, fit: str, toroidal: bool | None, w: int, h: int, info: dict):
@@ -573,7 +547,7 @@ def _decode_pixels(data: bytes, name: str, fit: str, toroidal: bool | None = Non
             if im0.format == "TIFF" and loses_precision(im0.tag_v2):  # 16-bit RGB...: Pillow reads 8 bits
                 im0.close()
                 return _decode_tiff_multi(data, name, fit, toroidal, info)
-            if im0.format == "PNG" and im0.mode in ("RGB", "RGBA", "LA") and _png_bit_depth(data) == 16:
+            if im0.format == "PNG" and im0.mode in ("RGB", "RGBA", "LA") and png_bit_depth(data) == 16:
                 w, h = im0.size
                 im0.close()
                 return _decode_png16(data, name, fit, toroidal, w, h, info)

@@ -82,3 +82,32 @@ def png_writer(pixels: np.ndarray):
 def write_png(path: str, pixels: np.ndarray) -> None:
     """Write uint8 (H, W, C) pixels as a PNG, atomically (safeio.WriteError on failure)."""
     atomic_write(path, writer=png_writer(pixels))
+
+
+PNG_MIN_CHUNK = 256  # average bytes per PNG chunk below which a file is refused (encoders write 8-64 KB)
+
+
+def png_bit_depth(data: bytes) -> int:
+    """The bit depth in a PNG's IHDR (0 if ``data`` is not a PNG)."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n" or len(data) < 29 or data[12:16] != b"IHDR":
+        return 0
+    return data[24]
+
+
+def fragmented_png(data: bytes) -> int:
+    """For a PNG cut into so many chunks that decoding them one by one would
+    take minutes (1-byte IDAT chunks: 10^5 a second), the chunk count it
+    exceeds (``len / PNG_MIN_CHUNK``, at least 4096), counted from the chunk
+    headers alone; 0 otherwise (or not a PNG)."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        return 0
+    most = max(4096, len(data) // PNG_MIN_CHUNK)
+    pos, count = 8, 0
+    while pos + 8 <= len(data):
+        count += 1
+        if count > most:
+            return most
+        if data[pos + 4:pos + 8] == b"IEND":
+            return 0
+        pos += 12 + int.from_bytes(data[pos:pos + 4], "big")
+    return 0
