@@ -48,7 +48,7 @@ from infinitex.engine.imagefile import to_u8, write_png  # noqa: E402
 from infinitex.engine.pyramid import Rect  # noqa: E402
 from infinitex.engine.safeio import atomic_write  # noqa: E402
 from infinitex.export.loaded import LoadedDocument  # noqa: E402
-from infinitex.export.tileset import TileSetJob, plan_for  # noqa: E402
+from infinitex.export.tileset import Mender, TileSetJob, plan_for  # noqa: E402
 from infinitex.export.wang import TileSetBuilder, assemble  # noqa: E402
 from infinitex.project import Document, ExemplarSource  # noqa: E402
 
@@ -152,14 +152,8 @@ def traced(session: LoadedDocument, colors: int, n: int, variants: int = 0) -> n
         yield
         y, x = np.mgrid[:n, :n]
         return np.concatenate([synth.toroidal(n)[..., :2], np.stack([x - 10 ** 6, y], -1)], axis=-1).astype(np.int32)
-    from dataclasses import replace
-
-    from infinitex.engine.pyramid import Pyramid
-    from infinitex.export.tileset import correct_tile
-    params = replace(session.params, period=n) if variants else session.params
-    pyr = Pyramid(session.gpu, synth.gan, params, scrolling=False, controls=session.controls)
-    work = TileSetBuilder(plan, render, lambda c: synth.colors(c[..., :2]), toroidal,
-                          lambda padded, q, at: correct_tile(pyr, session.analysis.L, padded, q, at)).build()
+    mender = Mender(synth, session.analysis.L, n if variants else 0)
+    work = TileSetBuilder(plan, render, lambda c: synth.colors(c[..., :2]), toroidal, mender).build()
     try:
         while True:
             try:
@@ -167,7 +161,7 @@ def traced(session: LoadedDocument, colors: int, n: int, variants: int = 0) -> n
             except StopIteration as stop:
                 return stop.value
     finally:
-        pyr.release()
+        mender.release()
 
 
 def _breaks(field: np.ndarray) -> np.ndarray:

@@ -223,8 +223,7 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
     windows are taken from around ``origin``."""
     from dataclasses import replace
 
-    from .engine.pyramid import Pyramid
-    from .export.tileset import correct_tile
+    from .export.tileset import Mender
     from .export.wang import TileSetBuilder, TileSetPlan
     if controls.directed:
         raise ValueError("A tile set follows no direction field (its tiles meet in any order): pass controls "
@@ -244,11 +243,8 @@ def tile_set(exemplar, colors: int = 2, n: int = 256, *, variants: int = 0, seed
         def toroidal():
             yield
             return s.toroidal(n)[..., :2]
-        # the cuts inside tiles mended by the finest level's correction
-        mender = Pyramid(s.gpu, s.gan, replace(s.params, period=n) if colors == 1 else s.params, scrolling=False,
-                         controls=s.controls)
-        work = TileSetBuilder(plan, render, s.colors, toroidal,
-                              lambda padded, q, at: correct_tile(mender, an.L, padded, q, at)).build()
+        mender = Mender(s, an.L, n if colors == 1 else 0)  # the cuts inside tiles mended
+        work = TileSetBuilder(plan, render, s.colors, toroidal, mender).build()
         try:
             while True:
                 try:
@@ -301,7 +297,7 @@ def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | 
     from .engine.imagefile import png_writer
     from .engine.safeio import StagedFiles
     from .export.engines import engine_files, parse_engines, write_engine_files
-    from .export.tileset import PREVIEW_TILES, set_paths
+    from .export.tileset import PREVIEW_TILES, set_description, set_paths
     from .export.wang import assemble
     path = os.fspath(path)
     if not path.lower().endswith(".png"):
@@ -315,16 +311,7 @@ def save_tile_set(atlas: np.ndarray, description: dict, path, *, engines: str | 
     side = set_paths(path)
     layout = plan.arrangement(PREVIEW_TILES, PREVIEW_TILES, seed)
     written = [path, side["preview"]] + files.files + [side["json"]]
-    base = os.path.dirname(path) or os.curdir
-    rel = lambda p: os.path.relpath(p, base)  # noqa: E731
-    engines_desc = {}
-    if files.tmx:
-        engines_desc["tiled"] = {"tilesets": {"image": rel(files.tilesets["image"])}, "map": rel(files.tmx)}
-    if files.tres:
-        engines_desc["godot"] = {"tileset": rel(files.tres)}
-    full = {"format": "infinitex-tile-set", "version": 1, **{k: v for k, v in d.items() if k != "tiles"},
-            "atlas_tiles": plan.colors > 1, "maps": {"image": rel(path)}, "preview": rel(side["preview"]),
-            "engines": engines_desc, "tiles": d["tiles"]}
+    full = set_description(plan, path, {"image": path}, side["preview"], files, d["tiles"])
     StagedFiles.check(written)
     with StagedFiles() as stage:  # one unit: the old set stays whole until every file is written
         stage.write(path, writer=png_writer(atlas))

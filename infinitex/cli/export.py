@@ -385,10 +385,9 @@ def check_own_inputs(args, size: tuple[int, int], sources: dict[str, str], input
         tiles = plan.tiles() if args.per_tile else []
         atlases = list(writes.files)
         writes.files += [paths["json"], paths["preview"]] + [tile_file(f, t) for f in atlases for t in tiles]
-        if args.engines:  # the engine resources (export/engines.py) of the PNG atlases
-            base = os.path.splitext(args.output)[0]
-            writes.files += [os.path.splitext(f)[0] + ".tsx" for f in atlases if f.lower().endswith(".png")
-                             and "tiled" in args.engines] + [base + ".tmx", base + ".tres"]
+        if atlases:  # the engines' files of the PNG atlases (the first: the primary map)
+            from infinitex.export.engines import engine_files
+            writes.files += engine_files(args.output, [(f, f, 0) for f in atlases], atlases[0], args.engines).files
     try:
         check(writes, inputs)
     except OwnInputError as exc:

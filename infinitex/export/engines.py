@@ -69,16 +69,24 @@ class EngineFiles:
     def files(self) -> list[str]:
         return list(self.tilesets.values()) + [p for p in (self.tmx, self.tres) if p]
 
+    def describe(self, rel) -> dict:
+        """The set's JSON "engines" entry, paths made relative by ``rel``."""
+        out: dict = {}
+        if self.tilesets:
+            out["tiled"] = {"tilesets": {role: rel(p) for role, p in self.tilesets.items()}, "map": rel(self.tmx)}
+        if self.tres:
+            out["godot"] = {"tileset": rel(self.tres)}
+        return out
+
 
 def engine_files(out_path: str, outputs: list[tuple[str, str, int]], primary: str,
                  engines: tuple[str, ...]) -> EngineFiles:
     """The engine files of a set written to ``out_path`` whose maps' atlases
     are ``outputs`` [(role, path, depth)]; none when the primary map is not a PNG."""
     png = {role: path for role, path, _ in outputs if path.lower().endswith(".png")}
-    files = EngineFiles(skipped=[role for role, _, _ in outputs if role not in png])
     if not engines or primary not in png:
-        files.skipped = [role for role, _, _ in outputs]
-        return files
+        return EngineFiles(skipped=[role for role, _, _ in outputs])
+    files = EngineFiles(skipped=[role for role, _, _ in outputs if role not in png])
     base = os.path.splitext(out_path)[0]
     if "tiled" in engines:
         files.tilesets = {role: os.path.splitext(path)[0] + ".tsx" for role, path in png.items()}

@@ -46,5 +46,10 @@ def seam_and_cost(cost: np.ndarray) -> tuple[np.ndarray, float]:
 
 def before_seam(cost: np.ndarray) -> np.ndarray:
     """Boolean (L, W): the pixels before the least-cost seam (image A's)."""
-    c = seam(cost)
-    return np.arange(cost.shape[1])[None, :] < c[:, None]
+    return before_seam_and_cost(cost)[0]
+
+
+def before_seam_and_cost(cost: np.ndarray) -> tuple[np.ndarray, float]:
+    """The pixels before the least-cost seam and the seam's total cost."""
+    c, total = seam_and_cost(cost)
+    return np.arange(cost.shape[1])[None, :] < c[:, None], total

@@ -17,7 +17,7 @@ from infinitex.engine.imagefile import encode_image
 from infinitex.engine.pyramid import Pyramid, Rect, SynthesisError
 from infinitex.engine.safeio import StagedFiles
 
-from .engines import ENGINES, engine_files, write_engine_files
+from .engines import ENGINES, EngineFiles, engine_files, write_engine_files
 from .loaded import LoadedDocument
 from .window import export_outputs
 from .wang import TileSetBuilder, TileSetError, TileSetPlan, assemble
@@ -51,6 +51,48 @@ def plan_for(session: LoadedDocument, colors: int, tile: int, variants: int = 0,
     plan = TileSetPlan(colors, tile, variants if colors == 1 else 0, cell, origin)
     plan.validate()
     return plan
+
+
+def _beside(out_path: str):
+    """Paths as the JSON beside ``out_path`` names them (relative to its folder)."""
+    base = os.path.dirname(out_path) or os.curdir
+    return lambda path: os.path.relpath(path, base)
+
+
+def set_description(plan: TileSetPlan, out_path: str, maps: dict[str, str], preview: str, engines: EngineFiles,
+                    tiles: list[dict]) -> dict:
+    """A set's JSON description (the editor's, the command line's and the API's)."""
+    cols, rows = plan.grid
+    rel = _beside(out_path)
+    return {
+        "format": "infinitex-tile-set", "version": 1,
+        "kind": "corner-wang" if plan.colors > 1 else "variants",
+        "colors": plan.colors if plan.colors > 1 else 1, "tile": plan.tile, "count": plan.count,
+        "columns": cols, "rows": rows,
+        # the atlas of a corner set is itself a valid arrangement (a packing): it tiles too
+        "atlas_tiles": plan.colors > 1,
+        "maps": {role: rel(path) for role, path in maps.items()},
+        "preview": rel(preview),
+        "engines": engines.describe(rel),
+        "tiles": tiles,
+    }
+
+
+class Mender:
+    """The mend of a set made outside a TileSetJob (the API, the bench): a
+    finest-level corrector of the synthesis ``synth`` (periodic for variants
+    of an N px tile), called as TileSetBuilder's ``correct``; ``release`` it."""
+
+    def __init__(self, synth, L: int, period: int = 0):
+        params = replace(synth.params, period=period) if period else synth.params
+        self.L = L
+        self.pyramid = Pyramid(synth.gpu, synth.gan, params, scrolling=False, controls=synth.controls)
+
+    def __call__(self, padded: np.ndarray, q: int, origin: tuple[int, int]) -> np.ndarray:
+        return correct_tile(self.pyramid, self.L, padded, q, origin)
+
+    def release(self) -> None:
+        self.pyramid.release()
 
 
 def correct_tile(pyr: Pyramid, L: int, padded: np.ndarray, q: int, origin: tuple[int, int]) -> np.ndarray:
@@ -240,35 +282,13 @@ class TileSetJob:
         return out
 
     def description(self) -> dict:
-        p = self.plan
-        cols, rows = p.grid
-        base = os.path.dirname(self.out_path)
-        rel = lambda path: os.path.relpath(path, base or os.curdir)  # noqa: E731 - names beside the JSON
-        tiles = p.tiles()
+        tiles = self.plan.tiles()
         if self.per_tile:
+            rel = _beside(self.out_path)
             for t in tiles:
                 t["files"] = {role: rel(tile_file(path, t)) for role, path, _ in self.outputs}
-        return {
-            "format": "infinitex-tile-set", "version": 1,
-            "kind": "corner-wang" if p.colors > 1 else "variants",
-            "colors": p.colors if p.colors > 1 else 1, "tile": p.tile, "count": p.count,
-            "columns": cols, "rows": rows,
-            # the atlas of a corner set is itself a valid arrangement (a packing): it tiles too
-            "atlas_tiles": p.colors > 1,
-            "maps": {role: rel(path) for role, path, _ in self.outputs},
-            "preview": rel(self.paths["preview"]),
-            "engines": self._engine_description(rel),
-            "tiles": tiles,
-        }
-
-    def _engine_description(self, rel) -> dict:
-        e = self.engines
-        out = {}
-        if e.tilesets:
-            out["tiled"] = {"tilesets": {role: rel(p) for role, p in e.tilesets.items()}, "map": rel(e.tmx)}
-        if e.tres:
-            out["godot"] = {"tileset": rel(e.tres)}
-        return out
+        return set_description(self.plan, self.out_path, {role: path for role, path, _ in self.outputs},
+                               self.paths["preview"], self.engines, tiles)
 
     def write(self) -> None:
         """Write every map's atlas (and each tile's file), the preview, the

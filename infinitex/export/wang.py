@@ -45,7 +45,7 @@ import numpy as np
 
 from infinitex.engine.rect import Rect
 
-from .seamcut import before_seam, seam_and_cost, seam_cost
+from .seamcut import before_seam, before_seam_and_cost, seam_cost
 
 WANG_SIZES = (64, 128, 256, 512, 1024, 2048)
 WANG_COLORS = (2, 3)
@@ -350,6 +350,14 @@ class TileSetBuilder:
         fl = self.appearance(frame[ring][None])[0]
         fa = np.zeros((n, n, fl.shape[-1]), np.float32)
         fa[ring] = fl
+        # one seam along each side, from the frame (before it) to the interior:
+        # the frame is what any side's seam leaves outside, so the four close
+        across = np.arange(m, m + bw)
+        bands = [np.broadcast_arrays(rows, cols) for rows, cols in (
+            (across[None, :], x[0][:, None]),              # top: along x, down
+            (n - 1 - across[None, :], x[0][:, None]),      # bottom: up
+            (y[:, 0][:, None], across[None, :]),           # left: along y, right
+            (y[:, 0][:, None], n - 1 - across[None, :]))]  # right: leftwards
         best = None
         for _ in range(CANDIDATES):
             inner = yield from self._window(Rect(0, 0, n, n))
@@ -357,16 +365,8 @@ class TileSetBuilder:
             ia[ring] = self.appearance(inner[ring][None])[0]
             side = d < m
             total = 0.0
-            # one seam along each side, from the frame (before it) to the interior:
-            # the frame is what any side's seam leaves outside, so the four close
-            across = np.arange(m, m + bw)
-            for rows, cols in ((across[None, :], x[0][:, None]),              # top: along x, down
-                               (n - 1 - across[None, :], x[0][:, None]),      # bottom: up
-                               (y[:, 0][:, None], across[None, :]),           # left: along y, right
-                               (y[:, 0][:, None], n - 1 - across[None, :])):  # right: leftwards
-                rr, cc = np.broadcast_arrays(rows, cols)
-                c, cost = seam_and_cost(seam_cost(fa[rr, cc], ia[rr, cc]))
-                take = np.arange(bw)[None, :] < c[:, None]
+            for rr, cc in bands:
+                take, cost = before_seam_and_cost(seam_cost(fa[rr, cc], ia[rr, cc]))
                 side[rr[take], cc[take]] = True
                 total += cost
             if best is None or total < best[0]:
