@@ -5,17 +5,21 @@ bench/fuzz.py, built like the targets of fuzzing.py.
 A case starts from a small valid model of one kind (with or without texture
 coordinates), then mutates the model file's bytes, swaps numbers in its text
 for hostile ones (1e38, nan, a vertex at 1e11, an index past the end, a huge
-count), tampers with the files it refers to (missing, a FIFO, a folder, a
-link out of the sandbox, garbage), and loads it with or without ``--unwrap``
-(xatlas). Each must be accepted with a valid model or refused with one
-ModelError line, within the time limit, reading nothing outside the sandbox
-but the libraries, letting no warning out.
+count), spells the names of the files it refers to in ways trimesh reads
+(SPELLINGS: a commented ``mtllib``, a folder that does not exist, an absolute
+path, ``MAP_KD``, a space, a ``data:`` URI without base64, a NUL), tampers with
+the file so named (missing, a FIFO, a folder, a link out of the sandbox, a
+character device, garbage), and loads it with or without ``--unwrap``
+(xatlas). Each must be accepted with a valid model whose inputs include every
+file read, or refused with one ModelError line, within the time limit,
+reading nothing outside the sandbox but the libraries, letting no warning out.
 """
 from __future__ import annotations
 
 import os
 import re
 import shutil
+import stat
 import sys
 import tempfile
 import warnings
@@ -28,7 +32,29 @@ from fuzzing import Crash, mutations, time_limit, watch
 KINDS = ("obj", "obj-nouv", "gltf", "glb")
 HOSTILE = ["1e38", "-1e38", "nan", "inf", "-inf", "1e11", "0", "-1", "99999999", "1e308", "4294967295",
            "2147483648", "1" + "0" * 40, "0x10", ""]
-TAMPERS = ["none", "none", "none", "missing", "fifo", "folder", "link-out", "garbage", "empty"]
+TAMPERS = ["none", "none", "none", "missing", "fifo", "folder", "link-out", "garbage", "empty", "device"]
+# How a model names its other files, each spelling one that once got past the checks (issue 69):
+# {kind: {spelling: (rewrites of (file, old bytes, new bytes), renames {old: new}, the file it then names)}}
+SPELLINGS = {
+    "obj": {
+        "comment": ([("model.obj", b"mtllib material.mtl", b"# was: mtllib material.mtl")], {}, "material.mtl"),
+        "no-folder": ([("model.obj", b"mtllib material.mtl", b"mtllib nowhere/material.mtl")], {}, "material.mtl"),
+        "absolute": ([("model.obj", b"mtllib material.mtl", b"mtllib /material.mtl")], {}, "material.mtl"),
+        "upper-key": ([("material.mtl", b"map_Kd", b"MAP_KD")], {}, "material_0.png"),
+        "spaced": ([("material.mtl", b"map_Kd material_0.png", b"map_Kd my texture.png")],
+                   {"material_0.png": "my texture.png"}, "my texture.png"),
+        "map-no-folder": ([("material.mtl", b"map_Kd material_0.png", b"map_Kd textures/material_0.png")], {},
+                          "material_0.png"),
+    },
+    "gltf": {
+        "no-folder": ([("model.gltf", b'"gltf_buffer_0.bin"', b'"nowhere/gltf_buffer_0.bin"')], {},
+                      "gltf_buffer_0.bin"),
+        "absolute": ([("model.gltf", b'"gltf_buffer_0.bin"', b'"/gltf_buffer_0.bin"')], {}, "gltf_buffer_0.bin"),
+        "data-uri": ([("model.gltf", b'"gltf_buffer_0.bin"', b'"data:application/octet-stream,gltf_buffer_0.bin"')],
+                     {}, "gltf_buffer_0.bin"),
+        "nul": ([("model.gltf", b'"gltf_buffer_0.bin"', b'"gltf_buffer_0.bin\\u0000"')], {}, "gltf_buffer_0.bin"),
+    },
+}
 _BASES: dict[str, dict[str, bytes]] = {}
 
 
@@ -98,11 +124,35 @@ def _poke(binary: bytes, draw) -> bytes:
     return binary[:at] + value + binary[at + 4:]
 
 
+def spelled(kind: str, spelling: str) -> tuple[dict[str, bytes], str | None]:
+    """The files of a valid model of ``kind`` whose references are spelled
+    one way of SPELLINGS ("plain": as written), and the file it then names."""
+    files = dict(_bases()[kind])
+    if spelling == "plain":
+        return files, None
+    rewrites, renames, victim = SPELLINGS[kind][spelling]
+    for name, old, new in rewrites:
+        assert old in files[name], (kind, spelling)
+        files[name] = files[name].replace(old, new)
+    for old, new in renames.items():
+        files[new] = files.pop(old)
+    return files, victim
+
+
+def spelling_case(kind: str, spelling: str, tamper: str) -> dict:
+    """One fixed case: a clean model, its reference spelled one way, the file
+    it names tampered with."""
+    files, victim = spelled(kind, spelling)
+    return {"kind": kind, "main": f"model.{kind}", "files": files, "tamper": tamper, "how": "clean",
+            "spelling": spelling, "victim": victim, "unwrap": False}
+
+
 @st.composite
 def model_cases(draw) -> dict:
     kind = draw(st.sampled_from(KINDS))
-    files = dict(_bases()[kind])
-    main = next(n for n in files if n.startswith("model."))
+    main = next(n for n in _bases()[kind] if n.startswith("model."))
+    spelling = draw(st.sampled_from(["plain", *SPELLINGS.get(kind, {})]))
+    files, victim = spelled(kind, spelling)
     data = files[main]
     how = draw(st.sampled_from(["bytes", "numbers", "numbers", "poke", "poke", "clean"]))
     if how == "bytes":
@@ -118,8 +168,10 @@ def model_cases(draw) -> dict:
     files[main] = data
     others = [n for n in files if n != main]
     tamper = draw(st.sampled_from(TAMPERS)) if others else "none"
-    return {"kind": kind, "main": main, "files": files, "tamper": tamper, "how": how,
-            "victim": draw(st.sampled_from(others)) if others else None, "unwrap": draw(st.booleans())}
+    if victim is None and others:
+        victim = draw(st.sampled_from(others))
+    return {"kind": kind, "main": main, "files": files, "tamper": tamper, "how": how, "spelling": spelling,
+            "victim": victim, "unwrap": draw(st.booleans())}
 
 
 def model_sandbox() -> str:
@@ -148,6 +200,11 @@ def _write_case(case: dict, folder: str, outside: str) -> str:
                 f.write(os.urandom(64))
         elif how == "empty":
             open(path, "wb").close()
+        elif how == "device":  # /dev/zero's numbers inside the folder (a link to it where mknod is not allowed)
+            try:
+                os.mknod(path, 0o666 | stat.S_IFCHR, os.makedev(1, 5))
+            except OSError:
+                os.symlink("/dev/zero", path)
     return os.path.join(folder, case["main"])
 
 
@@ -168,7 +225,9 @@ def run_model(case: dict, root: str, timeout: float = 60.0) -> str:
     try:
         path = _write_case(case, folder, outside)
         allowed = (os.path.realpath(root), os.path.realpath(sys.prefix), os.path.realpath(sys.base_prefix))
-        with watch(allowed) as violations, time_limit(timeout), warnings.catch_warnings(record=True) as said:
+        opened: list[str] = []
+        with watch(allowed, opened) as violations, time_limit(timeout), \
+                warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always")
             try:
                 m = load_model(path, unwrap_missing=case["unwrap"])
@@ -180,6 +239,12 @@ def run_model(case: dict, root: str, timeout: float = 60.0) -> str:
                 raise Crash(f"{type(exc).__name__}: {str(exc)[:200]}") from exc
             else:
                 check_model(m)
+                # Every file of the model's folder that was read is an input no export may replace.
+                inputs = {os.path.realpath(p) for p in m.meta["files"]}
+                top = os.path.realpath(folder) + os.sep
+                missed = sorted({p for p in opened if p.startswith(top) and p not in inputs})
+                if missed:
+                    raise Crash(f"read but not an input: {[os.path.basename(p) for p in missed]}")
                 outcome = "accepted"
         if violations:
             raise Crash("; ".join(violations))

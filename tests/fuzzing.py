@@ -76,8 +76,9 @@ def time_limit(seconds: float):
 
 
 @contextlib.contextmanager
-def watch(allowed_roots: tuple[str, ...] = ()):
-    """Record subprocess starts, and with ``allowed_roots`` file opens outside them.
+def watch(allowed_roots: tuple[str, ...] = (), opened: list | None = None):
+    """Record subprocess starts, and with ``allowed_roots`` file opens outside them
+    (``opened``: a list that gets the real path of every file opened).
 
     Yields a list of violations (strings); a started subprocess is also refused."""
     violations: list[str] = []
@@ -93,10 +94,12 @@ def watch(allowed_roots: tuple[str, ...] = ()):
         raise OSError("subprocesses are not allowed here")
 
     def checked_open(path, flags, *a, **k):
-        if allowed_roots and isinstance(path, (str, bytes, os.PathLike)):
+        if (allowed_roots or opened is not None) and isinstance(path, (str, bytes, os.PathLike)):
             p = os.path.realpath(os.fsdecode(path))
-            if not p.startswith(allowed_roots):
+            if allowed_roots and not p.startswith(allowed_roots):
                 violations.append(f"opened {p}")
+            if opened is not None:
+                opened.append(p)
         return real_os_open(path, flags, *a, **k)
 
     subprocess.Popen.__init__ = popen

@@ -215,6 +215,12 @@ def test_the_files_a_model_names_are_inputs_and_never_fifos(tmp_path):
     r = run(str(obj), BRICK, "-o", str(tmp_path / "chair.glb"), "--size", "128", "--fidelity", "variety", "-q")
     assert r.returncode == 2 and "chair_basecolor.png" in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert np.array_equal(np.asarray(Image.open(tmp_path / "chair_basecolor.png")), own)  # untouched
+    # trimesh finds "textures/chair_basecolor.png" by its base name when that folder does not exist: an input too.
+    (tmp_path / "chair.mtl").write_text("newmtl m\nMAP_KD textures/chair_basecolor.png\n")
+    r = run(str(obj), BRICK, "-o", str(tmp_path / "chair_basecolor.png"), "--size", "128", "--fidelity", "variety",
+            "-q")
+    assert r.returncode == 2 and "chair_basecolor.png" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "chair_basecolor.png")), own)
     os.remove(tmp_path / "chair.mtl")
     os.mkfifo(tmp_path / "chair.mtl")
     r = run(str(obj), BRICK, "-o", str(tmp_path / "other.glb"), "--size", "128", "--fidelity", "variety", "-q")

@@ -54,6 +54,26 @@ def test_fuzz_model_files(model_root, case):
     FM.run_model(case, model_root)
 
 
+def test_every_spelling_of_a_models_reference_goes_through_the_gate(model_root):
+    """The spellings that once got past the model's checks (a commented mtllib,
+    a folder that does not exist, an absolute path, MAP_KD, a space, a data: URI
+    without base64, a NUL), each naming a FIFO, a character device, a link out
+    or a plain file: no hang, no read outside, one line or a model whose inputs
+    include every file read (tests/fuzz_models.py's seeds of the fuzz target)."""
+    outcomes = {}
+    for kind, spellings in FM.SPELLINGS.items():
+        for spelling in spellings:
+            for tamper in ("none", "fifo", "device", "link-out"):
+                outcomes[kind, spelling, tamper] = FM.run_model(FM.spelling_case(kind, spelling, tamper), model_root,
+                                                                timeout=20)
+    # Where trimesh finds the file by its fallbacks, it is read (and an input); a data: URI is refused.
+    assert outcomes["obj", "no-folder", "none"] == outcomes["obj", "spaced", "none"] == "accepted"
+    assert outcomes["gltf", "absolute", "none"] == "accepted"
+    assert outcomes["gltf", "data-uri", "none"] == "refused"
+    # A FIFO or a device where the texture or buffer is found: refused, never opened for reading.
+    assert outcomes["obj", "upper-key", "fifo"] == outcomes["gltf", "no-folder", "device"] == "refused"
+
+
 @given(data=F.image_files())
 def test_fuzz_exemplar_import(data):
     F.run_import(data)

@@ -13,13 +13,13 @@ from __future__ import annotations
 import hashlib
 import os
 import signal
-import stat
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from ..safeio import printable
+from .sources import ModelFiles, obj_counts, trimesh_mtllib
 
 MAX_MODEL_BYTES = 512 * 1024 * 1024
 MAX_FACES = 2_000_000
@@ -203,72 +203,54 @@ def _unwrap_isolated(P: np.ndarray, F: np.ndarray, name: str):
     return out
 
 
-def _gltf_json(path: str, name: str) -> dict:
-    """The JSON of a .gltf, or a .glb's JSON chunk (read from its header: the
-    binary chunk is not read)."""
+def _gltf_json(data: bytes, name: str, glb: bool) -> dict:
+    """The JSON of a .gltf, or a .glb's JSON chunk (from its header)."""
     import json
     import struct
+    if glb:
+        if len(data) < 20 or data[:4] != b"glTF" or data[16:20] != b"JSON":
+            raise ModelError(f"{name} is not a GLB file.")
+        n = struct.unpack("<I", data[12:16])[0]
+        if n > 64 * 1024 * 1024:
+            raise ModelError(f"{name}'s scene description is {n >> 20} MB; at most 64 MB is read.")
+        data = data[20:20 + n]
+    elif len(data) > 64 * 1024 * 1024:
+        raise ModelError(f"{name}'s scene description is {len(data) >> 20} MB; at most 64 MB is read.")
     try:
-        with open(path, "rb") as f:
-            if path.lower().endswith(".glb"):
-                head = f.read(20)
-                if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
-                    raise ModelError(f"{name} is not a GLB file.")
-                n = struct.unpack("<I", head[12:16])[0]
-                if n > 64 * 1024 * 1024:
-                    raise ModelError(f"{name}'s scene description is {n >> 20} MB; at most 64 MB is read.")
-                raw = f.read(n)
-            else:
-                raw = f.read(64 * 1024 * 1024)
-        doc = json.loads(raw)
-    except (OSError, ValueError, RecursionError):
+        doc = json.loads(data)
+    except (ValueError, RecursionError):
         raise ModelError(f"{name} is not a glTF file (its JSON cannot be read).") from None
     if not isinstance(doc, dict):
         raise ModelError(f"{name} is not a glTF file.")
     return doc
 
 
-def _check_gltf(path: str, name: str) -> dict:
-    """A glTF or GLB checked from its JSON before any geometry is built: its
-    external buffers and images are files beside it (no absolute path, no way
-    out of its folder), within the size limit together; and the triangles and
-    vertices of every mesh instance the scene's nodes place (a mesh used by
-    12,000 nodes counts 12,000 times: the scene is joined) within the limits."""
-    doc = _gltf_json(path, name)
-    folder = os.path.dirname(os.path.abspath(path))
-    total = 0
+def _check_gltf(doc: dict, name: str, files) -> None:
+    """A glTF or GLB checked from its JSON before any geometry is built: the
+    triangles and vertices of every mesh instance the scene's nodes place,
+    at any depth (a mesh used by 12,000 nodes counts 12,000 times: the scene
+    is joined), within the limits; a node tree that loops refused. The files
+    its URIs name are inputs (the gate checks each one trimesh reads)."""
     for key in ("buffers", "images"):
-        for entry in doc.get(key) or []:
+        for entry in doc.get(key) if isinstance(doc.get(key), list) else []:
             uri = entry.get("uri") if isinstance(entry, dict) else None
-            if not isinstance(uri, str) or uri.startswith("data:"):
-                continue
-            target = os.path.realpath(os.path.join(folder, uri))
-            if os.path.isabs(uri) or os.path.commonpath([target, os.path.realpath(folder)]) != os.path.realpath(folder):
-                raise ModelError(f"{name} refers to a file outside its folder ({uri[:80]}).")
-            try:
-                st = os.stat(target)
-            except OSError:
-                raise ModelError(f"{name} refers to {uri[:80]}, which cannot be read.") from None
-            if not stat.S_ISREG(st.st_mode):
-                raise ModelError(f"{name} refers to {uri[:80]}, which is not a regular file.")
-            total += st.st_size
-    if total > MAX_MODEL_BYTES:
-        raise ModelError(f"{name}'s buffers are {total / 2 ** 20:.0f} MB; models of up to "
-                         f"{MAX_MODEL_BYTES >> 20} MB are read.")
-    faces, verts = _instanced_counts(doc)
+            if isinstance(uri, str) and not uri.startswith("data:"):
+                files.candidates(uri)
+    faces, verts = _instanced_counts(doc, name)
     if faces > MAX_FACES:
         raise ModelError(f"{name} places over {MAX_FACES:,} triangles in its scene (a mesh counts once per node "
                          "that uses it); that is the limit.")
     if verts > MAX_VERTICES:
         raise ModelError(f"{name} places over {MAX_VERTICES:,} vertices in its scene (a mesh counts once per node "
                          "that uses it); that is the limit.")
-    return doc
 
 
-def _instanced_counts(doc: dict) -> tuple[int, int]:
+def _instanced_counts(doc: dict, name: str) -> tuple[int, int]:
     """(triangles, vertices) of every mesh instance the scenes' nodes place,
-    from the accessors' counts; an unreadable entry counts as nothing (the
-    loader then refuses the file)."""
+    from the accessors' counts, at any depth: each node's total (its mesh and
+    its children's totals) is found once, so a node shared by many parents
+    costs nothing more to count; a cycle is refused. An unreadable entry
+    counts as nothing (the loader then refuses the file)."""
     def items(key):
         v = doc.get(key)
         return v if isinstance(v, list) else []
@@ -292,146 +274,105 @@ def _instanced_counts(doc: dict) -> tuple[int, int]:
             tri += n // 3 if mode == 4 else max(0, n - 2) if mode in (5, 6) else 0
             vert += v
         per_mesh.append((tri, vert))
-    # Instances: walk each scene's node tree (a node reached twice, or a cycle, is walked once per path,
-    # up to a bound on the walk itself).
+
+    def children(i: int) -> list[int]:
+        c = nodes[i].get("children") if isinstance(nodes[i], dict) else None
+        return [j for j in c if isinstance(j, int) and 0 <= j < len(nodes)] if isinstance(c, list) else []
+
+    total: dict[int, tuple[int, int]] = {}
+    busy: set[int] = set()
+
+    def walk(root: int) -> tuple[int, int]:  # post-order without recursion (a chain may be any depth)
+        stack = [root]
+        while stack:
+            i = stack[-1]
+            if i in total:
+                stack.pop()
+                continue
+            todo = [j for j in children(i) if j not in total]
+            if i not in busy:
+                busy.add(i)
+                for j in todo:
+                    if j in busy:
+                        raise ModelError(f"{name}: its node tree loops back on itself (node {j}).")
+                stack += todo
+                continue
+            m = nodes[i].get("mesh") if isinstance(nodes[i], dict) else None
+            tri, vert = per_mesh[m] if isinstance(m, int) and 0 <= m < len(per_mesh) else (0, 0)
+            for j in children(i):
+                tri, vert = tri + total[j][0], vert + total[j][1]
+            total[i] = (min(tri, 1 << 62), min(vert, 1 << 62))
+            busy.discard(i)
+            stack.pop()
+        return total[root]
+
     roots = []
     for sc in items("scenes"):
-        roots += [r for r in (sc.get("nodes") if isinstance(sc, dict) else None) or [] if isinstance(r, int)]
+        roots += [r for r in (sc.get("nodes") if isinstance(sc, dict) else None) or []
+                  if isinstance(r, int) and 0 <= r < len(nodes)]
     if not items("scenes"):
         roots = list(range(len(nodes)))
-    tri = vert = steps = 0
-    stack = [(r, 0) for r in roots]
-    while stack and steps < 4 * MAX_FACES:
-        i, depth = stack.pop()
-        steps += 1
-        if not (0 <= i < len(nodes)) or not isinstance(nodes[i], dict) or depth > 64:
-            continue
-        m = nodes[i].get("mesh")
-        if isinstance(m, int) and 0 <= m < len(per_mesh):
-            tri += per_mesh[m][0]
-            vert += per_mesh[m][1]
-            if tri > MAX_FACES:
-                break
-        stack += [(c, depth + 1) for c in nodes[i].get("children") or [] if isinstance(c, int)]
+    tri = vert = 0
+    for r in roots:
+        t, v = walk(r)
+        tri, vert = tri + t, vert + v
     return tri, vert
 
 
-def _check_obj(path: str, name: str) -> bytes:
-    """An OBJ's faces and vertices counted from its text before it is parsed
-    (a 140 MB file of 10 million triangles took 4.3 GB before the limit was
-    checked): every face line is at least one triangle."""
-    with open(path, "rb") as f:
-        text = b"\n" + f.read(MAX_MODEL_BYTES)
-    faces = text.count(b"\nf ") + text.count(b"\nf\t")
-    verts = text.count(b"\nv ") + text.count(b"\nv\t")
+def _check_obj(text: bytes, name: str) -> None:
+    """An OBJ's triangles and vertices counted from its text before it is
+    parsed, the way trimesh finds them (a 140 MB file of 10 million triangles
+    took 4.3 GB before the limit was checked; ``f1/1 ...`` lines and large
+    polygons count too)."""
+    faces, verts, others = obj_counts(text)
     if faces > MAX_FACES:
         raise ModelError(f"{name} has over {MAX_FACES:,} faces; that is the limit.")
-    if verts > MAX_VERTICES:
+    if max(verts, others) > MAX_VERTICES:
         raise ModelError(f"{name} has over {MAX_VERTICES:,} vertices; that is the limit.")
-    return text
-
-
-def referenced_files(path: str, text: bytes | None = None, doc: dict | None = None) -> list[str]:
-    """The files a model names besides itself, where they exist: an OBJ's
-    material libraries and the maps they name, a glTF's or GLB's external
-    buffers and images. What an export must not replace (they are inputs;
-    :func:`load_model` keeps them in the model's ``meta["files"]``), and what
-    must be regular files inside the model's folder (links resolved) before
-    the loader opens any (a FIFO among them would block it): ModelError, one
-    line, otherwise. ``text`` (an OBJ's) or ``doc``
-    (a glTF's JSON): already read."""
-    import re
-    name = os.path.basename(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    found: list[str] = []
-    sizes: list[int] = []
-    top = os.path.realpath(folder)
-
-    def add(ref: str) -> str | None:
-        target = os.path.join(folder, ref.strip().strip('"'))
-        try:
-            st = os.stat(target)
-            real = os.path.realpath(target)
-        except (OSError, ValueError):  # missing, or a name no file can have: the loader goes on without it
-            return None
-        if not stat.S_ISREG(st.st_mode):
-            raise ModelError(f"{name} refers to {printable(ref.strip()[:80])}, which is not a regular file.")
-        if os.path.commonpath([top, real]) != top:
-            raise ModelError(f"{name} refers to {printable(ref.strip()[:80])}, which is outside the model's "
-                             f"folder; copy it beside the model.")
-        if target not in found:
-            found.append(target)
-            sizes.append(st.st_size)
-            if sum(sizes) > MAX_MODEL_BYTES:  # the loader reads them all (an OBJ's textures too)
-                raise ModelError(f"The files {name} refers to are {sum(sizes) / 2 ** 20:.0f} MB together; "
-                                 f"models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
-        return target
-
-    if path.lower().endswith(".obj"):
-        if text is None:
-            with open(path, "rb") as f:
-                text = f.read(MAX_MODEL_BYTES)
-        for lib in re.findall(rb"^[ \t]*mtllib[ \t]+([^\r\n]+)", text, re.M)[:64]:
-            mtl = add(lib.decode("utf-8", "replace"))
-            if mtl is None:
-                continue
-            with open(mtl, "rb") as f:
-                mtext = f.read(16 * 1024 * 1024)
-            for line in re.findall(rb"^[ \t]*(?:map_\w+|bump|disp|decal|refl|norm)[ \t]+([^\r\n]+)", mtext, re.M)[:256]:
-                add(line.decode("utf-8", "replace").split()[-1])  # the file name ends the line, after options
-    elif path.lower().endswith((".gltf", ".glb")):
-        doc = _gltf_json(path, name) if doc is None else doc
-        for key in ("buffers", "images"):
-            for entry in doc.get(key) or []:
-                uri = entry.get("uri") if isinstance(entry, dict) else None
-                if isinstance(uri, str) and not uri.startswith("data:"):
-                    add(uri)
-    return found
 
 
 def load_model(path, unwrap_missing: bool = False) -> Model:
     """Read OBJ, glTF or GLB (all meshes of a scene, joined, in world space).
     ``unwrap_missing``: generate texture coordinates when the model has none.
-    Raises ModelError with one line for anything it cannot use."""
+    Raises ModelError with one line for anything it cannot use.
+
+    Every file is read through one gate (engine/surface/sources.py): the
+    model, then only what trimesh asks the gate for; ``meta["files"]`` lists
+    the model's inputs (what was read and what its names could mean)."""
     name = os.path.basename(str(path))
-    if not str(path).lower().endswith(MODEL_SUFFIXES):
+    lower = str(path).lower()
+    if not lower.endswith(MODEL_SUFFIXES):
         raise ModelError(f"{name}: models are read from OBJ, glTF or GLB files.")
-    try:
-        st = os.stat(path)
-    except OSError as exc:
-        raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ModelError(f"{name} is not a regular file.")
-    size = st.st_size
-    if size > MAX_MODEL_BYTES:
-        raise ModelError(f"{name} is {size / 2 ** 20:.0f} MB; models of up to {MAX_MODEL_BYTES >> 20} MB are read.")
-    text = None
-    try:
-        if str(path).lower().endswith((".gltf", ".glb")):
-            files = referenced_files(str(path), doc=_check_gltf(str(path), name))
-        else:
-            text = _check_obj(str(path), name)
-            files = referenced_files(str(path), text=text)
-        # (regular files only, before the loader opens any)
-    except OSError as exc:
-        raise ModelError(f"Cannot read {name}: {exc.strerror or exc}.") from None
-    import trimesh
+    files = ModelFiles(str(path), MAX_MODEL_BYTES, ModelError)
+    data = files.main()
+    kind = "obj" if lower.endswith(".obj") else "glb" if lower.endswith(".glb") else "gltf"
+    mtllib = None
+    if kind == "obj":
+        _check_obj(data, name)
+        # The text as read and checked, as UTF-8 (trimesh would guess other encodings with a module we lack).
+        text = data.decode("utf-8", "replace")
+        mtllib = trimesh_mtllib(text)
+        data = text.encode("utf-8")
+    else:
+        _check_gltf(_gltf_json(data, name, kind == "glb"), name, files)
+    import io
     import warnings
+
+    import trimesh
     with warnings.catch_warnings(), np.errstate(all="ignore"):  # what trimesh says of a damaged file: not ours to print
         warnings.simplefilter("ignore")
         try:
-            if text is None:
-                loaded = trimesh.load(str(path), force="mesh", process=False)
-            else:  # the text as read and checked, as UTF-8 (trimesh would guess other encodings with a module we lack)
-                import io
-
-                from trimesh.resolvers import FilePathResolver
-                clean = text.decode("utf-8", "replace").encode("utf-8")
-                loaded = trimesh.load(io.BytesIO(clean), file_type="obj", force="mesh", process=False,
-                                      resolver=FilePathResolver(str(path)))
+            scene = trimesh.load_scene(io.BytesIO(data), file_type=kind, process=False, resolver=files.resolver())
+            files.check()
+            _check_scene(scene, name)
+            loaded = scene.to_mesh()
+        except ModelError:
+            raise
         except Exception as exc:  # trimesh raises many kinds on damaged files
+            files.check()
             msg = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
-            raise ModelError(f"{name} is not a model trimesh can read ({msg}).") from None
+            raise ModelError(f"{name} is not a model trimesh can read ({printable(msg)}).") from None
+    files.name_maps(mtllib)
     if not hasattr(loaded, "faces") or loaded.faces is None or len(loaded.faces) == 0:
         raise ModelError(f"{name} holds no triangle mesh.")
     if len(loaded.faces) > MAX_FACES:
@@ -441,8 +382,21 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
         model = unwrap(np.asarray(loaded.vertices), np.asarray(loaded.faces), name)
     else:
         model = _from_trimesh(loaded, name)
-    model.meta["files"] = [os.path.abspath(str(path)), *files]  # what no export of it may replace
+    model.meta["files"] = files.inputs()  # what no export of it may replace
     return model
+
+
+def _check_scene(scene, name: str) -> None:
+    """The triangles and vertices every instance of the parsed scene places,
+    counted before the scene is joined into one mesh."""
+    faces = verts = 0
+    for node in scene.graph.nodes_geometry:
+        geom = scene.geometry.get(scene.graph[node][1])
+        faces += len(getattr(geom, "faces", None) if getattr(geom, "faces", None) is not None else ())
+        verts += len(getattr(geom, "vertices", ()))
+        if faces > MAX_FACES or verts > MAX_VERTICES:
+            raise ModelError(f"{name} places over {MAX_FACES:,} triangles or {MAX_VERTICES:,} vertices in its "
+                             "scene (a mesh counts once per node that uses it); that is the limit.")
 
 
 def texel_density(model: Model, size: int) -> float:
