@@ -370,6 +370,8 @@ def load_model(path, unwrap_missing: bool = False) -> Model:
             raise
         except Exception as exc:  # trimesh raises many kinds on damaged files
             files.check()
+            if files.missing:  # (a glTF's buffer, most likely)
+                raise ModelError(f"{name} refers to {files.missing[0]}, which does not exist beside it.") from None
             msg = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
             raise ModelError(f"{name} is not a model trimesh can read ({printable(msg)}).") from None
     files.name_maps(mtllib)

@@ -49,6 +49,7 @@ class ModelFiles:
         self.read: list[str] = []   # the files handed out, as named
         self.named: list[str] = []  # every path a name could mean (inputs, read or not)
         self.texts: dict[str, bytes] = {}
+        self.missing: list[str] = []  # names asked for that no file answers
         self.refusal: str | None = None
 
     # -- reading -------------------------------------------------------------
@@ -60,6 +61,7 @@ class ModelFiles:
         """What trimesh asked for by ``name``: the first of its candidates that
         exists (trimesh's order), checked; FileNotFoundError when none does."""
         if not isinstance(name, str) or "\0" in name:  # no file has such a name: missing
+            self.missing.append(printable(str(name).strip()[:80]))
             raise FileNotFoundError(repr(name))
         shown = printable(name.strip()[:80])
         if name.strip().lower().startswith("data:"):  # base64 ones are decoded by trimesh and never reach here
@@ -75,9 +77,12 @@ class ModelFiles:
                 continue
             if not _inside(real, top):  # trimesh's own rule too: a name that leaves the folder is not looked up
                 continue
-            data = self._read(candidate, shown, inside=True)
+            found = os.path.relpath(candidate, self.folder)
+            data = self._read(candidate, shown if found == name.strip() else f"{shown} (found as "
+                              f"{printable(found[:80])})", inside=True)
             self.texts[name] = data
             return data
+        self.missing.append(shown)
         raise FileNotFoundError(name)
 
     def candidates(self, name: str) -> list[str]:
