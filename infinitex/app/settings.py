@@ -119,7 +119,7 @@ def save_settings(s: Settings, path: str | None = None) -> bool:
             "panels": None if s.panels is None else list(s.panels)}
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        atomic_write(path, json.dumps(data, indent=1).encode("utf-8"))
+        atomic_write(path, json.dumps(data, indent=1).encode("utf-8"), follow_links=True)  # (a dotfile manager's link)
     except (OSError, WriteError):
         return False
     return True

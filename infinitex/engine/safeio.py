@@ -320,8 +320,15 @@ def _sync_folder(folder: str) -> None:
         pass
 
 
-def atomic_write(path: str, data: bytes | None = None, *, writer=None) -> None:
-    """Write ``data`` (or call ``writer(fileobj)``) to ``path`` atomically.
+def atomic_write(path: str, data: bytes | None = None, *, writer=None, follow_links: bool = False) -> None:
+    """Write ``data`` (or call ``writer(fileobj)``) to ``path`` atomically: in
+    full to a new temporary file beside it, then renamed over it.
+
+    A name that is a symbolic link is replaced by the new file (its target
+    untouched, a dangling link's target never created): what an export
+    writes lands under the name it was given, never somewhere a link points.
+    ``follow_links``: write the link's target instead, the link kept (a
+    project or settings file the user linked on purpose).
 
     Raises :class:`WriteError` with a sentence (the old file is then untouched
     and no temporary file is left). Exceptions raised by ``writer`` other than
@@ -329,9 +336,12 @@ def atomic_write(path: str, data: bytes | None = None, *, writer=None) -> None:
     clean-up."""
     path = os.fspath(path)
     shown = name_of(path)
-    real = os.path.realpath(path)  # write through symbolic links: the link stays
+    if follow_links:
+        real = os.path.realpath(path)
+    else:  # the name itself, in its folder's real path
+        real = os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(path))), os.path.basename(path))
     folder = os.path.dirname(real)
-    st = _existing(real, shown)
+    st = _existing(real, shown) if follow_links or not os.path.islink(real) else None
     if st is not None and not stat.S_ISREG(st.st_mode):
         raise WriteError(f"{printable(path)} exists and is not a regular file; it is not overwritten.")
     mode = stat.S_IMODE(st.st_mode) if st is not None else (0o666 & ~_UMASK)

@@ -314,7 +314,8 @@ def save_project(path: str, project: Project, embed: bool | None = None, store=N
     d = fitted_project_json(project, store) if store is not None else project_to_json(project, path, embed)
     text = json.dumps(d, indent=1)
     try:
-        atomic_write(path, text.encode("utf-8"))
+        # A project file the user linked on purpose is saved through the link; an autosave never is.
+        atomic_write(path, text.encode("utf-8"), follow_links=store is None)
     except WriteError as exc:
         raise ProjectError(str(exc)) from None
 

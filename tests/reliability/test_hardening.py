@@ -264,9 +264,16 @@ def test_atomic_write_gives_ordinary_permissions_and_follows_links(tmp_path, mon
     os.chmod(keep, 0o604)
     atomic_write(str(keep), b"new")
     assert stat.S_IMODE(os.stat(keep).st_mode) == 0o604 and keep.read_bytes() == b"new"
-    os.symlink(keep, tmp_path / "link.png")
-    atomic_write(str(tmp_path / "link.png"), b"through")
-    assert os.path.islink(tmp_path / "link.png") and keep.read_bytes() == b"through"
+    os.symlink(keep, tmp_path / "link.png")  # an output's name that is a link: replaced, never written through
+    atomic_write(str(tmp_path / "link.png"), b"new file")
+    assert not os.path.islink(tmp_path / "link.png") and (tmp_path / "link.png").read_bytes() == b"new file"
+    assert keep.read_bytes() == b"new"
+    os.symlink(tmp_path / "gone.png", tmp_path / "dangling.png")  # no file appears where a dangling link points
+    atomic_write(str(tmp_path / "dangling.png"), b"x")
+    assert not (tmp_path / "gone.png").exists() and (tmp_path / "dangling.png").read_bytes() == b"x"
+    os.symlink(keep, tmp_path / "linked.itex")  # a file the user linked on purpose (a project): written through
+    atomic_write(str(tmp_path / "linked.itex"), b"through", follow_links=True)
+    assert os.path.islink(tmp_path / "linked.itex") and keep.read_bytes() == b"through"
 
 
 def test_failed_writer_leaves_the_old_file_and_no_temporary(tmp_path):
