@@ -41,7 +41,7 @@ from PIL import Image, UnidentifiedImageError
 
 from .imagefile import PNG_MIN_CHUNK, fragmented_png, png_bit_depth, to_u8
 from .safeio import ReadError, printable, read_limited
-from .tiffinfo import block_bytes, is_tiff, loses_precision, quiet_libtiff, quiet_pillow_logs
+from .tiffinfo import MAX_BLOCKS, block_bytes, block_count, is_tiff, loses_precision, quiet_libtiff, quiet_pillow_logs
 from .wrap import guess_toroidal, seams_like_an_edge
 
 MIN_SIZE = 32
@@ -418,6 +418,9 @@ def check_tiff_blocks(tags, name: str, other: int = 0) -> None:
     decoding) would make the decoder allocate, with ``other`` bytes already
     counted, more than IMPORT_BUDGET."""
     block, what = block_bytes(tags)
+    if block_count(tags) > MAX_BLOCKS:
+        raise ExemplarError(f"{name} is cut into {block_count(tags):,} {what}; at most {MAX_BLOCKS:,} are read (save "
+                            "it with larger tiles or strips).")
     if block + other > IMPORT_BUDGET:
         raise ExemplarError(f"{name} claims {what}, so decoding it would need about {(block + other) // 2**20} MB, "
                             f"more than the {IMPORT_BUDGET // 2**20} MB an import may use; it is not read.")

@@ -6,6 +6,8 @@ untrusted input, read by :mod:`engine.exemplar` and :mod:`engine.controls.maps`)
   reading it, and a tile's size is whatever the header claims (a 688-byte file
   can claim tiles 16,777,216 px wide): it is checked against the import budget
   before any decoding. A strip never holds more rows than the image.
+- :func:`block_count`: how many tiles or strips a decoder walks (bounded:
+  MAX_BLOCKS), also from the header.
 - :func:`loses_precision`: a TIFF that Pillow would read as 8 bits though it
   holds more (2 to 4 samples of 16 bits: normal maps, RGB heights); such files
   are decoded through tifffile at full precision.
@@ -86,6 +88,21 @@ def block_bytes(tags) -> tuple[int, str]:
         bw, bl = width, min(_int(tags, ROWS_PER_STRIP, length) or length, length)
         what = f"strips of {bw}x{bl} px"
     return bw * bl * (planes * nbytes + 4), what
+
+
+MAX_BLOCKS = 65_536  # tiles or strips an import decodes (each costs a decoder call: ~20 us, more under load)
+
+
+def block_count(tags) -> int:
+    """How many tiles or strips the image is cut into (per plane for planar
+    images): a 64-Mpixel image of 16 x 16 tiles is 262,144 decoder calls."""
+    width, length = _int(tags, WIDTH), _int(tags, LENGTH)
+    if TILE_WIDTH in tags or TILE_LENGTH in tags:
+        bw, bl = max(1, _int(tags, TILE_WIDTH)), max(1, _int(tags, TILE_LENGTH))
+    else:
+        bw, bl = max(1, width), max(1, min(_int(tags, ROWS_PER_STRIP, length) or length, length))
+    planes = max(1, _int(tags, SAMPLES, 1)) if _int(tags, PLANAR, 1) == 2 else 1
+    return -(-width // bw) * -(-length // bl) * planes
 
 
 def loses_precision(tags) -> bool:

@@ -159,6 +159,24 @@ def test_huge_tile_claims_are_refused_on_every_path(tmp_path, reader):
         assert r.returncode == 3 and r.stderr.count("\n") == 1 and "claims tiles of 16777216x32" in r.stderr
 
 
+def test_a_tiff_cut_into_too_many_tiles_is_refused_from_its_header(tmp_path):
+    """An LZW TIFF of 16 x 16 tiles (262,144 of them at 64 Mpixels) ran past
+    60 s under load before any refusal; the tile count is read from the
+    header and bounded (MAX_BLOCKS) before anything is decoded."""
+    import time
+
+    import tifffile
+
+    from infinitex.engine.tiffinfo import MAX_BLOCKS
+    side = 16 * 257  # 66,049 tiles
+    assert (side // 16) ** 2 > MAX_BLOCKS
+    tifffile.imwrite(tmp_path / "tiles.tif", np.zeros((side, side), np.uint8), tile=(16, 16), compression="lzw")
+    t = time.monotonic()
+    with pytest.raises(ExemplarError, match="cut into 66,049 tiles of 16x16 px; at most 65,536"):
+        load_exemplar(tmp_path / "tiles.tif")
+    assert time.monotonic() - t < 3
+
+
 def test_ordinary_strips_and_tiles_still_load():
     a = (np.arange(96 * 80 * 3) % 253).astype(np.uint8).reshape(96, 80, 3)
     for kw in (dict(rowsperstrip=2 ** 32 - 1), dict(tile=(64, 64), compression="zlib"), dict(compression="zlib")):
