@@ -450,8 +450,7 @@ class ProgressBar:
         n = int(round(1000 * min(1.0, max(0.0, fraction))))
         if message:
             bar.set_postfix_str(message[:40], refresh=False)
-        if n > bar.n:
-            bar.update(n - bar.n)
+        bar.update(max(0, n - bar.n))  # (also with no new progress: the elapsed time moves on screen)
         if fraction >= 1.0:
             bar.close()
             self.bar = None

@@ -36,6 +36,8 @@ class SpreadRequests:
         targets = self._targets(level, rect)
         self._request_job = (level, rect, self._request_steps(targets), dict(targets))
         self.request_pixels = 0
+        # (what request_pixels reaches if no level keeps anything: a measure of progress)
+        self.request_total = sum(self.padded(l, t).w * self.padded(l, t).h for l, t in targets)
 
     def claimed(self, l: int) -> Rect | None:
         """What level l holds or the request in progress is making it hold

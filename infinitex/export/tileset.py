@@ -24,7 +24,9 @@ from .wang import TileSetBuilder, TileSetError, TileSetPlan, assemble
 
 PREVIEW_TILES = 8       # the preview: a random valid arrangement of 8 x 8 tiles
 PREVIEW_SIDE = 4096     # at most this many pixels a side (halved until it fits)
-PIECE = 128             # windows are synthesized in pieces of this size (one per step at most)
+PIECE = 128             # windows are synthesized in pieces of this size
+STEP_S = 0.1            # and each piece in steps of about this long (the pyramid's pacer cuts its draws)
+PACE_S = 0.05           # seconds of GPU work a cut draw aims at (the editor's 6 ms would waste the GPU's queue)
 
 
 def set_paths(out: str) -> dict[str, str]:
@@ -139,6 +141,9 @@ class TileSetJob:
             periodic.validate(self.L)
             self.periodic = Pyramid(session.gpu, session.synth.gan, periodic, scrolling=True, prefetch=0,
                                     chunk=16, controls=session.controls)
+        for pyr in (self.pyramid, self.periodic):
+            if pyr is not None:
+                pyr.pacer.piece_s = PACE_S
         self.builder = TileSetBuilder(plan, lambda r: self._render(self.pyramid, r), self._appearance,
                                       lambda: self._render(self.periodic, Rect(0, 0, plan.tile, plan.tile)),
                                       self._correct)
@@ -198,7 +203,12 @@ class TileSetJob:
         pieces = [Rect(x, y, min(x + PIECE, rect.x1), min(y + PIECE, rect.y1))
                   for y in range(rect.y0, rect.y1, PIECE) for x in range(rect.x0, rect.x1, PIECE)]
         for i, t in enumerate(pieces):
-            pyr.request(self.L, t)
+            # A piece's request spread over steps of about STEP_S (one draw of a level at fidelity 4 under load
+            # took seconds: the progress bar and Cancel wait for a step, never for a whole piece).
+            pyr.start_request(self.L, t)
+            while not pyr.advance_request(time.perf_counter() + STEP_S):
+                self._piece = (i + min(0.99, pyr.request_pixels / max(1, pyr.request_total))) / len(pieces)
+                yield
             out[t.y0 - rect.y0:t.y1 - rect.y0, t.x0 - rect.x0:t.x1 - rect.x0] = pyr.read(self.L, t, False)
             self._piece = (i + 1) / len(pieces)
             yield

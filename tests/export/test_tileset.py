@@ -250,10 +250,22 @@ def test_cli_writes_a_corner_set(tmp_path):
     assert r.returncode == 0 and (again / "set.png").read_bytes() == out.read_bytes()
 
 
-def test_api_set_is_the_command_lines(tmp_path):
+def test_api_set_is_the_command_lines(tmp_path, monkeypatch):
+    """The same set from the API (whole requests) and the command line, whose
+    requests are cut into steps of STEP_S (here as small as they go: one cut
+    draw a step), so its progress bar and Ctrl+C never wait for a whole piece
+    (a piece at fidelity 4 took 2-12 s here, past 60 s under load)."""
     import infinitex as itx
+    import infinitex.export.tileset as tileset
+    monkeypatch.setattr(tileset, "STEP_S", 0.0)
+    monkeypatch.setattr(tileset, "PACE_S", 0.0)
+    steps, pieces = [], []
+    advance, start = tileset.TileSetJob._advance, tileset.Pyramid.start_request
+    monkeypatch.setattr(tileset.TileSetJob, "_advance", lambda self: steps.append(1) or advance(self))
+    monkeypatch.setattr(tileset.Pyramid, "start_request", lambda self, *a: pieces.append(1) or start(self, *a))
     r = infinitex("export", GRAVEL, "-o", tmp_path / "set.png", "--variants", "3", "--tile", "64", "-q")
     assert r.returncode == 0, r.stderr
+    assert pieces and len(steps) > 8 * len(pieces), (len(steps), len(pieces))  # several steps a piece
     atlas, desc = itx.tile_set(GRAVEL, colors=1, n=64, variants=3)
     assert np.array_equal(atlas[..., 0], np.asarray(Image.open(tmp_path / "set.png")))  # gravel is grey
     assert desc["tiles"] == json.loads((tmp_path / "set.json").read_text())["tiles"]
