@@ -141,14 +141,12 @@ class TileSetJob:
             periodic.validate(self.L)
             self.periodic = Pyramid(session.gpu, session.synth.gan, periodic, scrolling=True, prefetch=0,
                                     chunk=16, controls=session.controls)
-        for pyr in (self.pyramid, self.periodic):
-            if pyr is not None:
-                pyr.pacer.piece_s = PACE_S
         self.builder = TileSetBuilder(plan, lambda r: self._render(self.pyramid, r), self._appearance,
                                       lambda: self._render(self.periodic, Rect(0, 0, plan.tile, plan.tile)),
                                       self._correct)
         self._work = self.builder.build()
         self._piece = 0.0  # fraction of the current window done
+        self._pace(STEP_S)
         self.atlas: np.ndarray | None = None
         self._pixels: dict[str, np.ndarray] = {}
         self._writer: threading.Thread | None = None
@@ -206,7 +204,7 @@ class TileSetJob:
             # A piece's request spread over steps of about STEP_S (one draw of a level at fidelity 4 under load
             # took seconds: the progress bar and Cancel wait for a step, never for a whole piece).
             pyr.start_request(self.L, t)
-            while not pyr.advance_request(time.perf_counter() + STEP_S):
+            while not pyr.advance_request(time.perf_counter() + self._step_s):
                 self._piece = (i + min(0.99, pyr.request_pixels / max(1, pyr.request_total))) / len(pieces)
                 yield
             out[t.y0 - rect.y0:t.y1 - rect.y0, t.x0 - rect.x0:t.x1 - rect.x0] = pyr.read(self.L, t, False)
@@ -214,6 +212,14 @@ class TileSetJob:
             yield
         self._piece = 0.0
         return out
+
+    def _pace(self, step_s: float) -> None:
+        """Steps of about ``step_s`` (the editor's frame budget, or STEP_S),
+        their draws cut to at most PACE_S."""
+        self._step_s = step_s
+        for pyr in (self.pyramid, self.periodic):
+            if pyr is not None:
+                pyr.pacer.piece_s = min(PACE_S, step_s / 2)
 
     def cancel(self) -> None:
         self.cancelled = True
@@ -226,6 +232,7 @@ class TileSetJob:
             return True
         try:
             if not self.built:
+                self._pace(budget_s)
                 t0 = time.perf_counter()
                 while not self._advance():
                     if time.perf_counter() - t0 > budget_s:
@@ -262,6 +269,7 @@ class TileSetJob:
 
     def run(self, progress=None) -> None:
         """Build and write to the end (CLI); ``progress(fraction)`` may raise to cancel."""
+        self._pace(STEP_S)
         while not self.built:
             t0 = time.perf_counter()
             while not self._advance() and time.perf_counter() - t0 < 0.25:
