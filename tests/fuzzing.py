@@ -213,13 +213,51 @@ def mutations(data: bytes):
     return st.lists(MUTATION, max_size=4).map(lambda plan: mutate(data, plan))
 
 
+def rechunk_png(data: bytes, size: int) -> bytes:
+    """The same PNG with its image data cut into IDAT chunks of ``size`` bytes
+    (valid: decoders must join them; 1-byte chunks decode at ~10^5 a second)."""
+    import struct
+    import zlib
+    pos, head, idat, tail = 8, [], b"", []
+    while pos + 8 <= len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        chunk = data[pos:pos + 12 + n]
+        if kind == b"IDAT":
+            idat += data[pos + 8:pos + 8 + n]
+        else:
+            (tail if idat else head).append(chunk)
+        pos += 12 + n
+    pieces = [idat[i:i + size] for i in range(0, len(idat), size)]
+    body = [struct.pack(">I", len(p)) + b"IDAT" + p + struct.pack(">I", zlib.crc32(b"IDAT" + p)) for p in pieces]
+    return data[:8] + b"".join(head) + b"".join(body) + b"".join(tail)
+
+
+def tiled_tiff(img: Image.Image, compression: str) -> bytes:
+    """The image as a TIFF of 16 x 16 tiles (the smallest TIFF allows)."""
+    import tifffile
+    buf = io.BytesIO()
+    a = np.asarray(img.convert("RGB") if img.mode not in ("L", "RGB") else img)
+    tifffile.imwrite(buf, a, tile=(16, 16), compression=compression)
+    return buf.getvalue()
+
+
 @st.composite
 def image_files(draw) -> bytes:
-    """Image files of many formats and modes, valid or mutated, or crafted bytes."""
-    kind = draw(st.sampled_from(["image", "image", "image", "raw"]))
+    """Image files of many formats and modes, valid or mutated, or crafted
+    bytes, or laid out in many small pieces (a PNG's data in tiny IDAT chunks,
+    a TIFF of 16 x 16 tiles: what decoders walk one by one)."""
+    kind = draw(st.sampled_from(["image", "image", "image", "raw", "layout"]))
     if kind == "raw":
         head = draw(st.sampled_from(MAGICS + [EPS_LOOP]))
         return head + draw(st.binary(max_size=512))
+    if kind == "layout":
+        w = draw(st.sampled_from([16, 33, 64, 96]))
+        img = make_image(draw(st.sampled_from(["L", "RGB", "RGBA"])), w, w, draw(st.integers(0, 2 ** 16)))
+        if draw(st.booleans()):
+            data = rechunk_png(encode(img, "PNG", 0), draw(st.sampled_from([1, 2, 7, 255])))
+        else:
+            data = tiled_tiff(img, draw(st.sampled_from([None, "lzw", "zlib"])))
+        return draw(mutations(data))
     mode = draw(st.sampled_from(MODES))
     fmt = draw(st.sampled_from(FORMATS))
     w = draw(st.sampled_from([1, 7, 31, 32, 33, 48, 64, 65, 96]))

@@ -11,6 +11,7 @@ The "ci" profile runs 200 fixed cases per target; ``pytest tests/reliability/tes
 figures with counts, timings and memory)."""
 import shutil
 
+import numpy as np
 import pytest
 from hypothesis import given
 
@@ -72,6 +73,21 @@ def test_every_spelling_of_a_models_reference_goes_through_the_gate(model_root):
     assert outcomes["gltf", "data-uri", "none"] == "refused"
     # A FIFO or a device where the texture or buffer is found: refused, never opened for reading.
     assert outcomes["obj", "upper-key", "fifo"] == outcomes["gltf", "no-folder", "device"] == "refused"
+
+
+def test_images_laid_out_in_many_pieces_are_bounded_from_their_headers():
+    """The seeds of the image target's layouts: a 512^2 PNG of 1-byte IDAT
+    chunks and a 4112^2 TIFF of 16 x 16 LZW tiles (66,049) are refused in one
+    line within the time limit (each ran past 60 s under load); the same
+    layouts at ordinary sizes are read."""
+    from PIL import Image
+    noise = Image.fromarray(np.random.default_rng(1).integers(0, 255, (512, 512), np.uint8))
+    assert F.run_import(F.rechunk_png(F.encode(noise, "PNG", 0), 1), timeout=20) == "refused"
+    big = Image.fromarray(np.zeros((4112, 4112), np.uint8))
+    assert F.run_import(F.tiled_tiff(big, "lzw"), timeout=20) == "refused"
+    small = noise.crop((0, 0, 64, 64))
+    assert F.run_import(F.rechunk_png(F.encode(small, "PNG", 0), 7)) == "accepted"
+    assert F.run_import(F.tiled_tiff(small, "lzw")) == "accepted"
 
 
 @given(data=F.image_files())
