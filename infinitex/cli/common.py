@@ -303,14 +303,17 @@ def palette_document(args, doc, quiet: bool = True):
     """``doc`` (its exemplar or material first) with the --palette files as
     more labels; a file named like a material's map brings its siblings."""
     from infinitex.engine.material import IMAGE, MATERIAL_BUDGET, MaterialError, assign_roles
+    from infinitex.engine.palette import check_palette_budget, file_heads
     from infinitex.engine.safeio import ReadError
     from infinitex.project.document import ExemplarSource
     if args.labels_exemplar:
         raise CliError("--palette makes each exemplar a label; it does not go with --labels-exemplar.", EXIT_USAGE)
     entries = [doc.sources()]
     try:
-        # The files together within a material's budget, before any is read.
+        # The files together within a material's budget, before any is read: their sizes, then their
+        # decodes from their first bytes (a palette of huge images is refused having read a few MB).
         total = sum(len(src.data) for _, src in entries[0])
+        founds = []
         for path in args.palette:
             found = assign_roles([path])
             total += sum(os.stat(p).st_size for p in found.values() if os.path.isfile(p))
@@ -320,6 +323,12 @@ def palette_document(args, doc, quiet: bool = True):
             if (IMAGE in found) != (doc.sources()[0][0] == IMAGE):
                 raise CliError(f"{printable(os.path.basename(path))} and the first exemplar are not both single "
                                "images or both materials; a palette's exemplars have the same maps.", EXIT_USAGE)
+            founds.append(found)
+        heads = [file_heads(list(found.values())) for found in founds]
+        sizes = {name: size for _, s in heads for name, size in s.items()}
+        check_palette_budget([[(src.name, src.data) for _, src in entries[0]]] + [h for h, _ in heads],
+                             doc.fit, sizes)
+        for found in founds:
             entries.append(tuple((role, ExemplarSource.from_file(p)) for role, p in found.items()))
     except (ReadError, MaterialError) as exc:
         raise CliError(str(exc), EXIT_INPUT) from None

@@ -30,25 +30,59 @@ from .material import MATERIAL_BUDGET, Material, MaterialError, MaterialMap, map
 MAX_ENTRIES = 16  # one label each
 
 
-def check_palette_budget(entries: list[list[tuple[str, bytes]]], fit: str) -> None:
+HEAD_BYTES = 1 << 20  # what is read of a palette file not yet read to size its decode from its header
+
+
+def check_palette_budget(entries: list[list[tuple[str, bytes]]], fit: str,
+                         sizes: dict[str, int] | None = None) -> None:
     """Refuse a palette whose import would need more than MATERIAL_BUDGET at its
     peak, like one material's: every entry's files (held throughout), the
     largest single decode and every fitted map, from the headers, before any
-    entry is decoded. ``entries``: per entry, its maps' (name, file bytes)."""
+    entry is decoded. ``entries``: per entry, its maps' (name, file bytes).
+    ``sizes``: {name: file size} of files given by their first bytes only
+    (:func:`file_heads`): their size counts, and a header those bytes do not
+    hold is left to the check of the whole file."""
     peaks, kept, files = [0], 0, 0
     for entry in entries:
         for name, data in entry:
+            head_only = sizes is not None and name in sizes and sizes[name] > len(data)
             try:
                 peak, k = map_costs(data, name, fit)
             except ExemplarError as exc:
-                raise MaterialError(f"The palette's {name}: {exc}") from None
+                if head_only:  # (a TIFF whose directory lies past the first bytes, say)
+                    peak, k = 0, 0
+                else:
+                    raise MaterialError(f"The palette's {name}: {exc}") from None
             peaks.append(peak)
             kept += k
-            files += len(data)
+            files += sizes[name] if sizes is not None and name in sizes else len(data)
     total = files + max(peaks) + kept
     if total > MATERIAL_BUDGET:
         raise MaterialError(f"The palette's {len(entries)} exemplars would need about {total // 2**20} MB to import "
                             f"together, more than the {MATERIAL_BUDGET // 2**20} MB allowed; use fewer or smaller ones.")
+
+
+def file_heads(paths: list[str]) -> tuple[list[tuple[str, bytes]], dict[str, int]]:
+    """([(name, first HEAD_BYTES)], {name: size}) of regular files not yet
+    read (opened without blocking; anything else is left to the full read,
+    which refuses it)."""
+    import os
+    import stat
+    heads, sizes = [], {}
+    for path in paths:
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        except OSError:
+            continue
+        try:
+            st = os.fstat(fd)
+            if stat.S_ISREG(st.st_mode):
+                name = os.path.basename(path)
+                heads.append((name, os.read(fd, HEAD_BYTES)))
+                sizes[name] = st.st_size
+        finally:
+            os.close(fd)
+    return heads, sizes
 
 
 def grid_side(n: int) -> int:

@@ -208,3 +208,16 @@ def test_a_palette_over_the_import_budget_is_refused_before_decoding(tmp_path, m
     r = infinitex("synth", os.path.join(ASSETS, "grass.png"), "--palette", pal, "-o", str(tmp_path / "x.png"),
                   "--size", "32", "32", "-q")
     assert r.returncode == 3 and "palette's files come to" in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    # Files small enough together, images too large to decode together: refused from their first bytes, before
+    # any palette file is read whole (14 files of 132 MB: 92 MB and 0.9 s for the refusal, 2.1 GB and 8 s before).
+    sizes = sum(os.path.getsize(os.path.join(ASSETS, f)) for f in ("grass.png", "gravel.png", "brick.png"))
+    monkeypatch.setattr("infinitex.engine.material.MATERIAL_BUDGET", sizes + 4096)
+    monkeypatch.setattr(palette_module, "MATERIAL_BUDGET", sizes + 4096)
+    monkeypatch.setattr(palette_module, "HEAD_BYTES", 4096)
+    from infinitex.project.document import ExemplarSource
+    read, from_file = [], ExemplarSource.from_file
+    monkeypatch.setattr(ExemplarSource, "from_file", staticmethod(lambda p, *a, **k: read.append(p) or from_file(p)))
+    r = infinitex("synth", os.path.join(ASSETS, "grass.png"), "--palette", pal, "-o", str(tmp_path / "x.png"),
+                  "--size", "32", "32", "-q")
+    assert r.returncode == 3 and "palette's 3 exemplars would need" in r.stderr, r.stderr
+    assert not [p for p in read if "gravel" in str(p) or "brick" in str(p)], read
