@@ -93,11 +93,13 @@ class LoadedDocument:
             preview = job.take_preview()
             if preview is None:
                 return None
-            self.install(job.doc, *preview, preview=True)  # quick_analysis until the full analysis is installed
+            self.install(*preview, preview=True)  # quick_analysis until the full analysis is installed
+            job.shown_doc = preview[0]  # (the image as given: a lattice may be found after)
             return job  # the document can be shown (and edited) now
         self.job = None
         if job.analysis is not None:
             self.install(job.doc, job.exemplar, job.analysis, job.material)
+            job.shown_doc = job.doc
         elif job.error:
             self.failed[job.key] = job.error
         return job

@@ -142,6 +142,7 @@ class AnalysisJob:
         # the key asked for, and ``found`` holds the detection.
         self.find_lattice = find_lattice
         self.found: Detection | None = None
+        self.shown_doc: Document | None = None  # the document installed (by LoadedDocument.poll) when shown
         self.asked_key = doc.analysis_key()
         # ``preview``: before the full analysis, a quick one without similarity
         # sets (TBN10's random-walk search needs none: about a tenth of the
@@ -149,7 +150,10 @@ class AnalysisJob:
         # analysis would build sets and is not in the cache, for single images
         # without a lattice.
         self.want_preview = preview
-        self.preview: tuple[Exemplar, Analysis, Material] | None = None
+        # (document, exemplar, analysis, material) of the preview: the image as
+        # given, even where the lattice search then finds a lattice (``doc``
+        # then changes; the preview shows while that analysis runs).
+        self.preview: tuple[Document, Exemplar, Analysis, Material] | None = None
         self.preview_taken = False
         self.key = doc.analysis_key()
         self.cache_dir = cache_dir
@@ -182,7 +186,7 @@ class AnalysisJob:
             return False
         return not is_cached(ex, settings, self.cache_dir)
 
-    def take_preview(self) -> tuple[Exemplar, Analysis, Material] | None:
+    def take_preview(self) -> tuple[Document, Exemplar, Analysis, Material] | None:
         """The quick preview once it is ready, once (None otherwise)."""
         if self.preview is None or self.preview_taken:
             return None
@@ -195,28 +199,40 @@ class AnalysisJob:
         self.progress = 0.05 + 0.95 * float(frac)
         self.message = msg
 
+    def _quick_preview(self, d: Document, ex: Exemplar, settings: AnalysisSettings) -> None:
+        self._progress(0.0, "Quick preview (random-walk search)")
+        quick = analyze(ex, replace(settings, k=0), progress=self._progress)
+        self.preview = (d, ex, quick, single(ex, [lv.stack for lv in quick.levels]))
+
     def _run(self) -> None:
         d = self.doc
         try:
             image = None
-            if self.find_lattice and may_find_lattice(d):
+            searching = self.find_lattice and may_find_lattice(d)
+            material = material_or_none(d)
+            preview = self.want_preview and (material is None or material.single)
+            if searching and preview:
+                # The first texture never waits for the lattice search: the image's quick preview first (shown
+                # and editable), then the search; a lattice found is the editor's to adopt (one undo step).
+                ex, settings = exemplar_for(d, None, material=material)
+                if self._needs_preview(ex, settings):
+                    self._quick_preview(d, ex, settings)
+            if searching:
                 self.message = "Looking for a lattice"
                 image = decode_full(d.exemplar.data, d.exemplar.name)
                 d, self.found = with_found_lattice(d, image)
                 if d is not self.doc:
                     self.doc, self.key = d, d.analysis_key()
-            material = material_or_none(d)
             ex, settings = exemplar_for(d, image if d.lattice is not None else None, material=material)
-            if self.want_preview and (material is None or material.single) and self._needs_preview(ex, settings):
-                self._progress(0.0, "Quick preview (random-walk search)")
-                quick = analyze(ex, replace(settings, k=0), progress=self._progress)
-                self.preview = (ex, quick, single(ex, [lv.stack for lv in quick.levels]))
+            if self.preview is None and preview and self._needs_preview(ex, settings):
+                self._quick_preview(d, ex, settings)
+            if self.preview is not None:
                 self._progress(0.0, "Analyzing (similarity sets, cached for next time)")
             else:
                 self._progress(0.0, "Analyzing")
-            # The preview's stack and neighborhoods are the full analysis's too.
-            an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress,
-                         reuse=None if self.preview is None else self.preview[1])
+            # The preview's stack and neighborhoods are the full analysis's too (of the same exemplar).
+            reuse = self.preview[2] if self.preview is not None and self.preview[0] is d else None
+            an = analyze(ex, settings, cache_dir=self.cache_dir, progress=self._progress, reuse=reuse)
             if material is None:
                 material = single(ex, [lv.stack for lv in an.levels])  # the same Gaussian stack
             for role in material.roles:  # every map's stack, off the GUI thread

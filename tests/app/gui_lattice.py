@@ -3,7 +3,8 @@
 
     xvfb-run -a python tests/app/gui_lattice.py OUT_DIR
 
-Opens generated running-bond bricks (their lattice found on opening), turns
+Opens generated running-bond bricks (their quick preview first, then their
+lattice, found behind it, adopted as one undo step), turns
 it off in the Exemplar panel, auto-detects it again, drags a handle with the
 mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
 to OUT_DIR/report.txt and screenshots to OUT_DIR/found.png (the Exemplar
@@ -32,6 +33,7 @@ def main(out: str) -> int:
     img, _, _ = bricks(np.random.default_rng(1), side=256, bw=40, bh=18)
     path = os.path.join(out, "bricks.png")
     write_png(path, to_u8(img))
+    os.environ["INFINITEX_CACHE"] = os.path.join(out, "cache")  # not analyzed before: the quick preview shows first
     h = Harness(out, path)
     ed, check, settle, canvas = h.ed, h.check, h.settle, h.canvas
 
@@ -47,6 +49,9 @@ def main(out: str) -> int:
               and abs(abs(found.t2[0]) - 20) < 0.5 and abs(found.t2[1] - 18) < 0.5, str(found))
         check("the Exemplar panel says it was found", ed.found_lattice is not None
               and ed.found_lattice.lattice == found, str(ed.found_lattice))
+        # The image's quick preview showed first; the lattice, found behind it, is one undo step with a notice.
+        check("the lattice found after the first texture is one undo step", ed.history.undo_label() == "Lattice found"
+              and ed.notice is not None and "Found a lattice" in ed.notice[0], ed.history.undo_label())
         on_open = canvas(ctx)
         ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
         ctx.item_open("Exemplar")

@@ -75,7 +75,7 @@ def test_lattice_tool_driven_by_the_test_engine(tmp_path, xdisplay):
     so; Turn off works); Auto-detect places the handles on them again, the same
     texture as on opening; dragging a handle changes the rectified preview;
     undo restores it (tests/app/gui_lattice.py)."""
-    _drive("gui_lattice.py", tmp_path, xdisplay, 19)
+    _drive("gui_lattice.py", tmp_path, xdisplay, 20)
 
 
 def test_everyday_use_driven_by_the_test_engine(tmp_path, xdisplay):

@@ -3,6 +3,7 @@ synthesized on it without being asked (synth, export, the API, an image opened
 as a document), exactly as with --lattice auto; --lattice none (lattice=None)
 turns it off; a stochastic image gets none."""
 import os
+import tempfile
 
 import numpy as np
 import pytest
@@ -87,6 +88,14 @@ def test_an_opened_image_gets_its_lattice(brick_png):
     assert job.doc.lattice is not None and job.found.confidence >= 0.3
     assert job.asked_key == doc.analysis_key() and job.key == job.doc.analysis_key() != job.asked_key
     assert job.analysis is not None and job.exemplar.fit == "lattice"
+    # With a quick preview (the editor's), the first texture does not wait for the search: the preview is the
+    # image as given, and the lattice found after it is the job's document, for the editor to adopt.
+    with tempfile.TemporaryDirectory() as cache:
+        quick = AnalysisJob(doc, cache_dir=cache, preview=True, find_lattice=True)
+        assert quick.wait(120) and quick.error is None
+    shown, ex, an, _ = quick.take_preview()
+    assert shown is doc and shown.lattice is None and ex.fit != "lattice" and an.size == ex.size
+    assert quick.doc.lattice == job.doc.lattice and quick.key == job.key and quick.exemplar.fit == "lattice"
     # Not where a lattice does not go (Make tileable), nor on a stochastic image.
     tileable = AnalysisJob(Document(ExemplarSource.from_file(brick_png), make_tileable=True), find_lattice=True)
     gravel = AnalysisJob(Document(ExemplarSource.from_file(GRAVEL)), find_lattice=True)

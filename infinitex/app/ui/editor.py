@@ -300,6 +300,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         job = s.poll()
         if job is not None and self.pending is not None and job.asked_key == self.pending[1].analysis_key():
             self._finish_load(job)
+        elif job is not None and job.done and job.analysis is not None:
+            self._adopt_found_lattice(job)
         elif job is not None and job.error:
             self.dialogs.message("Analysis failed", job.error)
         if s.ready:

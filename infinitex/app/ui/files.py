@@ -32,6 +32,7 @@ from infinitex.project import (
     project_save_path,
     save_project,
 )
+from infinitex.project.realize import may_find_lattice
 
 from .dialogs import PROJECT_FILTER
 
@@ -214,7 +215,9 @@ class FilesMixin:
 
     def _finish_load(self, job) -> None:
         kind, doc, proj, path = self.pending
-        doc = getattr(job, "doc", doc)  # with the lattice found, if one was
+        # The document shown: the image as given while its quick preview shows (a lattice found later is
+        # adopted by _adopt_found_lattice), else the job's (with the lattice found, if one was).
+        doc = getattr(job, "shown_doc", None) or getattr(job, "doc", doc)
         self.pending = None
         self.found_lattice = getattr(job, "found", None) if doc.lattice is not None else None
         if job.error or job.cancelled:
@@ -247,6 +250,24 @@ class FilesMixin:
         else:
             self.viewer.show()
             self.project_path = None
+
+    def _adopt_found_lattice(self, job) -> None:
+        """A lattice the job found after its quick preview was shown: the
+        document goes on it, one undo step ("Lattice found"), with a notice;
+        the job's analysis is the one installed, so nothing waits again. Not
+        where the document was since given something a lattice does not go
+        with, or another exemplar."""
+        found = getattr(job, "found", None)
+        doc = self.doc
+        lattice = job.doc.lattice
+        if found is None or lattice is None or doc is None or doc.lattice is not None or not may_find_lattice(doc):
+            return
+        if doc.analysis_key() != job.asked_key:
+            return
+        self.edit(replace(doc, lattice=lattice), "Lattice found")
+        self.found_lattice = found
+        self.notice = (f"Found a lattice (cells {lattice.describe()}): rows and columns stay straight. "
+                       "Ctrl+Z synthesizes without it.", time.monotonic())
 
     def _recover(self, rec: Recoverable) -> None:
         try:
