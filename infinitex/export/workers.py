@@ -180,6 +180,13 @@ def probe_scheduler(address: str, timeout: float = SCHEDULER_TIMEOUT_S) -> str:
 
     def attempt() -> None:
         try:
+            import socket
+
+            import distributed.comm  # noqa: F401  (imported before the clock starts: seconds under load)
+            host, port = address[len("tcp://"):].rsplit(":", 1)
+            # A plain connection first: a refused or unreachable port answers at once (distributed's own
+            # connect retries a refusal for half the time, which a loaded machine could spend importing).
+            socket.create_connection((host.strip("[]"), int(port)), timeout).close()
             result["reply"] = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
         except BaseException as exc:  # noqa: BLE001 - reported below as one sentence, in the caller's thread
             result["error"] = exc
