@@ -324,7 +324,7 @@ def _check_obj(text: bytes, name: str) -> None:
     parsed, the way trimesh finds them (a 140 MB file of 10 million triangles
     took 4.3 GB before the limit was checked; ``f1/1 ...`` lines and large
     polygons count too)."""
-    faces, verts, others = obj_counts(text)
+    faces, verts, others = obj_counts(text, limit=MAX_FACES)
     if faces > MAX_FACES:
         raise ModelError(f"{name} has over {MAX_FACES:,} faces; that is the limit.")
     if max(verts, others) > MAX_VERTICES:

@@ -229,19 +229,26 @@ _SPACE = np.zeros(256, bool)
 _SPACE[[9, 10, 11, 12, 13, 28, 29, 30, 31, 32]] = True  # str.split()'s ASCII whitespace
 
 
-def obj_counts(text: bytes, chunk: int = 8 << 20) -> tuple[int, int, int]:
+def obj_counts(text: bytes, chunk: int = 8 << 20, limit: int | None = None) -> tuple[int, int, int]:
     """(triangles, positions, the larger of texture coordinates and normals)
     an OBJ's text can give trimesh, counted the way trimesh finds them: every
     line that starts with ``f`` (``f1/1 2/2 3/3`` included) is a polygon of
     as many triangles as it has references less two (at least one); ``v``,
     ``vt`` and ``vn`` lines. ``text``: as trimesh sees it (lines joined at a
-    backslash, CR LF as LF)."""
+    backslash, CR LF as LF). ``limit``: where the text cannot hold more
+    triangles than that (a polygon's corners are words, and every word
+    follows a whitespace byte), that bound is given without counting them one
+    by one (the exact count: about 0.3 s per 10 MB here)."""
     t = b"\n" + text.replace(b"\r\n", b"\n").replace(b"\\\n", b"")
     verts = t.count(b"\nv") - t.count(b"\nvt") - t.count(b"\nvn") - t.count(b"\nvp")
     others = max(t.count(b"\nvt"), t.count(b"\nvn"))
     lines = t.count(b"\nf")
     if len(t) < 2 * lines + 4 * 1024:  # (no room for polygons beyond one triangle a line)
         return lines, verts, others
+    if limit is not None:
+        words = 1 + sum(t.count(bytes([c])) for c in np.flatnonzero(_SPACE))
+        if words <= limit:
+            return words, verts, others
     tri = 0
     start = 0
     while start < len(t):  # in pieces that end at a line's end (memory: a few times the piece)
