@@ -42,7 +42,7 @@ from .canvas_state import CanvasState
 from .canvas_refine import CanvasRefineMixin
 from .dialogs import Dialogs
 from .exports import ExportSettings, ExportsMixin
-from .files import DEFAULT_EXEMPLAR, FilesMixin
+from .files import DEFAULT_EXEMPLAR, FilesMixin, adopt_found_lattice
 from .keylog import KeyLog
 from .model_mode import ModelModeMixin
 from .pacing import FramePacer, InputWait
@@ -301,7 +301,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         if job is not None and self.pending is not None and job.asked_key == self.pending[1].analysis_key():
             self._finish_load(job)
         elif job is not None and job.done and job.analysis is not None:
-            self._adopt_found_lattice(job)
+            adopt_found_lattice(self, job)
         elif job is not None and job.error:
             self.dialogs.message("Analysis failed", job.error)
         if s.ready:

@@ -216,7 +216,7 @@ class FilesMixin:
     def _finish_load(self, job) -> None:
         kind, doc, proj, path = self.pending
         # The document shown: the image as given while its quick preview shows (a lattice found later is
-        # adopted by _adopt_found_lattice), else the job's (with the lattice found, if one was).
+        # adopted by adopt_found_lattice), else the job's (with the lattice found, if one was).
         doc = getattr(job, "shown_doc", None) or getattr(job, "doc", doc)
         self.pending = None
         self.found_lattice = getattr(job, "found", None) if doc.lattice is not None else None
@@ -250,24 +250,6 @@ class FilesMixin:
         else:
             self.viewer.show()
             self.project_path = None
-
-    def _adopt_found_lattice(self, job) -> None:
-        """A lattice the job found after its quick preview was shown: the
-        document goes on it, one undo step ("Lattice found"), with a notice;
-        the job's analysis is the one installed, so nothing waits again. Not
-        where the document was since given something a lattice does not go
-        with, or another exemplar."""
-        found = getattr(job, "found", None)
-        doc = self.doc
-        lattice = job.doc.lattice
-        if found is None or lattice is None or doc is None or doc.lattice is not None or not may_find_lattice(doc):
-            return
-        if doc.analysis_key() != job.asked_key:
-            return
-        self.edit(replace(doc, lattice=lattice), "Lattice found")
-        self.found_lattice = found
-        self.notice = (f"Found a lattice (cells {lattice.describe()}): rows and columns stay straight. "
-                       "Ctrl+Z synthesizes without it.", time.monotonic())
 
     def _recover(self, rec: Recoverable) -> None:
         try:
@@ -465,3 +447,22 @@ def recovery_question(rec: Recoverable, i: int = 0, n: int = 1) -> str:
     count = f" ({i + 1} of {n})" if n > 1 else ""
     return (f"An Infinitex session did not close normally. Unsaved work on {what} from {t} was kept{count}.\n"
             "Recover it? (Keep for later: asked again at the next start.)")
+
+
+def adopt_found_lattice(ed, job) -> None:
+    """A lattice the analysis job found after its quick preview was shown:
+    the document goes on it, one undo step ("Lattice found"), with a notice;
+    the job's analysis is the one installed, so nothing waits again. Not
+    where the document was since given something a lattice does not go with,
+    or another exemplar."""
+    found = getattr(job, "found", None)
+    doc = ed.doc
+    lattice = job.doc.lattice
+    if found is None or lattice is None or doc is None or doc.lattice is not None or not may_find_lattice(doc):
+        return
+    if doc.analysis_key() != job.asked_key:
+        return
+    ed.edit(replace(doc, lattice=lattice), "Lattice found")
+    ed.found_lattice = found
+    ed.tell(f"Found a lattice (cells {lattice.describe()}): rows and columns stay straight. "
+            "Ctrl+Z synthesizes without it.")
