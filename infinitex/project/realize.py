@@ -223,7 +223,10 @@ class AnalysisJob:
                 d, self.found = with_found_lattice(d, image)
                 if d is not self.doc:
                     self.doc, self.key = d, d.analysis_key()
-            ex, settings = exemplar_for(d, image if d.lattice is not None else None, material=material)
+            if self.preview is not None and self.preview[0] is d:  # no lattice found: the preview's exemplar
+                ex = self.preview[1]
+            else:
+                ex, settings = exemplar_for(d, image if d.lattice is not None else None, material=material)
             if self.preview is None and preview and self._needs_preview(ex, settings):
                 self._quick_preview(d, ex, settings)
             if self.preview is not None:
