@@ -64,24 +64,18 @@ def check_palette_budget(entries: list[list[tuple[str, bytes]]], fit: str,
 
 def file_heads(paths: list[str]) -> tuple[list[tuple[str, bytes]], dict[str, int]]:
     """([(name, first HEAD_BYTES)], {name: size}) of regular files not yet
-    read (opened without blocking; anything else is left to the full read,
-    which refuses it)."""
+    read (safeio.read_head: never blocks; anything else is left to the full
+    read, which refuses it)."""
     import os
-    import stat
+
+    from .safeio import read_head
     heads, sizes = [], {}
     for path in paths:
-        try:
-            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-        except OSError:
-            continue
-        try:
-            st = os.fstat(fd)
-            if stat.S_ISREG(st.st_mode):
-                name = os.path.basename(path)
-                heads.append((name, os.read(fd, HEAD_BYTES)))
-                sizes[name] = st.st_size
-        finally:
-            os.close(fd)
+        head = read_head(path, HEAD_BYTES)
+        if head:
+            name = os.path.basename(path)
+            heads.append((name, head))
+            sizes[name] = os.path.getsize(path)
     return heads, sizes
 
 
