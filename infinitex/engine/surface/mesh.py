@@ -394,8 +394,9 @@ def _check_scene(scene, name: str) -> None:
     faces = verts = 0
     for node in scene.graph.nodes_geometry:
         geom = scene.geometry.get(scene.graph[node][1])
-        faces += len(getattr(geom, "faces", None) if getattr(geom, "faces", None) is not None else ())
-        verts += len(getattr(geom, "vertices", ()))
+        f, v = getattr(geom, "faces", None), getattr(geom, "vertices", None)
+        faces += 0 if f is None else len(f)
+        verts += 0 if v is None else len(v)
         if faces > MAX_FACES or verts > MAX_VERTICES:
             raise ModelError(f"{name} places over {MAX_FACES:,} triangles or {MAX_VERTICES:,} vertices in its "
                              "scene (a mesh counts once per node that uses it); that is the limit.")
