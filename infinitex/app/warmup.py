@@ -70,8 +70,7 @@ class ShaderWarmup:
             return False
         try:
             self.proc = subprocess.Popen([sys.executable, "-m", "infinitex.app.warmup"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                         preexec_fn=_lowest_priority if os.name == "posix" else None)
+                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             self.proc.stdin.write(project_json.encode("utf-8"))
             self.proc.stdin.close()
         except OSError:
@@ -103,10 +102,6 @@ class ShaderWarmup:
                 self.proc.kill()
             self.proc.wait()
         self.proc, self._key = None, None
-
-
-def _lowest_priority() -> None:
-    os.nice(19)
 
 
 def edits(base, an) -> list[tuple[str, object]]:
@@ -141,7 +136,12 @@ def edits(base, an) -> list[tuple[str, object]]:
 
 
 def main() -> int:
-    """The warm-up process: the project as JSON on standard input."""
+    """The warm-up process: the project as JSON on standard input, at the
+    lowest priority (set here, not by a ``preexec_fn``: Python code run
+    between fork and exec in the editor, whose GL and UI threads hold locks,
+    is documented as unsafe)."""
+    if hasattr(os, "nice"):
+        os.nice(19)
     from infinitex.engine.pyramid import Rect
     from infinitex.export.workers import ProjectSynthesizer
     raw = sys.stdin.buffer.read(1 << 30).decode("utf-8")

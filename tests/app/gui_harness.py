@@ -4,6 +4,7 @@ report of "ok NAME" / "FAIL NAME: why" lines in OUT_DIR/report.txt that
 test_editor.py reads."""
 from __future__ import annotations
 
+import faulthandler
 import os
 import sys
 import time
@@ -85,8 +86,15 @@ class Harness:
             io.config_watchdog_warning = watchdog_s
             io.config_watchdog_kill_test = watchdog_s
         params.callbacks.register_tests = register_tests
+
+        def traced(ctx) -> None:
+            # The test engine's crash handler (installed after start-up) only says
+            # "Crashed while running"; Python's own handler, installed again over it,
+            # prints every thread's stack first, then the crash goes on as before.
+            faulthandler.enable(all_threads=True)
+            test(ctx)
         try:
-            testing.run(test_function=test, runner_params=params, run_speed=testing.TestRunSpeed.fast)
+            testing.run(test_function=traced, runner_params=params, run_speed=testing.TestRunSpeed.fast)
         except Exception as exc:
             self.report.append(f"FAIL driver: {exc}")
         missed = Session.missed_regions
