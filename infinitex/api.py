@@ -21,7 +21,7 @@ from .engine.controls.lattice import (
     rectified_exemplar,
     render_original,
 )
-from .engine.controls.lattice_detect import detect
+from .engine.controls.lattice_cache import find_lattice
 from .engine.exemplar import Exemplar, from_array, load_exemplar, load_full, unit_values
 from .engine.imagefile import to_u8
 from .engine.palette import PaletteLayout
@@ -46,7 +46,7 @@ def _exemplar(source, lattice: Lattice | str | None) -> tuple[Exemplar, Lattice 
     if isinstance(lattice, str):
         if lattice != "auto":
             raise ValueError("lattice must be a Lattice, 'auto' or None.")
-        lattice = detect(image).lattice
+        lattice = find_lattice(image).lattice
         if lattice is None:
             return _exemplar(source, None)
     return rectified_exemplar(image, lattice), lattice

@@ -156,14 +156,14 @@ def resolve_lattice(spec: str | None, image: np.ndarray, levels: int | None):
     """The lattice a --lattice argument names for ``image`` (input pixels),
     printed on stdout as one line; None for 'none' or when 'auto' finds none."""
     from infinitex.engine.controls.lattice import Lattice, LatticeError
-    from infinitex.engine.controls.lattice_detect import detect
+    from infinitex.engine.controls.lattice_cache import find_lattice
     if spec is None:
         return None
     H, W = image.shape[:2]
     if spec.strip().lower() == "none":
         lat = None
     elif spec.strip().lower() == "auto":
-        lat = detect(image).lattice
+        lat = find_lattice(image).lattice
     else:
         try:
             lat = Lattice.parse(spec)

@@ -147,14 +147,14 @@ def run_synth(argv: list[str]) -> int:
         sys.stdout.write("lattice: none\n")
     elif finds_lattice(args):
         from infinitex.engine.controls.lattice import rectified_exemplar
-        from infinitex.engine.controls.lattice_detect import detect
+        from infinitex.engine.controls.lattice_cache import find_lattice
         from infinitex.engine.exemplar import ExemplarError, load_full
         try:  # an image too large to search whole is synthesized without a lattice
             image = load_full(args.exemplar)
         except ExemplarError:
             image = None  # (a file that cannot be read at all says so below)
         if image is not None:
-            found = detect(image)
+            found = find_lattice(image, use_cache=not args.no_cache)
             lattice = found.lattice
     palette = None
     if args.palette:

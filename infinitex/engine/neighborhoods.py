@@ -12,7 +12,6 @@ integers is computed so that another machine's BLAS gives the same integers.
 from __future__ import annotations
 
 import numpy as np
-from scipy import fft as sfft
 
 from . import fixed
 
@@ -46,6 +45,7 @@ def gaussian_stack(pixels: np.ndarray, toroidal: bool) -> list[np.ndarray]:
     toroidal, else by DCT-II, whose basis is exactly the mirrored 2m period
     (a quarter of the work of filtering the 2m x 2m augmentation).
     """
+    from scipy import fft as sfft  # imported when used: a cached analysis needs none of scipy
     m, C = pixels.shape[0], pixels.shape[2]
     L = m.bit_length() - 1
     if toroidal:

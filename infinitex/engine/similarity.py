@@ -5,7 +5,6 @@ exemplar's border that no candidate may use."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 # Approximate nearest neighbors, as LH05 (Arya et al. 1998): each match is
 # within (1 + eps) of the exact one; 4x faster than exact search at 512^2.
@@ -70,6 +69,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     if pool.size == 0:
         pool = np.nonzero(usable)[0]
     pool = spread_equal(desc, pool, MAX_EQUAL)
+    from scipy.spatial import cKDTree  # imported when used: a cached analysis needs none of scipy
     tree = cKDTree(desc[pool])
     spacing = max(1.0, spacing_frac * m)
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy import ndimage
 
 from .exemplar import Exemplar
 from .wrap import guess_toroidal
@@ -157,6 +156,7 @@ def _periodic_resize(a: np.ndarray, side: int) -> np.ndarray:
     """A toroidal (H, W, C) image resampled to (side, side, C), still toroidal
     (scipy's cubic spline with wrap-around boundaries; a Gaussian prefilter,
     wrapped too, when it shrinks)."""
+    from scipy import ndimage  # imported when an exemplar is made tileable, not by every command
     h, w = a.shape[:2]
     out = []
     for c in range(a.shape[2]):
@@ -206,6 +206,7 @@ def shading_strength(pixels: np.ndarray) -> float:
     """How much an (m, m, C) image's large-scale shading varies: the standard
     deviation of its luminance blurred by m/8 (wrapped) over that of its
     luminance."""
+    from scipy import ndimage
     lum = np.asarray(pixels, np.float64).mean(axis=2)
     sd = float(lum.std())
     if sd < 1e-9:

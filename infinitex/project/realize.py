@@ -7,6 +7,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,7 +20,6 @@ from infinitex.engine.analysis import (
     search_k,
 )
 from infinitex.engine.controls.lattice import LatticeError, rectified_exemplar
-from infinitex.engine.controls.lattice_detect import Detection, detect
 from infinitex.engine.exemplar import (
     Exemplar,
     ExemplarError,
@@ -31,6 +31,9 @@ from infinitex.engine.palette import PaletteLayout, check_palette_budget, pack_p
 from infinitex.engine.tileable import tileable_exemplar, tileable_material
 
 from .document import Document, ProjectError
+
+if TYPE_CHECKING:
+    from infinitex.engine.controls.lattice import Detection
 
 
 def material_for(doc: Document) -> Material:
@@ -118,7 +121,8 @@ def with_found_lattice(doc: Document, image: np.ndarray | None = None) -> tuple[
             image = decode_full(doc.exemplar.data, doc.exemplar.name)
         except ExemplarError:  # too large to search whole (over FULL_MAX_PIXELS): synthesized without a lattice
             return doc, None
-    found = detect(image)
+    from infinitex.engine.controls.lattice_cache import find_lattice
+    found = find_lattice(image)
     if found.lattice is None:
         return doc, found
     on = replace(doc, lattice=found.lattice)

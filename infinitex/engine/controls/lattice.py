@@ -32,7 +32,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from ..exemplar import Exemplar
 
@@ -208,6 +207,7 @@ class Lattice:
         pixel (i, j) samples the image at ``origin + ((i+1/2)/side) nx t1 +
         ((j+1/2)/side) ny t2`` with scipy's cubic spline, after a Gaussian
         prefilter when the block is reduced (no aliasing)."""
+        from scipy import ndimage  # imported when used: a cached analysis's window needs none of scipy
         img = np.asarray(image, dtype=np.float32)
         if img.ndim == 2:
             img = img[:, :, None]
@@ -225,6 +225,18 @@ class Lattice:
                 plane = ndimage.gaussian_filter(plane, sigma, mode="nearest")
             out[:, :, c] = ndimage.map_coordinates(plane, [qy, qx], order=3, mode="nearest")
         return np.clip(out, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """What the search (:func:`.lattice_detect.detect`) found: a lattice
+    (None: no lattice found), the confidence in [0, 1], and the time it took."""
+
+    lattice: Lattice | None
+    confidence: float
+    seconds: float
+    t1: tuple[float, float] | None = None  # the reduced basis, even when rejected
+    t2: tuple[float, float] | None = None
 
 
 def _fmt(v: float) -> str:
@@ -253,6 +265,7 @@ def autocorrelation_at(img: np.ndarray, v) -> float:
     """Pearson correlation of an image (H, W[, C]) with itself shifted by the
     vector v (px, sub-pixel by linear interpolation) over their overlap: the
     lattice-regularity measure of the tests and benchmarks."""
+    from scipy import ndimage
     a = np.asarray(img, dtype=np.float64)
     if a.ndim == 3:
         a = a[:, :, :3].mean(axis=2) if a.shape[2] >= 3 else a[:, :, 0]
@@ -323,6 +336,7 @@ def render_original(coords: np.ndarray, box: tuple[int, int, int, int], lattice:
     (bilinear, wrapping), and the 4 colors are blended bilinearly. ``coords``
     are the synthesized coordinates of the rectified texels ``box`` (from
     :func:`original_geometry_box`)."""
+    from scipy import ndimage
     G = lattice.canvas_matrix(m)
     ys, xs = np.mgrid[y:y + h, x:x + w].astype(np.float64) + 0.5
     px = G[0, 0] * xs + G[0, 1] * ys

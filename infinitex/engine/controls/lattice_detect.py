@@ -6,25 +6,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy import ndimage
 
-from .lattice import DETECT_SIDE, MIN_CONFIDENCE, MIN_REPEATS, MIN_SINE, MIN_VECTOR, Lattice
+from .lattice import DETECT_SIDE, Detection, MIN_CONFIDENCE, MIN_REPEATS, MIN_SINE, MIN_VECTOR
 from .lattice_block import choose_block, exact_block
-
-
-@dataclass(frozen=True)
-class Detection:
-    """What :func:`detect` found: a lattice (None: no lattice found), the
-    confidence in [0, 1], and the time it took."""
-
-    lattice: Lattice | None
-    confidence: float
-    seconds: float
-    t1: tuple[float, float] | None = None  # the reduced basis, even when rejected
-    t2: tuple[float, float] | None = None
 
 
 def gauss_reduce(t1: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

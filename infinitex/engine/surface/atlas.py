@@ -38,9 +38,6 @@ from __future__ import annotations
 
 import hashlib
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..controls.direction import J_ONE, MAX_STRETCH, MIN_DET, MIN_STRETCH, clamp_stretch
 from ..controls.fields import TILE
@@ -227,6 +224,8 @@ class AtlasDomain:
     # -- topology, frames and maps across edges (once) -------------------------
 
     def _topology(self) -> None:
+        from scipy.sparse import coo_matrix  # scipy imported when a model is opened, not by every command
+        from scipy.sparse.csgraph import connected_components
         m = self.model
         f = m.faces
         self.uvpx = np.stack([m.uvs[:, 0] * self.size, (1.0 - m.uvs[:, 1]) * self.size], axis=-1)  # finest px, y down
@@ -366,6 +365,7 @@ class AtlasDomain:
         return out.reshape(n, n)
 
     def _build_level(self, k: int) -> dict:
+        from scipy import ndimage
         n = self.level_size(k)
         tri = self._rasterize(k)
         covered = tri >= 0

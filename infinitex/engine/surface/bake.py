@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy import ndimage
 
 from ..controls import NO_CONTROLS, Controls
 from ..rect import Rect
@@ -57,6 +56,7 @@ def fill_off_charts(image: np.ndarray, atlas: AtlasDomain, k: int = 0) -> np.nda
     image[linked] = image[to[linked][:, 1], to[linked][:, 0]]
     known = on | linked
     if known.any() and not known.all():
+        from scipy import ndimage  # imported when a model is baked, not by every command
         iy, ix = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
         image[~known] = image[iy[~known], ix[~known]]
     return image

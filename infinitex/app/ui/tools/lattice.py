@@ -26,7 +26,7 @@ from infinitex.engine.controls.lattice import (
     row_offset,
 )
 from infinitex.engine.controls.lattice_block import choose_block, fit_block
-from infinitex.engine.controls.lattice_detect import Detection, detect
+from infinitex.engine.controls.lattice import Detection
 from infinitex.engine.exemplar import ExemplarError, decode_full
 from infinitex.engine.imagefile import to_u8
 
@@ -170,7 +170,8 @@ class LatticeTool(Tool):
         img = self.image()
         if img is None:
             return
-        d = detect(img)
+        from infinitex.engine.controls.lattice_cache import find_lattice  # the search (scipy) loaded when used
+        d = find_lattice(img)
         self.detection = d
         if d.lattice is not None:
             self._commit(replace(d.lattice, levels=self.ed.doc.lattice.levels if self.ed.doc.lattice else None),
