@@ -205,13 +205,17 @@ def tileable_material(material: Material) -> Material:
 def shading_strength(pixels: np.ndarray) -> float:
     """How much an (m, m, C) image's large-scale shading varies: the standard
     deviation of its luminance blurred by m/8 (wrapped) over that of its
-    luminance."""
-    from scipy import ndimage
+    luminance. The blur is a product in the Fourier domain (numpy's FFT: the
+    wrapped Gaussian exactly, and no scipy to import before a command's first
+    line of output)."""
     lum = np.asarray(pixels, np.float64).mean(axis=2)
     sd = float(lum.std())
     if sd < 1e-9:
         return 0.0
-    return float(ndimage.gaussian_filter(lum, lum.shape[0] / 8.0, mode="wrap").std()) / sd
+    sigma = lum.shape[0] / 8.0
+    fy, fx = np.fft.fftfreq(lum.shape[0])[:, None], np.fft.rfftfreq(lum.shape[1])[None, :]
+    gain = np.exp(-2.0 * (np.pi * sigma) ** 2 * (fx * fx + fy * fy))
+    return float(np.fft.irfft2(np.fft.rfft2(lum) * gain, s=lum.shape).std()) / sd
 
 
 def recommended(ex: Exemplar) -> bool:
