@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-import infinitex.engine.similarity as sim
 from infinitex.engine.similarity import MAX_EQUAL, similarity_sets, spread_equal
 
 
@@ -27,12 +26,13 @@ def test_a_run_of_equal_descriptors_is_thinned_evenly():
 
 def test_a_flat_exemplar_is_searched_in_a_small_tree(monkeypatch):
     sizes = []
-    real = sim.cKDTree
+    import scipy.spatial  # similarity.py imports it when a tree is built
+    real = scipy.spatial.cKDTree
 
     def recording(points, *a, **kw):
         sizes.append(len(points))
         return real(points, *a, **kw)
-    monkeypatch.setattr(sim, "cKDTree", recording)
+    monkeypatch.setattr(scipy.spatial, "cKDTree", recording)
     m, k = 64, 4
     desc = np.zeros((m, m, 6), np.float32)
     desc[:, : m // 2] = np.random.default_rng(2).random((m, m // 2, 6))  # half textured, half flat
