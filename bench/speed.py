@@ -12,6 +12,9 @@ Fields (times in seconds or milliseconds as named):
   pan_speedup        full_ms[512] / pan_ms, measured in the same run
   zoom_out_ms        a 512^2 view at 1/4 scale (stops 2 levels early), median
   toroidal_ms        a 512^2 toroidal texture, median
+  cli_1024_s         `infinitex synth EXEMPLAR --size 1024 1024` as a user runs it (a new process, the
+                     analysis and lattice cached, the PNG written), median of 3 after one untimed run
+  cli_over_engine    cli_1024_s over full_ms[1024] of the same run: what the command adds to the work
 """
 from __future__ import annotations
 
@@ -144,15 +147,28 @@ def main(argv=None) -> int:
         ctx.finish()
     res["toroidal_ms"] = round(timed(tor, runs), 1)
 
+    res["full_ms"][1024] = round(timed(full(1024), max(2, runs - 2)), 1)
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [sys.executable, "-m", "infinitex", "synth", args.exemplar, "-o", os.path.join(tmp, "w.png"),
+               "--size", "1024", "1024", "--fidelity", str(fidelity), "-q"]
+        cli = []
+        for i in range(4):  # the first run fills the caches (a user's second run on this exemplar)
+            t = time.perf_counter()
+            subprocess.run(cmd, cwd=ROOT, check=True)
+            cli.append(time.perf_counter() - t)
+    res["cli_1024_s"] = round(statistics.median(cli[1:]), 3)
+    res["cli_over_engine"] = round(res["cli_1024_s"] * 1000.0 / res["full_ms"][1024], 2)
+
     rows = [("renderer", res["renderer"])]
     rows += [(f"analysis {s}^2 (cold)", f"{res['analysis_s'][s]:.2f} s, peak {res['analysis_peak_mb'][s]:.0f} MB")
              for s in sizes]
-    rows += [(f"full {n}^2 window ({res['structure']})", f"{res['full_ms'][n]:.0f} ms") for n in (256, 512)]
+    rows += [(f"full {n}^2 window ({res['structure']})", f"{res['full_ms'][n]:.0f} ms") for n in (256, 512, 1024)]
     rows += [(f"full 512^2, Structure {k}", f"{v:.0f} ms") for k, v in res["structure_full_512_ms"].items()]
     rows += [("pan 512^2, 8 px/frame", f"{res['pan_ms']:.1f} ms/frame (max {res['pan_max_ms']:.0f})"),
              ("pan speedup (full/pan)", f"{res['pan_speedup']:.1f}x"),
              ("zoom out 1/4, 512^2 view", f"{res['zoom_out_ms']:.0f} ms"),
-             ("toroidal 512^2", f"{res['toroidal_ms']:.0f} ms")]
+             ("toroidal 512^2", f"{res['toroidal_ms']:.0f} ms"),
+             ("command line, 1024^2 window", f"{res['cli_1024_s']:.2f} s ({res['cli_over_engine']:.2f}x the window)")]
     width = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"{k:<{width}}  {v}")
