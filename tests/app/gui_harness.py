@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import faulthandler
 import os
-import signal
 import sys
 import time
 
@@ -87,19 +86,6 @@ class Harness:
             io.config_watchdog_warning = watchdog_s
             io.config_watchdog_kill_test = watchdog_s
         params.callbacks.register_tests = register_tests
-        prior_before_render = params.callbacks.before_imgui_render
-
-        def before_render() -> None:
-            if callable(prior_before_render):
-                prior_before_render()
-            # The test engine's crash handler also takes SIGPIPE, which Python
-            # ignores (a write to a pipe whose reader is gone raises
-            # BrokenPipeError): a worker process closed while a queue's thread
-            # still writes to it (an estimate restarted) aborted the editor, under
-            # the test engine only. Ignored again, as in the editor a user runs
-            # (every frame: Python's getsignal() does not see a handler set in C).
-            signal.signal(signal.SIGPIPE, signal.SIG_IGN)
-        params.callbacks.before_imgui_render = before_render
 
         def traced(ctx) -> None:
             # The test engine's crash handler (installed after start-up) only says

@@ -108,7 +108,7 @@ def test_streamed_export_driven_by_the_test_engine(tmp_path, gpu, xdisplay):
     from infinitex.engine.synth import Synthesizer
     from infinitex.export import read_tiles
     from infinitex.project import Document, ExemplarSource
-    _drive("gui_export.py", tmp_path, xdisplay, 14)
+    _drive("gui_export.py", tmp_path, xdisplay, 15)
     gravel = os.path.join(ROOT, "infinitex", "assets", "gravel.png")
     an = analyze(load_exemplar(gravel))
     synth = Synthesizer(an, Document(ExemplarSource.from_file(gravel)).params(an.L), gpu=gpu)  # the editor's

@@ -15,6 +15,7 @@ When it sleeps between frames and how long a frame synthesizes: pacing.py.
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -250,6 +251,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
 
     def gui(self) -> None:
         self.frame_count += 1
+        if self.waits.never and hasattr(signal, "SIGPIPE"):
+            # Under the imgui test engine, whose crash handler also takes SIGPIPE:
+            # ignored again, as Python has it (a write to a closed worker's pipe is
+            # then a BrokenPipeError, not an abort). Each frame: set from C, unseen.
+            signal.signal(signal.SIGPIPE, signal.SIG_IGN)
         self.waits.frame_began()
         self.frame_pacer.frame_began(self.canvas_state.update_ms)
         vp = imgui.get_main_viewport()
