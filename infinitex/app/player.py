@@ -17,7 +17,6 @@ scrubbed. Neither imports imgui; the Motion panel and the canvas drive them.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import queue
 import threading
 import time
@@ -25,6 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from infinitex.engine.priority import lower_priority
 from infinitex.engine.rect import Rect
 from infinitex.project import Document
 
@@ -65,10 +65,7 @@ def _still_part(doc: Document) -> Document:
 
 def _player_main(conn) -> None:
     """The player process: documents and requests in, frames out, until told to stop."""
-    try:
-        os.nice(15)  # the editor's own frames first (and anything else the user runs)
-    except (AttributeError, OSError):
-        pass
+    lower_priority(15)  # the editor's own frames first (and anything else the user runs)
     from infinitex.engine.advect import FlowFrames, SynthSource
     from infinitex.engine.gpu import Gpu
     from infinitex.engine.imagefile import to_u8

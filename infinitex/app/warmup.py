@@ -137,11 +137,11 @@ def edits(base, an) -> list[tuple[str, object]]:
 
 def main() -> int:
     """The warm-up process: the project as JSON on standard input, at the
-    lowest priority (set here, not by a ``preexec_fn``: Python code run
-    between fork and exec in the editor, whose GL and UI threads hold locks,
-    is documented as unsafe)."""
-    if hasattr(os, "nice"):
-        os.nice(19)
+    lowest priority (set here, for every thread, not by a ``preexec_fn``:
+    Python code run between fork and exec in the editor, whose GL and UI
+    threads hold locks, is documented as unsafe)."""
+    from infinitex.engine.priority import lower_priority
+    lower_priority(19)  # every thread (numpy's BLAS threads exist already)
     from infinitex.engine.pyramid import Rect
     from infinitex.export.workers import ProjectSynthesizer
     raw = sys.stdin.buffer.read(1 << 30).decode("utf-8")

@@ -7,12 +7,12 @@ behind by a cancel or a failure."""
 from __future__ import annotations
 
 import multiprocessing
-import os
 import pickle
 import threading
 import time
 from dataclasses import replace
 
+from infinitex.engine.priority import lower_priority
 from infinitex.engine.rect import Rect
 from infinitex.project import Document
 
@@ -29,10 +29,7 @@ def _animation_worker(doc_bytes: bytes, spec: dict, progress, cancel, answer) ->
     from .animation import AnimationWriter, render_animation
     from .loaded import LoadedDocument
     gpu = loaded = frames = source = None
-    try:
-        os.nice(19)  # the editor's frames first
-    except (AttributeError, OSError):
-        pass
+    lower_priority(19)  # the editor's frames first
     try:
         doc = pickle.loads(doc_bytes)
         gpu = Gpu()

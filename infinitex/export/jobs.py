@@ -6,13 +6,13 @@ from __future__ import annotations
 import hashlib
 import json
 import multiprocessing
-import os
 import shutil
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 
 from infinitex.engine.params import SynthParams
+from infinitex.engine.priority import lower_priority
 from infinitex.engine.pyramid import Rect
 from infinitex.project import Document, Project, project_to_json
 
@@ -120,10 +120,7 @@ def _window_export_worker(project_json: str, rect: tuple, out_path: str, options
     from .loaded import LoadedDocument
     from .window import ExportJob
     gpu = session = None
-    try:
-        os.nice(19)  # the editor's frames first: the export takes what the cores have left
-    except (AttributeError, OSError):
-        pass
+    lower_priority(19)  # the editor's frames first: the export takes what the cores have left
     try:
         doc = project_from_json(parse_project_json(project_json.encode("utf-8"))).document
         gpu = Gpu()

@@ -57,6 +57,7 @@ def test_cached_answers_are_the_search_s_answers(images, kind, tmp_path):
                 "confidence": 1.0, "seconds": 0.1}).encode().replace(b"Infinity", b"1e400"),
     json.dumps({"lattice": {"origin": [0, 0], "t1": [8, 0], "t2": [0, 8], "nx": True, "ny": 2},
                 "confidence": 1.0, "seconds": 0.1}).encode(),
+    b'{"lattice": null, "confidence": 1' + b"0" * 400 + b', "seconds": 0.1}',  # too large for a float
     b"[" * 100_000,  # deeper than the parser goes
     b" " * (1 << 17),  # larger than any entry
 ])

@@ -34,7 +34,7 @@ def cache_key(pixels: np.ndarray) -> str:
     img = np.ascontiguousarray(pixels)
     h = hashlib.sha256(_search_digest())
     h.update(f"{img.shape}|{img.dtype.str}".encode())
-    h.update(memoryview(img).cast("B"))
+    h.update(img.tobytes())
     return h.hexdigest()[:32]
 
 
@@ -95,7 +95,7 @@ def find_lattice(pixels: np.ndarray, cache_dir: str | None = None, use_cache: bo
         try:
             found = from_json(json.loads(read_limited(path, _MAX_ENTRY, "lattice entry")))
             return replace(found, seconds=time.perf_counter() - t0)
-        except (ReadError, ValueError, UnicodeDecodeError, RecursionError):
+        except (ReadError, ValueError, TypeError, OverflowError, RecursionError):
             pass  # no entry yet, or a damaged one: searched again (and replaced)
     from .lattice_detect import detect
     entry = json.dumps(to_json(detect(pixels)))
