@@ -6,6 +6,7 @@ files, so a changed search never answers from an old entry; a damaged or
 foreign entry is searched again and replaced."""
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -22,7 +23,9 @@ _SEARCH_FILES = ("lattice.py", "lattice_detect.py", "lattice_block.py", "lattice
 _MAX_ENTRY = 1 << 16  # bytes: an entry is a few hundred
 
 
+@functools.cache
 def _search_digest() -> bytes:
+    """The search's own source, read once a process."""
     h = hashlib.sha256()
     for name in _SEARCH_FILES:
         with open(os.path.join(_HERE, name), "rb") as fh:
@@ -50,9 +53,12 @@ def to_json(found: Detection) -> dict:
             "t1": _pair(found.t1), "t2": _pair(found.t2)}
 
 
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
 def _finite_pair(v) -> tuple[float, float]:
-    if not (isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                       and math.isfinite(x) for x in v)):
+    if not (isinstance(v, list) and len(v) == 2 and all(_finite(x) for x in v)):
         raise ValueError("not a pair of numbers")
     return float(v[0]), float(v[1])
 
@@ -75,7 +81,7 @@ def from_json(d, check: bool = True) -> Detection:
         if check:
             lat.check_shape()
     conf, secs = d.get("confidence"), d.get("seconds")
-    if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in (conf, secs)):
+    if not (_finite(conf) and _finite(secs)):
         raise ValueError("not a confidence")
     t1, t2 = (None if d.get(k) is None else _finite_pair(d.get(k)) for k in ("t1", "t2"))
     return Detection(lat, float(conf), float(secs), t1, t2)
