@@ -14,7 +14,8 @@ if [ "${1:-}" = "--fast" ]; then
 fi
 # In parallel processes (pytest-xdist), one more than the cores: the GUI drivers and the
 # exports wait on other processes (an editor going idle, workers starting) while a third
-# test uses the core. The long tests are handed out first (tests/conftest.py), the rest
-# to whichever process is free. INFINITEX_TEST_WORKERS=N sets the count; `-n 0` runs in one.
+# test uses the core. Work goes out in units (tests/conftest.py): the GUI drivers in two
+# chains first, then each test module whole, to whichever process is free, in the suite's
+# order. INFINITEX_TEST_WORKERS=N sets the count; `-n 0` runs in one.
 workers=${INFINITEX_TEST_WORKERS:-$(( $(nproc) + 1 ))}
 exec .venv/bin/python -m pytest -q -n "$workers" --dist load ${args[@]+"${args[@]}"} "$@"

@@ -47,6 +47,7 @@ settings.load_profile("ci")
 from infinitex.engine.analysis import AnalysisSettings, analyze  # noqa: E402
 from infinitex.engine.exemplar import from_array, load_exemplar  # noqa: E402
 from infinitex.engine.gpu import Gpu  # noqa: E402
+from fast_set import LONG  # noqa: E402
 
 ASSETS = os.path.join(ROOT, "infinitex", "assets")
 
@@ -122,12 +123,66 @@ def xdisplay():
             proc.wait()
 
 
+# The GUI drivers (tests/app/test_editor.py) and their seconds, each alone on this
+# 2-core machine (2026-12-07): what splits them into two chains of about equal
+# length (a new driver counts as 20 s).
+GUI_FILE = "tests/app/test_editor.py"
+GUI_SECONDS = {
+    "test_fast_input_is_never_lost": 152, "test_lattice_tool_driven_by_the_test_engine": 130,
+    "test_everyday_use_driven_by_the_test_engine": 105, "test_large_photo_driven_by_the_test_engine": 69,
+    "test_editor_driven_by_the_test_engine": 64, "test_a_dragged_slider_shows_texture_like_the_result": 50,
+    "test_streamed_export_driven_by_the_test_engine": 38, "test_tile_set_dialog_driven_by_the_test_engine": 33,
+}
+GUI_CHAINS = 2
+
+
 def pytest_collection_modifyitems(config, items):
-    """The long tests (GUI drivers, then those marked slow) first: in a parallel
-    run (pytest-xdist) they start at once instead of ending the run alone."""
+    """The tests of tests/fast_set.py marked slow; the long tests (GUI drivers,
+    longest first, then those marked slow) first, so that in a parallel run they
+    start at once instead of ending it alone."""
+    for item in items:
+        if item.nodeid in LONG or item.nodeid.split("[")[0] in LONG:
+            item.add_marker(pytest.mark.slow)
+
     def rank(item):
-        return 0 if item.get_closest_marker("gui") else 1 if item.get_closest_marker("slow") else 2
+        gui = item.get_closest_marker("gui")
+        return (0 if gui else 1 if item.get_closest_marker("slow") else 2,
+                -GUI_SECONDS.get(item.originalname, 20) if gui else 0)
     items.sort(key=rank)  # stable: the collection order within each rank
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """A parallel run (scripts/test.sh: pytest-xdist, ``--dist load``) hands out
+    work in units, in the suite's order, to whichever process is free: the GUI
+    drivers in two chains of about equal length, each run by one process (two
+    editors at a time beside the other tests: three at once on 2 cores slowed
+    each one up to 6x, and one chain of them all ended the run alone), every
+    other module whole (its fixtures made once). (xdist's own ``loadgroup``
+    marks groups in a node id that pytest 9 no longer reads.)"""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Units(LoadScopeScheduling):
+        def __init__(self, config, log=None):
+            super().__init__(config, log)
+            config.option.loadscopereorder = False  # the suite's order, not the units' sizes
+            self._chains = [0.0] * GUI_CHAINS
+            self._units: dict[str, str] = {}
+
+        def _split_scope(self, nodeid: str) -> str:
+            unit = self._units.get(nodeid)
+            if unit is None:  # (first asked in the collection's order: longest drivers first)
+                path, _, name = nodeid.partition("::")
+                unit = path
+                if path == GUI_FILE:
+                    c = self._chains.index(min(self._chains))
+                    self._chains[c] += GUI_SECONDS.get(name.split("[")[0], 20)
+                    unit = f"gui{c}"
+                self._units[nodeid] = unit
+            return unit
+
+    return Units(config, log)
 
 
 # The suite's time budgets on 2 cores with llvmpipe (docs/testing.md): a run over
