@@ -1,16 +1,20 @@
 """Deliberate bugs the test suite must catch (mutation checks).
 
-    .venv/bin/python -m bench.mutants [--tests-from REV] [--only NAME,...] [--json OUT]
+    .venv/bin/python -m bench.mutants [--fast] [--tests-from REV] [--only NAME,...] [--json OUT]
 
-Each of the 13 mutants is one small, plausible bug in the engine, the exports or the
+Each of the mutants (15) is one small, plausible bug in the engine, the exports or the
 project format (a comparison off by one, a margin too small, a setting left out
 of a cache key...). For each, the checkout is copied to a temporary folder, the
 bug is written into the copy, and the tests that should notice it run there
 (pytest -x, in parallel processes); the mutant is *killed* when they fail, and
 *survives* when they pass. ``--tests-from REV`` takes the copy's tests/ from a
 git revision instead (to compare the suite before and after it was shrunk: the
-same mutants must be killed). Prints a table and writes JSON (default
-bench/results/mutants.json). A few minutes on 2 cores with llvmpipe.
+same mutants must be killed). ``--fast`` runs the whole fast set
+(``scripts/test.sh --fast``: every test not marked gui or slow) against each
+mutant instead of its own tests: what the edit-test loop catches. Prints a
+table and writes JSON (default bench/results/mutants.json, with --fast
+mutants-fast.json). A few minutes on 2 cores with llvmpipe (--fast: about
+half an hour).
 """
 from __future__ import annotations
 
@@ -90,8 +94,9 @@ def _copy(dst: str, tests_from: str | None) -> None:
         subprocess.run(["tar", "-x", "-C", dst], input=tar, check=True)
 
 
-def run_mutant(mutant, tests_from: str | None, workers: str) -> dict:
+def run_mutant(mutant, tests_from: str | None, workers: str, fast: bool = False) -> dict:
     name, path, text, repl, tests = mutant
+    select = ["-m", "not gui and not slow", "tests"] if fast else ["-m", "not gui", *tests.split()]
     with tempfile.TemporaryDirectory(prefix="infinitex-mutant-") as tmp:
         _copy(tmp, tests_from)
         target = os.path.join(tmp, path)
@@ -105,7 +110,7 @@ def run_mutant(mutant, tests_from: str | None, workers: str) -> dict:
         env.pop("INFINITEX_CACHE", None)  # tests/conftest.py makes a fresh one per run
         t0 = time.perf_counter()
         r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", "-n", workers,
-                            "-m", "not gui", *tests.split()], cwd=tmp, env=env, capture_output=True, text=True)
+                            *select], cwd=tmp, env=env, capture_output=True, text=True)
         seconds = time.perf_counter() - t0
     failed = [ln for ln in r.stdout.splitlines() if ln.startswith("FAILED")]
     # pytest -x in parallel processes ends "interrupted" (rc 2) at the first failure.
@@ -120,19 +125,22 @@ def main(argv=None) -> int:
     p.add_argument("--tests-from", help="take tests/ from this git revision")
     p.add_argument("--only", help="comma-separated mutant names (substrings)")
     p.add_argument("--workers", default="2")
-    p.add_argument("--json", default=os.path.join(HERE, "results", "mutants.json"))
+    p.add_argument("--fast", action="store_true", help="run the fast set (scripts/test.sh --fast) against each")
+    p.add_argument("--json")
     a = p.parse_args(argv)
+    a.json = a.json or os.path.join(HERE, "results", "mutants-fast.json" if a.fast else "mutants.json")
     chosen = [m for m in MUTANTS if not a.only or any(s in m[0] for s in a.only.split(","))]
     results = []
     for m in chosen:
-        res = run_mutant(m, a.tests_from, a.workers)
+        res = run_mutant(m, a.tests_from, a.workers, a.fast)
         results.append(res)
         print(f"{res['outcome']:>9}  {res['seconds']:6.1f} s  {res['name']}  ({res['detail']})", flush=True)
     killed = sum(r["outcome"] == "killed" for r in results)
-    print(f"{killed} of {len(results)} killed (tests from {a.tests_from or 'the working tree'})")
+    print(f"{killed} of {len(results)} killed (tests from {a.tests_from or 'the working tree'}"
+          f"{', the fast set' if a.fast else ''})")
     os.makedirs(os.path.dirname(a.json), exist_ok=True)
     with open(a.json, "w") as f:
-        json.dump(dict(tests_from=a.tests_from or "working tree", mutants=results), f, indent=1)
+        json.dump(dict(tests_from=a.tests_from or "working tree", fast_set=a.fast, mutants=results), f, indent=1)
     return 0 if killed == len(results) else 1
 
 

@@ -323,3 +323,15 @@ def test_editor_state_has_one_writer():
     assert not shared, shared
     assert _editor_writes("def f(ed):\n    ed.view = 1\n    ed.a.b = 2\n    _, ed.c = 1, 2\n    self.ed.d = 3\n",
                           False) == {"view", "c", "d"}
+
+
+def test_the_fast_sets_long_tests_exist():
+    """Every test tests/fast_set.py leaves out of the fast set is still a test
+    function of its file (a renamed test would silently come back into it)."""
+    from fast_set import LONG
+    for nodeid in LONG:
+        path, _, name = nodeid.partition("::")
+        with open(os.path.join(ROOT, path), encoding="utf-8") as f:
+            tree = ast.parse(f.read())
+        names = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
+        assert name.split("[")[0] in names, nodeid
