@@ -86,7 +86,8 @@ def _copy(dst: str, tests_from: str | None) -> None:
     ignore = shutil.ignore_patterns(".git", ".venv", "out", "__pycache__", "*.pyc", "results")
     for name in ("infinitex", "tests", "bench", "examples", "scripts"):
         shutil.copytree(os.path.join(ROOT, name), os.path.join(dst, name), ignore=ignore)
-    for name in ("main.py", "pytest.ini", "pyproject.toml"):
+    shutil.copytree(os.path.join(ROOT, "docs"), os.path.join(dst, "docs"), ignore=ignore)  # (the guide's own tests)
+    for name in ("main.py", "pytest.ini", "pyproject.toml", "README.md"):
         shutil.copy2(os.path.join(ROOT, name), dst)
     if tests_from:
         shutil.rmtree(os.path.join(dst, "tests"))

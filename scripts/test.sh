@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Set up (if needed) and run the whole test suite.
-#   bash scripts/test.sh          everything (about 11.5 minutes on 2 cores with llvmpipe)
+#   bash scripts/test.sh          everything (15 minutes on 2 cores with llvmpipe, 2026-12-07; budget 12)
 #   bash scripts/test.sh --fast   the edit-test loop: all but the GUI drivers (-m gui) and the
-#                                 long tests (-m slow), about 3 minutes
+#                                 long tests (-m slow, tests/fast_set.py), under 3 minutes
 # Other arguments go to pytest (e.g. tests/engine, -k lattice, -x).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -21,7 +21,6 @@ LONG = frozenset((
     'tests/cli/test_lattice_default.py::test_an_opened_image_gets_its_lattice',
     'tests/cli/test_surface_cli.py::test_a_material_on_a_model_writes_every_map_and_a_pbr_glb',
     'tests/cli/test_surface_cli.py::test_surface_errors_are_one_line',
-    'tests/engine/test_analysis.py::test_the_analysis_does_not_depend_on_the_machines_blas',
     'tests/engine/test_direction_local.py::test_a_first_dab_during_a_local_update_equals_a_fresh_synthesis',
     'tests/engine/test_direction_local.py::test_direction_dabs_as_local_updates_equal_a_fresh_synthesis',
     'tests/engine/test_features.py::test_gl_matches_oracle_with_features[-20-15-gravel-appearance-2]',

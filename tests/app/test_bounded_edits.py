@@ -177,8 +177,8 @@ def test_any_stroke_on_the_plane_stays_bounded(model_session, zoom_exp, radius, 
     every dab's radius is at most MAX_CANVAS_RADIUS canvas pixels (so what it
     paints is bounded), the session's sync stays short (about 35 ms for the
     largest dab here, 60-70 ms before), and the dirty regions stay few."""
-    s, doc, _, frame = model_session
-    doc = replace(doc, surface=None)
+    s, model_doc, _, frame = model_session
+    doc = replace(model_doc, surface=None)
     zoom = 2.0 ** zoom_exp
     r = min(MAX_CANVAS_RADIUS, radius / zoom)  # as the paint, label and direction tools clamp it
     rng = np.random.default_rng(seed)
@@ -197,4 +197,4 @@ def test_any_stroke_on_the_plane_stays_bounded(model_session, zoom_exp, radius, 
             for l in range(s.L + 1):
                 assert len(s.pyramid.dirty[l]) <= DIRTY_RECTS + 16
         last = pos
-    s.sync(replace(doc, surface=None, randomness_canvas=None))
+    s.sync(model_doc)  # the model back for the module's other tests, whatever their order
