@@ -125,7 +125,7 @@ def xdisplay():
 
 # The GUI drivers (tests/app/test_editor.py) and their seconds, each alone on this
 # 2-core machine (2026-12-07): what splits them into two chains of about equal
-# length (a new driver counts as 20 s).
+# length.
 GUI_FILE = "tests/app/test_editor.py"
 GUI_SECONDS = {
     "test_fast_input_is_never_lost": 152, "test_lattice_tool_driven_by_the_test_engine": 130,
@@ -134,6 +134,11 @@ GUI_SECONDS = {
     "test_streamed_export_driven_by_the_test_engine": 38, "test_tile_set_dialog_driven_by_the_test_engine": 33,
 }
 GUI_CHAINS = 2
+
+
+def gui_seconds(name: str) -> float:
+    """A GUI driver's seconds alone (a new one counts as 20 s)."""
+    return GUI_SECONDS.get(name.split("[")[0], 20)
 
 
 def pytest_collection_modifyitems(config, items):
@@ -147,7 +152,7 @@ def pytest_collection_modifyitems(config, items):
     def rank(item):
         gui = item.get_closest_marker("gui")
         return (0 if gui else 1 if item.get_closest_marker("slow") else 2,
-                -GUI_SECONDS.get(item.originalname, 20) if gui else 0)
+                -gui_seconds(item.name) if gui else 0)
     items.sort(key=rank)  # stable: the collection order within each rank
 
 
@@ -177,7 +182,7 @@ def pytest_xdist_make_scheduler(config, log):
                 unit = path
                 if path == GUI_FILE:
                     c = self._chains.index(min(self._chains))
-                    self._chains[c] += GUI_SECONDS.get(name.split("[")[0], 20)
+                    self._chains[c] += gui_seconds(name)
                     unit = f"gui{c}"
                 self._units[nodeid] = unit
             return unit
