@@ -181,12 +181,15 @@ class Draw:
             yield
 
 
-def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, int], scratch,
+def subpass_draws(gpu: Gpu, programs: list, subgrid: int, orders, qdims: tuple[int, int], scratch,
                   textures: dict, uniforms: dict, per_subpass: Callable[[int], dict],
                   rects: list | None = None) -> list[Draw]:
-    """The subpasses of ``orders`` (lists of phases) with ``prog`` over the
-    packed state in scratch ``a`` of ``scratch`` = (a, its framebuffer, b, b's):
-    each renders its phase's block into b, which is then copied back into a.
+    """The subpasses of ``orders`` (lists of phases) with ``programs``, (program,
+    vao) pairs, over the packed state in scratch ``a`` of ``scratch`` = (a, its
+    framebuffer, b, b's): each renders its phase's block into b (each program in
+    turn: they write different pixels; a program given as (program, vao, box)
+    only over the box (x0, y0, x1, y1) of the region's pixels), which is then
+    copied back into a.
     ``textures``/``uniforms``: the program's inputs besides the state (unit 0);
     ``per_subpass(n)``: the uniforms of subpass number n (counted over all passes);
     ``rects``: per subpass, the part of its block to render (params.subpass_rects;
@@ -204,9 +207,17 @@ def subpass_draws(gpu: Gpu, prog, vao, subgrid: int, orders, qdims: tuple[int, i
             if x0 >= x1 or y0 >= y1:
                 continue
             block = (boff[0] + phase[0] * bstride[0] + x0, boff[1] + phase[1] * bstride[1] + y0, x1 - x0, y1 - y0)
-            draws.append(Draw(prog, vao, fb, block, {**textures, 0: a},
-                              {**uniforms, "src": 0, "active_phase": phase, "bstride": bstride, "boff": boff,
-                               **per_subpass(n)}, level))
+            uni = {**uniforms, "src": 0, "active_phase": phase, "bstride": bstride, "boff": boff, **per_subpass(n)}
+            for prog, vao, *box in programs:
+                bx0, by0, bx1, by1 = x0, y0, x1, y1
+                if box:  # the block texels whose pixel (t s + phase) lies in the box
+                    c0, r0, c1, r1 = box[0]
+                    bx0, bx1 = max(x0, -(-(c0 - phase[0]) // subgrid)), min(x1, -(-(c1 - phase[0]) // subgrid))
+                    by0, by1 = max(y0, -(-(r0 - phase[1]) // subgrid)), min(y1, -(-(r1 - phase[1]) // subgrid))
+                    if bx0 >= bx1 or by0 >= by1:
+                        continue
+                part = (boff[0] + phase[0] * bstride[0] + bx0, boff[1] + phase[1] * bstride[1] + by0, bx1 - bx0, by1 - by0)
+                draws.append(Draw(prog, vao, fb, part, {**textures, 0: a}, uni, level))
             draws.append(Draw(copy, copy_vao, fa, block, {0: b}, {"src": 0}, level))
     return draws
 
@@ -305,7 +316,7 @@ def correction_draws(rp: RegionPass, walk: int) -> list[Draw]:
     textures = dict(enumerate([lt.table if table else lt.feat, lt.nbhd] + sims, start=1))
     textures[5] = rp.avoid or rp.dummy
     _region_inputs(textures, uni, labels, labels and labels.correction, direction, rp.links)
-    return subpass_draws(gpu, prog, vao, s, subpass_order(s, p.passes_at(l)), qdims, rp.scratch, textures, uni,
+    return subpass_draws(gpu, [(prog, vao)], s, subpass_order(s, p.passes_at(l)), qdims, rp.scratch, textures, uni,
                          lambda n: {"walk_seed": fixed.walk_seed(p.seed, n)}, rects)
 
 
@@ -321,19 +332,22 @@ def fidelity_draws(rp: RegionPass) -> list[Draw]:
                    **(dict(ATLAS=True) if links is not None else {}), **(dict(AVOID=True) if rp.avoid is not None else {}),
                    **(dict(INSIDE=True) if rects is not None else {}))
     if direction is None:
-        defines["ROW_TAPS"] = True
-    prog, vao = gpu.program("fidelity.frag", **defines)
+        searches = [gpu.program("fidelity.frag", ROW_TAPS=True, **defines)]
+    else:  # the draws each kind of pixel needs (fidelity.frag UPRIGHT, TILTED: two variants whatever the field)
+        upright, tilted = direction.extra
+        searches = [gpu.program("fidelity.frag", ROW_TAPS=True, UPRIGHT=True, **defines)] if upright else []
+        if tilted is not None:  # drawn over their box only
+            searches.append((*gpu.program("fidelity.frag", TILTED=True, **defines), tilted))
     uniforms = dict(colors=1, rowtaps=2, avoid=5, dims=(region.w, region.h), qdims=qdims,
                     h=an.h(l), m=an.size, border=-1 if an.toroidal else border_margin(an.size, an.h(l)),
                     origin=(region.x0, region.y0), level=l, period=p.level_period(l),
                     no_search=int(rp.lattice_shift is not None))
     textures = {1: gan.level(l).colors, 5: rp.avoid or rp.dummy}
-    if direction is None:
-        textures[2] = gan.level(l).row_taps(an.h(l), p.fidelity_radius, an.toroidal)
+    textures[2] = gan.level(l).row_taps(an.h(l), p.fidelity_radius, an.toroidal)
     _region_inputs(textures, uniforms, labels, labels and labels.fidelity, direction, links)
     orders = subpass_order(p.subgrid, p.fidelity_passes(l))
     if not p.fidelity_vote:
-        return subpass_draws(gpu, prog, vao, p.subgrid, orders, qdims, scratch, textures, uniforms,
+        return subpass_draws(gpu, searches, p.subgrid, orders, qdims, scratch, textures, uniforms,
                              lambda n: {"search_seed": fixed.fidelity_seed(p.seed, n)}, rects)
     # Search on even passes (subpasses numbered over the searches alone), the vote on odd ones.
     vote, vote_vao = gpu.program("fidelity.frag", FID_VOTE=True, **defines)
@@ -342,11 +356,11 @@ def fidelity_draws(rp: RegionPass) -> list[Draw]:
     for c, order in enumerate(orders):
         part = None if rects is None else rects[c * per_pass:(c + 1) * per_pass]
         if c % 2:
-            draws += subpass_draws(gpu, vote, vote_vao, p.subgrid, [order], qdims, scratch, textures, uniforms,
+            draws += subpass_draws(gpu, [(vote, vote_vao)], p.subgrid, [order], qdims, scratch, textures, uniforms,
                                    lambda n: {}, part)
         else:
             first = c // 2 * per_pass
-            draws += subpass_draws(gpu, prog, vao, p.subgrid, [order], qdims, scratch, textures, uniforms,
+            draws += subpass_draws(gpu, searches, p.subgrid, [order], qdims, scratch, textures, uniforms,
                                    lambda n, first=first: {"search_seed": fixed.fidelity_seed(p.seed, first + n)},
                                    part)
     return draws

@@ -30,7 +30,10 @@ class StateAccess:
         return 4 if self.controls.directed else 2
 
     def _direction_texture(self, l: int, region: Rect):
-        """J_l over a padded region (RGBA16I, row-major local pixels), or None without a direction field."""
+        """J_l over a padded region (RGBA16I, row-major local pixels), or None
+        without a direction field; its ``extra``: whether the region holds
+        pixels where J_l is the identity, and the box (x0, y0, x1, y1) of those
+        where it is not (local pixels; None: none)."""
         if not self.controls.directed:
             return None
         surface = self.controls.surface
@@ -41,7 +44,14 @@ class StateAccess:
                                                   self.params.period)
         if vals is None:
             vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
-        return self.gpu.int_texture((region.w, region.h), 4, vals)
+        tex = self.gpu.int_texture((region.w, region.h), 4, vals)
+        upright = (vals == IDENTITY).all(axis=-1)
+        tilted = None
+        if not upright.all():
+            ys, xs = np.nonzero(~upright)
+            tilted = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
+        tex.extra = (bool(upright.any()), tilted)  # the fidelity stage's draws (stages.fidelity_draws)
+        return tex
 
     def _geometry_textures(self, l: int, region: Rect) -> tuple:
         """What the passes read of the region's geometry: J (or None), the atlas'

@@ -150,6 +150,24 @@ def test_gl_matches_oracle_with_a_field_and_the_fidelity_stage(direction_analyse
     assert np.array_equal(gl, ref), (name, x, y, int((gl != ref).any(-1).sum()))
 
 
+@pytest.mark.parametrize("name", ["bordered-appearance", "torus-color"])
+def test_gl_matches_oracle_where_a_field_is_the_identity(direction_analyses, gpu, name):
+    """A field painted over the left part of the window only: its identity
+    pixels take the fidelity stage's row taps (fidelity.frag upright), the
+    others their own taps, in the same draws."""
+    an = direction_analyses[name]
+    x, y, w, h = -9, 5, 28, 20
+    painted = mixed_jacobians(18, h + 40, seed=5)
+    controls = Controls(direction=DirectionField.from_jacobians(painted, x - 6, y - 20))
+    params = replace(structure_params(SynthParams.default(an.L, seed=6), 1), fidelity_vote=False)
+    gl = window(an, params, controls, gpu, x, y, w, h)
+    ref = oracle.synthesize(an, params, x, y, w, h, controls=controls)
+    assert np.array_equal(gl, ref), (name, int((gl != ref).any(-1).sum()))
+    J = controls.direction.dense(x, y, w, h)
+    upright = (J == IDENTITY).all(-1)
+    assert upright[:, 12:].all() and not upright[:, :12].all()  # both kinds of pixel in the window
+
+
 @pytest.mark.parametrize("scale, levels", [(4.0, 2), (2.0, 1)])
 def test_grown_past_the_exemplar_is_magnified(direction_analyses, gpu, scale, levels):
     """Grown s times, the levels whose texels step under one exemplar pixel are

@@ -216,10 +216,18 @@ void main() {
     reader = texelFetch(links, p, 0).x;
 #endif
 
+#ifdef DIRECTION
+    for (int j = 0; j < 9; ++j) {  // one read a neighbor: its texel and its coordinate
+        ivec4 v = j == 4 ? here : texelFetch(src, NEIGHBOR_TEXEL(p, ivec2(j % 3 - 1, j / 3 - 1)), 0);
+        S[j] = v.xy;
+        F9[j] = full_q8(v);
+    }
+#else
     for (int j = 0; j < 9; ++j) {
         ivec2 d = ivec2(j % 3 - 1, j / 3 - 1);
         S[j] = j == 4 ? here.xy : fetch_s(p, d);
     }
+#endif
 
     PVEC lo = PVEC(0);
     PVEC hi = PVEC(0);
@@ -228,9 +236,6 @@ void main() {
     if (beyond_exemplar(Jp, h)) {  // grown past the exemplar's pixels: upsampling alone
         result = here;
         return;
-    }
-    for (int j = 0; j < 9; ++j) {
-        F9[j] = j == 4 ? full_q8(here) : fetch_f(p, ivec2(j % 3 - 1, j / 3 - 1));
     }
 #ifdef MODEL_APPEARANCE
     for (int t = 0; t < 4; ++t) {

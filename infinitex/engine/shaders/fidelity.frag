@@ -19,6 +19,15 @@
 // the best by whole pixels, and candidates are kept inside (wrapped, or clamped
 // to [256 border, 256 (m-1-border)]) in 1/256 px; tried, avoid and labels as
 // without, at the candidate's nearest texel.
+// UPRIGHT / TILTED (with DIRECTION; stages.fidelity_draws): a search subpass
+// with a direction field is up to two draws into the same block, each
+// discarding the other's pixels: UPRIGHT takes those where J_l(p) = I (where
+// no field is painted), whose taps u + jmul(I, d, h) are the nearest texel of
+// u plus h d exactly, so it reads the row taps (ROW_TAPS) of that texel
+// (wrapped, or clamped into [0, m-1]: candidates are kept inside, so a no-op)
+// at a fraction of the fetches; TILTED the others, drawn over their box only.
+// The same results as one draw; one shader holding both ways was too large for
+// llvmpipe's compiler (minutes for 7 x 7 patches).
 // VOTE (FID_VOTE; SynthParams.fidelity_vote, Kwatra et al. 2005's voting step
 // on coordinates): the odd passes of the stage rewrite each pixel p of the block
 // with, among S[p] and then its 8 neighbors' predictions (row-major), the first
@@ -85,6 +94,14 @@ ivec2 col0, col1;    // h J (1, 0) and h J (0, 1), Q12
 ivec2 tap_of(ivec2 F, int dx, int dy) {
     return exemplar_tap(nearest_q8(F + floor_shift(ivec4(dx * col0 + dy * col1, 0, 0), 4).xy));
 }
+
+#ifdef UPRIGHT
+// The texel whose row taps are F's where J = I (see UPRIGHT above).
+ivec2 upright_texel(ivec2 F) {
+    ivec2 n = nearest_q8(F);
+    return border < 0 ? (n & (m - 1)) : clamp(n, ivec2(0), ivec2(m - 1));
+}
+#endif
 
 ivec2 texel_of(ivec2 F) {
     return nearest_q8(F) & (m - 1);
@@ -208,7 +225,7 @@ uint tap_distance(uint a, uint b) {
     }
 
 // The patch cost row by row, giving up once a row brings it to the best.
-uint patch_cost(ivec2 u, uint limit) {
+uint row_patch_cost(ivec2 u, uint limit) {
     uint cost = 0u;
     for (int dy = -R; dy <= R; ++dy) {
         int ty = border < 0 ? ((u.y + h * dy) & (m - 1)) : clamp(u.y + h * dy, 0, m - 1);
@@ -231,6 +248,11 @@ uint patch_cost(ivec2 u, uint limit) {
     }
     return cost;
 }
+#ifdef UPRIGHT
+#define patch_cost(F, limit) row_patch_cost(upright_texel(F), limit)
+#else
+#define patch_cost(u, limit) row_patch_cost(u, limit)
+#endif
 #else
 // The patch cost row by row, giving up once a row brings it to the best (the centre adds 0).
 uint patch_cost(ivec2 u, uint limit) {
@@ -388,6 +410,14 @@ void main() {
 #ifdef ATLAS
     reader = texelFetch(links, p, 0).x;  // reads cross chart seams (common.glsl atlas_texel)
 #endif
+#ifdef DIRECTION
+    Jp = texelFetch(dfield, p, 0);
+#ifdef UPRIGHT
+    if (Jp != ivec4(4096, 0, 0, 4096)) discard;  // TILTED's draw writes it
+#elif defined(TILTED)
+    if (Jp == ivec4(4096, 0, 0, 4096)) discard;  // UPRIGHT's draw writes it
+#endif
+#endif
 #ifdef ROW_TAPS
     for (int k = 0; k < FID_SIDE * ROW_UINTS; ++k) {
         nbrow[k] = 0u;
@@ -407,8 +437,7 @@ void main() {
         }
     }
 #ifdef DIRECTION
-    Jp = texelFetch(dfield, p, 0);
-    if (beyond_exemplar(Jp, h)) {  // grown past the exemplar's pixels: upsampling alone
+    if (beyond_exemplar(Jp, h)) {  // grown past the exemplar's pixels: upsampling alone (never upright)
         result = here;
         return;
     }
