@@ -42,15 +42,16 @@ class StateAccess:
         else:
             vals = self.controls.direction.region(self.an.L - l, region.x0, region.y0, region.w, region.h,
                                                   self.params.period)
+        kinds = (True, None)  # the fidelity stage's draws (stages.fidelity_draws)
         if vals is None:
             vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
+        else:
+            upright = (vals == IDENTITY).all(axis=-1)
+            if not upright.all():
+                ys, xs = np.nonzero(~upright)
+                kinds = (bool(upright.any()), (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1))
         tex = self.gpu.int_texture((region.w, region.h), 4, vals)
-        upright = (vals == IDENTITY).all(axis=-1)
-        tilted = None
-        if not upright.all():
-            ys, xs = np.nonzero(~upright)
-            tilted = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1)
-        tex.extra = (bool(upright.any()), tilted)  # the fidelity stage's draws (stages.fidelity_draws)
+        tex.extra = kinds
         return tex
 
     def _geometry_textures(self, l: int, region: Rect) -> tuple:

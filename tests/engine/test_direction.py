@@ -153,8 +153,8 @@ def test_gl_matches_oracle_with_a_field_and_the_fidelity_stage(direction_analyse
 @pytest.mark.parametrize("name", ["bordered-appearance", "torus-color"])
 def test_gl_matches_oracle_where_a_field_is_the_identity(direction_analyses, gpu, name):
     """A field painted over the left part of the window only: its identity
-    pixels take the fidelity stage's row taps (fidelity.frag upright), the
-    others their own taps, in the same draws."""
+    pixels take the fidelity stage's row taps (fidelity.frag UPRIGHT), the
+    others their own taps (TILTED, over their box), in the same subpasses."""
     an = direction_analyses[name]
     x, y, w, h = -9, 5, 28, 20
     painted = mixed_jacobians(18, h + 40, seed=5)
