@@ -30,13 +30,18 @@ def seam_and_cost(cost: np.ndarray) -> tuple[np.ndarray, float]:
     length, width = cost.shape
     acc = cost.astype(np.float64).copy()
     back = np.zeros((length, width), np.int8)
-    cols = np.arange(width)
+    pad = np.full(width + 2, np.inf)
+    left, mid, right = pad[:-2], pad[1:-1], pad[2:]
+    best = np.empty(width)
     for i in range(1, length):
-        prev = acc[i - 1]
-        options = np.stack([np.r_[np.inf, prev[:-1]], prev, np.r_[prev[1:], np.inf]])
-        k = np.argmin(options, axis=0)
-        acc[i] += options[k, cols]
-        back[i] = k - 1
+        mid[:] = acc[i - 1]
+        # the first of the three smallest (argmin's order: left, here, right)
+        here = mid < left
+        np.minimum(left, mid, out=best)
+        go_right = right < best
+        np.minimum(best, right, out=best)
+        acc[i] += best
+        back[i] = np.where(go_right, 1, here.view(np.int8) - 1)
     c = np.empty(length, np.int64)
     c[-1] = int(np.argmin(acc[-1]))
     for i in range(length - 1, 0, -1):

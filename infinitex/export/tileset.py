@@ -24,7 +24,8 @@ from .wang import TileSetBuilder, TileSetError, TileSetPlan, assemble
 
 PREVIEW_TILES = 8       # the preview: a random valid arrangement of 8 x 8 tiles
 PREVIEW_SIDE = 4096     # at most this many pixels a side (halved until it fits)
-PIECE = 128             # windows are synthesized in pieces of this size
+PIECE = (2048, 1 << 20)  # windows are synthesized in pieces at most this wide and of at most this many
+                         # pixels (pieces of 128 px made a 512 px window 2.3-2.6x slower: each is padded)
 STEP_S = 0.1            # and each piece in steps of about this long (the pyramid's pacer cuts its draws)
 PACE_S = 0.05           # seconds of GPU work a cut draw aims at (the editor's 6 ms would waste the GPU's queue)
 
@@ -198,8 +199,10 @@ class TileSetJob:
 
     def _render(self, pyr: Pyramid, rect: Rect):
         out = np.zeros((rect.h, rect.w, 2), np.int32)
-        pieces = [Rect(x, y, min(x + PIECE, rect.x1), min(y + PIECE, rect.y1))
-                  for y in range(rect.y0, rect.y1, PIECE) for x in range(rect.x0, rect.x1, PIECE)]
+        pw = min(rect.w, PIECE[0])
+        ph = max(1, min(rect.h, PIECE[1] // pw))
+        pieces = [Rect(x, y, min(x + pw, rect.x1), min(y + ph, rect.y1))
+                  for y in range(rect.y0, rect.y1, ph) for x in range(rect.x0, rect.x1, pw)]
         for i, t in enumerate(pieces):
             # A piece's request spread over steps of about STEP_S (one draw of a level at fidelity 4 under load
             # took seconds: the progress bar and Cancel wait for a step, never for a whole piece).

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from infinitex.engine.rect import Rect
 from infinitex.export.seamcut import before_seam, seam
 from infinitex.export.wang import TileSetBuilder, TileSetError, TileSetPlan, assemble, corner_packing
 
@@ -176,6 +177,59 @@ def test_corner_set_interiors_differ(corner_set):
             same = np.all(cores[i] == cores[j], axis=-1).mean()
             assert same == 0.0
 
+
+@pytest.mark.parametrize("colors, tile, variants", [(2, 64, 0), (3, 128, 0), (1, 64, 5)])
+def test_windows_are_made_in_rows_that_never_overlap(colors, tile, variants):
+    """The set's windows are made side by side, a row of them per request of
+    the synthesis (each request pads its coarse levels once), and no two
+    requests reach the same canvas pixel: every window is texture of its own."""
+    plan = TileSetPlan(colors, tile, variants, origin=(-77, 1 << 30))
+    asked = []
+
+    def render(rect):
+        asked.append(rect)
+        return (yield from _positions(rect))
+
+    def toroidal():
+        yield
+        return np.zeros((tile, tile, 2), np.int32)
+    b = TileSetBuilder(plan, render, _looks, toroidal)
+    gen = b.build()
+    while True:
+        try:
+            next(gen)
+        except StopIteration:
+            break
+    windows = (plan.count - 1) * 2 if colors == 1 else colors + 2 * colors ** 2 + plan.count * 2
+    assert b.work_done == b.work_total == windows + (colors == 1)
+    assert len(asked) <= -(-windows * tile // 2048) + 3 * (colors > 1)  # rows of up to 2048 px
+    for i, a in enumerate(asked):
+        assert a.w <= max(2048, 2 * tile) and a.h <= max(2048, 2 * tile)
+        for b2 in asked[:i]:
+            assert a.intersect(b2).empty
+
+
+@pytest.mark.parametrize("rel, k", [(Rect(-40, -40, 40, 40), 30), (Rect(0, -3, 1500, 3), 3), (Rect(-5, 0, 5, 64), 7)])
+def test_a_row_of_windows_is_windows_side_by_side(rel, k):
+    """``_rows``: each window holds the canvas texture at its own place, on a
+    lattice point (cell 8 x 4), and no two windows share a pixel."""
+    b = TileSetBuilder(TileSetPlan(2, 64, cell=(8, 4), origin=(-3, 11)), _positions, _looks)
+    gen = b._rows(rel, k)
+    while True:
+        try:
+            next(gen)
+        except StopIteration as stop:
+            windows = stop.value
+            break
+    assert len(windows) == k
+    boxes = []
+    for coords, (x, y) in windows:
+        assert coords.shape == (rel.h, rel.w, 2)
+        assert tuple(coords[0, 0]) == (x, y) and tuple(coords[-1, -1]) == (x + rel.w - 1, y + rel.h - 1)
+        assert (x - rel.x0) % 8 == 0 and (y - rel.y0) % 4 == 0
+        box = Rect(x, y, x + rel.w, y + rel.h)
+        assert all(box.intersect(o).empty for o in boxes)
+        boxes.append(box)
 
 def test_lattice_windows_keep_the_cell_phase():
     plan = TileSetPlan(2, 64, cell=(16, 8), origin=(37, -5))
