@@ -53,7 +53,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     C^1 and from each other; missing entries repeat C^1.
     """
     ys, xs = np.mgrid[0:m, 0:m]
-    pos = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.int64)
+    pos = np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.int32)  # (int32: half the memory traffic)
     desc = desc.reshape(m * m, -1).astype(np.float32)
     if toroidal:
         usable = np.ones(m * m, dtype=bool)
@@ -72,14 +72,22 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     from scipy.spatial import cKDTree  # imported when used: a cached analysis needs none of scipy
     tree = cKDTree(desc[pool])
     spacing = max(1.0, spacing_frac * m)
+    # sqrt(d2) >= spacing exactly when d2 >= apart, for integer squared distances d2
+    apart = int(np.ceil(spacing * spacing))
+    while apart > 0 and np.sqrt(apart - 1) >= spacing:
+        apart -= 1
+    while np.sqrt(apart) < spacing:
+        apart += 1
 
-    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def far(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Whether positions a and b (..., 2) are at least ``spacing`` apart (wrapped on a torus)."""
         d = np.abs(a - b)
         if toroidal:
             d = np.minimum(d, m - d)
-        return np.sqrt((d * d).sum(axis=-1))
+        dx, dy = d[..., 0], d[..., 1]
+        return dx * dx + dy * dy >= apart
 
-    out = np.empty((m * m, k, 2), dtype=np.int64)
+    out = np.empty((m * m, k, 2), dtype=np.int32)
     out[:, 0] = pos
     if not toroidal:
         bad = np.nonzero(~usable)[0]
@@ -98,7 +106,9 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
         _, nn = tree.query(desc[todo], k=kq, eps=ANN_EPS, workers=-1)
         nn = nn.reshape(todo.size, kq)
         cand = pos[pool[nn]]                                   # (n, kq, 2)
-        ok = (dist(cand, pos[todo, None]) >= spacing) & (dist(cand, out[todo, None, 0]) >= spacing)
+        ok = far(cand, pos[todo, None])
+        if not toroidal:  # (on a torus C^1 is u itself)
+            ok &= far(cand, out[todo, None, 0])
         filled = np.zeros(todo.size, dtype=bool)
         picks = []
         for slot in range(k - 1):
@@ -106,7 +116,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
             has = ok[np.arange(todo.size), first]
             pick = cand[np.arange(todo.size), first]
             picks.append((pick, has))
-            ok &= dist(cand, pick[:, None]) >= spacing
+            ok &= far(cand, pick[:, None])
             if slot == 0:
                 filled = has
         for slot, (pick, has) in enumerate(picks):
