@@ -31,7 +31,8 @@
 every preset, near the origin and near (+2^30, -2^30), and a toroidal tile);
 ``compare`` synthesizes the same windows with this machine's GL and reports
 which are bit-identical: determinism across GPUs, drivers and llvmpipe.
-``--quick``: smaller windows and views, fewer runs, Maximum skipped (< 2 min on llvmpipe).
+``--quick``: smaller windows and views, fewer runs, Maximum skipped (< 2 min on llvmpipe);
+``run(..., sizes=SMOKE)``: every path at the smallest sizes (the test's, 20 s here).
 """
 from __future__ import annotations
 
@@ -41,7 +42,7 @@ import os
 import statistics
 import sys
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,6 +63,30 @@ from infinitex.engine.synth import Synthesizer  # noqa: E402
 EXEMPLARS = {"gravel": os.path.join(ROOT, "infinitex", "assets", "gravel.png"),
              "weave": os.path.join(ROOT, "bench", "exemplars", "weave.png")}
 ORIGINS = {"near0": (-40, -17), "far": (2 ** 30 - 70, -2 ** 30 + 33)}
+SCREENS = {"hd": (1920, 1080), "uhd": (3840, 2160)}
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """How much a run measures: the full window's side and its runs, pan frames,
+    the view, paint dabs and label / comb dabs, the screens (scaled by
+    ``screen_scale``), the identity windows' side and toroidal tile."""
+
+    window: int
+    runs: int
+    pans: int
+    view: tuple[int, int]
+    dabs: int
+    brush_dabs: int
+    screens: tuple[str, ...]
+    screen_scale: float
+    ident: int
+    tile: int
+
+
+FULL = Sizes(512, 7, 64, (1024, 768), 32, 16, ("hd", "uhd"), 1.0, 192, 128)
+QUICK = Sizes(256, 3, 16, (512, 384), 8, 4, ("hd",), 1.0, 96, 64)
+SMOKE = Sizes(128, 1, 4, (256, 192), 4, 2, ("hd",), 0.25, 64, 64)  # the test's: every path, small
 
 
 def identity_windows(gpu: Gpu, presets, n: int, tile: int) -> dict[str, np.ndarray]:
@@ -80,21 +105,21 @@ def identity_windows(gpu: Gpu, presets, n: int, tile: int) -> dict[str, np.ndarr
     return out
 
 
-def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
+def preset_timings(gpu: Gpu, an, s: int, z: Sizes) -> dict:
     params = structure_params(SynthParams.default(an.L), s)
     ctx = gpu.ctx
     syn = Synthesizer(an, params, gpu=gpu)
     try:
         syn.window(Rect.of(0, 0, 64, 64))  # compile shaders
-        n = 256 if quick else 512
+        n = z.window
         r = {"full_ms": timed(lambda i: _timed(lambda: syn.window(Rect.of(1000 * i + 7, -777 * i, n, n)), ctx),
-                              3 if quick else 7)}
+                              z.runs)}
         vp = syn.viewport()
         _timed(lambda: vp.show(Rect.of(0, 0, n, n)), ctx)
         r["pan_ms"] = statistics.mean(_timed(lambda: vp.show(Rect.of(8 * f, 3 * f, n, n)), ctx)
-                                      for f in range(1, 17 if quick else 65))
+                                      for f in range(1, z.pans + 1))
         vp.release()
-        w, h = (512, 384) if quick else (1024, 768)
+        w, h = z.view
         view = Rect.of(-300, 200, w, h)
         vp = syn.viewport()
         r["view_ms"] = _timed(lambda: vp.show(view), ctx)
@@ -102,7 +127,7 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
         def paint(f, k, c):
             new, box = f.painted(c[0], c[1], 24.0, 65535 if (k // 8) % 2 == 0 else 0)
             return new, [box]
-        dabs, controls, px, looks = _stroke_dabs(vp, view, 8 if quick else 32, CanvasField(), paint,
+        dabs, controls, px, looks = _stroke_dabs(vp, view, z.dabs, CanvasField(), paint,
                                           lambda f: Controls(randomness_canvas=f))
         r.update(dab_ms=statistics.median(dabs), dab_p90_ms=float(np.percentile(dabs, 90)),
                  look_ms=statistics.median(looks), look_max_ms=max(looks),
@@ -119,26 +144,22 @@ def preset_timings(gpu: Gpu, an, s: int, quick: bool) -> dict:
             releases.append(_timed(lambda: (vp.set_params(released), vp.show(view)), ctx))
         vp.release()
         r.update(jump_ms=statistics.median(jumps), release_ms=statistics.median(releases))
-        r.update(_screen_views(syn, ctx, quick))
-        r.update(_label_dabs(gpu, an, params, view, quick))
-        r.update(_comb_dabs(gpu, an, params, view, quick))
+        r.update(_screen_views(syn, ctx, z))
+        r.update(_label_dabs(gpu, an, params, view, z.brush_dabs))
+        r.update(_comb_dabs(gpu, an, params, view, z.brush_dabs))
         return {k: round(v, 2) if isinstance(v, float) else v for k, v in r.items()}
     finally:
         syn.release()
 
 
-SCREENS = {"hd": (1920, 1080), "uhd": (3840, 2160)}
-
-
-def _screen_views(syn, ctx, quick: bool) -> dict:
+def _screen_views(syn, ctx, z: Sizes) -> dict:
     """Screen-sized views (1920 x 1080, and 3840 x 2160 unless quick): a view of
     all-new canvas on the GPU (as the editor shows it: nothing read back), median
     of 3 far apart; a pan frame (8 px, mean of 16); the same window read back as
     coordinates (Synthesizer.window), one run."""
     r = {}
-    for name, (w, h) in SCREENS.items():
-        if quick and name == "uhd":
-            continue
+    for name in z.screens:
+        w, h = (round(v * z.screen_scale) for v in SCREENS[name])
         vp = syn.viewport()
         views = [_timed(lambda k=k: vp.show(Rect.of(50000 * k - 900, 7000 * k, w, h)), ctx) for k in range(4)][1:]
         x, y = 100000, 3000
@@ -196,7 +217,7 @@ def _stroke_dabs(vp, view: Rect, count: int, field, dab, controls_of):
     return times, controls_of(field), px, looks
 
 
-def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
+def _label_dabs(gpu: Gpu, an, params, view: Rect, count: int) -> dict:
     """Texture by numbers: label 1 painted along a stroke over canvas labels of 0 (two labels proposed on
     the exemplar), each dab until the view is exact."""
     el = ExemplarLabels(propose_labels(an, 2).astype(np.uint8))
@@ -209,7 +230,7 @@ def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
         def paint(f, k, c):
             new, _ = f.painted(c[0], c[1], 24.0, 1)
             return new, f.changed_rects(new)
-        dabs, final, _, looks = _stroke_dabs(vp, view, 4 if quick else 16, cl, paint, controls_of)
+        dabs, final, _, looks = _stroke_dabs(vp, view, count, cl, paint, controls_of)
         return dict(label_dab_ms=statistics.median(dabs), label_look_ms=statistics.median(looks),
                     label_dab_exact=_exact(vp, gpu, an, params, final, view))
     finally:
@@ -217,7 +238,7 @@ def _label_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
         vp.synth.release()
 
 
-def _comb_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
+def _comb_dabs(gpu: Gpu, an, params, view: Rect, count: int) -> dict:
     """Direction fields: the comb (48 px, turning towards a new angle each dab) over an identity field."""
     field = DirectionField.from_jacobians(np.broadcast_to(jacobian(0.0), (view.h, view.w, 4)).copy(),
                                           view.x0, view.y0)
@@ -227,7 +248,7 @@ def _comb_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
         def brush(f, k, c):
             new, _ = f.edited(int(c[0]) - 24, int(c[1]) - 24, np.full((48, 48), 0.8), comb(20.0 * k))
             return new, f.changed_rects(new)
-        dabs, final, _, looks = _stroke_dabs(vp, view, 4 if quick else 16, field, brush, lambda f: Controls(direction=f))
+        dabs, final, _, looks = _stroke_dabs(vp, view, count, field, brush, lambda f: Controls(direction=f))
         return dict(comb_dab_ms=statistics.median(dabs), comb_look_ms=statistics.median(looks),
                     comb_dab_exact=_exact(vp, gpu, an, params, final, view))
     finally:
@@ -235,15 +256,17 @@ def _comb_dabs(gpu: Gpu, an, params, view: Rect, quick: bool) -> dict:
         vp.synth.release()
 
 
-def run(out_dir: str, quick: bool, presets) -> dict:
+def run(out_dir: str, quick: bool, presets, sizes: Sizes | None = None) -> dict:
+    """Measure ``presets`` (FULL, or QUICK with ``quick``, or ``sizes``); write device.json and coords.npz."""
     os.makedirs(out_dir, exist_ok=True)
+    z = sizes or (QUICK if quick else FULL)
     gpu = Gpu()
     res = {"renderer": gpu.renderer, "quick": quick, "presets": {}}
-    coords = identity_windows(gpu, presets, 96 if quick else 192, 64 if quick else 128)
+    coords = identity_windows(gpu, presets, z.ident, z.tile)
     np.savez_compressed(os.path.join(out_dir, "coords.npz"), **coords)
     an = analyze(load_exemplar(EXEMPLARS["gravel"]))
     for s in presets:
-        res["presets"][STRUCTURE_NAMES[s]] = preset_timings(gpu, an, s, quick)
+        res["presets"][STRUCTURE_NAMES[s]] = preset_timings(gpu, an, s, z)
     base = res["presets"].get(STRUCTURE_NAMES[0])
     for r in res["presets"].values():
         if base:
@@ -262,7 +285,8 @@ def run(out_dir: str, quick: bool, presets) -> dict:
               f"{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms{r['dab_px']:>9d}{r['label_dab_ms']:>7.1f}ms"
               f"{r['comb_dab_ms']:>7.1f}ms {r['look_ms']:5.1f}/{r['label_look_ms']:5.1f}/{r['comb_look_ms']:5.1f}ms  {exact}")
     for k, r in res["presets"].items():
-        print(f"{k:<10}" + "  ".join(f"{name} {SCREENS[name][0]}x{SCREENS[name][1]}: view {r[name + '_view_ms']:.1f} ms, "
+        print(f"{k:<10}" + "  ".join(f"{name} {round(SCREENS[name][0] * z.screen_scale)}x"
+                                     f"{round(SCREENS[name][1] * z.screen_scale)}: view {r[name + '_view_ms']:.1f} ms, "
                                      f"pan {r[name + '_pan_ms']:.2f} ms, window read back {r[name + '_window_ms']:.1f} ms"
                                      for name in SCREENS if name + "_view_ms" in r))
     return res

@@ -9,7 +9,7 @@ from bench import device
 
 @pytest.mark.slow
 def test_run_measures_exact_dabs_and_compare_finds_a_changed_window(tmp_path):
-    device.run(str(tmp_path), quick=True, presets=[0, 2])
+    device.run(str(tmp_path), quick=True, presets=[0, 2], sizes=device.SMOKE)
     res = json.loads((tmp_path / "device.json").read_text())
     assert set(res["presets"]) == {"Variety", "Balanced"}
     for r in res["presets"].values():
