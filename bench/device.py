@@ -153,7 +153,7 @@ def preset_timings(gpu: Gpu, an, s: int, z: Sizes) -> dict:
 
 
 def _screen_views(syn, ctx, z: Sizes) -> dict:
-    """Screen-sized views (1920 x 1080, and 3840 x 2160 unless quick): a view of
+    """Screen-sized views (``z.screens`` of SCREENS, scaled by ``z.screen_scale``): a view of
     all-new canvas on the GPU (as the editor shows it: nothing read back), median
     of 3 far apart; a pan frame (8 px, mean of 16); the same window read back as
     coordinates (Synthesizer.window), one run."""

@@ -146,7 +146,7 @@ class TileSetJob:
                                       lambda: self._render(self.periodic, Rect(0, 0, plan.tile, plan.tile)),
                                       self._correct)
         self._work = self.builder.build()
-        self._piece = 0.0  # fraction of the current window done
+        self._piece = 0.0  # fraction of the current request (a row of builder.making windows) done
         self._pace(STEP_S)
         self.atlas: np.ndarray | None = None
         self._pixels: dict[str, np.ndarray] = {}
@@ -188,7 +188,7 @@ class TileSetJob:
     @property
     def progress(self) -> float:
         b = self.builder
-        part = min(1.0, (b.work_done + self._piece) / max(1, b.work_total))
+        part = min(1.0, (b.work_done + max(1, b.making) * self._piece) / max(1, b.work_total))
         return part if not self.outputs else part * 0.85 + (0.15 if self.done else 0.0)
 
     def _correct(self, padded: np.ndarray, q: int, origin: tuple[int, int]) -> np.ndarray:

@@ -195,9 +195,10 @@ class TileSetBuilder:
         self.reach = plan.margin + plan.band           # a corner window's half side, a strip's half width
         self._below = plan.origin[1]                   # the canvas rows below this one are free
         self._inner: list[tuple[np.ndarray, tuple[int, int]]] = []  # interior windows made, not yet tried
-        self._inner_left = (plan.count - (plan.colors == 1)) * CANDIDATES  # interior windows still to be made
+        self._inner_left = 0        # interior windows still to be made (set by build)
         self.work_total = 1
-        self.work_done = 0
+        self.work_done = 0          # windows made
+        self.making = 0             # windows in the request being made (its progress counts for them)
 
     @cached_property
     def _grid(self) -> tuple[np.ndarray, ...]:
@@ -223,8 +224,10 @@ class TileSetBuilder:
         oy = self._below - rel.y0
         ox, oy = ox + (-ox) % cx, oy + (-oy) % cy
         self._below = oy + rel.y1 + ROW_GAP
+        self.making = k
         row = yield from self.render(Rect(ox + rel.x0, oy + rel.y0, ox + rel.x0 + (k - 1) * step + rel.w, oy + rel.y1))
         self.work_done += k
+        self.making = 0
         return [(row[:, i * step:i * step + rel.w], (ox + rel.x0 + i * step, oy + rel.y0)) for i in range(k)]
 
     def _rows(self, rel: Rect, k: int) -> Iterator:
@@ -257,6 +260,7 @@ class TileSetBuilder:
         n = p.tile
         if p.colors == 1 and self.toroidal is not None:
             self.work_total = 1 + (p.variants - 1) * CANDIDATES
+            self._inner_left = (p.variants - 1) * CANDIDATES
             frame = yield from self.toroidal()
             self.work_done += 1
             tiles = [frame]
@@ -266,6 +270,7 @@ class TileSetBuilder:
         else:
             c = p.colors
             self.work_total = c + 2 * c * c + p.count * CANDIDATES
+            self._inner_left = p.count * CANDIDATES
             r = self.reach
             corners = [k for k, _ in (yield from self._rows(Rect(-r, -r, r, r), c))]
             pairs = [(a, b) for a in range(c) for b in range(c)]
@@ -275,6 +280,7 @@ class TileSetBuilder:
                 for (a, b), (e, _) in zip(pairs, edges):
                     strips["hv"[vertical], a, b] = self._strip(corners[a], corners[b], e, vertical)
                     yield
+                del edges, e  # (the strips are copies)
             tiles = []
             for t in p.tiles():
                 frame = self._frame(strips, t["nw"], t["ne"], t["sw"], t["se"])
@@ -364,7 +370,8 @@ class TileSetBuilder:
         """A tile from its frame and an interior window of its own, joined by a
         least-cost cut in the ring between margin and margin + band: of
         CANDIDATES windows, the one whose four cuts cost least (image
-        quilting's choice of the block that agrees with its overlap)."""
+        quilting's choice of the block that agrees with its overlap).
+        Returns (the tile, its interior window's canvas place)."""
         n, m, bw = self.plan.tile, self.plan.margin, self.plan.band
         y, x, _, _, d = self._grid
         ring = d < m + bw

@@ -40,7 +40,7 @@ class Harness:
 
     def settle(self, ctx, limit_s: float = 300.0) -> None:
         """Frames until the document is loaded, analyzed and the view refined
-        (a time limit: frames are short, about 30 ms, while the view refines)."""
+        (a time limit; while it waits, frames of about 0.2 s: SETTLE_BUDGET_S)."""
         ed = self.ed
         t0 = time.monotonic()
         # While it only waits, the refinement takes longer frames (fewer frames drawn for the

@@ -180,31 +180,34 @@ def test_corner_set_interiors_differ(corner_set):
             assert same == 0.0
 
 
-@pytest.mark.parametrize("colors, tile, variants", [(2, 64, 0), (3, 128, 0), (1, 64, 5)])
-def test_windows_are_made_in_rows_that_never_overlap(colors, tile, variants):
+@pytest.mark.parametrize("colors, tile, variants, torus", [(2, 64, 0, False), (3, 128, 0, False), (1, 64, 5, True),
+                                                          (1, 64, 3, False)])
+def test_windows_are_made_in_rows_that_never_overlap(colors, tile, variants, torus):
     """The set's windows are made side by side, a row of them per request of
     the synthesis (each request pads its coarse levels once), and no two
     requests reach the same canvas pixel: every window is texture of its own."""
     plan = TileSetPlan(colors, tile, variants, origin=(-77, 1 << 30))
-    asked = []
+    asked, counted = [], []
 
     def render(rect):
         asked.append(rect)
+        counted.append(b.making)  # the windows this request makes (the progress bar's share of it)
         return (yield from _positions(rect))
 
     def toroidal():
         yield
         return np.zeros((tile, tile, 2), np.int32)
-    b = TileSetBuilder(plan, render, _looks, toroidal)
+    b = TileSetBuilder(plan, render, _looks, toroidal if torus else None)
     gen = b.build()
     while True:
         try:
             next(gen)
         except StopIteration:
             break
-    windows = (plan.count - 1) * 2 if colors == 1 else colors + 2 * colors ** 2 + plan.count * 2
-    assert b.work_done == b.work_total == windows + (colors == 1)
-    assert len(asked) <= -(-windows * tile // 2048) + 3 * (colors > 1)  # rows of up to 2048 px
+    windows = (plan.count - 1) * 2 if torus else colors + 2 * colors ** 2 + plan.count * 2
+    assert b.work_done == b.work_total == windows + torus and b.making == 0
+    assert sum(counted) == windows and min(counted) >= 1
+    assert len(asked) <= -(-windows * tile // 2048) + 3 * (not torus)  # rows of up to 2048 px
     for i, a in enumerate(asked):
         assert a.w <= max(2048, 2 * tile) and a.h <= max(2048, 2 * tile)
         for b2 in asked[:i]:
@@ -232,6 +235,7 @@ def test_a_row_of_windows_is_windows_side_by_side(rel, k):
         box = Rect(x, y, x + rel.w, y + rel.h)
         assert all(box.intersect(o).empty for o in boxes)
         boxes.append(box)
+
 
 def test_lattice_windows_keep_the_cell_phase():
     plan = TileSetPlan(2, 64, cell=(16, 8), origin=(37, -5))
