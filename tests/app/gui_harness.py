@@ -16,11 +16,7 @@ if HERE not in sys.path:
 from imgui_bundle.immapp import testing  # noqa: E402
 
 from infinitex.app.session import Session  # noqa: E402
-from infinitex.app.ui import pacing  # noqa: E402
 from infinitex.app.ui.editor import Editor  # noqa: E402
-
-
-SETTLE_BUDGET_S = 0.2  # the refinement's budget a frame while settle() waits
 
 
 class Harness:
@@ -40,21 +36,14 @@ class Harness:
 
     def settle(self, ctx, limit_s: float = 300.0) -> None:
         """Frames until the document is loaded, analyzed and the view refined
-        (a time limit; while it waits, frames of about 0.2 s: SETTLE_BUDGET_S)."""
+        (a time limit: frames are short, about 30 ms, while the view refines)."""
         ed = self.ed
         t0 = time.monotonic()
-        # While it only waits, the refinement takes longer frames (fewer frames drawn for the
-        # same work: the drivers' CPU time 12% less); the editor's own pace comes back after.
-        saved = pacing.REST_BUDGET_S, pacing.FRAME_S
-        pacing.REST_BUDGET_S = pacing.FRAME_S = SETTLE_BUDGET_S
-        try:
-            while time.monotonic() - t0 < limit_s:
-                ctx.yield_()
-                if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
-                        and ed.pending is None and ed.session.job is None):
-                    return
-        finally:
-            pacing.REST_BUDGET_S, pacing.FRAME_S = saved
+        while time.monotonic() - t0 < limit_s:
+            ctx.yield_()
+            if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
+                    and ed.pending is None and ed.session.job is None):
+                return
         raise RuntimeError("the editor did not settle")
 
     @staticmethod
