@@ -83,6 +83,10 @@ class Sizes:
     ident: int
     tile: int
 
+    def screen(self, name: str) -> tuple[int, int]:
+        """The measured size of screen ``name`` (of SCREENS)."""
+        return tuple(round(v * self.screen_scale) for v in SCREENS[name])
+
 
 FULL = Sizes(512, 7, 64, (1024, 768), 32, 16, ("hd", "uhd"), 1.0, 192, 128)
 QUICK = Sizes(256, 3, 16, (512, 384), 8, 4, ("hd",), 1.0, 96, 64)
@@ -159,7 +163,7 @@ def _screen_views(syn, ctx, z: Sizes) -> dict:
     coordinates (Synthesizer.window), one run."""
     r = {}
     for name in z.screens:
-        w, h = (round(v * z.screen_scale) for v in SCREENS[name])
+        w, h = z.screen(name)
         vp = syn.viewport()
         views = [_timed(lambda k=k: vp.show(Rect.of(50000 * k - 900, 7000 * k, w, h)), ctx) for k in range(4)][1:]
         x, y = 100000, 3000
@@ -285,8 +289,7 @@ def run(out_dir: str, quick: bool, presets, sizes: Sizes | None = None) -> dict:
               f"{r['dab_ms']:>7.1f}ms{r['dab_p90_ms']:>7.1f}ms{r['dab_px']:>9d}{r['label_dab_ms']:>7.1f}ms"
               f"{r['comb_dab_ms']:>7.1f}ms {r['look_ms']:5.1f}/{r['label_look_ms']:5.1f}/{r['comb_look_ms']:5.1f}ms  {exact}")
     for k, r in res["presets"].items():
-        print(f"{k:<10}" + "  ".join(f"{name} {round(SCREENS[name][0] * z.screen_scale)}x"
-                                     f"{round(SCREENS[name][1] * z.screen_scale)}: view {r[name + '_view_ms']:.1f} ms, "
+        print(f"{k:<10}" + "  ".join(f"{name} {z.screen(name)[0]}x{z.screen(name)[1]}: view {r[name + '_view_ms']:.1f} ms, "
                                      f"pan {r[name + '_pan_ms']:.2f} ms, window read back {r[name + '_window_ms']:.1f} ms"
                                      for name in SCREENS if name + "_view_ms" in r))
     return res

@@ -230,9 +230,13 @@ class TileSetBuilder:
         self.making = 0
         return [(row[:, i * step:i * step + rel.w], (ox + rel.x0 + i * step, oy + rel.y0)) for i in range(k)]
 
+    def _per_row(self, w: int) -> int:
+        """How many windows w px wide a row holds (at least one)."""
+        return max(1, BATCH_WIDTH // _up(w, self.plan.cell[0]))
+
     def _rows(self, rel: Rect, k: int) -> Iterator:
         """k windows as ``_row``'s, in rows of at most BATCH_WIDTH px."""
-        per = max(1, BATCH_WIDTH // _up(rel.w, self.plan.cell[0]))
+        per = self._per_row(rel.w)
         out = []
         for i in range(0, k, per):
             out += yield from self._row(rel, min(per, k - i))
@@ -243,7 +247,7 @@ class TileSetBuilder:
         at a time, as the tiles need them)."""
         if not self._inner:
             n = self.plan.tile
-            k = min(self._inner_left, max(1, BATCH_WIDTH // n))
+            k = min(self._inner_left, self._per_row(n))
             self._inner = yield from self._row(Rect(0, 0, n, n), k)
             self._inner_left -= k
         return self._inner.pop(0)
