@@ -13,7 +13,7 @@
   dab_ms             a paint dab (48 px brush, 32 dabs along a stroke) until that view is exact again:
                      recorded, its quick look made, settled, then the view shown (median, p90)
   dab_px             level pixels re-synthesized per dab (median)
-  look_ms            from a dab to its quick look made (Pyramid.quick_look, what the editor shows at once),
+  look_ms            from a dab to its quick look made (QuickLooks.look, what the editor shows at once),
                      median (look_max_ms: the largest); label_look_ms, comb_look_ms the same for those dabs;
                      the times until exact include it, as in the editor
   dab_exact          the painted view equals a fresh synthesis with the final controls
@@ -208,7 +208,7 @@ def _stroke_dabs(vp, view: Rect, count: int, field, dab, controls_of):
         new, boxes = dab(field, k, _stroke(view, k))
         t = time.perf_counter()
         pyr.update_controls(controls_of(new), [Rect(*b) for b in boxes], defer=True)
-        pyr.quick_look(vp.synth.L, view)
+        pyr.looks.look(vp.synth.L, view)
         vp.synth.gpu.ctx.finish()
         looks.append((time.perf_counter() - t) * 1000.0)
         n0 = pyr.pixels_synthesized

@@ -49,7 +49,7 @@ MUTANTS = [
      "for n, r in ((passes, radius),) + tuple(stages):", "for n, r in ((passes, radius),):",
      "tests/engine/test_fidelity.py"),
     ("local update reach one pixel short", "infinitex/engine/local_update.py",
-     "reach = max(self.margins[l])", "reach = max(self.margins[l]) - 1", LOCAL),
+     "reach = max(self.pyr.margins[l])", "reach = max(self.pyr.margins[l]) - 1", LOCAL),
     ("analysis cache key without the settings", "infinitex/engine/analysis.py",
      "h.update(json.dumps(asdict(settings), sort_keys=True).encode())", "pass",
      "tests/engine/test_analysis.py tests/engine/test_synthesis.py tests/engine/test_fidelity.py"),

@@ -44,7 +44,7 @@ def main(argv=None) -> int:
                     help="paint labels (texture by numbers: two labels proposed on the exemplar, strokes "
                          "alternating between them) instead of randomness")
     ap.add_argument("--comb", action="store_true", help="comb a direction field (the Direction tool) instead")
-    ap.add_argument("--no-looks", action="store_true", help="without quick looks (Pyramid.quick_look): for an A/B")
+    ap.add_argument("--no-looks", action="store_true", help="without quick looks (QuickLooks.look): for an A/B")
     ap.add_argument("--mid-shot", metavar="PNG", help="also capture the window in the middle of the stroke")
     ap.add_argument("--files", action="store_true",
                     help="list the package's files whose code runs in a dab's frame (a profiler on the frame; "
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
     from infinitex.engine.looks import QuickLooks
     # A dab's way through a frame: the tool's stroke (and the edit it makes), the
     # session's sync (the local update recorded), the settling and the quick look.
-    entries = {f.__code__ for f in (PaintCanvasTool.drag, Session.sync, LocalUpdates.settle, QuickLooks.quick_look)}
+    entries = {f.__code__ for f in (PaintCanvasTool.drag, Session.sync, LocalUpdates.settle, QuickLooks.look)}
 
     def gui():
         stamps.append(time.perf_counter())
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
         s = ed.session
         settled_at.append(bool(s is not None and s.pyramid is not None and s.pyramid.settled and ed.refined))
         upd_at.append((ed.canvas_state.update_ms, 1000 * ed.frame_pacer.budget_s))
-        looks_at.append(s.pyramid.looks_made if s is not None and s.pyramid is not None else 0)
+        looks_at.append(s.pyramid.looks.made if s is not None and s.pyramid is not None else 0)
         if full_view == [-1]:  # asked by the test (GL calls belong in the frame, on the GL thread)
             from infinitex.engine.pyramid import Pyramid
             s = ed.session
@@ -149,7 +149,7 @@ def main(argv=None) -> int:
             return done
         pyr.settle = counted
         if args.no_looks:
-            pyr.quick_look = lambda *a: 0
+            pyr.looks.look = lambda *a: 0
         ctx.set_ref("//Infinitex")
         if args.labels:
             ctx.item_click("//**/Labels (G)##tool-labels")
@@ -226,7 +226,7 @@ def main(argv=None) -> int:
         # A dab made in frame k (dabs_at[k] > dabs_at[k - 1]) shows exactly at the end of
         # the first frame j >= k that ends settled (about stamps[j + 1]).
         # It first shows at the end of the first frame that ends settled or with a
-        # quick look made since the frame before it (Pyramid.quick_look).
+        # quick look made since the frame before it (QuickLooks.look).
         shown, seen = [], []
         for k in range(n0 + 1, n2 - 1):
             if dabs_at[k] > dabs_at[k - 1]:
@@ -289,7 +289,7 @@ def main(argv=None) -> int:
         print("  every frame's: " + ", ".join(f["frame_without_a_dab"]))
         p = results["files_on_the_dab_path"]
         print(f"files on a dab's path (under PaintCanvasTool.drag, Session.sync, LocalUpdates.settle, "
-              f"QuickLooks.quick_look): {p['median']} (median, max {p['max']}); all dabs: {len(p['union'])}: "
+              f"QuickLooks.look): {p['median']} (median, max {p['max']}); all dabs: {len(p['union'])}: "
               + ", ".join(p["union"]))
     if args.json:
         from infinitex.engine.safeio import atomic_write

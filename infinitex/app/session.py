@@ -78,7 +78,7 @@ def level_rect(want: Rect, from_level: int, to_level: int) -> Rect:
 class Refiner:
     """Brings a scrolling pyramid to a frame coarse level first, within a time
     budget per call, so the editor's frames stay short: the synthesis runs a
-    piece of a draw at a time (:meth:`Pyramid.start_request`), and a level too
+    piece of a draw at a time (:meth:`SpreadRequests.start`), and a level too
     big to show at once grows in row bands, the visible centre first.
 
     Every level is refined to ``plan[l]``: everything the frame's level will
@@ -170,9 +170,9 @@ class Refiner:
                     break
                 pixels += self._request(missing, needs[missing])  # (drops a request in progress)
                 continue
-            job = pyr.requesting
+            job = pyr.requests.current
             if job is not None and (missing is None or job != (missing, needs[missing])):
-                pyr.end_request()  # the view moved, or a refinement's band: whole levels here
+                pyr.requests.end()  # the view moved, or a refinement's band: whole levels here
                 job = None
             if missing is None:
                 break
@@ -182,7 +182,7 @@ class Refiner:
                     continue
                 if deadline - time.perf_counter() < 0.5 * pyr.pacer.piece_s:
                     break
-                pyr.start_request(missing, needs[missing])
+                pyr.requests.start(missing, needs[missing])
                 self._job_s = 0.0
             done, n = self._advance(missing, deadline)
             pixels += n
@@ -196,12 +196,12 @@ class Refiner:
         learn the level's cost per pixel when it ends. (done, pixels synthesized)."""
         pyr = self.pyramid
         t = time.perf_counter()
-        before = pyr.request_pixels
-        done = pyr.advance_request(deadline)
+        before = pyr.requests.pixels
+        done = pyr.requests.advance(deadline)
         self._job_s += time.perf_counter() - t
-        if done and pyr.request_pixels > 256:
-            self.cost[level] = 0.5 * self.cost[level] + 0.5 * self._job_s / pyr.request_pixels
-        return done, pyr.request_pixels - before
+        if done and pyr.requests.pixels > 256:
+            self.cost[level] = 0.5 * self.cost[level] + 0.5 * self._job_s / pyr.requests.pixels
+        return done, pyr.requests.pixels - before
 
     def _start(self, l: int, want: Rect) -> None:
         """Start the request for level l: all it misses, or a band of about
@@ -214,7 +214,7 @@ class Refiner:
         if self._missing(l, want) * self.cost[l] > 1.5 * BAND_S and want.h > 1.5 * min_band:
             rows = int(BAND_S / (self.cost[l] * (want.w + ml + mr)))
             rect = self._band(l, want, max(min_band, rows))
-        pyr.start_request(l, rect)
+        pyr.requests.start(l, rect)
         self._job_s = 0.0
 
     def step(self, frame: Frame, budget_s: float) -> bool:
@@ -228,24 +228,24 @@ class Refiner:
         # This frame's edits shown at once as quick looks (patches) unless their
         # exact update fits in the frame (about: a coarse level's change spreads).
         work = 0.0
-        if pyr.looks_wanted:
-            work = sum(pyr.padded(l, r).area * self.cost[l] for l, rects in enumerate(pyr.dirty) for r in rects)
-        pixels = pyr.quick_look(frame.level, frame.want, skip=work < 0.5 * budget_s)
+        if pyr.looks.wanted:
+            work = sum(pyr.padded(l, r).area * self.cost[l] for l, rects in enumerate(pyr.updates.dirty) for r in rects)
+        pixels = pyr.looks.look(frame.level, frame.want, skip=work < 0.5 * budget_s)
         # At least one step; then no new piece of work with less than half a
         # piece's time left (it would overrun the frame).
         first = True
         while first or deadline - time.perf_counter() > 0.5 * pyr.pacer.piece_s:
             first = False
             missing = next((l for l, want in enumerate(plan) if not self.holds(l, want)), None)
-            job = pyr.requesting
+            job = pyr.requests.current
             if job is not None:
                 level, rect = job
                 if missing is None or level >= len(plan) or rect.intersect(plan[level]).empty:
-                    pyr.end_request()  # the view moved away from it
+                    pyr.requests.end()  # the view moved away from it
                     continue
                 pixels += self._advance(level, deadline)[1]
                 continue
-            if not pyr.settled and (missing is None or pyr.updating):
+            if not pyr.settled and (missing is None or pyr.updates.updating):
                 # A paint dab or a feature move: shown next. When the view also
                 # misses pixels (a pan meanwhile), the region in progress ends
                 # first and the request shares the frame: strips synthesized
@@ -264,7 +264,7 @@ class Refiner:
                 needs = pyr.plan(frame.level, frame.want, grown=True)
             self._start(missing, needs[missing])
         self._done(t0, pixels)
-        return (pyr.settled and pyr.requesting is None
+        return (pyr.settled and pyr.requests.current is None
                 and all(self.holds(l, want) for l, want in enumerate(plan)))
 
 

@@ -158,7 +158,7 @@ def main() -> int:
             vp = synth.viewport()
             vp.show(view)
             vp.pyramid.update_controls(controls, defer=True)
-            vp.pyramid.quick_look(L, view)
+            vp.pyramid.looks.look(L, view)
             vp.pyramid.settle()
             vp.show(view)  # (an edit of the exemplar's inputs re-synthesizes the whole view)
             vp.release()

@@ -1,5 +1,6 @@
 """A quick look at a local update before it is exact (:class:`QuickLooks`, a
-part of :class:`~infinitex.engine.pyramid.Pyramid`).
+part of :class:`~infinitex.engine.pyramid.Pyramid`: ``Pyramid.looks``, which
+owns the patches).
 
 An exact local update redoes every level a dab reaches, coarse to fine, each
 grown by its correction reach: at the Balanced preset on a CPU that is a
@@ -45,57 +46,58 @@ class Patch:
 class QuickLooks:
     """The pyramid's quick looks at local updates (uses its buffers, margins and strip synthesis)."""
 
-    def _init_quick_looks(self) -> None:
+    def __init__(self, pyr) -> None:
+        self.pyr = pyr
         self.patches: list[Patch] = []
-        self._looks_wanted: list[Rect] = []  # finest-level rectangles edited since the last look
-        self._jobs_started = 0
-        self.looks_made = 0  # patches made so far (benchmarks: when an edit first shows)
-        self._look_cost = 6e-7  # seconds per level pixel of a patch (about 10 ms per 16k px at Balanced on llvmpipe)
+        self._wanted: list[Rect] = []  # finest-level rectangles edited since the last look
+        self.made = 0  # patches made so far (benchmarks: when an edit first shows)
+        self._cost = 6e-7  # seconds per level pixel of a patch (about 10 ms per 16k px at Balanced on llvmpipe)
 
-    def want_look(self, changed: list[Rect], pad: int = 1) -> None:
-        """Note finest-level rectangles an edit changed, for the next :meth:`quick_look`."""
-        self._looks_wanted = merge_rects(self._looks_wanted + [r.pad(pad, pad, pad, pad) for r in changed
-                                                                if not r.empty])
+    def want(self, changed: list[Rect], pad: int = 1) -> None:
+        """Note finest-level rectangles an edit changed, for the next :meth:`look`."""
+        self._wanted = merge_rects(self._wanted + [r.pad(pad, pad, pad, pad) for r in changed if not r.empty])
 
     @property
-    def looks_wanted(self) -> bool:
-        """Edits were noted since the last :meth:`quick_look`."""
-        return bool(self._looks_wanted)
+    def wanted(self) -> bool:
+        """Edits were noted since the last :meth:`look`."""
+        return bool(self._wanted)
 
-    def quick_look(self, level: int, want: Rect, skip: bool = False) -> int:
+    def look(self, level: int, want: Rect, skip: bool = False) -> int:
         """Make a patch of every edit noted since the last call, at ``level``
         (the shown one) within ``want`` (``skip``: forget them; their exact
         update will show as soon); drop the patches of another level or no
         longer held. Returns the level pixels synthesized."""
-        L = self.an.L
-        buf = self.buffers[level] if 0 <= level <= L else None
+        pyr = self.pyr
+        L = pyr.an.L
+        buf = pyr.buffers[level] if 0 <= level <= L else None
         held = buf.valid if buf is not None and buf.valid is not None else None
-        self._drop_patches(lambda p: p.level != level or held is None or not held.contains(p.rect))
-        wanted, self._looks_wanted = self._looks_wanted, []
-        if skip or held is None or level < 1 or self.settled:
+        self.drop(lambda p: p.level != level or held is None or not held.contains(p.rect))
+        wanted, self._wanted = self._wanted, []
+        if skip or held is None or level < 1 or pyr.updates.settled:
             return 0
         k = L - level
         rects = [r.coarser(k).intersect(want).intersect(held) for r in wanted]
         pixels = 0
         for r in merge_rects([r for r in rects if not r.empty]):
-            pixels += self._make_patch(level, r)
+            pixels += self.make_patch(level, r)
         if len(self.patches) > MAX_PATCHES:  # a long stroke: the oldest merged into fresh ones
             old = self.patches[:len(self.patches) - MAX_PATCHES // 2]
-            self._drop_patches(lambda p: any(p is o for o in old))
+            self.drop(lambda p: any(p is o for o in old))
             for r in merge_rects([p.rect for p in old]):
-                pixels += self._make_patch(level, r)
+                pixels += self.make_patch(level, r)
         return pixels
 
-    def _make_patch(self, d: int, rect: Rect) -> int:
+    def make_patch(self, d: int, rect: Rect) -> int:
         """Synthesize level d over ``rect`` again on its PREVIEW_LEVELS finest
         levels (fewer where that would take over LOOK_S), from the coarser ones
         as held, on buffers of its own. Returns the level pixels synthesized (0:
         the held levels do not cover what it reads; no patch)."""
+        pyr = self.pyr
         t0 = time.perf_counter()
         plan = None
         for n in range(min(PREVIEW_LEVELS, d), 0, -1):
-            plan = self._look_plan(d, rect, n)
-            if plan is not None and sum(self.padded(l, r).area for l, r in plan[0].items()) * self._look_cost <= LOOK_S:
+            plan = self._plan(d, rect, n)
+            if plan is not None and sum(pyr.padded(l, r).area for l, r in plan[0].items()) * self._cost <= LOOK_S:
                 break
         if plan is None:
             return 0
@@ -106,27 +108,27 @@ class QuickLooks:
         try:
             for l in range(l0, d + 1):
                 n = need[l]
-                out = self._new_buffer(n)
+                out = pyr.new_buffer(n)
                 made[l] = out
-                self._copy(self.buffers[l], out, n)
+                pyr.copy(pyr.buffers[l], out, n)
                 out.valid = n
-                region = self.padded(l, strips[l])
+                region = pyr.padded(l, strips[l])
                 # (jobs and requests spread over frames run on scratch of their own)
-                for _ in self._strip_steps(l, strips[l], self._scratch_pair(region), out, parent=made.get(l - 1)):
+                for _ in pyr.strips.strip_steps(l, strips[l], pyr.scratch_pair(region), out, parent=made.get(l - 1)):
                     pass
                 pixels += region.w * region.h
-            self.patches.append(Patch(d, rect, made.pop(d), self._jobs_started))
-            self.looks_made += 1
-            self._touch(d, rect)
-            self.gpu.ctx.finish()  # (shown this frame anyway) timed, to size the next ones
+            self.patches.append(Patch(d, rect, made.pop(d), pyr.updates.jobs_started))
+            self.made += 1
+            pyr.requests.touch(d, rect)
+            pyr.gpu.ctx.finish()  # (shown this frame anyway) timed, to size the next ones
             cost = (time.perf_counter() - t0) / max(1, pixels)
-            self._look_cost = 0.7 * self._look_cost + 0.3 * cost
+            self._cost = 0.7 * self._cost + 0.3 * cost
         finally:
             for b in made.values():
                 b.release()
         return pixels
 
-    def _look_plan(self, d: int, rect: Rect, n: int) -> tuple[dict, dict] | None:
+    def _plan(self, d: int, rect: Rect, n: int) -> tuple[dict, dict] | None:
         """The strips a patch of level d over ``rect`` synthesizes on its n finest
         levels, and what of each level it reads (copied from the held ones); None
         when the held levels do not cover that."""
@@ -136,27 +138,27 @@ class QuickLooks:
             strips[l] = strips[l + 1].half().pad(1, 1, 1, 1)
         need = {d: rect}
         for l in range(d - 1, l0 - 2, -1):
-            need[l] = self.padded(l + 1, strips[l + 1]).half()
+            need[l] = self.pyr.padded(l + 1, strips[l + 1]).half()
         for l, n_l in need.items():
-            b = self.buffers[l]
+            b = self.pyr.buffers[l]
             if b is None or b.valid is None or not b.valid.contains(n_l):
                 return None
         return strips, need
 
-    def _drop_patches(self, which) -> None:
+    def drop(self, which) -> None:
         """Drop the patches ``which(patch)`` selects (all: None), showing the level again there."""
         keep = []
         for p in self.patches:
             if which is None or which(p):
-                self._touch(p.level, p.rect)
+                self.pyr.requests.touch(p.level, p.rect)
                 p.buf.release()
             else:
                 keep.append(p)
         self.patches = keep
 
-    def _job_done(self, l: int) -> None:
+    def job_done(self, l: int) -> None:
         """A local-update job of level l ended: drop the patches it accounts for."""
-        seq = self._jobs_started  # the job that just ended (one runs at a time)
-        dirty = self.dirty[l]
-        self._drop_patches(lambda p: p.level == l and p.seq < seq
+        seq = self.pyr.updates.jobs_started  # the job that just ended (one runs at a time)
+        dirty = self.pyr.updates.dirty[l]
+        self.drop(lambda p: p.level == l and p.seq < seq
                            and not any(not r.intersect(p.rect).empty for r in dirty))

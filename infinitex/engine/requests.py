@@ -1,6 +1,7 @@
 """Requests of the synthesis pyramid spread over frames, and what changed for
 the view (:class:`SpreadRequests`, a part of
-:class:`~infinitex.engine.pyramid.Pyramid`).
+:class:`~infinitex.engine.pyramid.Pyramid`: ``Pyramid.requests``, which owns the
+request in progress and the record of what changed).
 
 The editor's view refines between frames that stay short: a request is planned
 at once (what each level must hold) and synthesized a piece of a draw at a time,
@@ -21,30 +22,38 @@ from .stages import scratch_size
 class SpreadRequests:
     """The pyramid's requests spread over frames (uses its buffers, targets and strip synthesis)."""
 
-    def start_request(self, level: int, rect: Rect) -> None:
-        """Begin what :meth:`request` does, to be carried out a piece at a time
-        by :meth:`advance_request` (the pieces sized by ``self.pacer``): the
+    def __init__(self, pyr) -> None:
+        self.pyr = pyr
+        self._job = None  # a request spread over frames: (level, rect, its steps, its targets)
+        self.pixels = 0  # level pixels the request in progress has synthesized
+        self.total = 0  # what ``pixels`` reaches if no level keeps anything: a measure of progress
+        self.touched: list[tuple[int, Rect]] | None = []  # what changed since take_touched (None: all)
+
+    def start(self, level: int, rect: Rect) -> None:
+        """Begin what :meth:`Pyramid.request` does, to be carried out a piece at
+        a time by :meth:`advance` (the pieces sized by ``Pyramid.pacer``): the
         editor's view refines between frames that stay short.
 
-        While it runs no other synthesis may touch the pyramid: :meth:`request`,
-        :meth:`settle` and any change of parameters drop it first, and the
-        buffers stay consistent (each level claims what it keeps until its new
-        strips are written back), so a dropped request loses only its work."""
-        self._check(level, rect)
-        self.end_request()
-        self.gpu.activate()
-        targets = self._targets(level, rect)
-        self._request_job = (level, rect, self._request_steps(targets), dict(targets))
-        self.request_pixels = 0
-        # (what request_pixels reaches if no level keeps anything: a measure of progress)
-        self.request_total = sum(self.padded(l, t).w * self.padded(l, t).h for l, t in targets)
+        While it runs no other synthesis may touch the pyramid:
+        :meth:`Pyramid.request`, :meth:`LocalUpdates.settle` and any change of
+        parameters drop it first, and the buffers stay consistent (each level
+        claims what it keeps until its new strips are written back), so a
+        dropped request loses only its work."""
+        pyr = self.pyr
+        pyr.check(level, rect)
+        self.end()
+        pyr.gpu.activate()
+        targets = pyr.targets(level, rect)
+        self._job = (level, rect, self._steps(targets), dict(targets))
+        self.pixels = 0
+        self.total = sum(pyr.padded(l, t).w * pyr.padded(l, t).h for l, t in targets)
 
     def claimed(self, l: int) -> Rect | None:
         """What level l holds or the request in progress is making it hold
         (their bounding box): where its pixels can be, now or once the request ends."""
-        buf = self.buffers[l]
+        buf = self.pyr.buffers[l]
         held = buf.valid if buf is not None else None
-        target = self._request_job[3].get(l) if self._request_job is not None else None
+        target = self._job[3].get(l) if self._job is not None else None
         if held is None or held.empty:
             return target
         if target is None:
@@ -52,34 +61,34 @@ class SpreadRequests:
         return Rect(min(held.x0, target.x0), min(held.y0, target.y0), max(held.x1, target.x1), max(held.y1, target.y1))
 
     @property
-    def requesting(self) -> tuple[int, Rect] | None:
+    def current(self) -> tuple[int, Rect] | None:
         """The (level, rect) of the request in progress, or None."""
-        return None if self._request_job is None else self._request_job[:2]
+        return None if self._job is None else self._job[:2]
 
-    def advance_request(self, deadline: float) -> bool:
+    def advance(self, deadline: float) -> bool:
         """Carry the request in progress on until ``deadline``
         (``time.perf_counter()`` seconds); True when none is left."""
-        if self._request_job is None:
+        if self._job is None:
             return True
-        self.gpu.activate()
-        steps = self._request_job[2]
+        self.pyr.gpu.activate()
+        steps = self._job[2]
         try:
             while True:
                 next(steps)
                 if time.perf_counter() >= deadline:
                     return False
         except StopIteration:
-            self._request_job = None
+            self._job = None
             return True
 
-    def end_request(self) -> None:
+    def end(self) -> None:
         """Drop the request in progress, if any (what it finished stays)."""
-        if self._request_job is not None:
-            steps = self._request_job[2]
-            self._request_job = None
+        if self._job is not None:
+            steps = self._job[2]
+            self._job = None
             steps.close()
 
-    def _touch(self, l: int, r: Rect | None) -> None:
+    def touch(self, l: int, r: Rect | None) -> None:
         """Level l's pixels changed over ``r`` (its valid rectangle grew or
         shrank there, or their values changed)."""
         if r is not None and not r.empty and self.touched is not None:
@@ -87,37 +96,43 @@ class SpreadRequests:
             if len(self.touched) > 64:
                 self.touched = None
 
+    def touch_all(self) -> None:
+        """Any pixel may have changed (levels forgotten)."""
+        self.touched = None
+
     def take_touched(self) -> list[tuple[int, Rect]] | None:
         """The (level, rect)s whose pixels changed since the last call (None:
         anything may have), for a view that redraws only those."""
         out, self.touched = self.touched, []
         return out
 
-    def _keep(self, l: int, target: Rect) -> tuple[Any, Rect | None, list[Rect]]:
+    def keep(self, l: int, target: Rect) -> tuple[Any, Rect | None, list[Rect]]:
         """Prepare level l for ``target``: its buffer, what it keeps (which
         becomes its valid rectangle until the new strips are written) and the
         new strips."""
-        old = self.buffers[l].valid if self.buffers[l] is not None else None
-        buf = self._ensure_buffer(l, target)
+        pyr = self.pyr
+        old = pyr.buffers[l].valid if pyr.buffers[l] is not None else None
+        buf = pyr.ensure_buffer(l, target)
         keep = buf.valid.intersect(target) if buf.valid is not None else None
         keep = None if keep is None or keep.empty else keep
         buf.valid = keep
         if old is not None and old != keep:
-            self._touch(l, old)
+            self.touch(l, old)
         return buf, keep, [target] if keep is None else target.minus(keep)
 
-    def _request_steps(self, targets: list[tuple[int, Rect]]) -> Iterator[None]:
+    def _steps(self, targets: list[tuple[int, Rect]]) -> Iterator[None]:
+        pyr = self.pyr
         for l, target in targets:
-            buf, keep, strips = self._keep(l, target)
+            buf, keep, strips = self.keep(l, target)
             for strip in strips:
-                region = self.padded(l, strip)
-                scratch = self._new_scratch(*scratch_size(region, self.params.subgrid))
+                region = pyr.padded(l, strip)
+                scratch = pyr.new_scratch(*scratch_size(region, pyr.params.subgrid))
                 try:
-                    yield from self._strip_steps(l, strip, scratch, buf, self.pacer)
+                    yield from pyr.strips.strip_steps(l, strip, scratch, buf, pyr.pacer)
                 finally:
                     for o in (scratch[1], scratch[3], scratch[0], scratch[2]):
                         o.release()
-                self.request_pixels += region.w * region.h
+                self.pixels += region.w * region.h
             buf.valid = target
             for strip in strips:
-                self._touch(l, strip)
+                self.touch(l, strip)

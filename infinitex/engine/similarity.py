@@ -44,6 +44,17 @@ def spread_equal(desc: np.ndarray, pool: np.ndarray, most: int) -> np.ndarray:
     return pool[keep]
 
 
+def squared_apart(spacing: float) -> int:
+    """The least integer d2 with sqrt(d2) >= ``spacing``: integer squared
+    distances are ``spacing`` apart exactly when at least this."""
+    apart = int(np.ceil(spacing * spacing))
+    while apart > 0 and np.sqrt(apart - 1) >= spacing:
+        apart -= 1
+    while np.sqrt(apart) < spacing:
+        apart += 1
+    return apart
+
+
 def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
                     spacing_frac: float) -> np.ndarray:
     """C^1..C^k for every texel, int16 (m, m, k, 2) as (x, y).
@@ -71,13 +82,7 @@ def similarity_sets(desc: np.ndarray, m: int, h: int, k: int, toroidal: bool,
     pool = spread_equal(desc, pool, MAX_EQUAL)
     from scipy.spatial import cKDTree  # imported when used: a cached analysis needs none of scipy
     tree = cKDTree(desc[pool])
-    spacing = max(1.0, spacing_frac * m)
-    # sqrt(d2) >= spacing exactly when d2 >= apart, for integer squared distances d2
-    apart = int(np.ceil(spacing * spacing))
-    while apart > 0 and np.sqrt(apart - 1) >= spacing:
-        apart -= 1
-    while np.sqrt(apart) < spacing:
-        apart += 1
+    apart = squared_apart(max(1.0, spacing_frac * m))
 
     def far(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Whether positions a and b (..., 2) are at least ``spacing`` apart (wrapped on a torus)."""

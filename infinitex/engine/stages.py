@@ -1,4 +1,4 @@
-"""The renders of one padded region (pyramid.py ``_strip_steps``): the
+"""The renders of one padded region (strips.py ``Strips.strip_steps``): the
 correction's and the fidelity stage's subpasses, on quadrant-packed scratch
 buffers, as self-contained draws that can run at once or a piece at a time.
 
@@ -242,7 +242,7 @@ class RegionPass:
     """One padded region of a level as every pass over it reads it: the level,
     the region, the quadrant-packed state's scratch textures, what each subpass
     renders, and the region's inputs besides the state (the passes' one
-    description, made and released by ``Pyramid._region_pass``)."""
+    description, made and released by ``Strips.region_pass``)."""
 
     gpu: Gpu
     gan: GpuAnalysis

@@ -1,10 +1,12 @@
 """How the pyramid's state textures are laid out and read back
-(:class:`StateAccess`, a part of :class:`~infinitex.engine.pyramid.Pyramid`):
+(:class:`StateAccess`, a part of :class:`~infinitex.engine.pyramid.Pyramid`:
+``Pyramid.state``):
 2 components per texel (the exemplar coordinate), or 4 with a direction field
 or in a mesh's atlas
 (the nearest texel and the sub-pixel remainder in 1/256 px,
 engine/controls/direction.py); the J textures of a region; reading coordinates back;
-correcting a given state (:meth:`StateAccess.correct`).
+widening it for a first direction field; correcting a given state
+(:meth:`StateAccess.correct`).
 """
 from __future__ import annotations
 
@@ -24,24 +26,27 @@ class SynthesisError(ValueError):
 class StateAccess:
     """The pyramid's state format and read-back (uses its GPU, controls, buffers and params)."""
 
+    def __init__(self, pyr) -> None:
+        self.pyr = pyr
+
     @property
     def channels(self) -> int:
         """Components of a state texel: 4 with a direction field (nearest texel, remainder), else 2."""
-        return 4 if self.controls.directed else 2
+        return 4 if self.pyr.controls.directed else 2
 
-    def _direction_texture(self, l: int, region: Rect):
+    def direction_texture(self, l: int, region: Rect):
         """J_l over a padded region (RGBA16I, row-major local pixels), or None
         without a direction field; its ``extra``: whether the region holds
         pixels where J_l is the identity, and the box (x0, y0, x1, y1) of those
         where it is not (local pixels; None: none)."""
-        if not self.controls.directed:
+        if not self.pyr.controls.directed:
             return None
-        surface = self.controls.surface
+        surface = self.pyr.controls.surface
         if surface is not None:
-            vals = surface.jacobians(self.an.L - l, region.x0, region.y0, region.w, region.h)
+            vals = surface.jacobians(self.pyr.an.L - l, region.x0, region.y0, region.w, region.h)
         else:
-            vals = self.controls.direction.region(self.an.L - l, region.x0, region.y0, region.w, region.h,
-                                                  self.params.period)
+            vals = self.pyr.controls.direction.region(self.pyr.an.L - l, region.x0, region.y0, region.w, region.h,
+                                                  self.pyr.params.period)
         kinds = (True, None)  # the fidelity stage's draws (stages.fidelity_draws)
         if vals is None:
             vals = np.broadcast_to(IDENTITY, (region.h, region.w, 4))
@@ -50,57 +55,45 @@ class StateAccess:
             if not upright.all():
                 ys, xs = np.nonzero(~upright)
                 kinds = (bool(upright.any()), (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1))
-        tex = self.gpu.int_texture((region.w, region.h), 4, vals)
+        tex = self.pyr.gpu.int_texture((region.w, region.h), 4, vals)
         tex.extra = kinds
         return tex
 
-    def _geometry_textures(self, l: int, region: Rect) -> tuple:
+    def geometry_textures(self, l: int, region: Rect) -> tuple:
         """What the passes read of the region's geometry: J (or None), the atlas'
         indirection maps of the level and of its parent (or None), and the shader defines."""
-        dtex = self._direction_texture(l, region)
-        ltex = self._links_texture(l, region)
-        ptex = self._links_texture(l - 1, region.half()) if ltex is not None and l > 0 else None
+        dtex = self.direction_texture(l, region)
+        ltex = self.links_texture(l, region)
+        ptex = self.links_texture(l - 1, region.half()) if ltex is not None and l > 0 else None
         return dtex, ltex, ptex, {**(dict(DIRECTION=True) if dtex is not None else {}),
                                   **(dict(ATLAS=True) if ltex is not None else {})}
 
-    def _links_texture(self, l: int, region: Rect):
+    def links_texture(self, l: int, region: Rect):
         """The indirection map of a mesh's atlas over a region of level l
         (RGBA16I: own chart, the chart its link serves, the link's target), or
         None when not synthesizing in an atlas (engine/surface/atlas.py)."""
-        surface = self.controls.surface
+        surface = self.pyr.controls.surface
         if surface is None:
             return None
-        return self.gpu.int_texture((region.w, region.h), 4, surface.links(self.an.L - l, region.x0, region.y0,
+        return self.pyr.gpu.int_texture((region.w, region.h), 4, surface.links(self.pyr.an.L - l, region.x0, region.y0,
                                                                            region.w, region.h))
 
-    def _release_state(self) -> None:
-        """Drop every level buffer and scratch texture (their format changes)."""
-        self.invalidate(0)
-        self._end_job()
-        for i, buf in enumerate(self.buffers):
-            if buf is not None:
-                buf.release()
-            self.buffers[i] = None
-        for a, fa, b, fb in self._scratch.values():
-            for o in (fa, fb, a, b):
-                o.release()
-        self._scratch.clear()
-
-    def _widen_state(self) -> None:
+    def widen(self) -> None:
         """From 2 to 4 components per texel (a direction field painted for the
         first time): every held texel keeps its coordinate, with a remainder of
         0, which is the same state, so only what the field changes is
         synthesized again. A request in progress is dropped (the next frame asks
         again); a local update in progress is finished first."""
-        self.end_request()
-        if self._job is not None:  # finished first (with what it began with), so what it changed reaches the next level
-            self.settle(None, regions=1)
-        prog, vao = self.gpu.program("remap.frag", SUB_S=self.params.subgrid, WIDEN=True)
-        for buf in self.buffers:
+        pyr = self.pyr
+        pyr.requests.end()
+        if pyr.updates.updating:  # finished first (with what it began with), so what it changed reaches the next level
+            pyr.updates.settle(None, regions=1)
+        prog, vao = pyr.gpu.program("remap.frag", SUB_S=pyr.params.subgrid, WIDEN=True)
+        for buf in pyr.buffers:
             if buf is None or buf.channels == 4:
                 continue
-            tex = self.gpu.int_texture(buf.size, 4)
-            fbo = self.gpu.ctx.framebuffer(color_attachments=[tex])
+            tex = pyr.gpu.int_texture(buf.size, 4)
+            fbo = pyr.gpu.ctx.framebuffer(color_attachments=[tex])
             buf.tex.use(0)  # texel for texel, on the GPU
             set_uniforms(prog, src=0, src_anchor=(0, 0), src_mask=(-1, -1), dest_mask=(-1, -1),
                          region_g0=(0, 0), region_t0=(0, 0))
@@ -110,12 +103,9 @@ class StateAccess:
             buf.fbo.release()
             buf.tex.release()
             buf.tex, buf.fbo, buf.channels = tex, fbo, 4
-        for a, fa, b, fb in self._scratch.values():
-            for o in (fa, fb, a, b):
-                o.release()
-        self._scratch.clear()
+        pyr.drop_scratch()
 
-    def _read_rect(self, buf, r: Rect) -> np.ndarray:
+    def read_rect(self, buf, r: Rect) -> np.ndarray:
         """The held state of ``r`` (H, W, channels) int16, read back piece by piece."""
         c = buf.channels
         out = np.empty((r.h, r.w, c), dtype=np.int16)
@@ -128,13 +118,13 @@ class StateAccess:
         """Exemplar coordinates (H, W, 2) int32 as (x, y) over ``rect`` (the nearest
         texels); must be valid. ``remainder``: (H, W, 4), the sub-pixel remainders
         in 1/256 px after them (0 without a direction field)."""
-        buf = self.buffers[level]
+        buf = self.pyr.buffers[level]
         if buf is None or buf.valid is None or not buf.valid.contains(rect):
             raise SynthesisError(f"Level {level} does not hold {rect}; request it first.")
-        self.gpu.activate()
+        self.pyr.gpu.activate()
         c = buf.channels
         # Only the rectangle's texels come back (in at most four pieces where the buffer wraps).
-        data = self._read_rect(buf, rect)
+        data = self.read_rect(buf, rect)
         if remainder:
             out = np.zeros((rect.h, rect.w, 4), np.int32)
             out[..., :c] = data
@@ -146,15 +136,15 @@ class StateAccess:
         of the upsampled one: ``state`` (H, W, channels) over ``padded(l, strip)``;
         returns the corrected strip, exact (a function of the state within the
         correction's reach; engine/advect.py corrects the frames of a flow so)."""
-        region = self.padded(l, strip)
+        region = self.pyr.padded(l, strip)
         if state.shape[:2] != (region.h, region.w):
             raise SynthesisError(f"The state to correct covers {state.shape[1]}x{state.shape[0]}, not the "
                                  f"padded {region.w}x{region.h}.")
-        self.gpu.activate()
-        scratch = self._scratch_pair(region)
-        rp = self._region_pass(l, strip, scratch)
+        self.pyr.gpu.activate()
+        scratch = self.pyr.scratch_pair(region)
+        rp = self.pyr.strips.region_pass(l, strip, scratch)
         try:
-            s = self.params.subgrid
+            s = self.pyr.params.subgrid
             bstride, boff, size = rp.layout
             ys, xs = np.mgrid[0:region.h, 0:region.w]
             ty = boff[1] + (ys % s) * bstride[1] + ys // s
@@ -164,8 +154,8 @@ class StateAccess:
             scratch[0].write(packed.tobytes(), viewport=(0, 0, size[0], size[1]), alignment=1)
             draws = []
             if rp.level_corrected:
-                draws += correction_draws(rp, self.params.walk_steps(self.an.k, self.controls.avoid is not None))
-            if self.params.fidelity_at(l):
+                draws += correction_draws(rp, self.pyr.params.walk_steps(self.pyr.an.k, self.pyr.controls.avoid is not None))
+            if self.pyr.params.fidelity_at(l):
                 draws += fidelity_draws(rp)
             for d in draws:
                 for _ in d.steps():

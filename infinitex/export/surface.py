@@ -199,7 +199,7 @@ class AtlasRun:
         self.L = gan.analysis.L
         self.pyramid = Pyramid(gpu, gan, params, scrolling=False,
                                controls=replace(controls, surface=atlas, direction=None))
-        self.pyramid.start_request(self.L, Rect(0, 0, atlas.size, atlas.size))
+        self.pyramid.requests.start(self.L, Rect(0, 0, atlas.size, atlas.size))
         self.done = False
         self._areas = [float(4 ** l) for l in range(self.L + 1)]
 
@@ -221,7 +221,7 @@ class AtlasRun:
     def step(self, budget_s: float) -> bool:
         import time
         if not self.done:
-            self.done = self.pyramid.advance_request(time.perf_counter() + budget_s)
+            self.done = self.pyramid.requests.advance(time.perf_counter() + budget_s)
         return self.done
 
     def coords(self, level: int | None = None) -> np.ndarray:

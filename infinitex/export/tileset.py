@@ -206,9 +206,9 @@ class TileSetJob:
         for i, t in enumerate(pieces):
             # A piece's request spread over steps of about STEP_S (one draw of a level at fidelity 4 under load
             # took seconds: the progress bar and Cancel wait for a step, never for a whole piece).
-            pyr.start_request(self.L, t)
-            while not pyr.advance_request(time.perf_counter() + self._step_s):
-                self._piece = (i + min(0.99, pyr.request_pixels / max(1, pyr.request_total))) / len(pieces)
+            pyr.requests.start(self.L, t)
+            while not pyr.requests.advance(time.perf_counter() + self._step_s):
+                self._piece = (i + min(0.99, pyr.requests.pixels / max(1, pyr.requests.total))) / len(pieces)
                 yield
             out[t.y0 - rect.y0:t.y1 - rect.y0, t.x0 - rect.x0:t.x1 - rect.x0] = pyr.read(self.L, t, False)
             self._piece = (i + 1) / len(pieces)

@@ -121,9 +121,9 @@ def test_the_walkthrough_stroke_on_a_model_stays_a_brush_and_ends_exact(model_se
         syncs.append(time.process_time() - t)
         pyr = s.pyramid
         for l in range(s.L + 1):
-            assert len(pyr.dirty[l]) <= DIRTY_RECTS + 16
-            held = pyr.claimed(l)
-            assert all(held is not None and held.contains(r) for r in pyr.dirty[l])
+            assert len(pyr.updates.dirty[l]) <= DIRTY_RECTS + 16
+            held = pyr.requests.claimed(l)
+            assert all(held is not None and held.contains(r) for r in pyr.updates.dirty[l])
         s.refine(frame, 0.02)
         s.model.step(0.02)
     # 47 screen px on this vase span about 15-30 texels inside its outline (a
@@ -195,6 +195,6 @@ def test_any_stroke_on_the_plane_stays_bounded(model_session, zoom_exp, radius, 
             s.sync(replace(doc, randomness_canvas=field))
             assert time.process_time() - t < SYNC_CPU_S
             for l in range(s.L + 1):
-                assert len(s.pyramid.dirty[l]) <= DIRTY_RECTS + 16
+                assert len(s.pyramid.updates.dirty[l]) <= DIRTY_RECTS + 16
         last = pos
     s.sync(model_doc)  # the model back for the module's other tests, whatever their order

@@ -102,21 +102,21 @@ def test_a_request_in_progress_survives_pans_edits_and_paint(session):
         frame = frame_for(View(20000.0, 300.0, 1.0), W, H, session.L)
         for _ in range(100):
             session.refine(frame, 0.0005)
-            if pyr.requesting is not None and not pyr.advance_request(0.0):  # a piece, not the whole request
+            if pyr.requests.current is not None and not pyr.requests.advance(0.0):  # a piece, not the whole request
                 break
-        level, rect = pyr.requesting
+        level, rect = pyr.requests.current
         frame2 = frame_for(View(-90000.0, 300.0, 1.0), W, H, session.L)
         session.refine(frame2, 0.0005)  # the request no longer wanted is dropped
-        assert pyr.requesting is None or pyr.requesting[1] != rect
+        assert pyr.requests.current is None or pyr.requests.current[1] != rect
         for _ in range(100):
             session.refine(frame2, 0.0005)
-            if pyr.requesting is not None:
+            if pyr.requests.current is not None:
                 break
-        assert pyr.requesting is not None
+        assert pyr.requests.current is not None
         p2 = replace(params0, seed=params0.seed + 1)
         session.synth.set_params(p2, controls0)
         pyr.set_params(p2, controls0)
-        assert pyr.requesting is None  # dropped with the levels it depended on
+        assert pyr.requests.current is None  # dropped with the levels it depended on
         for _ in range(5):
             session.refine(frame2, 0.001)
         cx, cy = ((frame2.want.x0 + frame2.want.x1) / 2, (frame2.want.y0 + frame2.want.y1) / 2)
@@ -170,7 +170,7 @@ def test_redrawing_only_what_changed_equals_a_full_redraw(session, gpu, zoom, mo
                     spread += 1
                 if controls is not controls0 and i == 0:
                     # The dab shows in the frame it was made (a quick look), long before it is exact.
-                    assert session.pyramid.patches and not done
+                    assert session.pyramid.looks.patches and not done
                     assert not np.array_equal(a.read(), shown)
                 if done and a.pending is None:
                     break

@@ -34,7 +34,7 @@ def test_direction_dabs_as_local_updates_equal_a_fresh_synthesis(analyses, gpu):
     try:
         vp.show(view)
         orig = view
-        assert pyr.channels == 2
+        assert pyr.state.channels == 2
         plain = vp.read(view)
         dabs = [(50, 40, 30.0), (110, 60, 75.0), (20, 100, -40.0), (900, 900, 10.0)]
         for i, (cx, cy, theta) in enumerate(dabs):

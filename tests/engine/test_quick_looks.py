@@ -27,10 +27,10 @@ def test_a_look_from_exact_levels_is_exact(viewport, coarser):
     pyr = viewport.pyramid
     d = pyr.an.L - coarser
     rect = Rect(view.x0 + 50 >> coarser, view.y0 + 40 >> coarser, view.x0 + 110 >> coarser, view.y0 + 75 >> coarser)
-    assert pyr._make_patch(d, rect) > 0
-    patch = pyr.patches[-1]
+    assert pyr.looks.make_patch(d, rect) > 0
+    patch = pyr.looks.patches[-1]
     assert (patch.level, patch.rect) == (d, rect)
-    assert np.array_equal(pyr._read_rect(patch.buf, rect), pyr._read_rect(pyr.buffers[d], rect))
+    assert np.array_equal(pyr.state.read_rect(patch.buf, rect), pyr.state.read_rect(pyr.buffers[d], rect))
 
 
 def test_a_dab_shows_at_once_and_its_patch_goes_when_exact(viewport, analyses, gpu):
@@ -43,17 +43,17 @@ def test_a_dab_shows_at_once_and_its_patch_goes_when_exact(viewport, analyses, g
     field, _ = CanvasField().painted(view.x0 + 70, view.y0 + 60, 16.0, 0)
     controls = Controls(randomness_canvas=field)
     pyr.update_controls(controls, defer=True)
-    assert pyr.quick_look(L, view) > 0
-    assert len(pyr.patches) == 1
-    patch = pyr.patches[0]
+    assert pyr.looks.look(L, view) > 0
+    assert len(pyr.looks.patches) == 1
+    patch = pyr.looks.patches[0]
     assert patch.rect.contains(Rect.of(view.x0 + 56, view.y0 + 46, 28, 28))
-    look = pyr._read_rect(patch.buf, patch.rect)
+    look = pyr.state.read_rect(patch.buf, patch.rect)
     assert np.array_equal(pyr.read(L, view), held)  # the held levels are untouched
-    assert np.mean(np.any(look != pyr._read_rect(pyr.buffers[L], patch.rect), axis=-1)) > 0.2  # it shows the dab
+    assert np.mean(np.any(look != pyr.state.read_rect(pyr.buffers[L], patch.rect), axis=-1)) > 0.2  # it shows the dab
     fresh = Synthesizer(an, viewport.synth.params, gpu=gpu, controls=controls).window(view)
     r = patch.rect
     jobs = 0
-    while pyr.patches:
+    while pyr.looks.patches:
         pyr.settle(None, regions=1)
         jobs += 1
     # Gone (once a job of its level that started after it ended, with none left
@@ -73,12 +73,12 @@ def test_looks_of_another_level_or_outside_the_view_are_dropped(viewport):
     L = pyr.an.L
     field, _ = CanvasField().painted(580, 560, 16.0, 65535)
     pyr.update_controls(Controls(randomness_canvas=field), defer=True)
-    pyr.quick_look(L, view)
-    assert len(pyr.patches) == 1
-    pyr.quick_look(L - 1, view.half())  # zoomed out: the shown level changed
-    assert not pyr.patches
+    pyr.looks.look(L, view)
+    assert len(pyr.looks.patches) == 1
+    pyr.looks.look(L - 1, view.half())  # zoomed out: the shown level changed
+    assert not pyr.looks.patches
     pyr.settle()
-    assert pyr.settled and not pyr.patches
+    assert pyr.settled and not pyr.looks.patches
 
 
 def _dabs(kind: str, an, x0: int, y0: int):
@@ -121,13 +121,13 @@ def test_dabs_at_balanced_shown_as_looks_end_as_a_fresh_synthesis(analyses, gpu,
         vp.show(view)
         for controls in steps:
             pyr.update_controls(controls, None, defer=True)
-            pyr.quick_look(an.L, view)
-            looks = max(looks, len(pyr.patches))
+            pyr.looks.look(an.L, view)
+            looks = max(looks, len(pyr.looks.patches))
             for _ in range(3):
                 pyr.settle(0.0)
         while not pyr.settle(0.0):
             pass
-        assert looks > 0 and not pyr.patches
+        assert looks > 0 and not pyr.looks.patches
         fresh = Synthesizer(an, params, gpu=gpu, controls=steps[-1]).window(view, remainder=kind == "comb")
         assert np.array_equal(pyr.read(an.L, view, remainder=kind == "comb"), fresh)
     finally:

@@ -150,7 +150,7 @@ class Canvas:
         25 ms on llvmpipe, so a redraw of more than REDRAW_PX canvas pixels is
         spread over frames, that many a frame, the rest kept in ``pending``)."""
         key = (source, *self._view_key(frame, view, display, geom))
-        touched = pyramid.take_touched()
+        touched = pyramid.requests.take_touched()
         if key != self.shown_key or force or touched is None:
             self.render(pyramid, frame, view, display, geom)
             self.shown_key = key
@@ -227,10 +227,10 @@ class Canvas:
         light = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
         alpha = int(self.channels in (2, 4))
         # Coarse first, finer partial levels on top; then the quick looks at the
-        # edits (Pyramid.quick_look) over the shown level until it is exact
+        # edits (QuickLooks.look) over the shown level until it is exact
         # there, blended in at their edges.
         draws = [(l, pyramid.buffers[l], i > 0, None) for i, l in enumerate(reversed(levels))]
-        draws += [(p.level, p.buf, True, p.rect) for p in pyramid.patches if p.level == frame.level]
+        draws += [(p.level, p.buf, True, p.rect) for p in pyramid.looks.patches if p.level == frame.level]
         ctx = self.gpu.ctx
         for l, buf, clip, patch in draws:
             k = L - l
