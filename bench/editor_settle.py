@@ -12,7 +12,7 @@ max. The issue's targets: after the pan 0.5 s / 2 s, after the release exact
 within 1.5 s, p90 frame time 33 ms; at a load of 2 (``--load 2``: two busy
 processes beside the editor, both cores of this machine) the pan exact within
 3 s. Frames while nothing is touched may take up to about 90 ms (the
-refinement goes on until input arrives, CanvasRefineMixin._work). Prints a
+refinement goes on until input arrives, CanvasRefine._work). Prints a
 table, writes JSON.
 """
 from __future__ import annotations

@@ -42,19 +42,19 @@ def main(out: str) -> int:
         ctx.yield_(2)
         ctx.item_click("**/64k##square")  # 65536 x 65536, BigTIFF
         ctx.yield_(2)
-        frames_until(ctx, lambda: ed.estimate is not None and ed.estimate.poll(), 120)
+        frames_until(ctx, lambda: ed.exports.settings.estimate is not None and ed.exports.settings.estimate.poll(), 120)
         ctx.yield_(3)
         ctx.item_click("**/Export rectangle...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", os.path.join(folder, "terrain.tif"))
-        frames_until(ctx, lambda: ed.export_job is None or ed.export_job.rate() is not None, 120)
-        frames_until(ctx, lambda: ed.export_job is None or ed.export_job.done_tiles >= 4, 60)
+        frames_until(ctx, lambda: ed.exports.job is None or ed.exports.job.rate() is not None, 120)
+        frames_until(ctx, lambda: ed.exports.job is None or ed.exports.job.done_tiles >= 4, 60)
         ctx.mouse_move_to_pos((900, 600))
         ctx.yield_(3)
         testing.capture(ctx, out)
-        if ed.export_job is not None:
-            ed.export_job.cancel()
-        frames_until(ctx, lambda: ed.export_job is None, 120)
+        if ed.exports.job is not None:
+            ed.exports.job.cancel()
+        frames_until(ctx, lambda: ed.exports.job is None, 120)
 
     try:
         testing.run(test_function=test, runner_params=ed.runner_params(), run_speed=testing.TestRunSpeed.fast)

@@ -32,7 +32,7 @@ def main(out: str) -> int:
             time.sleep(0.01)
 
     def ready():
-        return ed.session is not None and ed.session.ready and ed.refined and ed.pending is None
+        return ed.session is not None and ed.session.ready and ed.refined and ed.files.pending is None
 
     def test(ctx):
         frames_until(ctx, ready, 600)

@@ -39,9 +39,9 @@ def main(out: str) -> int:
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", path)
         ctx.yield_(3)
-        ed.set_surface("Model texture scale", repeats=5.0)
-        ed.show_seams = True
-        ed.camera = ed.camera.orbit(-25.0, -5.0)
+        ed.model.set_surface("Model texture scale", repeats=5.0)
+        ed.model.show_seams = True
+        ed.model.camera = ed.model.camera.orbit(-25.0, -5.0)
         h.settle(ctx, 900)
         # A comb stroke down the vase's right side (the bricks turn to run along it) and a feature.
         r = ctx.item_info("//**/canvas").rect_full

@@ -14,6 +14,7 @@ PACKAGE = os.path.join(ROOT, "infinitex")
 LAYERS = {"engine": 0, "project": 1, "export": 2, "cli": 3, "app": 3}
 MAX_FILE_LINES = 600
 MAX_CLASS_LINES = 400
+MAX_ENGINE_FUNCTION_LINES = 80
 
 
 def _modules():
@@ -87,6 +88,19 @@ def test_no_source_file_or_class_too_long(rule):
             for node in ast.walk(ast.parse(src)):
                 if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > MAX_CLASS_LINES:
                     long.append(f"{rel}: class {node.name}, {node.end_lineno - node.lineno + 1} lines")
+    assert not long, "\n".join(long)
+
+
+def test_no_engine_function_too_long():
+    """An engine function a reader can hold: at most 80 lines (a longer one is
+    parts that want names of their own)."""
+    long = []
+    for path, module, _ in _modules():
+        if _layer(module) == "engine":
+            for node in ast.walk(ast.parse(open(path, encoding="utf-8").read())):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) \
+                        and node.end_lineno - node.lineno + 1 > MAX_ENGINE_FUNCTION_LINES:
+                    long.append(f"{os.path.relpath(path, ROOT)}: {node.name}, {node.end_lineno - node.lineno + 1} lines")
     assert not long, "\n".join(long)
 
 
@@ -276,20 +290,27 @@ def test_every_shader_comes_from_files_through_one_loader():
                                  'VERT = """\n#version 330 core\nvoid main() {}\n"""\nq = gpu.program("copy.frag")\n') == [1, 2]
 
 
-EDITOR_MODULES = ("editor.py", "files.py", "exports.py", "canvas_input.py", "canvas_refine.py", "shortcuts.py",
-                  "model_mode.py")
+# The editor's parts: Editor.<attribute> -> the module that defines the part (its own state).
+EDITOR_PARTS = {"files": "files.py", "exports": "exports.py", "canvas_input": "canvas_input.py",
+                "refinement": "canvas_refine.py", "shortcuts": "shortcuts.py", "model": "model_mode.py"}
 
 
-def _editor_writes(src: str, own: bool) -> set[str]:
-    """The Editor attributes a module assigns (``self.x`` in the Editor's own
-    modules, ``ed.x`` anywhere), not counting their first values (``__init__``
-    and the mixins' ``_init_*``)."""
+def _editor_writes(src: str, own: str | None) -> set[str]:
+    """The editor's state a module assigns, not counting first values
+    (``__init__``): ``x`` for the Editor's attribute (``ed.x``, ``self.ed.x``
+    anywhere; ``self.x`` in editor.py, ``own == ""``), ``part.x`` for a part's
+    (``ed.part.x``, ``self.ed.part.x`` anywhere; ``self.x`` in the part's own
+    module, ``own == part``)."""
     out = set()
     tree = ast.parse(src)
     skip = set()
     for node in ast.walk(tree):
-        if isinstance(node, ast.FunctionDef) and own and (node.name == "__init__" or node.name.startswith("_init_")):
+        if isinstance(node, ast.FunctionDef) and own is not None and node.name == "__init__":
             skip |= {id(n) for n in ast.walk(node)}
+
+    def editor(v) -> bool:  # ed, editor, self.ed
+        return (isinstance(v, ast.Name) and v.id in ("ed", "editor")) or (
+            isinstance(v, ast.Attribute) and v.attr == "ed" and isinstance(v.value, ast.Name))
     for node in ast.walk(tree):
         if id(node) in skip:
             continue
@@ -300,29 +321,49 @@ def _editor_writes(src: str, own: bool) -> set[str]:
                 if not isinstance(x, ast.Attribute):
                     continue
                 v = x.value
-                if (isinstance(v, ast.Name) and ((own and v.id == "self") or v.id in ("ed", "editor"))) \
-                        or (isinstance(v, ast.Attribute) and v.attr == "ed" and isinstance(v.value, ast.Name)):
-                    out.add(x.attr)  # self.x in the Editor's modules; ed.x, self.ed.x anywhere
+                if isinstance(v, ast.Name) and v.id == "self" and own is not None:
+                    out.add(f"{own}.{x.attr}" if own else x.attr)
+                elif editor(v):
+                    out.add(x.attr)
+                elif isinstance(v, ast.Attribute) and v.attr in EDITOR_PARTS and editor(v.value):
+                    out.add(f"{v.attr}.{x.attr}")
     return out
 
 
 def test_editor_state_has_one_writer():
     """Each piece of the editor's state is written from one module (its owner:
     Viewer for the view and the display, CanvasState for what the canvas did,
-    Preferences for the user's settings, the Export panel for ExportSettings...)."""
+    Preferences for the user's settings, the Export panel for ExportSettings,
+    each of the editor's parts for its own state...)."""
     base = os.path.join(PACKAGE, "app", "ui")
+    owner = {os.path.join(base, m): part for part, m in EDITOR_PARTS.items()} | {os.path.join(base, "editor.py"): ""}
     writers: dict[str, set[str]] = {}
     for folder, _, files in os.walk(base):
         for name in files:
             if name.endswith(".py"):
                 path = os.path.join(folder, name)
-                own = folder == base and name in EDITOR_MODULES
-                for attr in _editor_writes(open(path, encoding="utf-8").read(), own):
+                for attr in _editor_writes(open(path, encoding="utf-8").read(), owner.get(path)):
                     writers.setdefault(attr, set()).add(os.path.relpath(path, base))
     shared = {a: sorted(w) for a, w in writers.items() if len(w) > 1}
     assert not shared, shared
-    assert _editor_writes("def f(ed):\n    ed.view = 1\n    ed.a.b = 2\n    _, ed.c = 1, 2\n    self.ed.d = 3\n",
-                          False) == {"view", "c", "d"}
+    assert _editor_writes("def f(ed):\n    ed.view = 1\n    ed.a.b = 2\n    _, ed.c = 1, 2\n    self.ed.d = 3\n"
+                          "    ed.files.e = 4\n    self.ed.model.f = 5\n    self.g = 6\n", None) \
+        == {"view", "c", "d", "files.e", "model.f"}
+    assert _editor_writes("def __init__(self):\n    self.a = 1\ndef f(self):\n    self.b = 2\n", "model") == {"model.b"}
+
+
+def test_the_editor_is_composed_not_mixed_in():
+    """No class of the package has two or more bases defined in the package
+    (the editor's and the pyramid's parts are collaborators with their own
+    state, not mixins sharing one ``self``)."""
+    classes = {}
+    for path, _, _ in _modules():
+        for node in ast.walk(ast.parse(open(path, encoding="utf-8").read())):
+            if isinstance(node, ast.ClassDef):
+                classes.setdefault(node.name, []).append((os.path.relpath(path, ROOT), node))
+    mixed = [f"{rel}: class {node.name}" for found in classes.values() for rel, node in found
+             if sum(isinstance(b, ast.Name) and b.id in classes for b in node.bases) > 1]
+    assert not mixed, "\n".join(mixed)
 
 
 def test_the_fast_sets_long_tests_exist():

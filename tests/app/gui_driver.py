@@ -218,8 +218,8 @@ def main(out: str) -> int:
         check("reopened canvas is identical", np.array_equal(f, h), "canvas differs after reopening")
 
         # Export a toroidal tile through the Export panel, with its coordinate map.
-        ed.export_settings.tile_size = 64
-        ed.export_settings.write_coords = True
+        ed.exports.settings.tile_size = 64
+        ed.exports.settings.write_coords = True
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Export toroidal tile...")
         ctx.yield_(2)
@@ -230,7 +230,7 @@ def main(out: str) -> int:
         ctx.yield_(2)
         tile_path = os.path.join(out, "tile.png")
         ctx.item_input_value("//**/##path", tile_path)
-        wait(ctx, lambda: ed.export_job is None, 180)  # an export in a process of its own
+        wait(ctx, lambda: ed.exports.job is None, 180)  # an export in a process of its own
         ctx.yield_(3)
         ok = os.path.isfile(tile_path) and os.path.isfile(os.path.join(out, "tile_coords.png"))
         check("toroidal tile exported", ok, "missing files")
@@ -248,7 +248,7 @@ def main(out: str) -> int:
         with open(bad, "w") as fh:
             fh.write("{ not json")
         before = ed.doc
-        ed.open_path(bad)
+        ed.files.open_path(bad)
         ctx.yield_(3)
         check("broken project leaves the document", ed.doc is before, "document changed")
         check("broken project shows a message", any("not an Infinitex project" in m.body
@@ -266,19 +266,19 @@ def main(out: str) -> int:
         with open(outside, "w") as fh:
             json.dump(d, fh)
         before = ed.doc
-        ed.open_path(outside)
+        ed.files.open_path(outside)
         ctx.yield_(3)
         check("outside exemplar asks first", any("outside the project's folder" in m.body
                                                  for m in ed.dialogs.modals), "no question")
         ctx.item_click("//**/Cancel")
         ctx.yield_(3)
         check("cancel leaves the document", ed.doc is before and not ed.dialogs.modals, "document changed")
-        ed.open_path(outside)
+        ed.files.open_path(outside)
         ctx.yield_(3)
         ctx.item_click("//**/Read it")
         settle(ctx)
-        check("read it opens the project", ed.doc.seed == 77 and ed.project_path == outside,
-              f"seed {ed.doc.seed}, path {ed.project_path}")
+        check("read it opens the project", ed.doc.seed == 77 and ed.files.project_path == outside,
+              f"seed {ed.doc.seed}, path {ed.files.project_path}")
 
         # Quitting with unsaved edits asks; Cancel keeps the editor running.
         ctx.item_click("//**/New seed")
@@ -288,7 +288,7 @@ def main(out: str) -> int:
         check("quit with unsaved edits asks", any("unsaved" in m.body for m in ed.dialogs.modals), "no question")
         ctx.item_click("//**/Cancel")
         ctx.yield_(3)
-        check("cancel keeps the editor", not ed.quit_requested and not ed.dialogs.modals, "quitting")
+        check("cancel keeps the editor", not ed.files.quit_requested and not ed.dialogs.modals, "quitting")
         check("no test-engine errors", not ctx.is_error(), "an interaction failed (see the log)")
         testing.capture(ctx, os.path.join(out, "final.png"))
 

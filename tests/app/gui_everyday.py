@@ -47,7 +47,7 @@ def main(out: str) -> int:
         ctx.yield_(40)
         shown_while_dragging = widgets.TIP_FRAME[0] >= imgui.get_frame_count() - 2
         ctx.mouse_up(0)
-        ed.undo()
+        ed.files.undo()
         ctx.yield_(2)
         check("no tooltip while a slider is dragged", not shown_while_dragging, "the tooltip stayed")
         for header in ("Randomness", "Exemplar", "Display"):  # make room: Advanced is the last section
@@ -72,7 +72,7 @@ def main(out: str) -> int:
         check("a scale's passes reach the synthesis", ed.doc.passes_for(L)[L] == 3
               and ed.session.params.passes_at(L) == 3 and ed.session.params.passes_at(L - 1) == 2,
               f"{ed.doc.level_passes} {ed.session.params}")
-        ed.undo()
+        ed.files.undo()
         settle(ctx)
         check("undo restores the passes", ed.doc.level_passes == () and ed.session.params.level_passes is None,
               f"{ed.doc.level_passes}")
@@ -103,11 +103,11 @@ def main(out: str) -> int:
         ctx.key_press(imgui.Key._1)
         ctx.key_press(imgui.Key.f1)
         ctx.yield_(2)
-        check("F1 shows the shortcuts", ed.show_shortcuts and ctx.window_info("//Shortcuts (F1)").window is not None,
+        check("F1 shows the shortcuts", ed.shortcuts.listed and ctx.window_info("//Shortcuts (F1)").window is not None,
               "no window")
         ctx.key_press(imgui.Key.f1)
         ctx.yield_(2)
-        check("F1 hides them again", not ed.show_shortcuts, "still shown")
+        check("F1 hides them again", not ed.shortcuts.listed, "still shown")
 
         # Without a native chooser, File > Open is the in-window file browser (browser.py).
         ed.dialogs.prompt = False
@@ -136,7 +136,7 @@ def main(out: str) -> int:
 
         # Tile mode: the canvas shows the periodic texture of the tile size (T toggles it).
         import numpy as np
-        ed.export_settings.tile_size = 64
+        ed.exports.settings.tile_size = 64
         ctx.mouse_move("**/canvas")
         ctx.key_press(imgui.Key.t)
         a = canvas(ctx)
@@ -148,22 +148,22 @@ def main(out: str) -> int:
               and not np.array_equal(b[:, :-64], b[:, 64:]), "still periodic")
 
         # The title names the document and its unsaved state.
-        check("title of a new document", ed.title == "untitled (gravel.png) - Infinitex", ed.title)
+        check("title of a new document", ed.files.title == "untitled (gravel.png) - Infinitex", ed.files.title)
         ctx.set_ref("//Infinitex")
         ctx.item_click("**/New seed")
         ctx.yield_(2)
-        check("title marks unsaved edits", ed.title.startswith("*untitled"), ed.title)
+        check("title marks unsaved edits", ed.files.title.startswith("*untitled"), ed.files.title)
 
         # Opening an image with unsaved edits asks, offering Save; Discard opens it as a new document.
-        ed.confirm_discard(lambda: ed.open_path(BRICK))
+        ed.files.confirm_discard(lambda: ed.files.open_path(BRICK))
         ctx.yield_(3)
         modal = ed.dialogs.modals[0] if ed.dialogs.modals else None
         check("unsaved edits: Save offered", modal is not None and [b for b, _ in modal.buttons] ==
               ["Save", "Discard", "Cancel"], str(modal and modal.buttons))
         ctx.item_click("//**/Discard")
         settle(ctx)
-        check("an image opens as a new document", ed.doc.exemplar.name == "brick.png" and ed.project_path is None
-              and not ed.history.can_undo() and not ed.history.dirty, f"{ed.doc.exemplar.name} {ed.project_path}")
+        check("an image opens as a new document", ed.doc.exemplar.name == "brick.png" and ed.files.project_path is None
+              and not ed.history.can_undo() and not ed.history.dirty, f"{ed.doc.exemplar.name} {ed.files.project_path}")
         check("open recent lists it", ed.prefs.settings.recent and ed.prefs.settings.recent[0] == os.path.abspath(BRICK),
               str(ed.prefs.settings.recent))
         # The brick photo does not tile: Make tileable is offered; it is one undo step.
@@ -174,11 +174,11 @@ def main(out: str) -> int:
         settle(ctx)
         check("make tileable reaches the synthesis", ed.doc.make_tileable and ed.session.exemplar.toroidal
               and ed.session.analysis.toroidal, f"{ed.doc.make_tileable} {ed.session.exemplar.toroidal}")
-        ed.undo()
+        ed.files.undo()
         settle(ctx)
         check("undo turns it off", not ed.doc.make_tileable and not ed.session.exemplar.toroidal,
               f"{ed.doc.make_tileable}")
-        ed.open_path(GRAVEL)
+        ed.files.open_path(GRAVEL)
         settle(ctx)
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Open Recent/brick.png##recent1")
@@ -193,14 +193,14 @@ def main(out: str) -> int:
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", proj)
         ctx.yield_(2)
-        check("saved title", ed.title == "bricks.itex - Infinitex", ed.title)
+        check("saved title", ed.files.title == "bricks.itex - Infinitex", ed.files.title)
         check("a saved project is recent too", ed.prefs.settings.recent[0] == os.path.abspath(proj), str(ed.prefs.settings.recent))
         target = os.path.join(out, "view.png")
         ctx.set_ref("//Infinitex")
         ctx.menu_click("File/Export view as PNG...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
-        wait(ctx, lambda: ed.export_job is None, 180)  # an export in a process of its own
+        wait(ctx, lambda: ed.exports.job is None, 180)  # an export in a process of its own
         ctx.yield_(2)
         check("an export says where it wrote", ed.notice is not None and os.path.abspath(target) in ed.notice[0]
               and os.path.isfile(target), str(ed.notice))

@@ -65,20 +65,20 @@ def main(out: str) -> int:
             ctx.item_close(f"**/{header}")
         ctx.item_open("**/Export")
         ctx.yield_(2)
-        ed.export_settings.rect = list(TIFF_RECT)
+        ed.exports.settings.rect = list(TIFF_RECT)
         choose(ctx, "Format", "BigTIFF (tiled)")
         ctx.yield_(2)
-        check("the format is chosen in the panel", ed.export_settings.format == "tiff", ed.export_settings.format)
+        check("the format is chosen in the panel", ed.exports.settings.format == "tiff", ed.exports.settings.format)
         choose(ctx, "Tile##stream", "256")
-        ed.export_settings.workers = 1
+        ed.exports.settings.workers = 1
         ctx.yield_(2)
-        check("an estimate starts in the background", ed.export_settings.estimate is not None and ed.export_settings.estimate.key[1:] == ("tiff", 256),
-              str(ed.export_settings.estimate and ed.export_settings.estimate.key))
-        measured = wait(ctx, lambda: ed.export_settings.estimate is not None and ed.export_settings.estimate.poll(), 120)
-        text, low = ed.export_settings.estimate.describe(TIFF_RECT[2], TIFF_RECT[3], 1, out)
-        check("size and time are estimated before starting", measured and ed.export_settings.estimate.result is not None
+        check("an estimate starts in the background", ed.exports.settings.estimate is not None and ed.exports.settings.estimate.key[1:] == ("tiff", 256),
+              str(ed.exports.settings.estimate and ed.exports.settings.estimate.key))
+        measured = wait(ctx, lambda: ed.exports.settings.estimate is not None and ed.exports.settings.estimate.poll(), 120)
+        text, low = ed.exports.settings.estimate.describe(TIFF_RECT[2], TIFF_RECT[3], 1, out)
+        check("size and time are estimated before starting", measured and ed.exports.settings.estimate.result is not None
               and re.match(r"About [\d.]+ (KB|MB|GB) and [\d.]+ (s|min|h) with 1 worker\.$", text) is not None
-              and not low, f"{text} {ed.export_settings.estimate.error}")
+              and not low, f"{text} {ed.exports.settings.estimate.error}")
         testing.capture(ctx, os.path.join(out, "export-panel.png"))
 
         # A BigTIFF by a worker process; the editor keeps drawing meanwhile.
@@ -87,13 +87,13 @@ def main(out: str) -> int:
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
         ctx.yield_(2)
-        started = ed.export_job is not None and hasattr(ed.export_job, "done_tiles")
-        check("the export runs as a streamed job", started, repr(ed.export_job))
+        started = ed.exports.job is not None and hasattr(ed.exports.job, "done_tiles")
+        check("the export runs as a streamed job", started, repr(ed.exports.job))
         frames0 = ed.frame_count
         t0 = time.monotonic()
         seen_progress = False
-        while ed.export_job is not None and time.monotonic() - t0 < 300:
-            job = ed.export_job
+        while ed.exports.job is not None and time.monotonic() - t0 < 300:
+            job = ed.exports.job
             seen_progress = seen_progress or 0 < job.done_tiles < job.job.total
             ctx.yield_()
             time.sleep(0.01)
@@ -105,7 +105,7 @@ def main(out: str) -> int:
               and os.path.isfile(target) and not os.path.exists(target + ".parts"), str(ed.notice))
 
         # A tile set, cancelled in the progress window, then resumed.
-        ed.export_settings.rect = list(TILES_RECT)
+        ed.exports.settings.rect = list(TILES_RECT)
         ctx.set_ref("//Infinitex")
         choose(ctx, "Format", "PNG tiles (UDIM)")
         ctx.yield_(2)
@@ -114,11 +114,11 @@ def main(out: str) -> int:
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", tiles)
         ctx.yield_(2)
-        running = wait(ctx, lambda: ed.export_job is not None and ed.export_job.done_tiles >= 3, 120)
-        check("the tile set starts", running, repr(ed.export_job))
+        running = wait(ctx, lambda: ed.exports.job is not None and ed.exports.job.done_tiles >= 3, 120)
+        check("the tile set starts", running, repr(ed.exports.job))
         ctx.item_click("//Exporting###export/Cancel")
         t0 = time.monotonic()
-        stopped = wait(ctx, lambda: ed.export_job is None, 120)
+        stopped = wait(ctx, lambda: ed.exports.job is None, 120)
         check("Cancel stops it soon, keeping the tiles", stopped and time.monotonic() - t0 < 30
               and ed.notice is not None and "tiles are kept" in ed.notice[0]
               and os.path.isdir(tiles + ".parts"), str(ed.notice))
@@ -128,37 +128,37 @@ def main(out: str) -> int:
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", tiles)
         ctx.yield_(2)
-        done = wait(ctx, lambda: ed.export_job is None, 300)
+        done = wait(ctx, lambda: ed.exports.job is None, 300)
         check("the same export continues from the kept tiles", done and ed.notice is not None
               and f"({kept} tiles kept from an earlier run)" in ed.notice[0] and kept >= 3, f"{kept} {ed.notice}")
         ctx.set_ref("//Infinitex")
         choose(ctx, "Format", "PNG image")
-        ed.export_settings.rect = [0, 0, 20000, 100]
+        ed.exports.settings.rect = [0, 0, 20000, 100]
         ctx.yield_(3)
-        check("too large for one PNG is said, not attempted", ed.export_settings.format == "png", ed.export_settings.format)
+        check("too large for one PNG is said, not attempted", ed.exports.settings.format == "png", ed.exports.settings.format)
 
         # A PNG export runs in a process of its own: the canvas stays live (a
         # pan refines meanwhile) and a second export waits in the queue.
         names = [os.path.join(out, f"apart{i}.png") for i in (1, 2)]
         for rect, name in zip(APART_RECTS, names):
-            ed.export_settings.rect = list(rect)
+            ed.exports.settings.rect = list(rect)
             ctx.yield_(2)
             ctx.item_click("**/Export rectangle...")
             ctx.yield_(2)
             ctx.item_input_value("//**/##path", name)
             ctx.yield_(2)
-        check("a PNG export runs in a process of its own", type(ed.export_job).__name__ == "BackgroundExport",
-              repr(ed.export_job))
-        check("a second export waits in the queue", len(ed.export_queue) == 1, str(ed.export_queue))
+        check("a PNG export runs in a process of its own", type(ed.exports.job).__name__ == "BackgroundExport",
+              repr(ed.exports.job))
+        check("a second export waits in the queue", len(ed.exports.queue) == 1, str(ed.exports.queue))
         v0 = ed.view
         ed.viewer.center(v0.x + 400, v0.y)
         frames0, t0 = ed.frame_count, time.monotonic()
         refined = wait(ctx, lambda: ed.refined, 120)
-        busy = ed.export_job is not None
+        busy = ed.exports.job is not None
         check("the canvas refines a pan while the export runs", refined and busy,
               f"refined {refined}, still exporting {busy}, {ed.frame_count - frames0} frames in "
               f"{time.monotonic() - t0:.1f} s")
-        done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 300)
+        done = wait(ctx, lambda: ed.exports.job is None and not ed.exports.queue, 300)
         check("both exports are written, in order", done and all(os.path.isfile(n) for n in names)
               and os.path.getmtime(names[0]) <= os.path.getmtime(names[1]) and ed.notice is not None
               and os.path.abspath(names[1]) in ed.notice[0], f"{done} {ed.notice}")

@@ -42,7 +42,7 @@ class Harness:
         while time.monotonic() - t0 < limit_s:
             ctx.yield_()
             if (ed.session is not None and ed.session.ready and ed.doc is not None and ed.refined
-                    and ed.pending is None and ed.session.job is None):
+                    and ed.files.pending is None and ed.session.job is None):
                 return
         raise RuntimeError("the editor did not settle")
 
@@ -69,8 +69,8 @@ class Harness:
     def peek(self, ctx):
         """What the canvas shows now (RGB), read back in a frame without
         waiting for the refinement or forcing a redraw."""
-        self.ed.canvas_peek = True
-        while self.ed.canvas_peek:
+        self.ed.refinement.peek_asked = True
+        while self.ed.refinement.peek_asked:
             ctx.yield_()
         return self.ed.canvas_state.read_back
 

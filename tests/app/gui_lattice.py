@@ -47,8 +47,8 @@ def main(out: str) -> int:
         found = ed.doc.lattice
         check("opening the image finds its lattice", found is not None and abs(found.t1[0] - 40) < 0.5
               and abs(abs(found.t2[0]) - 20) < 0.5 and abs(found.t2[1] - 18) < 0.5, str(found))
-        check("the Exemplar panel says it was found", ed.found_lattice is not None
-              and ed.found_lattice.lattice == found, str(ed.found_lattice))
+        check("the Exemplar panel says it was found", ed.files.found_lattice is not None
+              and ed.files.found_lattice.lattice == found, str(ed.files.found_lattice))
         # The image's quick preview showed first; the lattice, found behind it, is one undo step with a notice.
         check("the lattice found after the first texture is one undo step", ed.history.undo_label() == "Lattice found"
               and ed.notice is not None and "Found a lattice" in ed.notice[0], ed.history.undo_label())
@@ -178,7 +178,7 @@ def main(out: str) -> int:
         # What the tool said of this document goes with it: another document opens clean.
         ed.tool.message = "a message about this document's lattice"
         ed.history.mark_saved()
-        ed.open_path(os.path.join(HERE, "infinitex", "assets", "gravel.png"))
+        ed.files.open_path(os.path.join(HERE, "infinitex", "assets", "gravel.png"))
         settle(ctx)
         tool = next(t for t in ed.tools if t.name == "lattice")
         check("another document's panel starts without the last one's message",

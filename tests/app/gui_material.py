@@ -112,7 +112,7 @@ def main(out: str) -> int:
         ctx.menu_click("File/Export view as PNG...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", target)
-        wait(ctx, lambda: ed.export_job is None, 180)  # an export in a process of its own
+        wait(ctx, lambda: ed.exports.job is None, 180)  # an export in a process of its own
         names = sorted(n for n in os.listdir(out) if n.startswith("view"))
         check("File > Export view writes every map", names == ["view_basecolor.png", "view_height.png",
                                                                "view_normal.png"]

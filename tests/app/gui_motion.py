@@ -160,7 +160,7 @@ def main(out: str) -> int:
         path = os.path.join(out, "flow_atlas.png")
         from infinitex.app.ui.panels.motion import start_export
         start_export(ed, path)
-        done = wait(ctx, lambda: ed.export_job is None and os.path.exists(path), 300)
+        done = wait(ctx, lambda: ed.exports.job is None and os.path.exists(path), 300)
         check("Export animation writes a flipbook atlas", done, "not written")
         if done:
             meta = json.load(open(os.path.splitext(path)[0] + ".json"))

@@ -86,7 +86,7 @@ def main(out: str) -> int:
         frames = []
         t0 = time.monotonic()
         while time.monotonic() - t0 < 60 and not (ed.refined and ed.session.refiner is not None
-                                                  and not ed.hold.waiting and ed.doc.structure == 3):
+                                                  and not ed.refinement.hold.waiting and ed.doc.structure == 3):
             frames.append(h.peek(ctx).copy())
         check("the Structure preset is set", ed.doc.structure == 3, str(ed.doc.structure))
         distinct = [frames[i] for i in range(1, len(frames)) if not np.array_equal(frames[i], frames[i - 1])]

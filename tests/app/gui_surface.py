@@ -44,14 +44,14 @@ def main(out: str) -> int:
     def atlas_now(ctx):
         """The finished atlas's coordinates, read by the editor itself during a frame (GL is the main thread's)."""
         settle(ctx)
-        ed.atlas_request = True
+        ed.model.atlas_request = True
         t0 = time.monotonic()
-        while ed.atlas_request:
+        while ed.model.atlas_request:
             if time.monotonic() - t0 > 120 or not ed.model_mode:
-                ed.atlas_request = False
+                ed.model.atlas_request = False
                 return None
             ctx.yield_()
-        return ed.atlas_read
+        return ed.model.atlas_read
 
     def test(ctx) -> None:
         settle(ctx)
@@ -85,7 +85,7 @@ def main(out: str) -> int:
         # Orbit with the middle button, then the left (Navigate), and zoom: the view moves, the texture stays.
         r = ctx.item_info("//**/canvas").rect_full
         cx, cy = (r.min.x + r.max.x) / 2, (r.min.y + r.max.y) / 2
-        cam0 = ed.camera
+        cam0 = ed.model.camera
         ctx.mouse_move_to_pos((cx, cy))
         ctx.mouse_down(2)
         ctx.mouse_move_to_pos((cx + 120, cy + 30))
@@ -96,7 +96,7 @@ def main(out: str) -> int:
         ctx.mouse_up(0)
         ctx.mouse_wheel((0, 2))
         ctx.yield_(2)
-        cam1 = ed.camera
+        cam1 = ed.model.camera
         check("the mouse orbits and zooms", cam1.yaw != cam0.yaw and cam1.pitch != cam0.pitch
               and cam1.distance < cam0.distance, f"{cam0} -> {cam1}")
         orbited = canvas(ctx)
@@ -132,10 +132,10 @@ def main(out: str) -> int:
         redder = (with_heat[..., 0] - with_heat[..., 2] > plain[..., 0] - plain[..., 2])[heat]
         check("Show painted shows the stroke on the model, rough in red", heat.sum() > 200 and redder.mean() > 0.9,
               f"{heat.sum()} pixels, {redder.mean() if heat.any() else 0:.2f} redder")
-        ed.show_seams = True
+        ed.model.show_seams = True
         settle(ctx)
         testing.capture(ctx, os.path.join(out, "model-editor.png"))
-        ed.show_seams = False
+        ed.model.show_seams = False
         ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
         check("undo restores the atlas exactly", np.array_equal(atlas_now(ctx), first), "atlas differs")
 
@@ -237,7 +237,7 @@ def main(out: str) -> int:
               == os.path.splitext(ed.doc.surface.model.name)[0] + "_textured.glb", str(req and req.default))
         ctx.item_input_value("//**/##path", glb)
         ctx.yield_(3)
-        while ed.export_job is not None:
+        while ed.exports.job is not None:
             ctx.yield_()
         ok = os.path.exists(glb) and os.path.exists(os.path.join(out, "cube_gravel_basecolor.png"))
         if ok:

@@ -53,15 +53,15 @@ def main(out: str) -> int:
             ctx.item_close(f"**/{header}")
         ctx.item_open("**/Export")
         ctx.yield_(2)
-        ed.export_settings.rect = [0, 0, 512, 512]
+        ed.exports.settings.rect = [0, 0, 512, 512]
         ctx.yield_(2)
         ctx.item_click("**/Export rectangle...")
         ctx.yield_(2)
         ctx.item_input_value("//**/##path", os.path.join(out, "big.png"))
         ctx.yield_(2)
-        check("an export runs apart", type(ed.export_job).__name__ == "BackgroundExport", repr(ed.export_job))
+        check("an export runs apart", type(ed.exports.job).__name__ == "BackgroundExport", repr(ed.exports.job))
         # Held still until the tile set is queued behind it (it must not end first on a quiet machine).
-        pid = getattr(getattr(ed.export_job, "proc", None), "pid", None)
+        pid = getattr(getattr(ed.exports.job, "proc", None), "pid", None)
         if pid:
             os.kill(pid, signal.SIGSTOP)
             held.append(pid)
@@ -110,11 +110,11 @@ def main(out: str) -> int:
         ctx.set_ref("//Infinitex")
         ctx.item_input_value("//**/##path", target)
         ctx.yield_(2)
-        check("the tile set waits behind the running export", len(ed.export_queue) == 1
-              and type(ed.export_job).__name__ == "BackgroundExport", f"{ed.export_job} {ed.export_queue}")
+        check("the tile set waits behind the running export", len(ed.exports.queue) == 1
+              and type(ed.exports.job).__name__ == "BackgroundExport", f"{ed.exports.job} {ed.exports.queue}")
         for pid in held:
             os.kill(pid, signal.SIGCONT)
-        done = wait(ctx, lambda: ed.export_job is None and not ed.export_queue, 540)  # (a loaded machine: minutes)
+        done = wait(ctx, lambda: ed.exports.job is None and not ed.exports.queue, 540)  # (a loaded machine: minutes)
         ctx.yield_(2)
         files = ["big.png", "set.png", "set.json", "set_preview.png", "set.tsx", "set.tmx"]
         check("the set is written, with Tiled's files and not Godot's", done and not os.path.exists(

@@ -137,13 +137,14 @@ def test_feature_handles_on_the_model_show_only_what_the_camera_sees(gpu):
     cache = {}
 
     def uv_image(w, h):
-        key = (ed.camera, w, h)
+        key = (ed.model.camera, w, h)
         if key not in cache:
-            cache[key] = view.render(ed.camera, (w, h), mode=1, background=(0, 0, 0))
+            cache[key] = view.render(ed.model.camera, (w, h), mode=1, background=(0, 0, 0))
         return cache[key]
-    ed = SimpleNamespace(camera=cam, uv_image=uv_image, session=SimpleNamespace(model=SimpleNamespace(atlas=atlas)),
+    ed = SimpleNamespace(model=SimpleNamespace(camera=cam, uv_image=uv_image),
+                         session=SimpleNamespace(model=SimpleNamespace(atlas=atlas)),
                          doc=SimpleNamespace(surface=SimpleNamespace(size=n), features=()))
-    ed.look_with = lambda camera: setattr(ed, "camera", camera)  # (the editor's ModelModeMixin.look_with)
+    ed.model.look_with = lambda camera: setattr(ed.model, "camera", camera)  # (the editor's ModelMode.look_with)
     try:
         front = view.pick(cam, size, 200, 200, n)  # the +z face's centre
         mf = ModelFeatures(ed)
@@ -163,7 +164,7 @@ def test_feature_handles_on_the_model_show_only_what_the_camera_sees(gpu):
         assert mf._hit(200, 200, *size) == (0, "move")
         assert mf._hit(200 + ro, 200, *size) == (0, "outer")
         mf.jump_to(ed.doc.features[1])  # the far face: the camera turns round to it
-        assert abs(((ed.camera.yaw - 180.0) + 180) % 360 - 180) < 1e-6 and abs(ed.camera.pitch) < 1e-6
+        assert abs(((ed.model.camera.yaw - 180.0) + 180) % 360 - 180) < 1e-6 and abs(ed.model.camera.pitch) < 1e-6
         assert [h[0] for h in mf._handles(*size)] == [1]
     finally:
         view.release()

@@ -39,7 +39,7 @@ class ReportingEditor(Editor):
         state = {
             "ready": bool(self.session is not None and self.session.ready and self.doc is not None),
             "refined": bool(self.refined),
-            "analyzing": bool(self.pending is not None or (self.session is not None and self.session.job is not None)),
+            "analyzing": bool(self.files.pending is not None or (self.session is not None and self.session.job is not None)),
             "view": [self.view.x, self.view.y, self.view.zoom],
             "tool": self.tool.name,
             "tile_mode": bool(self.viewer.tile_mode),

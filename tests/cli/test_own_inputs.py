@@ -254,19 +254,20 @@ def editor(monkeypatch):
     monkeypatch.setattr(exports, "StreamedExport", Started)
 
     def make(doc, material, native=False, project_path=None, **kw):
-        class Fake(exports.ExportsMixin):
+        class Fake:  # the editor, as far as its exports read it
             def geometry(self):
                 return None
 
             def shown_role(self):
                 return material.primary
         ed = Fake()
-        ed.doc, ed.project_path, ed.dialogs = doc, project_path, Dialogs(native)
+        ed.doc, ed.dialogs = doc, Dialogs(native)
+        ed.files = SimpleNamespace(project_path=project_path)  # (the project file: an input too)
         ed.session = SimpleNamespace(material=material, synth=None, L=0, quick_analysis=False)  # not ready: a window export says so
-        ed.export_job = None
-        ed.export_settings = exports.ExportSettings(stream_tile=256, workers=1)
+        ed.exports = exports.Exports(ed)
+        ed.exports.settings = exports.ExportSettings(stream_tile=256, workers=1)
         for k, v in kw.items():
-            setattr(ed.export_settings, k, v)
+            setattr(ed.exports.settings, k, v)
         return ed
     return make
 
@@ -284,27 +285,27 @@ def test_the_editor_refuses_an_export_over_its_inputs(editor, wood, gravel):
         [(r, ExemplarSource.from_file(p)) for r, p in files.items()])
     before = digest(wood)
     ed = editor(doc, open_material(files["basecolor"]))
-    ed.start_export(str(wood / "wood.png"), Rect.of(0, 0, 64, 64))
-    assert ed.export_job is None and not ed.dialogs.questions
+    ed.exports.start(str(wood / "wood.png"), Rect.of(0, 0, 64, 64))
+    assert ed.exports.job is None and not ed.dialogs.questions
     assert "wood_basecolor.png is an input of this export" in ed.dialogs.messages[-1][1]
-    ed.export_settings.format = "tiff"  # the streamed form writes the map shown: wood_basecolor.tif replaces nothing
-    ed.start_streamed_export(str(wood / "wood.tif"), Rect.of(0, 0, 64, 64))
-    assert isinstance(ed.export_job, Started) and ed.export_job.path == str(wood / "wood_basecolor.tif")
+    ed.exports.settings.format = "tiff"  # the streamed form writes the map shown: wood_basecolor.tif replaces nothing
+    ed.exports.start_streamed(str(wood / "wood.tif"), Rect.of(0, 0, 64, 64))
+    assert isinstance(ed.exports.job, Started) and ed.exports.job.path == str(wood / "wood_basecolor.tif")
     assert digest(wood) == before
     # A project file is an input of the editor's exports too, and so is the exemplar.
     doc, mat = _single(gravel)
     proj = gravel.parent / "proj.png"
     proj.write_bytes(b"{}")
     ed = editor(doc, mat, project_path=str(proj))
-    ed.start_export(str(proj), Rect.of(0, 0, 64, 64))
+    ed.exports.start(str(proj), Rect.of(0, 0, 64, 64))
     assert "proj.png is an input of this export" in ed.dialogs.messages[-1][1] and proj.read_bytes() == b"{}"
-    ed.start_export(str(gravel), Rect.of(0, 0, 64, 64))
+    ed.exports.start(str(gravel), Rect.of(0, 0, 64, 64))
     assert "gravel.png is an input of this export" in ed.dialogs.messages[-1][1]
-    ed.export_settings.format = "tiles"  # a tile's name that is a link to the exemplar
+    ed.exports.settings.format = "tiles"  # a tile's name that is a link to the exemplar
     (gravel.parent / "t.1001.png").symlink_to(gravel)
-    ed.start_streamed_export(str(gravel.parent / "t.png"), Rect.of(0, 0, 64, 64))
+    ed.exports.start_streamed(str(gravel.parent / "t.png"), Rect.of(0, 0, 64, 64))
     assert "is an input of this export" in ed.dialogs.messages[-1][1]
-    assert ed.export_job is None and not ed.dialogs.questions and read(gravel) == read(GRAVEL)
+    assert ed.exports.job is None and not ed.dialogs.questions and read(gravel) == read(GRAVEL)
 
 
 def test_the_editor_asks_before_replacing_an_existing_file(editor, gravel, tmp_path):
@@ -312,35 +313,35 @@ def test_the_editor_asks_before_replacing_an_existing_file(editor, gravel, tmp_p
     out = tmp_path / "view.png"
     out.write_bytes(b"mine")
     ed = editor(doc, mat)  # the in-window browser or the path box: nobody asked yet
-    ed.start_export(str(out), Rect.of(0, 0, 64, 64))
-    assert ed.export_job is None and not ed.dialogs.messages and out.read_bytes() == b"mine"
+    ed.exports.start(str(out), Rect.of(0, 0, 64, 64))
+    assert ed.exports.job is None and not ed.dialogs.messages and out.read_bytes() == b"mine"
     _, body, buttons = ed.dialogs.questions[-1]
     assert "view.png already exists" in body and [b for b, _ in buttons] == ["Replace", "Cancel"]
     buttons[0][1]()  # Replace: the export goes on (here: the document is not analyzed yet, and says so)
     assert len(ed.dialogs.questions) == 1 and "Nothing to export yet" in ed.dialogs.messages[-1][1]
     # A system dialog asked about the file chosen, not about the coordinate map beside it.
     ed = editor(doc, mat, native=True)
-    ed.start_export(str(out), Rect.of(0, 0, 64, 64))
+    ed.exports.start(str(out), Rect.of(0, 0, 64, 64))
     assert not ed.dialogs.questions and "Nothing to export yet" in ed.dialogs.messages[-1][1]
     (tmp_path / "view_coords.png").write_bytes(b"coords")
     ed = editor(doc, mat, native=True, write_coords=True)
-    ed.start_export(str(out), Rect.of(0, 0, 64, 64))
+    ed.exports.start(str(out), Rect.of(0, 0, 64, 64))
     assert "view_coords.png already exists" in ed.dialogs.questions[-1][1]
     # Streamed: an existing BigTIFF is asked about; a tile set being continued (its parts folder there) is not.
     ed = editor(doc, mat, format="tiff")
     (tmp_path / "big.tif").write_bytes(b"tif")
-    ed.start_streamed_export(str(tmp_path / "big.tif"), Rect.of(0, 0, 64, 64))
-    assert "big.tif already exists" in ed.dialogs.questions[-1][1] and ed.export_job is None
+    ed.exports.start_streamed(str(tmp_path / "big.tif"), Rect.of(0, 0, 64, 64))
+    assert "big.tif already exists" in ed.dialogs.questions[-1][1] and ed.exports.job is None
     ed.dialogs.questions[-1][2][0][1]()  # Replace
-    assert isinstance(ed.export_job, Started) and (tmp_path / "big.tif").read_bytes() == b"tif"
+    assert isinstance(ed.exports.job, Started) and (tmp_path / "big.tif").read_bytes() == b"tif"
     ed = editor(doc, mat, format="tiles")
     (tmp_path / "set.1001.png").write_bytes(b"tile")
-    ed.start_streamed_export(str(tmp_path / "set.png"), Rect.of(0, 0, 64, 64))
-    assert "set.<UDIM>.png already exists" in ed.dialogs.questions[-1][1] and ed.export_job is None
+    ed.exports.start_streamed(str(tmp_path / "set.png"), Rect.of(0, 0, 64, 64))
+    assert "set.<UDIM>.png already exists" in ed.dialogs.questions[-1][1] and ed.exports.job is None
     (tmp_path / "set.png.parts").mkdir()
     ed = editor(doc, mat, format="tiles")
-    ed.start_streamed_export(str(tmp_path / "set.png"), Rect.of(0, 0, 64, 64))
-    assert not ed.dialogs.questions and isinstance(ed.export_job, Started)
+    ed.exports.start_streamed(str(tmp_path / "set.png"), Rect.of(0, 0, 64, 64))
+    assert not ed.dialogs.questions and isinstance(ed.exports.job, Started)
 
 
 # -- one line of error, whatever the decoders log -------------------------------

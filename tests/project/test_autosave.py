@@ -112,22 +112,22 @@ def test_a_second_editor_closed_without_edits_leaves_the_first_one_s_autosave(st
 
 
 def test_editor_exit_without_edits_removes_only_its_own_autosave(state, doc):
-    """The editor's exit path (files.py _keep_unsaved_work) with a second editor's
+    """The editor's exit path (Documents.keep_unsaved_work) with a second editor's
     autosave in the same folder: the other file stays."""
-    from infinitex.app.ui.files import FilesMixin
+    from infinitex.app.ui.files import Documents
     a, a_path = start_writer(state, seed=9)
     try:
         b = FakeEditor(doc)
-        b.autosave.tick(b.autosave_project(), True, force=True)
+        b.files.autosave.tick(b.files.autosave_project(), True, force=True)
         b.history.mark_saved()
-        b._keep_unsaved_work()
-        assert isinstance(b, FilesMixin) and not os.path.exists(b.autosave.path)
+        b.files.keep_unsaved_work()
+        assert isinstance(b.files, Documents) and not os.path.exists(b.files.autosave.path)
         assert load_project(a_path).document.seed == 9
         # With unsaved edits the exiting editor keeps its own autosave for the next start.
         c = FakeEditor(doc)
         c.history.current = replace(doc, seed=3)
-        c._keep_unsaved_work()
-        assert load_project(c.autosave.path).document.seed == 3 and os.path.isfile(a_path)
+        c.files.keep_unsaved_work()
+        assert load_project(c.files.autosave.path).document.seed == 3 and os.path.isfile(a_path)
     finally:
         a.kill()
         a.wait()
@@ -340,24 +340,26 @@ class FakeDialogs:
 
 def FakeEditor(doc, project_path=None):
     """The editor's document handling (files.py) without a window."""
+    from infinitex.app.player import Playback
     from infinitex.app.settings import Settings
-    from infinitex.app.ui.files import FilesMixin
+    from infinitex.app.ui.files import Documents
     from infinitex.app.ui.prefs import Preferences
     from infinitex.app.ui.viewer import Viewer
 
-    class Ed(FilesMixin):
+    class Ed:  # the editor, as far as its documents read it
         view = property(lambda self: self.viewer.view)
         display = property(lambda self: self.viewer.display)
-
-        def remember(self, path):
-            self.remembered = path
+        doc = property(lambda self: self.files.doc)
+        history = property(lambda self: self.files.history)
+        start_path, offer_recovery, screenshot = None, False, None
     ed = Ed()
-    ed.history, ed.project_path = History(doc), project_path
     ed.viewer = Viewer()
-    ed.dialogs, ed.autosave, ed.prefs, ed.pending = FakeDialogs(), Autosave(), Preferences(Settings()), None
+    ed.dialogs, ed.prefs = FakeDialogs(), Preferences(Settings())
     ed.tools = []  # (the canvas tools: none without a window)
-    from infinitex.app.player import Playback
     ed.playback = Playback()  # (its process starts only when a frame is asked for)
+    ed.files = Documents(ed, Autosave())
+    ed.files.history, ed.files.project_path = History(doc), project_path
+    ed.files.remember = lambda path: setattr(ed, "remembered", path)
     return ed
 
 
@@ -366,18 +368,18 @@ def test_save_as_an_image_name_writes_a_project_beside_it_and_never_over_it(stat
     image_bytes = noise_png(image, 32, 5)
     ed = FakeEditor(Document(ExemplarSource.from_file(GRAVEL), seed=4))
     ed.history.current = replace(ed.doc, seed=8)
-    ed.save_as()
+    ed.files.save_as()
     ed.dialogs.path_request.on_done(str(image))  # "Save as texture.png"
     assert image.read_bytes() == image_bytes
     assert load_project(str(tmp_path / "texture.png.itex")).document.seed == 8
-    assert ed.project_path == str(tmp_path / "texture.png.itex") and not ed.history.dirty
+    assert ed.files.project_path == str(tmp_path / "texture.png.itex") and not ed.history.dirty
 
 
 def test_save_as_asks_before_replacing_an_existing_file(state, tmp_path):
     other = tmp_path / "other.itex"
     other.write_text("someone's project")
     ed = FakeEditor(Document(ExemplarSource.from_file(GRAVEL), seed=4))
-    ed.save_chosen(str(other))  # the in-window chooser or path box asked nothing
+    ed.files.save_chosen(str(other))  # the in-window chooser or path box asked nothing
     title, body, buttons = ed.dialogs.questions[-1]
     assert title == "Replace file" and "other.itex" in body and list(buttons) == ["Replace", "Cancel"]
     assert other.read_text() == "someone's project"  # nothing written before the answer
@@ -385,11 +387,11 @@ def test_save_as_asks_before_replacing_an_existing_file(state, tmp_path):
     assert load_project(str(other)).document.seed == 4
     # The system's dialog asked about that very file: not asked twice.
     ed.dialogs.questions.clear()
-    ed.save_chosen(str(tmp_path / "other.itex"), asked=True)
+    ed.files.save_chosen(str(tmp_path / "other.itex"), asked=True)
     assert ed.dialogs.questions == []
     # ...but it asked about "notes", not about "notes.itex", which the save would replace.
     (tmp_path / "notes.itex").write_text("notes")
-    ed.save_chosen(str(tmp_path / "notes"), asked=True)
+    ed.files.save_chosen(str(tmp_path / "notes"), asked=True)
     assert ed.dialogs.questions and (tmp_path / "notes.itex").read_text() == "notes"
 
 
@@ -397,10 +399,10 @@ def test_save_as_refuses_the_document_s_own_exemplar(state, tmp_path):
     image = tmp_path / "wood.itex"
     image.write_bytes(open(GRAVEL, "rb").read())
     ed = FakeEditor(Document(ExemplarSource.from_file(str(image))))
-    ed.save_chosen(str(image), asked=True)
+    ed.files.save_chosen(str(image), asked=True)
     assert image.read_bytes() == open(GRAVEL, "rb").read()
     assert ed.dialogs.messages and ed.dialogs.messages[-1][0] == "Save failed"
-    assert "one of its inputs" in ed.dialogs.messages[-1][1] and ed.project_path is None
+    assert "one of its inputs" in ed.dialogs.messages[-1][1] and ed.files.project_path is None
 
 
 def test_recovering_moves_the_work_into_this_editor_s_autosave(state, doc):
@@ -410,15 +412,15 @@ def test_recovering_moves_the_work_into_this_editor_s_autosave(state, doc):
     w1.wait()
     w2.wait()
     ed = FakeEditor(doc)
-    found = ed.autosave.pending_all()
+    found = ed.files.autosave.pending_all()
     assert len(found) == 2 and "gravel.png" in recovery_question(found[0], 0, 2)
     rec = next(r for r in found if r.path == p1)
-    ed.pending = ("recovered", rec.project.document, rec.project, rec.path)  # what Recover starts
-    ed._finish_load(SimpleNamespace(error=None, cancelled=False))
+    ed.files.pending = ("recovered", rec.project.document, rec.project, rec.path)  # what Recover starts
+    ed.files.finish_load(SimpleNamespace(error=None, cancelled=False))
     assert ed.doc.seed == 31 and ed.history.dirty
-    assert load_project(ed.autosave.path).document.seed == 31  # kept by this editor now
+    assert load_project(ed.files.autosave.path).document.seed == 31  # kept by this editor now
     assert not os.path.exists(p1) and load_project(p2).document.seed == 32  # the other one stays
-    assert [r.path for r in ed.autosave.pending_all()] == [p2]
+    assert [r.path for r in ed.files.autosave.pending_all()] == [p2]
 
 
 def test_autosave_names_are_per_process(state):

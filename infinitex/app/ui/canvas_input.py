@@ -4,8 +4,9 @@ dropped from the Exemplar panel), choosing the tool, the view's geometry,
 tile mode, and the overlays (the randomness heat map, the tool's handles and
 cursor, the tile borders).
 
-A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
-attributes it uses are made in ``Editor.__init__``.
+``CanvasInput`` is a part of the editor (``Editor.canvas_input``); it keeps no
+state of its own (the pointer and the button held are ``CanvasState``'s, the
+active tool is ``Tools.active``).
 """
 from __future__ import annotations
 
@@ -14,94 +15,95 @@ import math
 import numpy as np
 from imgui_bundle import imgui
 
-from infinitex.engine.material import IMAGE
 
-from .tools import Tool
 from .tools.direction import DirectionTool, draw_field
 from .tools.flow import draw_flow
 from .tools.feature import PAYLOAD as FEATURE_PAYLOAD, FeatureTool
 
 
-class CanvasInputMixin:
+class CanvasInput:
     """Mouse input on the canvas, the tools, and the overlays drawn over it."""
+
+    def __init__(self, ed) -> None:
+        self.ed = ed
 
     # -- canvas input and overlays ------------------------------------------
 
-    def _canvas_input(self, p0, w: int, h: int) -> bool:
+    def read(self, p0, w: int, h: int) -> bool:
         """The canvas's mouse input: the left button goes to the active tool, the
         right and middle buttons always pan (from the press position), the
         wheel zooms around the cursor. Returns whether the canvas is hovered."""
-        s = self.session
+        s = self.ed.session
         imgui.invisible_button("canvas", (w, h), imgui.ButtonFlags_.mouse_button_left
                                | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
         io = imgui.get_io()
         hovered = imgui.is_item_hovered()
-        x0, y0 = self.view.top_left(w, h)
+        x0, y0 = self.ed.view.top_left(w, h)
         mouse = (io.mouse_pos.x, io.mouse_pos.y)
-        at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
-        view_before = self.view
-        tool = self.tool if s.ready and self.doc is not None else self.tools[0]
+        at = (x0 + (mouse[0] - p0.x) / self.ed.view.zoom, y0 + (mouse[1] - p0.y) / self.ed.view.zoom)
+        view_before = self.ed.view
+        tool = self.ed.tool if s.ready and self.ed.doc is not None else self.ed.tools[0]
         if imgui.is_item_activated():
-            self.canvas_state.press(0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1)
-            (tool if self.canvas_state.button == 0 else self.tools[0]).press(at, mouse)
-        elif imgui.is_item_active() and self.canvas_state.button >= 0:
-            (tool if self.canvas_state.button == 0 else self.tools[0]).drag(at, mouse)
-        if imgui.is_item_deactivated() and self.canvas_state.button >= 0:
+            self.ed.canvas_state.press(0 if imgui.is_mouse_down(imgui.MouseButton_.left) else 1)
+            (tool if self.ed.canvas_state.button == 0 else self.ed.tools[0]).press(at, mouse)
+        elif imgui.is_item_active() and self.ed.canvas_state.button >= 0:
+            (tool if self.ed.canvas_state.button == 0 else self.ed.tools[0]).drag(at, mouse)
+        if imgui.is_item_deactivated() and self.ed.canvas_state.button >= 0:
             # The last move can come in the same frame as the release (a quick
             # flick, or input queued while a frame was busy): it counts.
-            held = tool if self.canvas_state.button == 0 else self.tools[0]
+            held = tool if self.ed.canvas_state.button == 0 else self.ed.tools[0]
             held.drag(at, mouse)
             held.release()
-            self.canvas_state.release()
+            self.ed.canvas_state.release()
         if imgui.begin_drag_drop_target():  # an exemplar feature dropped from the Exemplar panel
             payload = imgui.accept_drag_drop_payload_py_id(FEATURE_PAYLOAD)
-            if payload is not None and s.ready and self.doc is not None and self.geometry() is None:
-                self.set_tool(self.tools.of(FeatureTool))
-                self.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
+            if payload is not None and s.ready and self.ed.doc is not None and self.ed.geometry() is None:
+                self.ed.tools.choose(self.ed.tools.of(FeatureTool))
+                self.ed.tool.place((payload.data_id % 4096, payload.data_id // 4096), at)
             imgui.end_drag_drop_target()
-        if hovered and io.mouse_wheel and not (s.ready and self.doc is not None and self.tool.wheel(at, io.mouse_wheel)):
-            self.viewer.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
-        if self.view != view_before:  # the wheel or a pan moved the canvas under the mouse
-            x0, y0 = self.view.top_left(w, h)
-            at = (x0 + (mouse[0] - p0.x) / self.view.zoom, y0 + (mouse[1] - p0.y) / self.view.zoom)
-        self.canvas_state.point(at if hovered else None)
+        if hovered and io.mouse_wheel and not (s.ready and self.ed.doc is not None and self.ed.tool.wheel(at, io.mouse_wheel)):
+            self.ed.viewer.zoom_at(2.0 ** (io.mouse_wheel * 0.25), mouse[0] - p0.x, mouse[1] - p0.y, w, h)
+        if self.ed.view != view_before:  # the wheel or a pan moved the canvas under the mouse
+            x0, y0 = self.ed.view.top_left(w, h)
+            at = (x0 + (mouse[0] - p0.x) / self.ed.view.zoom, y0 + (mouse[1] - p0.y) / self.ed.view.zoom)
+        self.ed.canvas_state.point(at if hovered else None)
         return hovered
 
-    def _canvas_overlays(self, p0, w: int, h: int, hovered: bool) -> None:
+    def overlays(self, p0, w: int, h: int, hovered: bool) -> None:
         """Over the canvas image: the randomness heat map, the panels' overlay,
         the feature handles, the tile borders and the tool's cursor."""
-        s = self.session
-        if s.ready and self.doc is not None:
+        s = self.ed.session
+        if s.ready and self.ed.doc is not None:
             dl = imgui.get_window_draw_list()
-            if self.viewer.show_fields and self.geometry() is None:
+            if self.ed.viewer.show_fields and self.ed.geometry() is None:
                 self._field_overlay(dl, p0, w, h)
-            self.panels.canvas_overlay(p0, w, h)
-            self.tool.handles(dl, p0, w, h)
+            self.ed.panels.canvas_overlay(p0, w, h)
+            self.ed.tool.handles(dl, p0, w, h)
             if s.period:
                 self._tile_borders(dl, p0, w, h, s.period)
             if hovered:
-                self.tool.overlay(dl, p0, w, h)
+                self.ed.tool.overlay(dl, p0, w, h)
 
     def tile_period(self) -> int:
         """The tile size while tile mode is on (whole lattice cells required), else 0."""
-        if not self.viewer.tile_mode or not self.session.ready:
+        if not self.ed.viewer.tile_mode or not self.ed.session.ready:
             return 0
-        n = self.export_settings.tile_size
-        lat = self.session.controls.lattice
+        n = self.ed.exports.settings.tile_size
+        lat = self.ed.session.controls.lattice
         if lat is not None:
-            cx, cy = lat.cell(self.session.analysis.size)
+            cx, cy = lat.cell(self.ed.session.analysis.size)
             if n % cx or n % cy:
-                self.viewer.show_tile(False)
-                self.dialogs.message("Tile mode", f"A tile of {n} px is not made of whole lattice cells "
+                self.ed.viewer.show_tile(False)
+                self.ed.dialogs.message("Tile mode", f"A tile of {n} px is not made of whole lattice cells "
                                      f"({cx}x{cy} px); choose a larger tile size.")
                 return 0
         return n
 
     def _tile_borders(self, dl, p0, w: int, h: int, n: int) -> None:
         """The tile's borders over the canvas (mapped into the input's geometry with a lattice)."""
-        z = self.view.zoom
-        x0, y0 = self.view.top_left(w, h)
-        G = self.geometry()
+        z = self.ed.view.zoom
+        x0, y0 = self.ed.view.top_left(w, h)
+        G = self.ed.geometry()
         Ginv = None if G is None else np.linalg.inv(G)
 
         def scr(px: float, py: float):
@@ -128,12 +130,12 @@ class CanvasInputMixin:
     def _field_overlay(self, dl, p0, w: int, h: int) -> None:
         """The canvas randomness field as a translucent heat map over the
         canvas, and the canvas labels in their colors."""
-        z = self.view.zoom
-        x0, y0 = self.view.top_left(w, h)
-        lab = self.doc.labels
-        shown = [(self.overlay_canvas, self.overlay_canvas.canvas(self.doc.randomness_canvas, x0, y0, w / z, h / z))]
+        z = self.ed.view.zoom
+        x0, y0 = self.ed.view.top_left(w, h)
+        lab = self.ed.doc.labels
+        shown = [(self.ed.overlay_canvas, self.ed.overlay_canvas.canvas(self.ed.doc.randomness_canvas, x0, y0, w / z, h / z))]
         if lab is not None:
-            shown.append((self.overlay_canvas_labels, self.overlay_canvas_labels.canvas_labels(
+            shown.append((self.ed.overlay_canvas_labels, self.ed.overlay_canvas_labels.canvas_labels(
                 lab.canvas, lab.colors, x0, y0, w / z, h / z)))
         dl.push_clip_rect(p0, (p0.x + w, p0.y + h), True)
         for overlay, tex in shown:
@@ -142,39 +144,7 @@ class CanvasInputMixin:
             fx, fy, fw, fh = overlay.placement
             a = (p0.x + (fx - x0) * z, p0.y + (fy - y0) * z)
             dl.add_image(imgui.ImTextureRef(tex.glo), a, (a[0] + fw * z, a[1] + fh * z))
-        draw_field(dl, self.doc.direction, self.view, p0, w, h, self.tools.of(DirectionTool).axis)
-        if self.doc.motion is not None:
-            draw_flow(dl, self.doc.motion.flow, self.view, p0, w, h)
+        draw_field(dl, self.ed.doc.direction, self.ed.view, p0, w, h, self.ed.tools.of(DirectionTool).axis)
+        if self.ed.doc.motion is not None:
+            draw_flow(dl, self.ed.doc.motion.flow, self.ed.view, p0, w, h)
         dl.pop_clip_rect()
-
-    # -- small helpers for panels -----------------------------------------
-
-    def shown_role(self) -> str:
-        """The map the canvas shows: the Display panel's choice; the lit preview
-        shows the base color (or the first map) shaded."""
-        s = self.session
-        mat = s.material
-        if self.display.mode == "lit":
-            return next((r for r in ("basecolor", IMAGE) if r in mat.maps), mat.primary)
-        return s.shown_map(self.display.map)
-
-    def geometry(self):
-        """The 2x2 map from view positions to the synthesized canvas when a
-        lattice is shown in the input's geometry; None when the canvas shows
-        the synthesized (rectified) texture itself."""
-        s = self.session
-        lat = s.controls.lattice if s is not None and s.ready and s.controls is not None else None
-        if lat is None or self.display.geometry != "original":
-            return None
-        return lat.canvas_matrix(s.analysis.size)
-
-    def set_tool(self, t: Tool) -> None:
-        """Make ``t`` (one of ``self.tools``) the active tool."""
-        if t.space == "canvas" and self.geometry() is not None:
-            # Paint and features live on the synthesized canvas: show it rectified.
-            self.viewer.set_display(geometry="rectified")
-        if t is not self.tool:
-            self.tool.release()
-            self.tool = t
-            if t.shows_painted:
-                self.viewer.show_painted(True)  # painting shows what is painted

@@ -1,5 +1,5 @@
 """What the canvas shows while a control is dragged or just changed
-(:class:`CanvasRefineMixin`, a part of the editor).
+(:class:`CanvasRefine`, a part of the editor: ``Editor.refinement``).
 
 A change of a randomness slider, the Structure preset or the seed redoes the
 pyramid from the levels it changes. On a CPU one level of a large view can cost
@@ -41,7 +41,7 @@ from ..render.canvas import PREVIEW_MAX_K  # a change shows once the view's leve
 INTERACTIVE_S = 0.25  # seconds after the last edit that still count as dragging
 HOLD_MAX_S = 10.0     # a change waits no longer than this for the one in progress (a safety net: a 4K
                       # canvas on llvmpipe takes seconds to reach a presentable level)
-SETTLE_FRAME_S = 0.080  # a frame while nothing is touched, at most (see CanvasRefineMixin._work)
+SETTLE_FRAME_S = 0.080  # a frame while nothing is touched, at most (see CanvasRefine._work)
 
 
 def local_edit(prev: Document | None, doc: Document) -> bool:
@@ -97,19 +97,20 @@ class EditHold:
             self.waiting = False
 
 
-class CanvasRefineMixin:
+class CanvasRefine:
     """The editor's refinement and redraw of the flat canvas each frame."""
 
-    def _init_canvas_refine(self) -> None:
+    def __init__(self, ed) -> None:
+        self.ed = ed
         self.hold = EditHold()
-        self.canvas_peek = False  # a test asks for what this frame shows (no refinement forced)
+        self.peek_asked = False  # a test asks for what this frame shows (no refinement forced)
         self._was_quick = False
         self._last_doc = None
         self._last_edit = 0.0
 
     def session_doc(self) -> Document:
         """The document the session shows this frame (see :class:`EditHold`)."""
-        return self.hold.doc(self.doc, holding=not self.model_mode, dragging=imgui.is_any_item_active())
+        return self.hold.doc(self.ed.doc, holding=not self.ed.model_mode, dragging=imgui.is_any_item_active())
 
     def _work(self, step, done, settle: bool):
         """Run ``step(budget)`` for this frame's synthesis budget; while nothing
@@ -121,71 +122,71 @@ class CanvasRefineMixin:
         A frame's drawing and UI cost about the same whatever its synthesis: on
         a slow or busy machine, where they take most of a 27 ms frame, a view
         that no one touches settles about twice as fast this way."""
-        budget = self.frame_pacer.budget_s
+        budget = self.ed.frame_pacer.budget_s
         t0 = time.perf_counter()
         result = step(budget)
-        if not settle or self.canvas_state.read_asked or not self._untouched():
+        if not settle or self.ed.canvas_state.read_asked or not self._untouched():
             return result
-        settle_s = SETTLE_FRAME_S - self.frame_pacer.other_s
-        while not done(result) and time.perf_counter() - t0 + budget <= settle_s and not self.waits.arrived():
+        settle_s = SETTLE_FRAME_S - self.ed.frame_pacer.other_s
+        while not done(result) and time.perf_counter() - t0 + budget <= settle_s and not self.ed.waits.arrived():
             result = step(budget)
         return result
 
     def _untouched(self) -> bool:
         io = imgui.get_io()
         return not (imgui.is_any_item_active() or imgui.is_any_mouse_down() or io.want_text_input
-                    or self.canvas_state.button >= 0 or self.waits.working or self.waits.arrived(poll=False))
+                    or self.ed.canvas_state.button >= 0 or self.ed.waits.working or self.ed.waits.arrived(poll=False))
 
-    def _refine_and_draw(self, s, geom) -> None:
+    def draw(self, s, geom) -> None:
         """Synthesize for this frame and bring the canvas texture up to date."""
-        if self.doc is not self._last_doc:
-            prev, self._last_doc = self._last_doc, self.doc
-            if not local_edit(prev, self.doc):
+        if self.ed.doc is not self._last_doc:
+            prev, self._last_doc = self._last_doc, self.ed.doc
+            if not local_edit(prev, self.ed.doc):
                 self._last_edit = time.monotonic()
-        interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.canvas_state.read_asked
+        interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.ed.canvas_state.read_asked
         hold = self.hold
         was, self._was_quick = self._was_quick, s.quick_analysis
-        if was and not s.quick_analysis and s.key == self.doc.analysis_key():
+        if was and not s.quick_analysis and s.key == self.ed.doc.analysis_key():
             hold.hold_picture()  # the full analysis replaces the quick one: no coarse levels meanwhile
         hold.expire()
-        frame = self.frame
+        frame = self.ed.frame
         t0 = time.perf_counter()
         scale = 1
         try:
-            if (interactive or hold.waiting) and not self.canvas_state.read_asked:
+            if (interactive or hold.waiting) and not self.ed.canvas_state.read_asked:
                 # A control is being dragged, or a change is not presentable
                 # yet: whole levels, coarse to fine, a piece at a time.
                 target = frame.level - PREVIEW_MAX_K
                 c = self._work(lambda b: s.refiner.coarse(frame, b, max_level=target),
                                lambda c: c >= target, settle=not interactive)
                 hold.reached(c, target)
-                self.canvas_state.set_refined(False)
-                texel_px = self.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
-                if self.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
+                self.ed.canvas_state.set_refined(False)
+                texel_px = self.ed.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
+                if self.ed.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
                     scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
             else:
-                self.canvas_state.set_refined(self._work(lambda b: s.refine(frame, b), bool, settle=True))
+                self.ed.canvas_state.set_refined(self._work(lambda b: s.refine(frame, b), bool, settle=True))
         except SynthesisError as exc:
-            self.viewer.center(0, 0)
+            self.ed.viewer.center(0, 0)
             hold.waiting = False
-            self.dialogs.message("Synthesis", str(exc))
-        self.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, s.refiner.last_pixels if s.refiner else 0)
-        w, h = self.canvas_size
-        view = self.view if scale == 1 else View(self.view.x, self.view.y, self.view.zoom / scale)
-        reading = self.canvas_state.read_asked
-        if hold.waiting and not reading and self.canvas.shows(frame, view, self.display, geom, (w // scale, h // scale)):
+            self.ed.dialogs.message("Synthesis", str(exc))
+        self.ed.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, s.refiner.last_pixels if s.refiner else 0)
+        w, h = self.ed.canvas_size
+        view = self.ed.view if scale == 1 else View(self.ed.view.x, self.ed.view.y, self.ed.view.zoom / scale)
+        reading = self.ed.canvas_state.read_asked
+        if hold.waiting and not reading and self.ed.canvas.shows(frame, view, self.ed.display, geom, (w // scale, h // scale)):
             self._peek()
             return  # the last presentable texture stays until this change's is
-        self.canvas.ensure_size(w // scale, h // scale)
-        self.canvas.redraw(s.pyramid, frame, view, self.display, geom, (s.generation, s.params), force=reading)
-        if self.canvas.pending is not None:  # a large redraw spreads over frames
-            self.canvas_state.set_refined(False)
+        self.ed.canvas.ensure_size(w // scale, h // scale)
+        self.ed.canvas.redraw(s.pyramid, frame, view, self.ed.display, geom, (s.generation, s.params), force=reading)
+        if self.ed.canvas.pending is not None:  # a large redraw spreads over frames
+            self.ed.canvas_state.set_refined(False)
         if reading:
-            self.canvas_state.give_read_back(self.canvas.read())
+            self.ed.canvas_state.give_read_back(self.ed.canvas.read())
         self._peek()
 
     def _peek(self) -> None:
         """Read back what the canvas shows this frame, changing nothing (tests: ``canvas_peek``)."""
-        if self.canvas_peek:
-            self.canvas_state.give_read_back(self.canvas.read())
-            self.canvas_peek = False
+        if self.peek_asked:
+            self.ed.canvas_state.give_read_back(self.ed.canvas.read())
+            self.peek_asked = False

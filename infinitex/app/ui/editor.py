@@ -5,12 +5,19 @@ document, refine the view's synthesis within a time budget, draw the canvas
 texture, then the panels. Nothing blocks: analysis runs on a thread, synthesis
 and exports are sliced into budgeted steps.
 
-``Editor`` keeps the state, the start-up and the frame loop; its other
-concerns are mixins, one a module: files.py (documents, saving, the questions
-before unsaved edits are lost, autosave, the undo history), exports.py
-(starting and following exports), canvas_input.py (the mouse on the canvas,
-the tools, the overlays) and shortcuts.py (the keys and their F1 list).
-When it sleeps between frames and how long a frame synthesizes: pacing.py.
+``Editor`` keeps the start-up, the frame loop and what every part reads (the
+document through ``doc`` and ``edit``, the view, the session, the dialogs);
+its other concerns are parts with their own state, one a module, each reached
+through an attribute and changed through its methods: ``files`` (files.py:
+documents, saving, the questions before unsaved edits are lost, autosave, the
+undo history), ``exports`` (exports.py: starting and following exports),
+``canvas_input`` (canvas_input.py: the mouse on the canvas, the overlays),
+``refinement`` (canvas_refine.py: what the canvas shows while a change is
+made), ``model`` (model_mode.py: a model's camera and view), ``shortcuts``
+(shortcuts.py: the keys and their F1 list), ``tools`` (tools/: the tools and
+the active one), ``viewer`` (the view and the display), ``canvas_state``
+(what the canvas did last frame). When it sleeps between frames and how long
+a frame synthesizes: pacing.py.
 """
 from __future__ import annotations
 
@@ -27,10 +34,9 @@ from imgui_bundle import (  # imported before glfw (bundled libglfw)
 )
 
 from infinitex.engine.gpu import GLUnavailable, Gpu
+from infinitex.engine.material import IMAGE
 from infinitex.engine.safeio import WriteError, printable
-from infinitex.export.jobs import BackgroundExport, StreamedExport
-from infinitex.export.window import ExportJob
-from infinitex.project import Autosave, Display, History, View
+from infinitex.project import Display, Document, History, View
 
 from ..player import Playback
 from ..render.canvas import Canvas
@@ -38,18 +44,18 @@ from ..render.overlays import FieldOverlay, LabelOverlay
 from ..session import Frame, Session, frame_for
 from ..settings import check_config_file, config_dir
 from . import panels
-from .canvas_input import CanvasInputMixin
+from .canvas_input import CanvasInput
 from .canvas_state import CanvasState
-from .canvas_refine import CanvasRefineMixin
+from .canvas_refine import CanvasRefine
 from .dialogs import Dialogs
-from .exports import ExportSettings, ExportsMixin
-from .files import DEFAULT_EXEMPLAR, FilesMixin, adopt_found_lattice
+from .exports import Exports
+from .files import DEFAULT_EXEMPLAR, Documents, adopt_found_lattice
 from .keylog import KeyLog
-from .model_mode import ModelModeMixin
+from .model_mode import ModelMode
 from .pacing import FramePacer, InputWait
-from .shortcuts import ShortcutsMixin
+from .shortcuts import Shortcuts
 from .prefs import Preferences
-from .tools import make_tools
+from .tools import Tool, make_tools
 from .viewer import Viewer
 
 __all__ = ["DEFAULT_EXEMPLAR", "Editor", "probe_gl", "run_editor"]  # DEFAULT_EXEMPLAR: where it always was
@@ -63,7 +69,7 @@ subprocess._USE_VFORK = False
 DEFAULT_PANELS = ("Randomness", "Exemplar", "Display")  # side-panel sections open on a first run
 
 
-class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, ShortcutsMixin, ModelModeMixin):
+class Editor:
     def __init__(self, path: str | None = None, *, screenshot: str | None = None, frames: int = 10,
                  window_size: tuple[int, int] | None = None, recover: bool = True):
         self.start_path = path
@@ -72,12 +78,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self.prefs = Preferences()  # the user's settings kept between runs
         # The size the window had when the editor last closed (a screenshot keeps the documented 1280 x 800).
         self.window_size = window_size or (None if screenshot else self.prefs.settings.window) or (1280, 800)
-        self.show_shortcuts = False
+        self.shortcuts = Shortcuts(self)  # the keys and their F1 list
         self.panels_open = set(self.prefs.settings.panels if self.prefs.settings.panels is not None else DEFAULT_PANELS)
         self.offer_recovery = recover and screenshot is None
-        self.history: History | None = None
+        self.files = Documents(self)  # the document, its history and file, the autosave
         self.viewer = Viewer()           # the view and the display, their one owner
-        self.project_path: str | None = None
         self.gpu: Gpu | None = None
         self.renderer = ""
         self.session: Session | None = None
@@ -85,12 +90,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self.dialogs = Dialogs()
         if self.prefs.settings.recent:  # the file browser starts in the folder last used
             self.dialogs.last_dir = os.path.dirname(self.prefs.settings.recent[0])
-        self.autosave = Autosave(background=True)  # written beside the frames, never holding one up
-        self.pending: tuple | None = None    # (kind, candidate Document, project or None, path) being analyzed
-        self.found_lattice = None  # the Detection that put the open image on its lattice (Exemplar panel)
-        self.export_job: ExportJob | StreamedExport | BackgroundExport | None = None
-        self.export_queue: list[BackgroundExport] = []  # window exports waiting for the running one
-        self.export_settings = ExportSettings()  # what the Export panel sets (it alone), the exports read
+        self.exports = Exports(self)  # the running export, those waiting, the Export panel's settings
         self.goto = [0, 0]
         self.frame: Frame | None = None
         self.canvas_size = (1, 1)
@@ -99,15 +99,12 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         self.canvas_state = CanvasState()  # what the canvas did last frame, the pointer on it
         self.cursor_uv: tuple[int, int] | None = None
         self.fatal: str | None = None
-        self._dropped: list[str] = []
-        self.quit_requested = False
-        self._close_requested = False
-        self._init_canvas_refine()
-        self._init_model_mode()
+        self.refinement = CanvasRefine(self)  # what the flat canvas shows while a change is made
+        self.model = ModelMode(self)  # a model's camera and view
         self.playback = Playback()  # texture in motion: the playhead and its player process
         self.panels = panels.Panels(self)
-        self.tools = make_tools(self)
-        self.tool = self.tools[0]
+        self.tools = make_tools(self)  # the tools and the active one
+        self.canvas_input = CanvasInput(self)  # the mouse on the canvas, the overlays over it
         # Overlay textures: the canvas and exemplar randomness, the avoid mask, the
         # exemplar's labels (Labels window) and the canvas labels.
         self.overlay_canvas = self.overlay_exemplar = self.overlay_avoid = None
@@ -130,6 +127,48 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
     def refined(self) -> bool:
         """What the canvas shows is complete (canvas_state)."""
         return self.canvas_state.refined
+
+    @property
+    def doc(self) -> Document | None:
+        """The document (``files`` owns it and its history)."""
+        return self.files.doc
+
+    @property
+    def history(self) -> History | None:
+        return self.files.history
+
+    def edit(self, doc: Document, label: str, group: object = None, region: tuple | None = None) -> None:
+        """Apply an edit: one undo step (``Documents.edit``)."""
+        self.files.edit(doc, label, group, region)
+
+    @property
+    def model_mode(self) -> bool:
+        """A model is open: the canvas shows it (``model``)."""
+        return self.doc is not None and self.doc.surface is not None
+
+    @property
+    def tool(self) -> Tool:
+        """The active tool (chosen through ``tools.choose``)."""
+        return self.tools.active
+
+    def shown_role(self) -> str:
+        """The map the canvas shows: the Display panel's choice; the lit preview
+        shows the base color (or the first map) shaded."""
+        s = self.session
+        mat = s.material
+        if self.display.mode == "lit":
+            return next((r for r in ("basecolor", IMAGE) if r in mat.maps), mat.primary)
+        return s.shown_map(self.display.map)
+
+    def geometry(self):
+        """The 2x2 map from view positions to the synthesized canvas when a
+        lattice is shown in the input's geometry; None when the canvas shows
+        the synthesized (rectified) texture itself."""
+        s = self.session
+        lat = s.controls.lattice if s is not None and s.ready and s.controls is not None else None
+        if lat is None or self.display.geometry != "original":
+            return None
+        return lat.canvas_matrix(s.analysis.size)
 
     @property
     def view(self) -> View:
@@ -177,7 +216,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         p.callbacks.post_init = self.post_init
         p.callbacks.show_gui = self.gui
         p.callbacks.before_exit = self.before_exit
-        p.callbacks.confirm_exit = self._confirm_exit
+        p.callbacks.confirm_exit = self.files.confirm_exit
         self.params = p
         return p
 
@@ -214,7 +253,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
             self.fail(f"OpenGL 3.3 is not usable here: {exc}\nThe editor needs OpenGL 3.3; "
                       "on Linux install libgl1 and a Mesa driver.")
             return
-        self._install_drop_callback()
+        self.files.install_drop_callback()
         # The imgui test engine drives the frames itself: no sleeping between them.
         self.waits.never = bool(getattr(self.params, "use_imgui_test_engine", False))
         if not self.waits.never:  # (its keys go to imgui, not the window)
@@ -223,7 +262,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
                 self.keys.install(glfw_utils.glfw_window_hello_imgui())
             except Exception:
                 pass  # no glfw window: imgui's own key state serves
-        self._open_first_document()
+        self.files.open_first()
 
     def before_exit(self) -> None:
         if not self.screenshot:
@@ -233,15 +272,15 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
                 self.prefs.keep_window(glfw.get_window_size(glfw_utils.glfw_window_hello_imgui()), self.panels_open)
             except Exception:
                 pass  # no window: nothing to keep
-        self._keep_unsaved_work()
-        self._stop_exports()
+        self.files.keep_unsaved_work()
+        self.exports.stop()
         self.playback.close()
         self.panels.motion_layer.release()
         if self.session is not None:
             self.session.release()
         if self.canvas is not None:
             self.canvas.release()
-        self.release_model_view()
+        self.model.release()
         for o in (self.overlay_canvas, self.overlay_exemplar, self.overlay_avoid, self.overlay_labels,
                   self.overlay_canvas_labels):
             if o is not None:
@@ -273,11 +312,11 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
                 self.params.app_shall_exit = True
             imgui.end()
             return
-        self.dialogs.project_dir = os.path.dirname(os.path.abspath(self.project_path)) if self.project_path else None
+        self.dialogs.project_dir = os.path.dirname(os.path.abspath(self.files.project_path)) if self.files.project_path else None
         self._update_engine()
-        self.close_requested()
+        self.files.close_requested()
         self.panels.menu_bar()
-        self._shortcuts()
+        self.shortcuts.read()
         status_h = imgui.get_frame_height_with_spacing() + 4
         avail = imgui.get_content_region_avail()
         imgui.begin_child("Panels", (PANEL_WIDTH, avail.y - status_h), imgui.ChildFlags_.borders)
@@ -297,31 +336,31 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         imgui.end()
         if self.doc is not None:
             self.tool.window()
-        self.shortcuts_window()
+        self.shortcuts.window()
         self._after_frame()
 
     def _update_engine(self) -> None:
         s = self.session
-        self._open_dropped()
+        self.files.open_dropped()
         job = s.poll()
-        if job is not None and self.pending is not None and job.asked_key == self.pending[1].analysis_key():
-            self._finish_load(job)
+        if job is not None and self.files.pending is not None and job.asked_key == self.files.pending[1].analysis_key():
+            self.files.finish_load(job)
         elif job is not None and job.done and job.analysis is not None:
             adopt_found_lattice(self, job)
         elif job is not None and job.error:
             self.dialogs.message("Analysis failed", job.error)
         if s.ready:
             self._show_maps()
-        self._poll_export()
-        self._autosave_tick()
+        self.exports.poll()
+        self.files.autosave_tick()
 
     def sync_session(self) -> None:
         """The frame's one ``Session.sync``, after the canvas's input (so a tool's
         edit of this frame is synthesized, or its local update started, in this
         frame; an edit made later in a frame, in a dialog, is taken by the next)."""
         s = self.session
-        if self.doc is not None and (self.pending is None or s.job is None):
-            doc = self.session_doc()
+        if self.doc is not None and (self.files.pending is None or s.job is None):
+            doc = self.refinement.session_doc()
             # Where the edits since the document the session holds reached.
             s.sync(doc, self.history.changes_between(s.synced_doc, doc))
             if s.ready:
@@ -349,12 +388,12 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         s = self.session
         p0 = imgui.get_cursor_screen_pos()
         if self.model_mode and s.ready:
-            self._model_canvas(p0, w, h)  # a model is open: it is what the canvas shows
+            self.model.canvas(p0, w, h)  # a model is open: it is what the canvas shows
             return
         # Input first, so this frame already shows what a tool or a pan did.
-        hovered = self._canvas_input(p0, w, h)
+        hovered = self.canvas_input.read(p0, w, h)
         if s.ready and self.doc is not None:
-            s.period = self.tile_period()
+            s.period = self.canvas_input.tile_period()
         self.sync_session()  # a tool's edit of this frame (a paint dab is re-synthesized locally here)
         if s.ready and self.doc is not None:
             level = None
@@ -362,7 +401,7 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
                 level = s.L if self.display.level < 0 else min(self.display.level, s.L)
             geom = self.geometry()
             self.frame = frame_for(self.view, w, h, s.L, level, geom)
-            self._refine_and_draw(s, geom)
+            self.refinement.draw(s, geom)
         else:
             self.canvas.ensure_size(w, h)
             self.canvas.render(None, None, self.view, self.display)
@@ -372,10 +411,10 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         imgui.set_cursor_screen_pos(p0)
         imgui.image(imgui.ImTextureRef(self.canvas.tex.glo), (w, h))
         self.panels.motion_tick(p0, w, h)  # a flowing frame over the still canvas
-        self._canvas_overlays(p0, w, h, hovered)
+        self.canvas_input.overlays(p0, w, h, hovered)
 
     def _update_title(self) -> None:
-        title = self.title
+        title = self.files.title
         if title == self._title:
             return
         self._title = title
@@ -388,8 +427,8 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
 
     def _after_frame(self) -> None:
         self._update_title()
-        analyzing = self.pending is not None or (self.session is not None and self.session.job is not None)
-        working = (self.export_job is not None and not self.exporting_apart()
+        analyzing = self.files.pending is not None or (self.session is not None and self.session.job is not None)
+        working = (self.exports.job is not None and not self.exports.apart()
                    or self.panels.tileset.building)
         # Nothing to refine while no document is open and a question waits for the user.
         waiting = self.history is None and bool(self.dialogs.modals)
@@ -397,15 +436,15 @@ class Editor(FilesMixin, ExportsMixin, CanvasInputMixin, CanvasRefineMixin, Shor
         busy = working or (shown and not self.canvas_state.refined) or (not shown and not waiting and not analyzing)
         # Worker processes doing the work (a streamed export, an estimate) need
         # the cores more than a full frame rate: a few frames a second show progress.
-        background = (self.exporting_apart()
-                      or (self.export_settings.estimate is not None and not self.export_settings.estimate.poll()))
+        background = (self.exports.apart()
+                      or (self.exports.settings.estimate is not None and not self.exports.settings.estimate.poll()))
         pb = self.playback  # a flow playing: wake as often as its frames are due; a frame asked for: 10 a second
         playing = 0.0
         if pb.active and self.doc is not None and self.doc.motion is not None:
             playing = self.doc.motion.fps if pb.playing else 10.0 if pb.player.busy else 0.0
         self.waits.frame_ended(busy=busy, analyzing=analyzing, working=working, background=background,
                                playing=playing)
-        if self.quit_requested:
+        if self.files.quit_requested:
             self.params.app_shall_exit = True
         if self.screenshot and ((self.frame_count >= self.min_frames and not busy and not analyzing)
                                 or self.frame_count >= self.min_frames + 3000):

@@ -3,9 +3,9 @@ a map, rendered here in budgeted slices between frames), the streamed exports
 (tile sets, BigTIFF, Zarr, rendered by worker processes while the editor stays
 live), each frame's polling of the running job, and stopping them on exit.
 
-A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
-attributes it uses (``export_job``, ``estimate``, the export settings) are made
-in ``Editor.__init__``.
+``Exports`` is a part of the editor (``Editor.exports``): it owns the running
+export (``job``), the ones waiting (``queue``) and the Export panel's settings
+(``settings``, written by that panel alone).
 """
 from __future__ import annotations
 
@@ -46,22 +46,28 @@ class ExportSettings:
     estimate: ExportEstimate | None = None  # the streamed export's estimate running for these settings
 
 
-class ExportsMixin:
+class Exports:
     """Starting an export, following it frame by frame, stopping it."""
+
+    def __init__(self, ed) -> None:
+        self.ed = ed
+        self.job: ExportJob | StreamedExport | BackgroundExport | None = None  # the running export
+        self.queue: list = []  # exports waiting for the running one
+        self.settings = ExportSettings()  # what the Export panel sets (it alone), the exports read
 
     # -- export -------------------------------------------------------------
 
     def view_rect(self) -> Rect:
-        w, h = self.canvas_size
-        x0, y0 = self.view.top_left(w, h)
-        return Rect(math.floor(x0), math.floor(y0), math.ceil(x0 + w / self.view.zoom), math.ceil(y0 + h / self.view.zoom))
+        w, h = self.ed.canvas_size
+        x0, y0 = self.ed.view.top_left(w, h)
+        return Rect(math.floor(x0), math.floor(y0), math.ceil(x0 + w / self.ed.view.zoom), math.ceil(y0 + h / self.ed.view.zoom))
 
-    def export_inputs(self) -> list[str]:
+    def inputs(self) -> list[str]:
         """The files the document was read from (exemplar, every map) and its
         project file: no export may replace them."""
-        return [*self.doc.input_paths(), *([self.project_path] if self.project_path else [])]
+        return [*self.ed.doc.input_paths(), *([self.ed.files.project_path] if self.ed.files.project_path else [])]
 
-    def _confirm_replace(self, writes: Writes, asked: str | None, again) -> bool:
+    def confirm_replace(self, writes: Writes, asked: str | None, again) -> bool:
         """True to go on; else ask first (Replace calls ``again()``) about the
         existing files among ``writes`` the file dialog did not ask about
         (the system's dialogs ask about the file chosen; the in-window
@@ -79,54 +85,54 @@ class ExportsMixin:
             return True
         names = [printable(os.path.basename(f)) for f in existing]
         what = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
-        self.dialogs.ask("Replace?", f"{what} already exist{'s' if len(names) == 1 else ''} in "
+        self.ed.dialogs.ask("Replace?", f"{what} already exist{'s' if len(names) == 1 else ''} in "
                          f"{printable(os.path.dirname(existing[0]))}. Replace {'it' if len(names) == 1 else 'them'}?",
                          [("Replace", again), ("Cancel", None)])
         return False
 
-    def _asked(self, chosen: str, path: str) -> str | None:
+    def asked(self, chosen: str, path: str) -> str | None:
         """The file a system dialog asked about replacing (the name chosen, unchanged), if any."""
-        return path if self.dialogs.native and os.path.abspath(chosen) == os.path.abspath(path) else None
+        return path if self.ed.dialogs.native and os.path.abspath(chosen) == os.path.abspath(path) else None
 
-    def start_export(self, path: str, rect: Rect, toroidal: int = 0, confirmed: bool = False) -> None:
-        if self.session.quick_analysis:
-            job = self.session.job
+    def start(self, path: str, rect: Rect, toroidal: int = 0, confirmed: bool = False) -> None:
+        if self.ed.session.quick_analysis:
+            job = self.ed.session.job
             done = f" ({job.progress * 100:.0f}% done)" if job is not None else ""
-            self.dialogs.message("Export", "The canvas still shows the quick preview while the full analysis "
+            self.ed.dialogs.message("Export", "The canvas still shows the quick preview while the full analysis "
                                  f"runs{done}; export once it is finished, so the file holds the final texture.")
             return
         chosen = path
         if not os.path.splitext(path)[1]:
-            single = self.session.material is None or self.session.material.single
-            path += ".tif" if self.export_settings.depth == 32 and single else ".png"
-        coords = os.path.splitext(path)[0] + "_coords.png" if self.export_settings.write_coords else None
+            single = self.ed.session.material is None or self.ed.session.material.single
+            path += ".tif" if self.settings.depth == 32 and single else ".png"
+        coords = os.path.splitext(path)[0] + "_coords.png" if self.settings.write_coords else None
         try:
             check_output(path, (".png", ".tif", ".tiff"), "export")  # before any work
             if coords:
                 check_output(coords, (".png",), "coordinate map")
-            mat = self.session.material
+            mat = self.ed.session.material
             if mat is not None:  # every file the export writes: none may be one of its inputs
                 outs = [p for _, p, _ in output_paths(path, mat.roles,
-                                                      export_depths(mat, mat.roles, self.export_settings.depth, path))]
+                                                      export_depths(mat, mat.roles, self.settings.depth, path))]
                 writes = Writes(files=outs + ([coords] if coords else []))
-                check_own_inputs(writes, self.export_inputs())
-                if not confirmed and not self._confirm_replace(
-                        writes, self._asked(chosen, path), lambda: self.start_export(path, rect, toroidal, True)):
+                check_own_inputs(writes, self.inputs())
+                if not confirmed and not self.confirm_replace(
+                        writes, self.asked(chosen, path), lambda: self.start(path, rect, toroidal, True)):
                     return
-            geometry = "original" if self.geometry() is not None else "rectified"  # what the canvas shows
-            options = dict(toroidal=toroidal, coords_path=coords, geometry=geometry, depth=self.export_settings.depth,
-                           magnify=1 if coords else self.export_settings.magnify)
-            job = ExportJob(self.session, rect, path, **options)
+            geometry = "original" if self.ed.geometry() is not None else "rectified"  # what the canvas shows
+            options = dict(toroidal=toroidal, coords_path=coords, geometry=geometry, depth=self.settings.depth,
+                           magnify=1 if coords else self.settings.magnify)
+            job = ExportJob(self.ed.session, rect, path, **options)
             job.cancel()  # it checked the export; the export itself runs in a process of its own
             for _, out, _ in job.outputs:
                 check_output(out, (".png", ".tif"), "export")
-            self.queue_export(BackgroundExport(self.doc, job, options))
+            self.enqueue(BackgroundExport(self.ed.doc, job, options))
         except (SynthesisError, ValueError, WriteError) as exc:  # OwnInputError, MaterialError are ValueErrors
-            self.dialogs.message("Export", str(exc))
+            self.ed.dialogs.message("Export", str(exc))
 
-    def start_streamed_export(self, path: str, rect: Rect, confirmed: bool = False) -> None:
+    def start_streamed(self, path: str, rect: Rect, confirmed: bool = False) -> None:
         """A tile set or BigTIFF of ``rect``, rendered by worker processes while the editor stays live."""
-        fmt = self.export_settings.format
+        fmt = self.settings.format
         ext = {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png")
         chosen = path
         if not os.path.splitext(path)[1]:
@@ -136,120 +142,120 @@ class ExportsMixin:
                 check_zarr_output(path)
             else:
                 check_output(path, (".tif", ".tiff") if ext == ".tif" else (".png",), "export")
-            if self.export_settings.write_coords and fmt != "zarr":
+            if self.settings.write_coords and fmt != "zarr":
                 check_output(os.path.splitext(path)[0] + "_coords" + ext, (ext,), "coordinate map")
-            asked = self._asked(chosen, path)
-            role = "" if self.session.material.single else self.shown_role()
+            asked = self.asked(chosen, path)
+            role = "" if self.ed.session.material.single else self.ed.shown_role()
             if role:  # one map per streamed export: the one shown
                 path = map_path(path, role)
                 asked = None
-            writes = streamed_writes(path, fmt, rect.w, rect.h, self.export_settings.stream_tile, self.export_settings.write_coords)
-            check_own_inputs(writes, self.export_inputs())
-            if not confirmed and not self._confirm_replace(
-                    writes, asked, lambda: self.start_streamed_export(path, rect, True)):
+            writes = streamed_writes(path, fmt, rect.w, rect.h, self.settings.stream_tile, self.settings.write_coords)
+            check_own_inputs(writes, self.inputs())
+            if not confirmed and not self.confirm_replace(
+                    writes, asked, lambda: self.start_streamed(path, rect, True)):
                 return
-            self.export_job = StreamedExport(self.doc, self.session.L, rect, path, fmt, self.export_settings.stream_tile,
-                                             self.export_settings.workers, coords=self.export_settings.write_coords and fmt != "zarr",
+            self.job = StreamedExport(self.ed.doc, self.ed.session.L, rect, path, fmt, self.settings.stream_tile,
+                                             self.settings.workers, coords=self.settings.write_coords and fmt != "zarr",
                                              role=role)
         except (SynthesisError, ValueError, WriteError) as exc:
-            self.dialogs.message("Export", str(exc))
+            self.ed.dialogs.message("Export", str(exc))
 
-    def start_tileset_export(self, path: str, job, per_tile: bool = False, seed: int = 0,
+    def start_tileset(self, path: str, job, per_tile: bool = False, seed: int = 0,
                              confirmed: bool = False, engines: tuple[str, ...] = ENGINES) -> None:
         """Write a tile set (made, or being made, by ``job``: the tile-set
         dialog's) to ``path``; it is finished and written while the editor stays live."""
         chosen = path
         if not os.path.splitext(path)[1]:
-            single = self.session.material is None or self.session.material.single
-            path += ".tif" if self.export_settings.depth == 32 and single else ".png"
+            single = self.ed.session.material is None or self.ed.session.material.single
+            path += ".tif" if self.settings.depth == 32 and single else ".png"
         try:
             check_output(path, (".png", ".tif", ".tiff"), "export")
-            job.set_output(path, depth=self.export_settings.depth, per_tile=per_tile, preview_seed=seed,
+            job.set_output(path, depth=self.settings.depth, per_tile=per_tile, preview_seed=seed,
                            engines=engines)
             writes = Writes(files=job.writes)
-            check_own_inputs(writes, self.export_inputs())
-            if not confirmed and not self._confirm_replace(
-                    writes, self._asked(chosen, path),
-                    lambda: self.start_tileset_export(path, job, per_tile, seed, True, engines)):
+            check_own_inputs(writes, self.inputs())
+            if not confirmed and not self.confirm_replace(
+                    writes, self.asked(chosen, path),
+                    lambda: self.start_tileset(path, job, per_tile, seed, True, engines)):
                 return
-            self.queue_export(job)
+            self.enqueue(job)
         except (SynthesisError, ValueError, WriteError) as exc:
             job.cancel()
-            self.dialogs.message("Export", str(exc))
+            self.ed.dialogs.message("Export", str(exc))
 
-    def exporting_apart(self) -> bool:
+    def apart(self) -> bool:
         """The running export works in other processes (the editor stays live)."""
-        return isinstance(self.export_job, (StreamedExport, BackgroundExport))
+        return isinstance(self.job, (StreamedExport, BackgroundExport))
 
-    def queue_export(self, job) -> None:
+    def enqueue(self, job) -> None:
         """Start an export now, or after the ones before it (a window export's
         process starts then; a tile set or a model export is stepped then)."""
-        if self.export_job is None:
+        if self.job is None:
             getattr(job, "start", lambda: None)()
-            self.export_job = job
+            self.job = job
         else:
-            self.export_queue.append(job)
-            self.tell(f"Export queued ({len(self.export_queue)} waiting): {os.path.basename(job.out_path)}")
+            self.queue.append(job)
+            self.ed.tell(f"Export queued ({len(self.queue)} waiting): {os.path.basename(job.out_path)}")
 
-    def _next_export(self) -> None:
-        if self.export_job is None and self.export_queue:
-            job = self.export_queue.pop(0)
+    def _next(self) -> None:
+        if self.job is None and self.queue:
+            job = self.queue.pop(0)
             getattr(job, "start", lambda: None)()
-            self.export_job = job
+            self.job = job
 
-    def _poll_export(self) -> None:
+    def poll(self) -> None:
         """A streamed export's progress, or a window export's next slice; a notice once it ends."""
-        self._next_export()
-        job = self.export_job
+        self._next()
+        job = self.job
         if isinstance(job, (BackgroundExport, StreamedExport)):  # in processes of their own
             if not job.finished:
                 return
-            self.export_job = None
+            self.job = None
             if job.error:
-                self.dialogs.message("Export failed", job.error)
+                self.ed.dialogs.message("Export failed", job.error)
             elif isinstance(job, BackgroundExport):
-                self.tell(f"Export of {os.path.basename(job.out_path)} cancelled" if job.cancelled
+                self.ed.tell(f"Export of {os.path.basename(job.out_path)} cancelled" if job.cancelled
                           else _written(job))
             elif job.cancelled:
-                self.tell(f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
+                self.ed.tell(f"Export stopped: {job.done_tiles} of {job.job.total} tiles are kept; the same "
                           f"export continues from them")
             else:
                 r = job.rect
                 where = " and ".join(os.path.abspath(o) for o in job.job.outputs())
                 kept = f" ({job.kept} tiles kept from an earlier run)" if job.kept else ""
-                self.tell(f"Exported {r.w}x{r.h} to {where}{kept}")
+                self.ed.tell(f"Exported {r.w}x{r.h} to {where}{kept}")
                 if job.job.notes:  # e.g. a parts folder left in place because it held foreign files
-                    self.dialogs.message("Export finished", "\n".join(job.job.notes))
+                    self.ed.dialogs.message("Export finished", "\n".join(job.job.notes))
             if isinstance(job, BackgroundExport):
-                self._next_export()
-        elif self.export_job is not None:
-            self.export_job.step(FRAME_BUDGET_S)
-            self.screen_fbo.use()
-            if self.export_job.done or self.export_job.cancelled:
-                job, self.export_job = self.export_job, None
+                self._next()
+        elif self.job is not None:
+            self.job.step(FRAME_BUDGET_S)
+            self.ed.screen_fbo.use()
+            if self.job.done or self.job.cancelled:
+                job, self.job = self.job, None
                 if job.error:
-                    self.dialogs.message("Export failed", job.error)
+                    self.ed.dialogs.message("Export failed", job.error)
                 elif not job.cancelled and hasattr(job, "summary"):  # a tile set
-                    self.tell(job.summary())
+                    self.ed.tell(job.summary())
                 elif not job.cancelled:
-                    self.tell(_written(job))
+                    self.ed.tell(_written(job))
 
-    def export_closed(self) -> None:
+    def closed(self) -> None:
         """The progress window of an export done in the editor was closed."""
-        self.export_job = None
+        self.job = None
 
-    def _stop_exports(self) -> None:
+    def stop(self) -> None:
         """On exit: cancel the running export and close the estimate's workers."""
-        for job in self.export_queue:
+        for job in self.queue:
             job.cancel()
-        if self.export_job is not None:
-            self.export_job.cancel()
-            if isinstance(self.export_job, StreamedExport):
-                self.export_job.wait(120)  # the tiles being rendered finish; every finished one is kept
-            elif isinstance(self.export_job, BackgroundExport):
-                self.export_job.wait(30)
-        if self.export_settings.estimate is not None:
-            self.export_settings.estimate.close(wait=10.0)
+        if self.job is not None:
+            self.job.cancel()
+            if isinstance(self.job, StreamedExport):
+                self.job.wait(120)  # the tiles being rendered finish; every finished one is kept
+            elif isinstance(self.job, BackgroundExport):
+                self.job.wait(30)
+        if self.settings.estimate is not None:
+            self.settings.estimate.close(wait=10.0)
 
 
 def _written(job) -> str:

@@ -3,8 +3,11 @@ dropped on the window), save and save as, the questions asked before unsaved
 edits are lost (replacing the document, quitting), autosave and recovery, and
 the undo history every edit goes through.
 
-A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
-attributes it uses are made in ``Editor.__init__``.
+``Documents`` is a part of the editor (``Editor.files``): it owns the
+document's history, the project file it belongs to, the autosave, the
+document being analyzed before it opens and the files dropped on the window.
+The editor reads the document (``Editor.doc``) and makes edits
+(``Editor.edit``) through it.
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ from infinitex.engine.material import MaterialError, assign_roles
 from infinitex.engine.safeio import ReadError, printable
 from infinitex.project import (
     PROJECT_SUFFIX,
+    Autosave,
     Document,
     ExemplarOutside,
     ExemplarSource,
@@ -49,8 +53,20 @@ def default_exemplar() -> str:
     return os.environ.get("INFINITEX_DEFAULT_EXEMPLAR") or DEFAULT_EXEMPLAR
 
 
-class FilesMixin:
+class Documents:
     """Opening, saving and replacing the document; its undo history."""
+
+    def __init__(self, ed, autosave: Autosave | None = None) -> None:
+        self.ed = ed
+        self.history: History | None = None
+        self.project_path: str | None = None
+        self.autosave = autosave or Autosave(background=True)  # written beside the frames, never holding one up
+        self.pending: tuple | None = None  # (kind, candidate Document, project or None, path) being analyzed
+        self.pending_label = "Load exemplar"
+        self.found_lattice = None  # the Detection that put the open image on its lattice (Exemplar panel)
+        self._dropped: list[str] = []
+        self.quit_requested = False
+        self._close_requested = False
 
     # -- documents ----------------------------------------------------------
 
@@ -59,7 +75,7 @@ class FilesMixin:
         return self.history.current if self.history else None
 
     def project(self) -> Project:
-        return Project(self.doc, self.view, self.display)
+        return Project(self.doc, self.ed.view, self.ed.display)
 
     def autosave_project(self) -> Project:
         """The project with the file it belongs to, so recovery restores its name."""
@@ -81,26 +97,26 @@ class FilesMixin:
         try:
             src = ExemplarSource.from_file(default_exemplar())
         except OSError as exc:
-            self.dialogs.message("Error", f"The default exemplar could not be read: {exc}")
+            self.ed.dialogs.message("Error", f"The default exemplar could not be read: {exc}")
             return
-        self._begin_load("new", Document(src), None, None)
+        self.begin_load("new", Document(src), None, None)
 
-    def _open_first_document(self) -> None:
+    def open_first(self) -> None:
         """The document the editor starts with (the command line's file, else a
         new one), then the questions about earlier sessions' unsaved work: one
         for each autosave whose editor is gone, oldest first (a running
         editor's autosave is not offered)."""
-        recovered = self.autosave.pending_all() if self.offer_recovery else []
-        if self.start_path:
-            self.open_path(self.start_path, first=True)
+        recovered = self.autosave.pending_all() if self.ed.offer_recovery else []
+        if self.ed.start_path:
+            self.open_path(self.ed.start_path, first=True)
         else:
             self.new_document()
         for where, why in self.autosave.set_aside_all:
-            self.dialogs.message("Autosave set aside",
+            self.ed.dialogs.message("Autosave set aside",
                                  f"The autosaved work of an earlier session could not be read ({why})\n"
                                  f"It was kept as {printable(where)}.")
         for i, rec in enumerate(recovered):
-            self.dialogs.ask("Recover unsaved work", recovery_question(rec, i, len(recovered)),
+            self.ed.dialogs.ask("Recover unsaved work", recovery_question(rec, i, len(recovered)),
                              [("Recover", lambda rec=rec: self.confirm_discard(lambda: self._recover(rec))),
                               ("Discard", lambda rec=rec: self.autosave.discard(rec)),
                               ("Keep for later", None)])
@@ -118,11 +134,11 @@ class FilesMixin:
         try:
             if os.path.isfile(path) and is_project_file(path):
                 proj = load_project(path, allow_outside=allow_outside)
-                self._begin_load("project", proj.document, proj, path)
+                self.begin_load("project", proj.document, proj, path)
                 return
         except ExemplarOutside as exc:
             allow = {exc.path}  # (exc itself is gone once the except block ends)
-            self.dialogs.ask("Exemplar outside the project's folder",
+            self.ed.dialogs.ask("Exemplar outside the project's folder",
                              f"{exc}\nRead this file as the exemplar?",
                              [("Read it", lambda: self.open_path(path, first, allow_outside=allow,
                                                                  replace_exemplar=replace_exemplar)),
@@ -156,9 +172,9 @@ class FilesMixin:
             doc = replace(base, toroidal=None, lattice=None, weights=None)
             # In a palette the first exemplar is replaced (its label keeps its place, renamed).
             doc = doc.with_palette([tuple(maps), *doc.palette]) if doc.palette else doc.with_maps(maps)
-            self._begin_load("exemplar", doc, None, path)
+            self.begin_load("exemplar", doc, None, path)
         else:
-            self._begin_load("image", Document(maps[0][1]).with_maps(maps), None, path)
+            self.begin_load("image", Document(maps[0][1]).with_maps(maps), None, path)
 
     def add_to_palette(self, paths: list[str]) -> None:
         """Add an image (or a material: one map brings its siblings) to the
@@ -169,21 +185,21 @@ class FilesMixin:
             found = assign_roles([os.path.expanduser(p) for p in paths])
             entry = tuple((role, ExemplarSource.from_file(p)) for role, p in found.items())
         except (MaterialError, ReadError) as exc:
-            self.dialogs.message("Could not add to the palette", str(exc))
+            self.ed.dialogs.message("Could not add to the palette", str(exc))
             return
         except OSError as exc:
-            self.dialogs.message("Could not add to the palette", f"The image could not be read: {exc.strerror or exc}.")
+            self.ed.dialogs.message("Could not add to the palette", f"The image could not be read: {exc.strerror or exc}.")
             return
         entries = doc.entries()
         if len(entries) >= MAX_LABELS:
-            self.dialogs.message("Could not add to the palette", f"A palette has at most {MAX_LABELS} exemplars.")
+            self.ed.dialogs.message("Could not add to the palette", f"A palette has at most {MAX_LABELS} exemplars.")
         elif sorted(r for r, _ in entry) != sorted(r for r, _ in entries[0]):
-            self.dialogs.message("Could not add to the palette",
+            self.ed.dialogs.message("Could not add to the palette",
                                  f"{printable(entry[0][1].name)} has the maps {', '.join(r for r, _ in entry)} "
                                  f"but the palette's exemplars have {', '.join(r for r, _ in entries[0])}; "
                                  "a palette's exemplars have the same maps.")
         else:
-            self._begin_load("exemplar", doc.with_palette(entries + (entry,)), None, None, "Add to palette")
+            self.begin_load("exemplar", doc.with_palette(entries + (entry,)), None, None, "Add to palette")
 
     def remove_from_palette(self, index: int) -> None:
         """Remove the palette's exemplar ``index`` (its label goes; canvas labels it had are erased)."""
@@ -195,15 +211,15 @@ class FilesMixin:
             canvas = CanvasLabels({k: lut[t] for k, t in doc.labels.canvas.tiles.items()})
             doc = replace(doc, labels=replace(doc.labels, canvas=canvas))
         doc = doc.with_palette([e for i, e in enumerate(doc.entries()) if i != index])
-        self._begin_load("exemplar", doc, None, None, "Remove from palette")
+        self.begin_load("exemplar", doc, None, None, "Remove from palette")
 
     def _open_failed(self, msg: str | None, first: bool) -> None:
         if msg:
-            self.dialogs.message("Could not open", msg)
+            self.ed.dialogs.message("Could not open", msg)
         if first and self.history is None:
             self.new_document()
 
-    def _begin_load(self, kind: str, doc: Document, proj: Project | None, path: str | None,
+    def begin_load(self, kind: str, doc: Document, proj: Project | None, path: str | None,
                     label: str = "Load exemplar") -> None:
         """Analyze ``doc`` and make it current only when that succeeds (a new
         document, or with kind "exemplar" an edit named ``label``)."""
@@ -211,9 +227,9 @@ class FilesMixin:
         self.pending_label = label
         # An image opened (or replacing the exemplar) is synthesized on the
         # lattice it shows, when one is found (the Exemplar panel says so).
-        self.session.load(doc, find_lattice=kind in ("image", "exemplar", "new"))
+        self.ed.session.load(doc, find_lattice=kind in ("image", "exemplar", "new"))
 
-    def _finish_load(self, job) -> None:
+    def finish_load(self, job) -> None:
         kind, doc, proj, path = self.pending
         # The document shown: the image as given while its quick preview shows (a lattice found later is
         # adopted by adopt_found_lattice), else the job's (with the lattice found, if one was).
@@ -222,42 +238,42 @@ class FilesMixin:
         self.found_lattice = getattr(job, "found", None) if doc.lattice is not None else None
         if job.error or job.cancelled:
             if job.error:
-                self.dialogs.message("Could not open", job.error)
+                self.ed.dialogs.message("Could not open", job.error)
             if self.history is None:
                 if kind != "new":
                     self.new_document()
                 else:
-                    self.fail(job.error or "The default exemplar could not be loaded.")
+                    self.ed.fail(job.error or "The default exemplar could not be loaded.")
             return
         if path and kind in ("project", "image", "exemplar") and path != self.autosave.path:
             self.remember(path)
         if kind == "exemplar" and self.history is not None:
-            self.edit(doc, getattr(self, "pending_label", "Load exemplar"))
+            self.edit(doc, self.pending_label)
             return
         self.history = History(doc)
-        for tool in self.tools:  # what a tool held of the last document (a lattice message...) goes
+        for tool in self.ed.tools:  # what a tool held of the last document (a lattice message...) goes
             tool.new_document()
-        self.playback.stop()
+        self.ed.playback.stop()
         self.autosave.clear()  # a new document: the autosave of the one it replaces goes
         if kind == "project":
-            self.viewer.show(proj.view, proj.display)
+            self.ed.viewer.show(proj.view, proj.display)
             self.project_path = path if path != self.autosave.path else None
         elif kind == "recovered":  # the unsaved work of a project (or of an untitled document)
-            self.viewer.show(proj.view, proj.display)
+            self.ed.viewer.show(proj.view, proj.display)
             self.project_path = proj.origin if proj.origin and os.path.isfile(proj.origin) else None
             self.history.saved = None
             self._adopt_autosave(path)
         else:
-            self.viewer.show()
+            self.ed.viewer.show()
             self.project_path = None
 
     def _recover(self, rec: Recoverable) -> None:
         try:
             proj = rec.project  # read now: only the one being recovered is ever held
         except ProjectError as exc:
-            self.dialogs.message("Recover unsaved work", f"The autosaved work could not be read ({exc}).")
+            self.ed.dialogs.message("Recover unsaved work", f"The autosaved work could not be read ({exc}).")
             return
-        self._begin_load("recovered", proj.document, proj, rec.path)
+        self.begin_load("recovered", proj.document, proj, rec.path)
 
     def _adopt_autosave(self, path: str | None) -> None:
         """The recovered work goes into this editor's own autosave at once;
@@ -265,14 +281,14 @@ class FilesMixin:
         try:
             self.autosave.tick(self.autosave_project(), True, force=True)
         except ProjectError as exc:
-            self.dialogs.message("Autosave", f"The recovered work could not be autosaved again ({exc})\n"
+            self.ed.dialogs.message("Autosave", f"The recovered work could not be autosaved again ({exc})\n"
                                  "Its earlier autosave is kept.")
             return
         for rec in self.autosave.pending_all():
             if rec.path == path:
                 self.autosave.discard(rec)
 
-    def _install_drop_callback(self) -> None:
+    def install_drop_callback(self) -> None:
         try:
             import glfw
             from imgui_bundle import glfw_utils
@@ -281,7 +297,7 @@ class FilesMixin:
         except Exception:
             pass
 
-    def _open_dropped(self) -> None:
+    def open_dropped(self) -> None:
         """Open what was dropped on the window since the last frame."""
         if len(self._dropped) > 1 and not any(is_project_file(p) for p in self._dropped if os.path.isfile(p)):
             paths, self._dropped = list(self._dropped), []  # several images dropped at once: one material's maps
@@ -292,7 +308,7 @@ class FilesMixin:
 
     def remember(self, path: str) -> None:
         """Put a file at the top of File > Open Recent (kept in the user's config folder)."""
-        self.prefs.remember(path)
+        self.ed.prefs.remember(path)
 
     # -- history ------------------------------------------------------------
 
@@ -305,7 +321,7 @@ class FilesMixin:
         try:
             self.history.apply(doc, label, group, region)
         except ProjectError as exc:
-            self.dialogs.message("Invalid setting", str(exc))
+            self.ed.dialogs.message("Invalid setting", str(exc))
 
     def undo(self) -> None:
         if self.history:
@@ -331,7 +347,7 @@ class FilesMixin:
             path = project_save_path(path, self.doc, self.project_path)
             save_project(path, self.project())
         except ProjectError as exc:
-            self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
+            self.ed.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
             return False
         self.project_path = path
         self.remember(path)
@@ -349,8 +365,8 @@ class FilesMixin:
         def done(path: str) -> None:
             self.save_chosen(path, bool(native), then)
         name = self.project_path or "untitled" + PROJECT_SUFFIX  # a bare name goes to Dialogs.start_dir()
-        self.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=name)
-        req = self.dialogs.path_request
+        self.ed.dialogs.ask_path("Save project as", True, PROJECT_FILTER, done, default=name)
+        req = self.ed.dialogs.path_request
         if req is not None and req.native is not None:
             native.append(True)
 
@@ -361,7 +377,7 @@ class FilesMixin:
         try:
             path = project_save_path(chosen, self.doc, self.project_path)
         except ProjectError as exc:
-            self.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
+            self.ed.dialogs.message("Save failed", f"{exc}\nNothing was changed on disk.")
             return
 
         def write() -> None:
@@ -369,7 +385,7 @@ class FilesMixin:
                 then()
         own = self.project_path is not None and os.path.abspath(self.project_path) == path
         if os.path.lexists(path) and not own and not (asked and path == os.path.abspath(chosen)):
-            self.dialogs.ask("Replace file", f"{printable(os.path.basename(path))} already exists in "
+            self.ed.dialogs.ask("Replace file", f"{printable(os.path.basename(path))} already exists in "
                              f"{printable(os.path.dirname(path))}. Replace it?",
                              [("Replace", write), ("Cancel", None)])
         else:
@@ -385,7 +401,7 @@ class FilesMixin:
     def confirm_discard(self, action) -> None:
         """Run ``action`` (which replaces the document), offering to save unsaved edits first."""
         if self.history is not None and self.history.dirty:
-            self.dialogs.ask("Unsaved changes", f"{self.title.split(' - ')[0].lstrip('*')} has unsaved changes. "
+            self.ed.dialogs.ask("Unsaved changes", f"{self.title.split(' - ')[0].lstrip('*')} has unsaved changes. "
                              "Save them first?",
                              [("Save", lambda: self.save_then(action)), ("Discard", action), ("Cancel", None)])
         else:
@@ -401,7 +417,7 @@ class FilesMixin:
         def save_and_quit():
             self.save_then(quit_now)
         if self.history is not None and self.history.dirty:
-            self.dialogs.ask("Unsaved changes", "The project has unsaved changes. Save them before quitting?",
+            self.ed.dialogs.ask("Unsaved changes", "The project has unsaved changes. Save them before quitting?",
                              [("Save", save_and_quit), ("Discard", quit_now), ("Cancel", None)])
         else:
             quit_now()
@@ -413,21 +429,21 @@ class FilesMixin:
             self._close_requested = False
             self.request_quit()
 
-    def _confirm_exit(self) -> bool:
+    def confirm_exit(self) -> bool:
         # Called by the runner outside the frame (no imgui calls here): defer to a modal.
-        if self.history is not None and self.history.dirty and not self.screenshot:
+        if self.history is not None and self.history.dirty and not self.ed.screenshot:
             self._close_requested = True
             return False
         return True
 
-    def _autosave_tick(self) -> None:
+    def autosave_tick(self) -> None:
         if self.doc is not None and self.history is not None:
             try:
                 self.autosave.tick(self.autosave_project(), self.history.dirty)
             except ProjectError:
                 pass
 
-    def _keep_unsaved_work(self) -> None:
+    def keep_unsaved_work(self) -> None:
         """On exit: unsaved edits stay in this editor's autosave (offered at the
         next start), else it goes; other editors' autosaves are not touched."""
         if self.history is not None and self.history.dirty:
@@ -463,6 +479,6 @@ def adopt_found_lattice(ed, job) -> None:
     if doc.analysis_key() != job.asked_key:
         return
     ed.edit(replace(doc, lattice=lattice), "Lattice found")
-    ed.found_lattice = found
+    ed.files.found_lattice = found
     ed.tell(f"Found a lattice (cells {lattice.describe()}): rows and columns stay straight. "
             "Ctrl+Z synthesizes without it.")

@@ -3,8 +3,8 @@ tool keys and H / T / M (anywhere but in a text field; Escape closes an open
 menu first), and the F1 window listing them all
 (``SHORTCUTS`` plus each tool's key).
 
-A mixin of ``Editor`` (editor.py): it keeps no state of its own; the
-attributes it uses are made in ``Editor.__init__``.
+``Shortcuts`` is a part of the editor (``Editor.shortcuts``): it owns whether
+the list is shown and reads the keys through the editor it is given.
 """
 from __future__ import annotations
 
@@ -25,21 +25,25 @@ SHORTCUTS = [
 ]
 
 
-class ShortcutsMixin:
-    """The editor's keys, read once a frame, and their list (F1)."""
+class Shortcuts:
+    """The editor's keys, read once a frame (``read``), and their list (F1, ``window``)."""
 
-    def show_shortcut_list(self, on: bool) -> None:
+    def __init__(self, ed) -> None:
+        self.ed = ed
+        self.listed = False  # the F1 list is shown
+
+    def show_list(self, on: bool) -> None:
         """The list of shortcuts (F1) shown or not."""
-        self.show_shortcuts = bool(on)
+        self.listed = bool(on)
 
-    def _shortcuts(self) -> None:
+    def read(self) -> None:
         """This frame's key presses, in the order they came, each with the
         modifiers held when it went down (keylog.py): a chord as short as the
         window system can make is seen, and a letter typed with Ctrl held is
         never a tool key. Once a press opens a dialog, the presses after it
         are the dialog's, not shortcuts."""
-        keys = self.keys
-        if self.dialogs.busy or imgui.get_io().want_text_input:
+        keys = self.ed.keys
+        if self.ed.dialogs.busy or imgui.get_io().want_text_input:
             keys.drop()
             return
         if imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id | imgui.PopupFlags_.any_popup_level):
@@ -51,22 +55,22 @@ class ShortcutsMixin:
             return
         K = imgui.Key
         for _ in range(keys.take(K.z, ctrl=True, shift=True) + keys.take(K.y, ctrl=True)):
-            self.redo()
+            self.ed.files.redo()
         for _ in range(keys.take(K.z, ctrl=True)):
-            self.undo()
+            self.ed.files.undo()
         if keys.take(K.s, ctrl=True):
-            self.save()
+            self.ed.files.save()
         if keys.take(K.s, ctrl=True, shift=True):
-            self.save_as()
+            self.ed.files.save_as()
         if keys.take(K.o, ctrl=True):
-            self.panels.open_dialog()
+            self.ed.panels.open_dialog()
         if keys.take(K.q, ctrl=True):
-            self.request_quit()
-        if self.dialogs.busy:  # a question or a file chooser opens: what is typed next is its
+            self.ed.files.request_quit()
+        if self.ed.dialogs.busy:  # a question or a file chooser opens: what is typed next is its
             keys.drop()
             return
         if keys.take(K.f1, shift=None) or keys.take(K.slash, shift=True):
-            self.show_shortcuts = not self.show_shortcuts
+            self.listed = not self.listed
         io = imgui.get_io()
         if io.key_ctrl or io.key_alt or io.key_super or imgui.is_any_item_active():
             keys.drop()
@@ -74,43 +78,43 @@ class ShortcutsMixin:
         self._zoom_keys()
         # Single keys: tools, H, T, M (anywhere a text field or a dialog does not
         # take the keys, as in Krita and Photoshop; never while a control is dragged).
-        for t in self.tools.offered(self.model_mode):  # (the Lattice and Labels keys do nothing on a model)
+        for t in self.ed.tools.offered(self.ed.model_mode):  # (the Lattice and Labels keys do nothing on a model)
             if t.key and keys.plain(getattr(K, t.key.lower())):
-                self.set_tool(t)
+                self.ed.tools.choose(t)
         if keys.plain(K.h):
-            self.viewer.show_painted(not self.viewer.show_fields)
+            self.ed.viewer.show_painted(not self.ed.viewer.show_fields)
         if keys.plain(K.t):
-            self.viewer.show_tile(not self.viewer.tile_mode)
-        if keys.plain(K.m) and self.session.ready:
-            roles = self.session.material.roles  # the next map of a material
-            cur = self.session.shown_map(self.display.map)
-            self.viewer.set_display(map=roles[(roles.index(cur) + 1) % len(roles)])
+            self.ed.viewer.show_tile(not self.ed.viewer.tile_mode)
+        if keys.plain(K.m) and self.ed.session.ready:
+            roles = self.ed.session.material.roles  # the next map of a material
+            cur = self.ed.session.shown_map(self.ed.display.map)
+            self.ed.viewer.set_display(map=roles[(roles.index(cur) + 1) % len(roles)])
         if keys.plain(K.space):
             from .panels.motion import toggle
-            toggle(self)
-        if self.doc is not None and self.doc.motion is not None:
+            toggle(self.ed)
+        if self.ed.doc is not None and self.ed.doc.motion is not None:
             for key, d in ((K.comma, -1), (K.period, 1)):
                 if keys.plain(key):
-                    self.playback.step(d, self.doc.motion.frames)
-        self.tool.keys()
+                    self.ed.playback.step(d, self.ed.doc.motion.frames)
+        self.ed.tool.keys()
 
     def _zoom_keys(self) -> None:
         """1: actual size; + and -: zoom in and out around the canvas centre;
         0: fit one exemplar across the canvas (as in Krita and Blender)."""
-        w, h = self.canvas_size
+        w, h = self.ed.canvas_size
         K = imgui.Key
         if imgui.is_key_pressed(K._1, False) or imgui.is_key_pressed(K.keypad1, False):
-            self.viewer.zoom_to(1.0)
+            self.ed.viewer.zoom_to(1.0)
         elif imgui.is_key_pressed(K.equal) or imgui.is_key_pressed(K.keypad_add):
-            self.viewer.zoom_at(2.0, w / 2, h / 2, w, h)
+            self.ed.viewer.zoom_at(2.0, w / 2, h / 2, w, h)
         elif imgui.is_key_pressed(K.minus) or imgui.is_key_pressed(K.keypad_subtract):
-            self.viewer.zoom_at(0.5, w / 2, h / 2, w, h)
-        elif (imgui.is_key_pressed(K._0, False) or imgui.is_key_pressed(K.keypad0, False)) and self.session.ready:
-            self.viewer.fit(self.session.analysis.size, w, h)
+            self.ed.viewer.zoom_at(0.5, w / 2, h / 2, w, h)
+        elif (imgui.is_key_pressed(K._0, False) or imgui.is_key_pressed(K.keypad0, False)) and self.ed.session.ready:
+            self.ed.viewer.fit(self.ed.session.analysis.size, w, h)
 
-    def shortcuts_window(self) -> None:
+    def window(self) -> None:
         """F1 or ?: every keyboard and mouse shortcut."""
-        if not self.show_shortcuts:
+        if not self.listed:
             return
         vp = imgui.get_main_viewport()
         imgui.set_next_window_pos((vp.work_pos.x + vp.work_size.x / 2, vp.work_pos.y + vp.work_size.y / 2),
@@ -119,7 +123,7 @@ class ShortcutsMixin:
                                    | imgui.WindowFlags_.no_collapse)
         if opened and imgui.begin_table("shortcuts", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
             for key, what in SHORTCUTS + [(f"{t.key}", f"{t.label} tool")
-                                          for t in self.tools if t.key]:
+                                          for t in self.ed.tools if t.key]:
                 imgui.table_next_row()
                 imgui.table_next_column()
                 imgui.text(key)
@@ -128,4 +132,4 @@ class ShortcutsMixin:
             imgui.end_table()
         imgui.end()
         if not keep:
-            self.show_shortcuts = False
+            self.listed = False

@@ -49,7 +49,7 @@ def draw(p: Panels) -> None:
         imgui.text_disabled(f"hi-res {ex.hires.shape[1]}x{ex.hires.shape[0]} kept for magnification")
     if imgui.button("Replace exemplar...", (-1, 0)):
         ed.dialogs.ask_path("Replace the exemplar", False, IMAGE_FILTER,
-                            lambda path: ed.open_path(path, replace_exemplar=True))
+                            lambda path: ed.files.open_path(path, replace_exemplar=True))
     tip("Use another image as the exemplar of this document, keeping its settings (undoable). "
         "File > Open makes a new document.")
     if not lattice:
@@ -74,7 +74,7 @@ def lattice_line(ed, doc) -> None:
     whether it was found in the image (and how sure), one click to turn it off
     or to adjust it with the Lattice tool."""
     lat = doc.lattice
-    found = ed.found_lattice
+    found = ed.files.found_lattice
     imgui.push_text_wrap_pos(0)
     imgui.text_colored((0.55, 0.85, 1.0, 1.0), f"On a lattice: cells {lat.describe()}, a block of {lat.nx} x {lat.ny}")
     if found is not None and found.lattice is not None and replace(found.lattice, levels=lat.levels) == lat:
@@ -85,7 +85,7 @@ def lattice_line(ed, doc) -> None:
     tip("Synthesize the image as a stochastic texture, without its lattice (undoable)")
     imgui.same_line()
     if imgui.button("Adjust (L)##lattice-adjust"):
-        ed.set_tool(ed.tools.of(LatticeTool))
+        ed.tools.choose(ed.tools.of(LatticeTool))
     tip("The Lattice tool: drag the cell's handles over the image, or mark one cell with a rectangle")
 
 
@@ -102,11 +102,11 @@ def _palette(ed, doc) -> None:
             imgui.text(f"{i + 1}  {entry[0][1].name}")
             imgui.same_line()
             if imgui.small_button(f"x##palette-remove-{i}"):
-                ed.remove_from_palette(i)
+                ed.files.remove_from_palette(i)
             tip("Remove this exemplar from the palette (its label goes; the canvas where it was painted "
                 "becomes free)")
     if len(entries) < MAX_LABELS and imgui.button("Add to palette...", (-1, 0)):
-        ed.dialogs.ask_paths("Add an exemplar to the palette", IMAGE_FILTER, ed.add_to_palette)
+        ed.dialogs.ask_paths("Add an exemplar to the palette", IMAGE_FILTER, ed.files.add_to_palette)
     tip("Texture by numbers across several images: each exemplar of the palette becomes a label (grass, gravel, "
         "a dirt path...), named after its file. Paint on the canvas where each goes with the Labels tool (G); "
         "transitions come from where the exemplars meet. A material adds a material with the same maps")

@@ -37,23 +37,23 @@ EXPORT_FORMATS = [
 def draw(p: Panels) -> None:
     """The Export panel."""
     ed = p.ed
-    _, ed.export_settings.write_coords = imgui.checkbox("Also write the coordinate map", ed.export_settings.write_coords)
+    _, ed.exports.settings.write_coords = imgui.checkbox("Also write the coordinate map", ed.exports.settings.write_coords)
     tip("NAME_coords.png: the exemplar position of every pixel, exactly "
         "(x = R + 256 (B & 15), y = G + 256 (B >> 4)); to look up other maps through the same synthesis")
     keys = [k for k, _ in DEPTH_CHOICES]
     imgui.set_next_item_width(-70)
-    changed, i = imgui.combo("Depth", keys.index(ed.export_settings.depth), [lbl for _, lbl in DEPTH_CHOICES])
+    changed, i = imgui.combo("Depth", keys.index(ed.exports.settings.depth), [lbl for _, lbl in DEPTH_CHOICES])
     tip("Bits per channel of the exported maps: each map's own (8-bit sources 8, 16-bit 16, float 32), "
         "or the same for all; 32-bit maps are float TIFFs")
     if changed:
-        ed.export_settings.depth = keys[i]
+        ed.exports.settings.depth = keys[i]
     imgui.set_next_item_width(-70)
-    changed, i = imgui.combo("Scale", MAGNIFY_CHOICES.index(ed.export_settings.magnify),
+    changed, i = imgui.combo("Scale", MAGNIFY_CHOICES.index(ed.exports.settings.magnify),
                              ["1:1"] + [f"{f}x (magnified)" for f in MAGNIFY_CHOICES[1:]])
     tip("View and tile exports: N x N pixels per synthesized pixel, sharp from the full-resolution maps "
         "(synthesis magnification, LH05 5); normals stay unit length")
     if changed:
-        ed.export_settings.magnify = MAGNIFY_CHOICES[i]
+        ed.exports.settings.magnify = MAGNIFY_CHOICES[i]
     mat = ed.session.material
     if mat is not None and not mat.single:
         imgui.push_text_wrap_pos(0)
@@ -66,7 +66,7 @@ def draw(p: Panels) -> None:
     imgui.separator_text("Rectangle")
     rectangle(p)
     imgui.separator_text("Seamless tile")
-    ed.export_settings.tile_size = size_combo("Tile size", TILE_SIZES, ed.export_settings.tile_size)
+    ed.exports.settings.tile_size = size_combo("Tile size", TILE_SIZES, ed.exports.settings.tile_size)
     tip("Side of the seamless tile")
     ed.viewer.show_tile(imgui.checkbox("Show the tile on the canvas (T)", ed.viewer.tile_mode)[1])
     tip("The canvas shows the periodic texture this tile size makes, tile borders drawn: "
@@ -106,27 +106,27 @@ def rectangle(p: Panels) -> None:
     from infinitex.export.jobs import ExportEstimate
     ed = p.ed
     imgui.set_next_item_width(-90)
-    _, ed.export_settings.rect = imgui.input_int4("x y w h", ed.export_settings.rect)
+    _, ed.exports.settings.rect = imgui.input_int4("x y w h", ed.exports.settings.rect)
     tip("A rectangle of the infinite canvas: its top-left corner and size, in texture pixels")
     if imgui.small_button("The view"):
-        r = ed.view_rect()
-        ed.export_settings.rect = [r.x0, r.y0, r.w, r.h]
+        r = ed.exports.view_rect()
+        ed.exports.settings.rect = [r.x0, r.y0, r.w, r.h]
     tip("The rectangle the canvas shows now")
     for n, label in ((8192, "8k"), (32768, "32k"), (65536, "64k")):
         imgui.same_line()
         if imgui.small_button(f"{label}##square"):
-            ed.export_settings.rect = [ed.export_settings.rect[0], ed.export_settings.rect[1], n, n]
-            if ed.export_settings.format == "png":
-                ed.export_settings.format = "tiff"
+            ed.exports.settings.rect = [ed.exports.settings.rect[0], ed.exports.settings.rect[1], n, n]
+            if ed.exports.settings.format == "png":
+                ed.exports.settings.format = "tiff"
         tip(f"{n} x {n} px from the same corner")
     keys = [k for k, _, _ in EXPORT_FORMATS]
     imgui.set_next_item_width(-90)
-    changed, i = imgui.combo("Format", keys.index(ed.export_settings.format), [label for _, label, _ in EXPORT_FORMATS])
+    changed, i = imgui.combo("Format", keys.index(ed.exports.settings.format), [label for _, label, _ in EXPORT_FORMATS])
     if changed:
-        ed.export_settings.format = keys[i]
-    tip(EXPORT_FORMATS[keys.index(ed.export_settings.format)][2])
-    x, y, w, h = ed.export_settings.rect
-    streamed = ed.export_settings.format != "png"
+        ed.exports.settings.format = keys[i]
+    tip(EXPORT_FORMATS[keys.index(ed.exports.settings.format)][2])
+    x, y, w, h = ed.exports.settings.rect
+    streamed = ed.exports.settings.format != "png"
     problem = None
     if w < 1 or h < 1:
         problem = "The rectangle is empty."
@@ -139,21 +139,21 @@ def rectangle(p: Panels) -> None:
         problem = "The corner must be within +-2^30."
     low = False
     if streamed:
-        ed.export_settings.stream_tile = size_combo("Tile##stream", STREAM_TILES, ed.export_settings.stream_tile)
+        ed.exports.settings.stream_tile = size_combo("Tile##stream", STREAM_TILES, ed.exports.settings.stream_tile)
         tip("Side of the tiles the export is rendered in (and, for PNG tiles, of each file)")
         imgui.set_next_item_width(-90)
         cores = os.cpu_count() or 1
-        _, ed.export_settings.workers = imgui.slider_int("Workers", ed.export_settings.workers, 1, max(2, cores))
+        _, ed.exports.settings.workers = imgui.slider_int("Workers", ed.exports.settings.workers, 1, max(2, cores))
         tip("Processes rendering tiles, each with its own GL context, while the editor stays live "
             f"(this machine has {cores} cores)")
         if problem is None and ed.session is not None and ed.session.ready:
-            key = (ed.doc.analysis_key(), ed.export_settings.format, ed.export_settings.stream_tile)
-            if ed.export_settings.estimate is None or ed.export_settings.estimate.key != key:
-                if ed.export_settings.estimate is not None:
-                    ed.export_settings.estimate.close()
-                ed.export_settings.estimate = ExportEstimate(ed.doc, ed.export_settings.format, ed.export_settings.stream_tile)
-            ed.export_settings.estimate.poll()
-            text, low = ed.export_settings.estimate.describe(w, h, ed.export_settings.workers, ed.dialogs.start_dir())
+            key = (ed.doc.analysis_key(), ed.exports.settings.format, ed.exports.settings.stream_tile)
+            if ed.exports.settings.estimate is None or ed.exports.settings.estimate.key != key:
+                if ed.exports.settings.estimate is not None:
+                    ed.exports.settings.estimate.close()
+                ed.exports.settings.estimate = ExportEstimate(ed.doc, ed.exports.settings.format, ed.exports.settings.stream_tile)
+            ed.exports.settings.estimate.poll()
+            text, low = ed.exports.settings.estimate.describe(w, h, ed.exports.settings.workers, ed.dialogs.start_dir())
             imgui.push_text_wrap_pos(0)
             if low:
                 imgui.text_colored((1.0, 0.55, 0.35, 1.0), text)
@@ -166,17 +166,17 @@ def rectangle(p: Panels) -> None:
         imgui.push_text_wrap_pos(0)
         imgui.text_colored((1.0, 0.55, 0.35, 1.0), problem)
         imgui.pop_text_wrap_pos()
-    imgui.begin_disabled(problem is not None or (ed.export_job is not None and (streamed or not ed.exporting_apart())))
+    imgui.begin_disabled(problem is not None or (ed.exports.job is not None and (streamed or not ed.exports.apart())))
     if imgui.button("Export rectangle...", (-1, 0)):
         r = Rect.of(x, y, w, h)
         if streamed:
-            fmt = ed.export_settings.format
+            fmt = ed.exports.settings.format
             filt = {"tiff": TIFF_FILTER, "zarr": ZARR_FILTER}.get(fmt, PNG_FILTER)
-            ed.dialogs.ask_path("Export rectangle", True, filt, lambda path: ed.start_streamed_export(path, r),
+            ed.dialogs.ask_path("Export rectangle", True, filt, lambda path: ed.exports.start_streamed(path, r),
                                 default="rectangle" + {"tiff": ".tif", "zarr": ".zarr"}.get(fmt, ".png"))
         else:
             flt, ext = _export_filter(ed)
-            ed.dialogs.ask_path("Export rectangle", True, flt, lambda path: ed.start_export(path, r),
+            ed.dialogs.ask_path("Export rectangle", True, flt, lambda path: ed.exports.start(path, r),
                                 default="rectangle" + ext)
     imgui.end_disabled()
     if streamed:
@@ -186,14 +186,14 @@ def rectangle(p: Panels) -> None:
 
 def export_view(p: Panels) -> None:
     ed = p.ed
-    r = ed.view_rect()
+    r = ed.exports.view_rect()
     flt, ext = _export_filter(ed)
-    ed.dialogs.ask_path("Export view", True, flt, lambda path: ed.start_export(path, r), default="view" + ext)
+    ed.dialogs.ask_path("Export view", True, flt, lambda path: ed.exports.start(path, r), default="view" + ext)
 
 
 def _export_filter(ed) -> tuple[list[str], str]:
     """A single image exported at 32 bits is a float TIFF; everything else is named .png."""
-    if ed.export_settings.depth == 32 and ed.session.material is not None and ed.session.material.single:
+    if ed.exports.settings.depth == 32 and ed.session.material is not None and ed.session.material.single:
         return ["Float TIFF", "*.tif *.tiff"], ".tif"
     return PNG_FILTER, ".png"
 
@@ -209,7 +209,7 @@ def tile_prompt_window(p: Panels) -> None:
     p._tile_prompt = modal_prompt("Export toroidal tile###tileprompt", p._tile_prompt, 380)
     if not p._tile_prompt:
         return
-    ed.export_settings.tile_size = size_combo("Tile size", TILE_SIZES, ed.export_settings.tile_size)
+    ed.exports.settings.tile_size = size_combo("Tile size", TILE_SIZES, ed.exports.settings.tile_size)
     tip("Side of the seamless tile, in pixels")
     ed.viewer.show_tile(imgui.checkbox("Show the tile on the canvas (T)", ed.viewer.tile_mode)[1])
     tip("The canvas shows the periodic texture this tile size makes, tile borders drawn")
@@ -226,7 +226,7 @@ def tile_prompt_window(p: Panels) -> None:
 
 def export_tile(p: Panels) -> None:
     ed = p.ed
-    n = ed.export_settings.tile_size
+    n = ed.exports.settings.tile_size
     flt, ext = _export_filter(ed)
     ed.dialogs.ask_path("Export toroidal tile", True, flt,
-                        lambda path: ed.start_export(path, Rect(0, 0, n, n), toroidal=n), default=f"tile{n}{ext}")
+                        lambda path: ed.exports.start(path, Rect(0, 0, n, n), toroidal=n), default=f"tile{n}{ext}")

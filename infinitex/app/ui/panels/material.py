@@ -30,7 +30,7 @@ def draw(p: Panels) -> None:
         imgui.text_disabled("A single image. Add its other maps (normal, height, roughness...) to make a "
                             "material: every map follows the same synthesis.")
     imgui.pop_text_wrap_pos()
-    busy = ed.pending is not None
+    busy = ed.files.pending is not None
     imgui.begin_disabled(busy or doc.lattice is not None)
     for i, (role, src) in enumerate(sources):
         imgui.push_id(f"map{i}")
@@ -61,7 +61,7 @@ def draw(p: Panels) -> None:
             imgui.same_line()
             if imgui.small_button("Remove"):
                 rest = [m for k, m in enumerate(sources) if k != i]
-                ed._begin_load("exemplar", doc.with_maps(rest), None, None, f"Remove the {role} map")
+                ed.files.begin_load("exemplar", doc.with_maps(rest), None, None, f"Remove the {role} map")
             tip("Drop this map from the material")
         imgui.pop_id()
     if imgui.button("Add map...", (-1, 0)):
@@ -80,7 +80,7 @@ def _set_role(ed, sources, i: int, new: str) -> None:
     if taken is not None:
         maps[taken] = (role, maps[taken][1])
     maps[i] = (new, src)
-    ed._begin_load("exemplar", ed.doc.with_maps(maps), None, None, "Map role")
+    ed.files.begin_load("exemplar", ed.doc.with_maps(maps), None, None, "Map role")
 
 
 def _set_weights(ed, weights: dict) -> None:
@@ -88,7 +88,7 @@ def _set_weights(ed, weights: dict) -> None:
     if not any(v > 0 for _, v in w):
         ed.dialogs.message("Analysis weights", "At least one map must feed the analysis (a weight above 0).")
         return
-    ed._begin_load("exemplar", replace(ed.doc, weights=w), None, None, "Analysis weights")
+    ed.files.begin_load("exemplar", replace(ed.doc, weights=w), None, None, "Analysis weights")
 
 
 def _add_map(ed, path: str) -> None:
@@ -109,4 +109,4 @@ def _add_map(ed, path: str) -> None:
     if role is None:
         ed.dialogs.message("Add a map", "The material already has a map for every role.")
         return
-    ed._begin_load("exemplar", ed.doc.with_maps(maps + [(role, src)]), None, None, f"Add the {role} map")
+    ed.files.begin_load("exemplar", ed.doc.with_maps(maps + [(role, src)]), None, None, f"Add the {role} map")

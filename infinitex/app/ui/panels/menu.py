@@ -18,12 +18,12 @@ if TYPE_CHECKING:
 
 def open_dialog(p: Panels) -> None:
     ed = p.ed
-    ed.confirm_discard(lambda: ed.dialogs.ask_path("Open exemplar or project", False, IMAGE_FILTER, ed.open_path))
+    ed.files.confirm_discard(lambda: ed.dialogs.ask_path("Open exemplar or project", False, IMAGE_FILTER, ed.files.open_path))
 
 
 def open_material_dialog(p: Panels) -> None:
     ed = p.ed
-    ed.confirm_discard(lambda: ed.dialogs.ask_paths("Open material", MAPS_FILTER, ed.open_paths))
+    ed.files.confirm_discard(lambda: ed.dialogs.ask_paths("Open material", MAPS_FILTER, ed.files.open_paths))
 
 
 def _open_recent(ed, path: str) -> None:
@@ -31,7 +31,7 @@ def _open_recent(ed, path: str) -> None:
         ed.prefs.forget(path)
         ed.dialogs.message("Open Recent", f"{printable(path)} is no longer there; it was removed from the list.")
         return
-    ed.open_path(path)
+    ed.files.open_path(path)
 
 
 def draw(p: Panels) -> None:
@@ -41,7 +41,7 @@ def draw(p: Panels) -> None:
         return
     if imgui.begin_menu("File"):
         if imgui.menu_item_simple("New"):
-            ed.confirm_discard(ed.new_document)
+            ed.files.confirm_discard(ed.files.new_document)
         if imgui.menu_item_simple("Open...", "Ctrl+O"):
             p.open_dialog()
         if imgui.menu_item_simple("Open material..."):
@@ -49,13 +49,13 @@ def draw(p: Panels) -> None:
         tip("A material's maps: choose them all, or one map (its siblings named NAME_normal, NAME_height... "
             "come along), or their folder")
         if imgui.menu_item_simple("Open model...", enabled=ed.doc is not None and ed.session.ready):
-            ed.open_model_dialog()
+            ed.model.open_dialog()
         tip("Texture a model (OBJ, glTF, GLB): the texture is synthesized in its atlas, seamless across "
             "its UV seams")
         if imgui.begin_menu("Open Recent", bool(ed.prefs.settings.recent)):
             for i, path in enumerate(ed.prefs.settings.recent):
                 if imgui.menu_item_simple(f"{os.path.basename(path)}##recent{i}"):
-                    ed.confirm_discard(lambda path=path: _open_recent(ed, path))
+                    ed.files.confirm_discard(lambda path=path: _open_recent(ed, path))
                 tip(path)
             imgui.separator()
             if imgui.menu_item_simple("Clear the list"):
@@ -63,32 +63,32 @@ def draw(p: Panels) -> None:
             imgui.end_menu()
         imgui.separator()
         if imgui.menu_item_simple("Save", "Ctrl+S", enabled=ed.doc is not None):
-            ed.save()
+            ed.files.save()
         if imgui.menu_item_simple("Save As...", "Ctrl+Shift+S", enabled=ed.doc is not None):
-            ed.save_as()
+            ed.files.save_as()
         imgui.separator()
         if imgui.menu_item_simple("Export view as PNG...", enabled=ed.session.ready):
             p.export_view()
         if imgui.menu_item_simple("Export model...", enabled=ed.model_mode and ed.session.ready):
-            ed.export_model_dialog()
+            ed.model.export_dialog()
         if imgui.menu_item_simple("Close model", enabled=ed.model_mode):
-            ed.close_model()
+            ed.model.close()
         if imgui.menu_item_simple("Export toroidal tile...", enabled=ed.session.ready):
             p.tile_prompt()  # its size first
         if imgui.menu_item_simple("Export tile set for game engines...", enabled=ed.session.ready):
             p.tileset_dialog()
         imgui.separator()
         if imgui.menu_item_simple("Quit", "Ctrl+Q"):
-            ed.request_quit()
+            ed.files.request_quit()
         imgui.end_menu()
     if imgui.begin_menu("Edit"):
         h = ed.history
         if imgui.menu_item_simple(f"Undo {h.undo_label() if h else ''}".strip(), "Ctrl+Z",
                                   enabled=bool(h and h.can_undo())):
-            ed.undo()
+            ed.files.undo()
         if imgui.menu_item_simple(f"Redo {h.redo_label() if h else ''}".strip(), "Ctrl+Shift+Z",
                                   enabled=bool(h and h.can_redo())):
-            ed.redo()
+            ed.files.redo()
         imgui.end_menu()
     if imgui.begin_menu("View"):
         if imgui.menu_item_simple("Go to origin"):
@@ -98,10 +98,10 @@ def draw(p: Panels) -> None:
         if imgui.menu_item_simple("Actual size (1:1)", "1"):
             ed.viewer.zoom_to(1.0)
         if imgui.menu_item_simple("Shortcuts", "F1"):
-            ed.show_shortcut_list(True)
+            ed.shortcuts.show_list(True)
         imgui.separator()
         ed.viewer.show_painted(imgui.menu_item("Show painted maps", "H", ed.viewer.show_fields)[1])
-        ed.viewer.show_tile(imgui.menu_item(f"Tile mode ({ed.export_settings.tile_size} px)", "T",
+        ed.viewer.show_tile(imgui.menu_item(f"Tile mode ({ed.exports.settings.tile_size} px)", "T",
                                             ed.viewer.tile_mode)[1])
         imgui.end_menu()
     imgui.end_menu_bar()

@@ -28,47 +28,47 @@ def draw(p: Panels) -> None:
     if imgui.begin_combo("Texture size", f"{s.size} px"):
         for n in sizes:
             if imgui.selectable(f"{n} px", n == s.size)[0] and n != s.size:
-                ed.set_surface("Model texture size", size=n)
+                ed.model.set_surface("Model texture size", size=n)
         imgui.end_combo()
     tip("Texels a side of the model's texture, synthesized here and exported (the painted randomness "
         "is in its texels). Larger is sharper and slower")
     changed, rep = imgui.slider_float("Scale", float(s.repeats), MIN_REPEATS, min(MAX_REPEATS, 64.0),
                                       "%.2f repeats", imgui.SliderFlags_.logarithmic)
     if changed:
-        ed.set_surface("Model texture scale", group=("model-scale", p), repeats=round(float(rep), 3))
+        ed.model.set_surface("Model texture scale", group=("model-scale", p), repeats=round(float(rep), 3))
     if imgui.is_item_deactivated() and ed.history is not None:
         ed.history.end_group()  # one drag, one undo step
     tip("How many times the exemplar's width fits across the model's largest side")
     if imgui.begin_combo("Direction", FRAME_LABELS[s.frame]):
         for key, label in FRAME_LABELS.items():
             if imgui.selectable(label, key == s.frame)[0] and key != s.frame:
-                ed.set_surface("Model texture direction", frame=key)
+                ed.model.set_surface("Model texture direction", frame=key)
         imgui.end_combo()
     tip("Upright: the exemplar's top points up the model (bricks stay level), running on over its top and "
         "bottom. Along the UVs: the exemplar's x follows the model's u direction")
     imgui.pop_item_width()
-    _, ed.show_seams = imgui.checkbox("Show seams", ed.show_seams)
+    _, ed.model.show_seams = imgui.checkbox("Show seams", ed.model.show_seams)
     tip("Mark the borders of the model's UV charts: the texture runs across them")
-    if ed.model_view is not None:
+    if ed.model.view is not None:
         imgui.same_line()
-        _, ed.model_view.magnify = imgui.checkbox("Magnify", ed.model_view.magnify)
+        _, ed.model.view.magnify = imgui.checkbox("Magnify", ed.model.view.magnify)
         tip("Draw the texture by synthesis magnification: sharp when zoomed in close (each pixel reads the "
             "exemplar, or its full-resolution copy, through the synthesized coordinates). Off: the texture's texels")
     if imgui.button("Frame the model"):
-        ed.frame_model()
+        ed.model.frame()
     tip("Orbit: middle or left button; pan: Shift+middle or right button; zoom: the wheel")
     imgui.set_next_item_width(90)
-    if imgui.begin_combo("##model-magnify", f"x{ed.model_export_magnify}"):
+    if imgui.begin_combo("##model-magnify", f"x{ed.model.export_magnify}"):
         for k in (1, 2, 4):
-            if s.size * k <= 8192 and imgui.selectable(f"x{k} ({s.size * k} px)", k == ed.model_export_magnify)[0]:
-                ed.model_export_magnify = k
+            if s.size * k <= 8192 and imgui.selectable(f"x{k} ({s.size * k} px)", k == ed.model.export_magnify)[0]:
+                ed.model.export_magnify = k
         imgui.end_combo()
     tip("Exported texture size: the synthesized texture, or magnified 2x or 4x (synthesis magnification)")
     imgui.same_line()
     if imgui.button("Export model...", (-1, 0)):
-        ed.export_model_dialog()
+        ed.model.export_dialog()
     tip("A GLB of the model with the texture (every map of a material) attached, and each map as an image")
     if pv.left_out:
         imgui.text_disabled(f"Not used on the model: {', '.join(pv.left_out)}")
     if imgui.button("Close model", (-1, 0)):
-        ed.close_model()
+        ed.model.close()

@@ -221,8 +221,8 @@ def tick_and_draw(p: Panels, p0, w: int, h: int) -> None:
     doc = ed.doc
     if doc is None or ed.model_mode or not ed.session.ready:
         return
-    rect = play_rect(ed.view_rect())
-    pb.tick(doc if doc.lattice is None else None, ed.tile_period(), rect, ed.shown_role())
+    rect = play_rect(ed.exports.view_rect())
+    pb.tick(doc if doc.lattice is None else None, ed.canvas_input.tile_period(), rect, ed.shown_role())
     f = pb.shown
     if not pb.active or f is None:
         return
@@ -238,7 +238,7 @@ def tick_and_draw(p: Panels, p0, w: int, h: int) -> None:
 
 def export_rect(ed, size: tuple[int, int]) -> tuple[Rect, int]:
     """The exported frames' rectangle and period: the seamless tile in tile mode, else ``size`` around the view's center."""
-    n = ed.tile_period()
+    n = ed.canvas_input.tile_period()
     if n:
         return Rect(0, 0, n, n), n
     w, h = size
@@ -278,10 +278,10 @@ def start_export(ed, path: str, confirmed: bool = False) -> None:
         files = [o for _, o in outputs if fmt != "folder"]
         files += [os.path.splitext(o)[0] + ".json" for o in files if fmt == "atlas"]
         writes = Writes(files=files, folders=[o for _, o in outputs if fmt == "folder"])
-        check_own_inputs(writes, ed.export_inputs())
-        if not confirmed and not ed._confirm_replace(writes, ed._asked(path, path),
+        check_own_inputs(writes, ed.exports.inputs())
+        if not confirmed and not ed.exports.confirm_replace(writes, ed.exports.asked(path, path),
                                                      lambda: start_export(ed, path, True)):
             return
-        ed.queue_export(AnimationExport(doc, rect, period, fmt, outputs))
+        ed.exports.enqueue(AnimationExport(doc, rect, period, fmt, outputs))
     except (ValueError, WriteError) as exc:
         ed.dialogs.message("Export animation", printable(str(exc), 400))

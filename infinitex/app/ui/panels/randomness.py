@@ -62,5 +62,5 @@ def draw(p: Panels) -> None:
         ed.edit(replace(ed.doc, seed=int(seed) % (2 ** 32)), "Seed")
     imgui.same_line()
     if imgui.button("New seed"):
-        ed.new_seed()
+        ed.files.new_seed()
     tip("A random seed: a new variation")

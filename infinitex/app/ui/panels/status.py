@@ -40,7 +40,7 @@ def status_bar(p: Panels) -> None:
         parts.append(f"zoom {zoom_text(ed.view.zoom)}")
         if ed.frame is not None:
             parts.append(f"level {ed.frame.level}/{s.L}")
-    parts.append(ed.title.rsplit(" - ", 1)[0])
+    parts.append(ed.files.title.rsplit(" - ", 1)[0])
     said = current_hint()  # a tool bar item's explanation (a tooltip there would cover the canvas): the whole line
     if said:
         imgui.text_colored((0.95, 0.85, 0.45, 1.0), said)
@@ -78,9 +78,9 @@ def progress_modals(p: Panels) -> None:
     p.tile_prompt_window()
     p.tileset_window()
     ed = p.ed
-    job = ed.export_job
+    job = ed.exports.job
     name = "Exporting###export"
-    apart = job is not None and ed.exporting_apart()
+    apart = job is not None and ed.exports.apart()
     if job is None or apart:
         if p._export_popup:  # the modal export ended: close its window
             opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
@@ -108,7 +108,7 @@ def progress_modals(p: Panels) -> None:
     opened, _ = imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)
     if opened:
         if _progress(ed, job):
-            ed.export_closed()
+            ed.exports.closed()
             imgui.close_current_popup()
         imgui.end_popup()
 
@@ -119,7 +119,7 @@ def _progress(ed, job) -> bool:
     imgui.text(f"{os.path.basename(job.out_path)}: {job.out_rect.w} x {job.out_rect.h}")
     elapsed = time.monotonic() - job.started
     streamed = hasattr(job, "done_tiles")
-    apart = ed.exporting_apart()
+    apart = ed.exports.apart()
     if streamed:
         total = job.job.total
         label = f"{job.done_tiles} / {total} tiles  ({elapsed:.0f} s)"
@@ -138,8 +138,8 @@ def _progress(ed, job) -> bool:
             imgui.text(f"About {duration_text(elapsed * (1.0 - job.progress) / job.progress)} left")
         else:
             imgui.text_disabled("Estimating the time left..." if job.progress < 1.0 else "Writing...")
-    if ed.export_queue:
-        imgui.text_disabled(f"{len(ed.export_queue)} more export{'s' * (len(ed.export_queue) > 1)} waiting")
+    if ed.exports.queue:
+        imgui.text_disabled(f"{len(ed.exports.queue)} more export{'s' * (len(ed.exports.queue) > 1)} waiting")
     if streamed and job.cancelling:
         imgui.text_disabled("Stopping after the tiles being rendered...")
         return False

@@ -176,7 +176,7 @@ def window(p: Panels) -> None:
         per_tile, seed = d.per_tile, d.seed
         engines = tuple(e for e, on in (("tiled", d.tiled), ("godot", d.godot)) if on)
         ed.dialogs.ask_path("Export tile set", True, PNG_FILTER,
-                            lambda path: ed.start_tileset_export(path, job, per_tile, seed, engines=engines),
+                            lambda path: ed.exports.start_tileset(path, job, per_tile, seed, engines=engines),
                             default=f"tileset{d.size}.png")
 
 

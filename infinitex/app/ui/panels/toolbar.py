@@ -30,7 +30,7 @@ def draw(p: Panels) -> None:
         if active:
             imgui.push_style_color(imgui.Col_.button, imgui.get_style_color_vec4(imgui.Col_.button_active))
         if imgui.button(f"{t.label} ({t.key})##tool-{t.name}"):
-            ed.set_tool(t)
+            ed.tools.choose(t)
         if active:
             imgui.pop_style_color()
         hint(t.tooltip)

@@ -49,10 +49,9 @@ class ModelGesture:
         """Drawn at the mouse while it is over the model."""
 
 
-class BrushCursor:
-    """A brush's circle at the mouse (the active tool's ``brush.radius``, screen pixels)."""
-
-    ed = None
+class BrushGesture(ModelGesture):
+    """A brush on the model: its circle at the mouse (the active tool's
+    ``brush.radius``, screen pixels)."""
 
     def cursor(self, draw_list, mouse: tuple[float, float]) -> None:
         from imgui_bundle import imgui
@@ -121,7 +120,25 @@ class Tool:
 
 
 class Tools(list):
-    """The editor's tools in tool bar order (Navigate first)."""
+    """The editor's tools in tool bar order (Navigate first), and the active
+    one (``active``, changed by ``choose`` alone)."""
+
+    def __init__(self, tools, ed=None):
+        super().__init__(tools)
+        self.ed = ed
+        self.active: Tool | None = self[0] if self else None
+
+    def choose(self, t: Tool) -> None:
+        """Make ``t`` the active tool."""
+        ed = self.ed
+        if t.space == "canvas" and ed.geometry() is not None:
+            # Paint and features live on the synthesized canvas: show it rectified.
+            ed.viewer.set_display(geometry="rectified")
+        if t is not self.active:
+            self.active.release()
+            self.active = t
+            if t.shows_painted:
+                ed.viewer.show_painted(True)  # painting shows what is painted
 
     def of(self, cls: type) -> Tool:
         """The tool of class ``cls``."""
@@ -145,7 +162,7 @@ def begin_tool_window(ed, tool, title: str, size: tuple[float, float], image: tu
                               imgui.Cond_.first_use_ever)
     opened, keep = imgui.begin(title, True)
     if not keep:
-        ed.set_tool(ed.tools[0])
+        ed.tools.choose(ed.tools[0])
     if opened:
         imgui.set_next_item_width(160)
         _, tool.zoom = imgui.slider_float("Zoom", tool.zoom, zoom_range[0], zoom_range[1], fmt,
@@ -163,4 +180,4 @@ def make_tools(ed) -> Tools:
     from .navigate import NavigateTool
     from .paint import PaintCanvasTool, PaintExemplarTool
     return Tools([NavigateTool(ed), PaintCanvasTool(ed), PaintExemplarTool(ed), FeatureTool(ed), LabelTool(ed),
-                  DirectionTool(ed), FlowTool(ed), LatticeTool(ed)])
+                  DirectionTool(ed), FlowTool(ed), LatticeTool(ed)], ed)

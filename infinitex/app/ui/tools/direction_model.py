@@ -20,7 +20,7 @@ from infinitex.engine.controls.direction import DirectionField
 from infinitex.engine.controls.fields import FieldTooLarge, dab_rect
 from infinitex.engine.surface.features import across_seams
 
-from . import BrushCursor, ModelGesture
+from . import BrushGesture
 from .direction import MAX_BRUSH
 from .paint import dab_centers
 
@@ -28,7 +28,7 @@ LABELS = {"comb": "Comb direction (model)", "smooth": "Smooth direction (model)"
           "shrink": "Shrink texture (model)", "erase": "Erase direction (model)"}
 
 
-class ModelComb(BrushCursor, ModelGesture):
+class ModelComb(BrushGesture):
     """Press / drag / release of the Direction tool on the model view (its brush circle at the mouse)."""
 
     def __init__(self, ed):
@@ -59,13 +59,13 @@ class ModelComb(BrushCursor, ModelGesture):
         if tool.mode != "comb":
             self.drag(mx, my, w, h)
         else:
-            hit = self.ed.pick_atlas(mx, my, w, h)
+            hit = self.ed.model.pick_atlas(mx, my, w, h)
             self._last = None if hit is None else hit[0]
 
     def drag(self, mx: float, my: float, w: int, h: int) -> None:
         if self._group is None:
             return
-        hit = self.ed.pick_atlas(mx, my, w, h)
+        hit = self.ed.model.pick_atlas(mx, my, w, h)
         if hit is None:
             self._last = None
             return
@@ -75,7 +75,7 @@ class ModelComb(BrushCursor, ModelGesture):
         r = min(MAX_BRUSH, max(1.0, b.radius * per_px if b.screen_units else b.radius))
         last = self._last
         if last is not None and (math.hypot(pos[0] - last[0], pos[1] - last[1]) > 4 * r
-                                 or self.ed.chart_at(last) != self.ed.chart_at(pos)):
+                                 or self.ed.model.chart_at(last) != self.ed.model.chart_at(pos)):
             last = None  # onto another chart: no dabs in between (the atlas between is elsewhere), no heading
         dabs = dab_centers(last, pos, 0.25 * r)
         if not dabs:

@@ -77,7 +77,7 @@ class ModelFeatures(ModelGesture):
 
     def screen(self, point: np.ndarray, w: int, h: int) -> tuple[float, float, float] | None:
         """(x, y) in view pixels and the screen pixels per world unit there, or None behind the camera."""
-        cam = self.ed.camera
+        cam = self.ed.model.camera
         view, proj = cam.matrices(w / max(1, h))
         v = view @ np.r_[point, 1.0]
         if v[2] >= -1e-9:
@@ -90,7 +90,7 @@ class ModelFeatures(ModelGesture):
 
     def pick(self, mx: float, my: float, w: int, h: int) -> tuple[int, int] | None:
         """The atlas texel under view pixel (mx, my), or None off the model."""
-        uvh = self.ed.uv_image(w, h)
+        uvh = self.ed.model.uv_image(w, h)
         xi, yi = int(mx), int(my)
         if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
             return None
@@ -116,7 +116,7 @@ class ModelFeatures(ModelGesture):
 
     def visible(self, point: np.ndarray, x: float, y: float, w: int, h: int) -> bool:
         """Whether the model's front surface at view pixel (x, y) is ``point`` (not hidden behind it)."""
-        uvh = self.ed.uv_image(w, h)
+        uvh = self.ed.model.uv_image(w, h)
         xi, yi = int(x), int(y)
         if not (0 <= xi < w and 0 <= yi < h) or uvh[yi, xi, 2] < 0.5:
             return False
@@ -241,12 +241,12 @@ class ModelFeatures(ModelGesture):
         P = atlas.model.positions[atlas.model.faces[t]]
         nrm = np.cross(P[1] - P[0], P[2] - P[0])
         length = float(np.linalg.norm(nrm))
-        cam = replace(self.ed.camera, target=tuple(float(v) for v in p))
+        cam = replace(self.ed.model.camera, target=tuple(float(v) for v in p))
         if length > 0:
             nx, ny, nz = nrm / length  # the eye goes where the normal points (OrbitCamera.eye)
             cam = replace(cam, yaw=math.degrees(math.atan2(nx, nz)) % 360.0,
                           pitch=max(-89.0, min(89.0, math.degrees(math.asin(max(-1.0, min(1.0, ny)))))))
-        self.ed.look_with(cam)
+        self.ed.model.look_with(cam)
 
     def draw(self, dl, p0, w: int, h: int) -> None:
         t = self.tool

@@ -256,7 +256,7 @@ class LatticeTool(Tool):
             if imgui.radio_button("Original geometry", geom == "original"):
                 ed.viewer.set_display(geometry="original")
                 if ed.tool.space == "canvas":  # (those work on the rectified canvas)
-                    ed.set_tool(ed.tools[0])
+                    ed.tools.choose(ed.tools[0])
             imgui.same_line()
             if imgui.radio_button("Rectified", geom == "rectified"):
                 ed.viewer.set_display(geometry="rectified")

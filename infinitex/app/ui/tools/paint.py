@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 from infinitex.engine.controls import NEUTRAL, CanvasField, ExemplarField, ExemplarMask
 from infinitex.engine.surface.features import across_seams
 
-from . import MAX_CANVAS_RADIUS, BrushCursor, ModelGesture, Tool, begin_tool_window
+from . import MAX_CANVAS_RADIUS, BrushGesture, Tool, begin_tool_window
 from ..tips import tip
 
 
@@ -118,7 +118,7 @@ def model_stroke(field: CanvasField | None, atlas, n: int, last: tuple[float, fl
     return field, (dabs[-1] if dabs else last), len(dabs), rects
 
 
-class ModelPaint(BrushCursor, ModelGesture):
+class ModelPaint(BrushGesture):
     """The Paint canvas brush on a model: dabs where the ray under the mouse
     meets it, in atlas texels (the brush keeps its size on screen), along the
     stroke (:func:`model_stroke`); one undo step per stroke."""
@@ -137,7 +137,7 @@ class ModelPaint(BrushCursor, ModelGesture):
         ed = self.ed
         if self._group is None:
             return
-        hit = ed.pick_atlas(mx, my, w, h)
+        hit = ed.model.pick_atlas(mx, my, w, h)
         if hit is None:
             self._last = None
             return
