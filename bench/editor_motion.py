@@ -79,7 +79,7 @@ def main(argv=None) -> int:
                 return
             super().gui()
             s = self.session
-            ready = s is not None and s.ready and self.doc is not None and s.job is None and self.pending is None
+            ready = s is not None and s.ready and self.doc is not None and s.job is None and self.files.pending is None
             what = script[self.step]
             if what == "settle":
                 if ready and args.structure is not None and self.doc.structure != args.structure:
@@ -129,11 +129,11 @@ def main(argv=None) -> int:
                 self.played_s = now - self.t0
                 self.n_shown = len(self.shown)
             if self.pan_at is not None and self.pan_shown is None and pb.shown is not None \
-                    and pb.shown.rect.contains(self.view_rect()) or self.pan_at is not None and now - self.pan_at > 30:
+                    and pb.shown.rect.contains(self.exports.view_rect()) or self.pan_at is not None and now - self.pan_at > 30:
                 self.pan_shown = now - self.pan_at
             if self.pan_at is not None and self.pan_shown is not None:
                 ft = [b - a for a, b in zip(self.frames, self.frames[1:])]
-                rect = self.view_rect()
+                rect = self.exports.view_rect()
                 key = f"{self.view.zoom * 100:.0f}%"
                 shown = self.shown[:self.n_shown]
                 results[key] = {"canvas_px": [rect.w, rect.h], "played_fps": (len(shown) - 1) /

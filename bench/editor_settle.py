@@ -69,7 +69,7 @@ def main(argv=None) -> int:
                 return
             super().gui()
             s = self.session
-            ready = s is not None and s.ready and self.doc is not None and s.job is None and self.pending is None
+            ready = s is not None and s.ready and self.doc is not None and s.job is None and self.files.pending is None
             what = script[self.step]
             if what == "settle":
                 if ready and args.structure is not None and self.doc.structure != args.structure:

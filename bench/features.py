@@ -91,14 +91,14 @@ def drag_in_editor(steps: int) -> dict:
     def test(ctx):
         settle(ctx)
         pyr = ed.session.pyramid
-        orig_settle = pyr.settle
+        orig_settle = pyr.updates.settle
 
         def counted(*a, **k):  # the local updates are done by settle(), a frame's budget at a time
             n0 = pyr.pixels_synthesized
             done = orig_settle(*a, **k)
             updates.append(pyr.pixels_synthesized - n0)
             return done
-        pyr.settle = counted
+        pyr.updates.settle = counted
         ctx.set_ref("//Infinitex")
         ctx.item_click("//**/Features (F)##tool-feature")
         tool = ed.tool

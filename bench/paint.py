@@ -140,14 +140,14 @@ def main(argv=None) -> int:
                 ctx.yield_()
             settle(ctx)
         pyr = ed.session.pyramid
-        orig_settle = pyr.settle
+        orig_settle = pyr.updates.settle
 
         def counted(*a, **k):
             n0 = pyr.pixels_synthesized
             done = orig_settle(*a, **k)
             updates.append(pyr.pixels_synthesized - n0)
             return done
-        pyr.settle = counted
+        pyr.updates.settle = counted
         if args.no_looks:
             pyr.looks.look = lambda *a: 0
         ctx.set_ref("//Infinitex")

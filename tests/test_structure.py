@@ -290,27 +290,34 @@ def test_every_shader_comes_from_files_through_one_loader():
                                  'VERT = """\n#version 330 core\nvoid main() {}\n"""\nq = gpu.program("copy.frag")\n') == [1, 2]
 
 
-# The editor's parts: Editor.<attribute> -> the module that defines the part (its own state).
-EDITOR_PARTS = {"files": "files.py", "exports": "exports.py", "canvas_input": "canvas_input.py",
-                "refinement": "canvas_refine.py", "shortcuts": "shortcuts.py", "model": "model_mode.py"}
+# The editor's parts: Editor.<attribute> -> (the module defining the part, its class).
+EDITOR_PARTS = {"files": ("files.py", "Documents"), "exports": ("exports.py", "Exports"),
+                "canvas_input": ("canvas_input.py", "CanvasInput"), "refinement": ("canvas_refine.py", "CanvasRefine"),
+                "shortcuts": ("shortcuts.py", "Shortcuts"), "model": ("model_mode.py", "ModelMode"),
+                "tools": (os.path.join("tools", "__init__.py"), "Tools")}
 
 
-def _editor_writes(src: str, own: str | None) -> set[str]:
+def _editor_writes(src: str, own: tuple[str, str] | None) -> set[str]:
     """The editor's state a module assigns, not counting first values
     (``__init__``): ``x`` for the Editor's attribute (``ed.x``, ``self.ed.x``
-    anywhere; ``self.x`` in editor.py, ``own == ""``), ``part.x`` for a part's
-    (``ed.part.x``, ``self.ed.part.x`` anywhere; ``self.x`` in the part's own
-    module, ``own == part``)."""
+    anywhere; ``self.x`` in the class Editor), ``part.x`` for a part's
+    (``ed.part.x``, ``self.ed.part.x`` anywhere, ``self.part.x`` in the class
+    Editor; ``self.x`` in the part's own class). ``own``: (part, class) when the
+    module defines the Editor (part "") or a part."""
     out = set()
     tree = ast.parse(src)
-    skip = set()
+    skip, mine = set(), set()
     for node in ast.walk(tree):
-        if isinstance(node, ast.FunctionDef) and own is not None and node.name == "__init__":
-            skip |= {id(n) for n in ast.walk(node)}
+        if isinstance(node, ast.ClassDef) and own is not None and node.name == own[1]:
+            mine |= {id(n) for n in ast.walk(node)}
+            for f in node.body:
+                if isinstance(f, ast.FunctionDef) and f.name == "__init__":
+                    skip |= {id(n) for n in ast.walk(f)}
 
-    def editor(v) -> bool:  # ed, editor, self.ed
-        return (isinstance(v, ast.Name) and v.id in ("ed", "editor")) or (
-            isinstance(v, ast.Attribute) and v.attr == "ed" and isinstance(v.value, ast.Name))
+    def editor(v) -> bool:  # ed, editor, self.ed; self in the Editor itself
+        return (isinstance(v, ast.Name) and (v.id in ("ed", "editor") or (v.id == "self" and own is not None
+                                                                          and own[0] == "" and id(v) in mine))) \
+            or (isinstance(v, ast.Attribute) and v.attr == "ed" and isinstance(v.value, ast.Name))
     for node in ast.walk(tree):
         if id(node) in skip:
             continue
@@ -321,12 +328,12 @@ def _editor_writes(src: str, own: str | None) -> set[str]:
                 if not isinstance(x, ast.Attribute):
                     continue
                 v = x.value
-                if isinstance(v, ast.Name) and v.id == "self" and own is not None:
-                    out.add(f"{own}.{x.attr}" if own else x.attr)
-                elif editor(v):
+                if editor(v):
                     out.add(x.attr)
                 elif isinstance(v, ast.Attribute) and v.attr in EDITOR_PARTS and editor(v.value):
                     out.add(f"{v.attr}.{x.attr}")
+                elif isinstance(v, ast.Name) and v.id == "self" and own is not None and own[0] and id(v) in mine:
+                    out.add(f"{own[0]}.{x.attr}")
     return out
 
 
@@ -336,7 +343,8 @@ def test_editor_state_has_one_writer():
     Preferences for the user's settings, the Export panel for ExportSettings,
     each of the editor's parts for its own state...)."""
     base = os.path.join(PACKAGE, "app", "ui")
-    owner = {os.path.join(base, m): part for part, m in EDITOR_PARTS.items()} | {os.path.join(base, "editor.py"): ""}
+    owner = {os.path.join(base, m): (part, cls) for part, (m, cls) in EDITOR_PARTS.items()}
+    owner[os.path.join(base, "editor.py")] = ("", "Editor")
     writers: dict[str, set[str]] = {}
     for folder, _, files in os.walk(base):
         for name in files:
@@ -347,9 +355,14 @@ def test_editor_state_has_one_writer():
     shared = {a: sorted(w) for a, w in writers.items() if len(w) > 1}
     assert not shared, shared
     assert _editor_writes("def f(ed):\n    ed.view = 1\n    ed.a.b = 2\n    _, ed.c = 1, 2\n    self.ed.d = 3\n"
-                          "    ed.files.e = 4\n    self.ed.model.f = 5\n    self.g = 6\n", None) \
-        == {"view", "c", "d", "files.e", "model.f"}
-    assert _editor_writes("def __init__(self):\n    self.a = 1\ndef f(self):\n    self.b = 2\n", "model") == {"model.b"}
+                          "    ed.files.e = 4\n    self.ed.model.f = 5\n    self.g = 6\n    ed.tools.active = 7\n",
+                          None) == {"view", "c", "d", "files.e", "model.f", "tools.active"}
+    part = "class Model:\n    def __init__(self):\n        self.a = 1\n    def f(self):\n        self.b = 2\n" \
+           "class Other:\n    def f(self):\n        self.c = 3\n"
+    assert _editor_writes(part, ("model", "Model")) == {"model.b"}
+    editor = "class Editor:\n    def __init__(self):\n        self.a = 1\n    def f(self):\n        self.b = 2\n" \
+             "        self.files.pending = 3\n        self.viewer.x = 4\n"
+    assert _editor_writes(editor, ("", "Editor")) == {"b", "files.pending"}
 
 
 def test_the_editor_is_composed_not_mixed_in():

@@ -177,7 +177,7 @@ class Strips:
         textures = {0: rp.scratch[0], 12: self._dummy_i if rp.links is None else rp.links,
                     **dict(zip((3, 6, 7), rp.features or [self._dummy_i] * 3))}
         # At once and without a pause: a level shown between two pieces
-        # would hold pixels the view was not told about (Pyramid.touched).
+        # would hold pixels the view was not told about (SpreadRequests.touched).
         for g0, t0, w, hh in buf.pieces(strip):
             for _ in Draw(prog, vao, buf.fbo, (t0[0], t0[1], w, hh), textures,
                           dict(uni, region_g0=g0, region_t0=t0), l).steps():

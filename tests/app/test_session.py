@@ -134,7 +134,7 @@ def test_a_request_in_progress_survives_pans_edits_and_paint(session):
 @pytest.mark.parametrize("zoom", [1.0, 0.5, 3.0])
 def test_redrawing_only_what_changed_equals_a_full_redraw(session, gpu, zoom, monkeypatch):
     """The editor redraws only the canvas pixels whose texels the synthesis
-    changed (Pyramid.take_touched), a few rows a frame where that is much
+    changed (SpreadRequests.take_touched), a few rows a frame where that is much
     (Canvas.redraw); whenever nothing waits, the canvas equals a full redraw."""
     from infinitex.app.render import canvas as canvas_module
     monkeypatch.setattr(canvas_module, "REDRAW_PX", 3000)  # spread at this small size too

@@ -320,9 +320,10 @@ def test_api_set_is_the_command_lines(tmp_path, monkeypatch):
     monkeypatch.setattr(tileset, "STEP_S", 0.0)
     monkeypatch.setattr(tileset, "PACE_S", 0.0)
     steps, pieces = [], []
-    advance, start = tileset.TileSetJob._advance, tileset.Pyramid.start_request
+    from infinitex.engine.requests import SpreadRequests
+    advance, start = tileset.TileSetJob._advance, SpreadRequests.start
     monkeypatch.setattr(tileset.TileSetJob, "_advance", lambda self: steps.append(1) or advance(self))
-    monkeypatch.setattr(tileset.Pyramid, "start_request", lambda self, *a: pieces.append(1) or start(self, *a))
+    monkeypatch.setattr(SpreadRequests, "start", lambda self, *a: pieces.append(1) or start(self, *a))
     r = infinitex("export", GRAVEL, "-o", tmp_path / "set.png", "--variants", "3", "--tile", "64", "-q")
     assert r.returncode == 0, r.stderr
     assert pieces and len(steps) > 8 * len(pieces), (len(steps), len(pieces))  # several steps a piece

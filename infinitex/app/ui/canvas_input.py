@@ -1,7 +1,6 @@
 """The canvas's input and what is drawn over it: the mouse (the left button
 to the active tool, right and middle to pan, the wheel to zoom, features
-dropped from the Exemplar panel), choosing the tool, the view's geometry,
-tile mode, and the overlays (the randomness heat map, the tool's handles and
+dropped from the Exemplar panel), tile mode's period, and the overlays (the randomness heat map, the tool's handles and
 cursor, the tile borders).
 
 ``CanvasInput`` is a part of the editor (``Editor.canvas_input``); it keeps no
@@ -22,7 +21,7 @@ from .tools.feature import PAYLOAD as FEATURE_PAYLOAD, FeatureTool
 
 
 class CanvasInput:
-    """Mouse input on the canvas, the tools, and the overlays drawn over it."""
+    """Mouse input on the canvas (to the active tool), and the overlays drawn over it."""
 
     def __init__(self, ed) -> None:
         self.ed = ed

@@ -186,7 +186,7 @@ class CanvasRefine:
         self._peek()
 
     def _peek(self) -> None:
-        """Read back what the canvas shows this frame, changing nothing (tests: ``canvas_peek``)."""
+        """Read back what the canvas shows this frame, changing nothing (tests: ``peek_asked``)."""
         if self.peek_asked:
             self.ed.canvas_state.give_read_back(self.ed.canvas.read())
             self.peek_asked = False

@@ -424,7 +424,7 @@ class Documents:
 
     def close_requested(self) -> None:
         """In the frame: the window's close button was pressed with unsaved
-        edits (_confirm_exit): ask now."""
+        edits (``confirm_exit``): ask now."""
         if self._close_requested:
             self._close_requested = False
             self.request_quit()
