@@ -263,6 +263,27 @@ def test_a_dragged_control_previews_one_change_at_a_time(doc):
     assert h.doc(f, holding=False) is f and not h.waiting  # a model shown: no hold
 
 
+def test_the_hold_never_gives_way_to_an_empty_canvas(doc, monkeypatch):
+    """However long a change takes to become presentable (a loaded machine),
+    the picture is kept until it is: the canvas draws no level coarser than
+    the presentable one, so giving way earlier shows it empty (a 10 s safety
+    net did, on a loaded machine's slider drag: the flat grey of an empty
+    canvas); and a drag's progress is never thrown away for a newer value."""
+    from infinitex.app.ui import canvas_refine
+    clock = [100.0]
+    monkeypatch.setattr(canvas_refine.time, "monotonic", lambda: clock[0])
+    h = canvas_refine.EditHold()
+    a, b, c = doc, replace(doc, seed=doc.seed + 1), replace(doc, seed=doc.seed + 2)
+    h.doc(a)
+    assert h.doc(b) is b and h.waiting
+    for level in (-1, 0, 3):
+        clock[0] += 60.0
+        h.reached(level, 4)
+        assert h.waiting and h.doc(c) is b  # not presentable yet: the picture stays, b goes on
+    h.reached(4, 4)
+    assert not h.waiting and h.doc(c) is c and h.waiting  # presentable: shown, then the newest is taken
+
+
 def test_every_control_round_trips_through_autosave_recovery_and_a_model(doc, tmp_path, monkeypatch):
     """Painted randomness (soft edges included), features, a combed direction
     field and labels survive an autosave and its recovery exactly; opening a

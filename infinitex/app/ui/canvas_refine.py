@@ -39,8 +39,6 @@ from infinitex.project import Document, View
 from ..render.canvas import PREVIEW_MAX_K  # a change shows once the view's level less this many is complete
 
 INTERACTIVE_S = 0.25  # seconds after the last edit that still count as dragging
-HOLD_MAX_S = 10.0     # a change waits no longer than this for the one in progress (a safety net: a 4K
-                      # canvas on llvmpipe takes seconds to reach a presentable level)
 SETTLE_FRAME_S = 0.080  # a frame while nothing is touched, at most (see CanvasRefine._work)
 
 
@@ -62,7 +60,6 @@ class EditHold:
     def __init__(self) -> None:
         self.synced: Document | None = None  # what the session was last given
         self.waiting = False                 # its change is not presentable yet
-        self._since = 0.0
 
     def doc(self, doc: Document, holding: bool = True, dragging: bool = True) -> Document:
         """The document to give the session this frame, for the editor's ``doc``.
@@ -76,23 +73,22 @@ class EditHold:
                 or held.analysis_key() != doc.analysis_key():
             self.synced, self.waiting = doc, False
             return doc
-        if self.waiting and dragging and time.monotonic() - self._since < HOLD_MAX_S:
+        if self.waiting and dragging:  # (its progress is never thrown away for a newer change)
             return held
-        self.synced, self.waiting, self._since = doc, True, time.monotonic()
+        self.synced, self.waiting = doc, True
         return doc
 
     def hold_picture(self) -> None:
         """Keep the picture shown until the texture is presentable (the full
         analysis replacing the quick preview: the same view, a new texture)."""
-        self.waiting, self._since = True, time.monotonic()
-
-    def expire(self) -> None:
-        """A safety net: nothing waits longer than HOLD_MAX_S."""
-        if self.waiting and time.monotonic() - self._since >= HOLD_MAX_S:
-            self.waiting = False
+        self.waiting = True
 
     def reached(self, level: int, target: int) -> None:
-        """The preview is complete to ``level``; presentable from ``target``."""
+        """The preview is complete to ``level`` (-1: no level yet); presentable
+        from ``target``, and only then shown: the canvas draws no level coarser
+        than that, so giving way earlier shows it empty (there was a safety
+        net, 10 s, which on a loaded machine replaced a slider drag's picture
+        with the flat grey of an empty canvas)."""
         if level >= target:
             self.waiting = False
 
@@ -148,7 +144,6 @@ class CanvasRefine:
         was, self._was_quick = self._was_quick, s.quick_analysis
         if was and not s.quick_analysis and s.key == self.ed.doc.analysis_key():
             hold.hold_picture()  # the full analysis replaces the quick one: no coarse levels meanwhile
-        hold.expire()
         frame = self.ed.frame
         t0 = time.perf_counter()
         scale = 1
