@@ -18,9 +18,9 @@ import time
 
 from .controls import Controls
 from .rect import Rect, cover_rects, merge_rects
+from .stages import release_scratch
 
 DIRTY_RECTS = 64  # a level's dirty region: at most about this many rectangles
-from .stages import scratch_size
 
 
 class LocalUpdates:
@@ -148,7 +148,7 @@ class LocalUpdates:
                 if r.empty:
                     continue
                 region = pyr.padded(l, r)
-                scratch = pyr.new_scratch(*scratch_size(region, pyr.params.subgrid))  # its own: other strips may run meanwhile
+                scratch = pyr.new_scratch(region)  # its own: other strips may run meanwhile
                 pace = None if deadline is None else pyr.pacer
                 self._job = (l, pyr.strips.strip_steps(l, r, scratch, None, pace), scratch)
                 self.jobs_started += 1
@@ -177,5 +177,4 @@ class LocalUpdates:
             _, steps, scratch = self._job
             self._job = None
             steps.close()
-            for o in (scratch[1], scratch[3], scratch[0], scratch[2]):
-                o.release()
+            release_scratch(scratch)

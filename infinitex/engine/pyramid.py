@@ -28,7 +28,7 @@ from .state import StateAccess, SynthesisError
 from .strips import Strips
 from .params import SynthParams, correction_margins
 from .rect import Rect
-from .stages import Pacer, scratch_size
+from .stages import Pacer, release_scratch, scratch_size
 
 COORD_LIMIT = 2 ** 31 - 2 ** 24  # |canvas position| must stay below this
 
@@ -159,8 +159,7 @@ class Pyramid:
 
     def drop_buffers(self) -> None:
         """Drop every level buffer and scratch texture (their format changes)."""
-        self.invalidate(0)
-        self.updates.end_job()
+        self.invalidate(0)  # (the local update in progress ends with it)
         for i, buf in enumerate(self.buffers):
             if buf is not None:
                 buf.release()
@@ -169,9 +168,8 @@ class Pyramid:
 
     def drop_scratch(self) -> None:
         """Release the scratch textures kept for their size."""
-        for a, fa, b, fb in self._scratch.values():
-            for o in (fa, fb, a, b):
-                o.release()
+        for scratch in self._scratch.values():
+            release_scratch(scratch)
         self._scratch.clear()
 
     # -- what its users ask of it (done by its parts) -------------------------
@@ -322,20 +320,21 @@ class Pyramid:
 
     def scratch_pair(self, region: Rect):
         """The pair of scratch textures for a padded region (kept for their size)."""
-        w, h = scratch_size(region, self.params.subgrid)
-        key = (w, h)
+        key = scratch_size(region, self.params.subgrid)
         if key not in self._scratch:
             if len(self._scratch) > 24:
                 self.drop_scratch()
-            self._scratch[key] = self.new_scratch(w, h)
+            self._scratch[key] = self.new_scratch(region)
         return self._scratch[key]
 
     def new_buffer(self, r: Rect) -> _LevelBuffer:
         """A level buffer of this pyramid's kind holding exactly ``r`` (not valid yet)."""
         return _LevelBuffer(self.gpu, (r.w, r.h), False, (r.x0, r.y0), self.state.channels)
 
-    def new_scratch(self, w: int, h: int):
-        """Two w x h state textures and their framebuffers: (a, fa, b, fb) (see scratch_pair)."""
+    def new_scratch(self, region: Rect):
+        """Two state textures for a padded region and their framebuffers:
+        (a, fa, b, fb), released by ``stages.release_scratch`` (see scratch_pair)."""
+        w, h = scratch_size(region, self.params.subgrid)
         a = self.gpu.int_texture((w, h), self.state.channels)
         b = self.gpu.int_texture((w, h), self.state.channels)
         return a, self.gpu.ctx.framebuffer([a]), b, self.gpu.ctx.framebuffer([b])

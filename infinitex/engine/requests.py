@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from .rect import Rect
-from .stages import scratch_size
+from .stages import release_scratch
 
 
 class SpreadRequests:
@@ -126,12 +126,11 @@ class SpreadRequests:
             buf, keep, strips = self.keep(l, target)
             for strip in strips:
                 region = pyr.padded(l, strip)
-                scratch = pyr.new_scratch(*scratch_size(region, pyr.params.subgrid))
+                scratch = pyr.new_scratch(region)
                 try:
                     yield from pyr.strips.strip_steps(l, strip, scratch, buf, pyr.pacer)
                 finally:
-                    for o in (scratch[1], scratch[3], scratch[0], scratch[2]):
-                        o.release()
+                    release_scratch(scratch)
                 self.pixels += region.w * region.h
             buf.valid = target
             for strip in strips:

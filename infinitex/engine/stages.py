@@ -43,6 +43,13 @@ def block_layout(qdims: tuple[int, int], s: int) -> tuple[tuple[int, int], tuple
     return (stride[0], stride[1]), (off[0], off[1]), (size[0], size[1])
 
 
+def release_scratch(scratch) -> None:
+    """Release a pair of scratch textures (a, fa, b, fb): the framebuffers first."""
+    a, fa, b, fb = scratch
+    for o in (fa, fb, a, b):
+        o.release()
+
+
 def scratch_size(region, s: int) -> tuple[int, int]:
     """The size of a padded region's scratch textures (block_layout)."""
     return block_layout((region.w // s, region.h // s), s)[2]

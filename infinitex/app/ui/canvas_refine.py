@@ -135,49 +135,50 @@ class CanvasRefine:
 
     def draw(self, s, geom) -> None:
         """Synthesize for this frame and bring the canvas texture up to date."""
-        if self.ed.doc is not self._last_doc:
-            prev, self._last_doc = self._last_doc, self.ed.doc
-            if not local_edit(prev, self.ed.doc):
+        ed = self.ed
+        if ed.doc is not self._last_doc:
+            prev, self._last_doc = self._last_doc, ed.doc
+            if not local_edit(prev, ed.doc):
                 self._last_edit = time.monotonic()
-        interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not self.ed.canvas_state.read_asked
+        interactive = (time.monotonic() - self._last_edit < INTERACTIVE_S) and not ed.canvas_state.read_asked
         hold = self.hold
         was, self._was_quick = self._was_quick, s.quick_analysis
-        if was and not s.quick_analysis and s.key == self.ed.doc.analysis_key():
+        if was and not s.quick_analysis and s.key == ed.doc.analysis_key():
             hold.hold_picture()  # the full analysis replaces the quick one: no coarse levels meanwhile
-        frame = self.ed.frame
+        frame = ed.frame
         t0 = time.perf_counter()
         scale = 1
         try:
-            if (interactive or hold.waiting) and not self.ed.canvas_state.read_asked:
+            if (interactive or hold.waiting) and not ed.canvas_state.read_asked:
                 # A control is being dragged, or a change is not presentable
                 # yet: whole levels, coarse to fine, a piece at a time.
                 target = frame.level - PREVIEW_MAX_K
                 c = self._work(lambda b: s.refiner.coarse(frame, b, max_level=target),
                                lambda c: c >= target, settle=not interactive)
                 hold.reached(c, target)
-                self.ed.canvas_state.set_refined(False)
-                texel_px = self.ed.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
-                if self.ed.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
+                ed.canvas_state.set_refined(False)
+                texel_px = ed.view.zoom * (1 << (s.L - c)) if c >= 0 else 1
+                if ed.display.magnify == "nearest":  # plain texel blocks: draw them at their own size
                     scale = 1 << max(0, min(3, int(math.floor(math.log2(max(1.0, texel_px))))))
             else:
-                self.ed.canvas_state.set_refined(self._work(lambda b: s.refine(frame, b), bool, settle=True))
+                ed.canvas_state.set_refined(self._work(lambda b: s.refine(frame, b), bool, settle=True))
         except SynthesisError as exc:
-            self.ed.viewer.center(0, 0)
+            ed.viewer.center(0, 0)
             hold.waiting = False
-            self.ed.dialogs.message("Synthesis", str(exc))
-        self.ed.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, s.refiner.last_pixels if s.refiner else 0)
-        w, h = self.ed.canvas_size
-        view = self.ed.view if scale == 1 else View(self.ed.view.x, self.ed.view.y, self.ed.view.zoom / scale)
-        reading = self.ed.canvas_state.read_asked
-        if hold.waiting and not reading and self.ed.canvas.shows(frame, view, self.ed.display, geom, (w // scale, h // scale)):
+            ed.dialogs.message("Synthesis", str(exc))
+        ed.canvas_state.synthesized((time.perf_counter() - t0) * 1000.0, s.refiner.last_pixels if s.refiner else 0)
+        w, h = ed.canvas_size
+        view = ed.view if scale == 1 else View(ed.view.x, ed.view.y, ed.view.zoom / scale)
+        reading = ed.canvas_state.read_asked
+        if hold.waiting and not reading and ed.canvas.shows(frame, view, ed.display, geom, (w // scale, h // scale)):
             self._peek()
             return  # the last presentable texture stays until this change's is
-        self.ed.canvas.ensure_size(w // scale, h // scale)
-        self.ed.canvas.redraw(s.pyramid, frame, view, self.ed.display, geom, (s.generation, s.params), force=reading)
-        if self.ed.canvas.pending is not None:  # a large redraw spreads over frames
-            self.ed.canvas_state.set_refined(False)
+        ed.canvas.ensure_size(w // scale, h // scale)
+        ed.canvas.redraw(s.pyramid, frame, view, ed.display, geom, (s.generation, s.params), force=reading)
+        if ed.canvas.pending is not None:  # a large redraw spreads over frames
+            ed.canvas_state.set_refined(False)
         if reading:
-            self.ed.canvas_state.give_read_back(self.ed.canvas.read())
+            ed.canvas_state.give_read_back(ed.canvas.read())
         self._peek()
 
     def _peek(self) -> None:
