@@ -10,7 +10,8 @@ import pytest
 
 import lattice_scenes
 import near_regular
-from infinitex.engine.controls.lattice_detect import _primitive, _autocorrelation, _lobe_radius, detect
+from infinitex.engine.controls.lattice_correlation import autocorrelation, lobe_radius
+from infinitex.engine.controls.lattice_detect import _primitive, detect
 
 
 @pytest.mark.parametrize("index", [2, 6, 10])  # running bond (31 x 11, 87 x 23 px), shingles
@@ -30,9 +31,9 @@ def test_a_hexagonal_cell_is_primitive():
     f = (n - np.rint(n)).reshape(2, 240, 240)
     off = np.einsum("ij,jkl->ikl", B, f)
     img = np.exp(-(off[0] ** 2 + off[1] ** 2) / 20.0)
-    ac = _autocorrelation(img)
+    ac = autocorrelation(img)
     c = (ac.shape[0] // 2, ac.shape[1] // 2)
-    a, b = _primitive(ac, c, np.array([48.0, 0.0]), np.array([24.0, 36.0]), _lobe_radius(ac))
+    a, b = _primitive(ac, c, np.array([48.0, 0.0]), np.array([24.0, 36.0]), lobe_radius(ac))
     assert abs(abs(a[0] * b[1] - a[1] * b[0]) - 24.0 * 24.0) < 5.0, (a, b)
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from .lattice import Detection, Lattice
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
-_SEARCH_FILES = ("lattice.py", "lattice_detect.py", "lattice_block.py", "lattice_cache.py")
+_SEARCH_FILES = ("lattice.py", "lattice_detect.py", "lattice_correlation.py", "lattice_block.py", "lattice_cache.py")
 _MAX_ENTRY = 1 << 16  # bytes: an entry is a few hundred
 
 

@@ -1,7 +1,11 @@
 """Finding the lattice of a near-regular image (LH05 section 4.5;
 docs/algorithm.md section 5): the autocorrelation's peaks give a grid (two
 vectors), its ridges give rows (planks, stripes, lines); the confidence says how
-sure; the block of cells comes from :mod:`.lattice_block`."""
+sure; the block of cells comes from :mod:`.lattice_block`. The lattice is
+looked for in the image's shades and in its outlines (cells shaded apart
+repeat only in their outlines), the finer of two answers kept where it holds
+in both, and its vectors polished to where the image agrees with itself best
+(:mod:`.lattice_correlation`)."""
 from __future__ import annotations
 
 import math
@@ -11,86 +15,28 @@ from dataclasses import replace
 import numpy as np
 from scipy import ndimage
 
-from .lattice import DETECT_SIDE, Detection, MIN_CONFIDENCE, MIN_REPEATS, MIN_SINE, MIN_VECTOR
+from .lattice import (
+    DETECT_SIDE,
+    FEW_CONFIDENCE,
+    MIN_CONFIDENCE,
+    MIN_REPEATS,
+    MIN_SINE,
+    MIN_VECTOR,
+    SURE_REPEATS,
+    Detection,
+)
 from .lattice_block import choose_block, exact_block
-
-
-def gauss_reduce(t1: np.ndarray, t2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lagrange-Gauss reduction: the two shortest vectors spanning the same lattice."""
-    a, b = np.asarray(t1, float), np.asarray(t2, float)
-    if a @ a > b @ b:
-        a, b = b, a
-    for _ in range(64):
-        mu = round(float(a @ b) / float(a @ a))
-        b = b - mu * a
-        if b @ b >= a @ a:
-            break
-        a, b = b, a
-    return a, b
-
-
-def canonical_basis(t1, t2) -> tuple[np.ndarray, np.ndarray]:
-    """A basis oriented for people: the reduced basis, except that a short
-    lattice vector within 3 degrees of the x (or y) axis becomes t1 (or t2),
-    so rows of running-bond bricks stay rows; t1 points right, t2 to +y."""
-    a, b = gauss_reduce(np.asarray(t1, float), np.asarray(t2, float))
-    det = abs(a[0] * b[1] - a[1] * b[0])
-    vecs = [a, b, a + b, a - b]
-    limit = 2.5 * math.hypot(*b)
-    tol = math.sin(math.radians(3))
-
-    def pair(first, axis):
-        rest = [v for v in vecs if v is not first
-                and abs(abs(first[0] * v[1] - first[1] * v[0]) - det) <= 1e-6 * det]
-        return min(rest, key=lambda v: math.hypot(*v)) if rest else None
-
-    for axis in (0, 1):
-        aligned = [v for v in vecs if abs(v[1 - axis]) <= tol * math.hypot(*v) and math.hypot(*v) <= limit]
-        if aligned:
-            first = min(aligned, key=lambda v: math.hypot(*v))
-            other = pair(first, axis)
-            if other is not None:
-                a, b = (first, other) if axis == 0 else (other, first)
-                break
-    else:
-        if abs(b[0]) * math.hypot(*a) > abs(a[0]) * math.hypot(*b):  # b is more horizontal
-            a, b = b, a
-    if a[0] < 0 or (a[0] == 0 and a[1] < 0):
-        a = -a
-    if a[0] * b[1] - a[1] * b[0] < 0:
-        b = -b
-    return a, b
-
-
-def _autocorrelation(gray: np.ndarray) -> np.ndarray:
-    """Normalized autocorrelation (each lag divided by its overlap), centred:
-    index (H // 2, W // 2) holds lag 0; lags up to half the image each way."""
-    H, W = gray.shape
-    g = gray - ndimage.gaussian_filter(gray, max(H, W) / 8.0, mode="reflect")  # drop slow shading
-    g = g - g.mean()
-    sh = (2 * H, 2 * W)
-    F = np.fft.rfft2(g, s=sh)
-    ac = np.fft.irfft2(F * np.conj(F), s=sh)
-    ones = np.fft.rfft2(np.ones_like(g), s=sh)
-    count = np.fft.irfft2(ones * np.conj(ones), s=sh)
-    ac = np.fft.fftshift(ac / np.maximum(count, 1.0))
-    cy, cx = H, W
-    hy, hx = H // 2, W // 2
-    ac = ac[cy - hy:cy + hy + 1, cx - hx:cx + hx + 1]
-    zero = ac[hy, hx]
-    return ac / zero if zero > 1e-12 else np.zeros_like(ac)
-
-
-def _subpixel(ac: np.ndarray, y: int, x: int) -> tuple[float, float]:
-    """Parabolic sub-pixel offset of the peak at (y, x) per axis."""
-    def off(a, b, c):
-        d = a - 2 * b + c
-        return 0.0 if d >= 0 else float(np.clip(0.5 * (a - c) / d, -0.5, 0.5))
-    return (off(ac[y - 1, x], ac[y, x], ac[y + 1, x]), off(ac[y, x - 1], ac[y, x], ac[y, x + 1]))
-
-
-def _sample(ac: np.ndarray, pts: np.ndarray, center: tuple[int, int], mode: str = "constant") -> np.ndarray:
-    return ndimage.map_coordinates(ac, [pts[:, 1] + center[0], pts[:, 0] + center[1]], order=1, mode=mode)
+from .lattice_correlation import (
+    autocorrelation,
+    canonical_basis,
+    confidence,
+    gauss_reduce,
+    lattice_points,
+    lobe_radius,
+    polish,
+    refine,
+    sample,
+)
 
 
 def detect(pixels: np.ndarray) -> Detection:
@@ -115,36 +61,100 @@ def detect(pixels: np.ndarray) -> Detection:
     none = Detection(None, 0.0, 0.0)
     if min(gray.shape) < 16:
         return replace(none, seconds=time.perf_counter() - t0)
-    ac = _autocorrelation(gray)
+    shade, edges = _feature_correlations(gray)
+    center = (shade.shape[0] // 2, shade.shape[1] // 2)
+    found = [(r, ac) for r, ac in ((_lattice_of(shade, gray, f), shade),
+                                   (_lattice_of(edges, gray, f, rows_too=False), edges)) if r is not None]
+    # Outlines repeat twice as often as a smooth wave (the magnitude of a
+    # sine's slope has half its period): a lattice whose shifts turn the
+    # shades over is not the image's.
+    found = [(r, ac) for r, ac in found if sample(shade, np.stack(r[:2]), center, "nearest").min() > ANTI_CORRELATED]
+    if not found:
+        return replace(none, seconds=time.perf_counter() - t0)
+    t1, t2, conf = _finest(found, center)
+    t1, t2 = t1 * f, t2 * f
+    b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
+    lat = None
+    # A lattice repeating fewer than SURE_REPEATS times along a vector (rows:
+    # across them; their vector along is as long) is taken only when clearly there.
+    longest = max(math.hypot(*t1), math.hypot(*t2))
+    needed = MIN_CONFIDENCE if longest <= min(H, W) / SURE_REPEATS + 0.5 else max(MIN_CONFIDENCE, FEW_CONFIDENCE)
+    if conf >= needed:
+        lat = choose_block(b1, b2, W, H)
+        if lat is not None:
+            lat = exact_block(lat, W, H)
+    return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
+
+
+def _finest(found: list, center):
+    """One of the lattices found ((t1, t2, confidence), the autocorrelation
+    it was found in). Where one is a supercell of another (its vectors on the
+    other's lattice, its cell larger), the finer one stands only if its own
+    vectors correlate, in the feature the supercell was found in, about as
+    much (85%) as the supercell's: the primitive cell, not a block of cells,
+    but not outlines that repeat where the shades do not (a diamond plate's,
+    a running bond's). Of what stands, the most confident."""
+    keep = list(found)
+    for fine, _ in found:
+        for coarse, coarse_ac in found:
+            if coarse is fine or _cell_area(fine) >= 0.9 * _cell_area(coarse) \
+                    or not (_on_lattice(coarse[0], fine) and _on_lattice(coarse[1], fine)):
+                continue
+            holds = sample(coarse_ac, np.stack(fine[:2]), center, "nearest").min() \
+                >= 0.85 * sample(coarse_ac, np.stack(coarse[:2]), center, "nearest").min()
+            drop = coarse if holds else fine
+            keep = [x for x in keep if x[0] is not drop]
+    return max(keep or found, key=lambda x: x[0][2])[0]
+
+
+def _cell_area(r) -> float:
+    return abs(float(r[0][0] * r[1][1] - r[0][1] * r[1][0]))
+
+
+def _on_lattice(v, r, tol: float = 0.1) -> bool:
+    """Whether v is (within tol of a cell) a point of the lattice r = (t1, t2, ...)."""
+    c = np.linalg.solve(np.stack([r[0], r[1]], axis=1), np.asarray(v, float))
+    return bool(np.all(np.abs(c - np.rint(c)) <= tol))
+
+def _feature_correlations(gray: np.ndarray):
+    """The autocorrelations a lattice is looked for in: of the image's shades,
+    and of its edges (the gradient's magnitude). Cells whose colours vary one
+    from the next (tiles, bricks, cells shaded apart) hardly correlate in shade
+    at the lattice's vectors, but their outlines do; a smooth periodic motif
+    (woven strands, a photo repeated) shows best in shade."""
+    gy, gx = np.gradient(ndimage.gaussian_filter(gray, 1.0))
+    return autocorrelation(gray), autocorrelation(np.hypot(gx, gy))
+
+
+def _lattice_of(ac: np.ndarray, gray: np.ndarray, f: int, rows_too: bool = True):
+    """The lattice one autocorrelation shows: (t1, t2, confidence) at the
+    reduced image's scale, or None. Without ``rows_too``, grids only (a grid
+    that only cuts rows is none): outlines of letters or of strokes repeat at
+    half their pitch and along lines of text, where no rows are."""
     hy, hx = ac.shape[0] // 2, ac.shape[1] // 2
-    lobe = _lobe_radius(ac)
+    lobe = lobe_radius(ac)
     # A lattice must repeat at least MIN_REPEATS times across the image.
     reach = min(gray.shape) / MIN_REPEATS + 0.5
     grid = _grid(ac, (hy, hx), lobe, reach, f)
+    # (A vector at the largest lag lies on the array's edge: read there.)
+    if grid is not None and sample(ac, np.stack(grid[:2]), (hy, hx), "nearest").min() < GRID_MIN_CORRELATION:
+        grid = None  # the image hardly repeats at its vectors: strokes of text, not cells
+    if not rows_too:
+        return None if grid is None or _rows_of_grid(ac, (hy, hx), grid) is not None else grid
     rows = _rows(ac, (hy, hx))
     if rows is None and grid is not None:
         rows = _rows_of_grid(ac, (hy, hx), grid)
-    # (A vector at the largest lag lies on the array's edge: read there.)
-    if grid is not None and _sample(ac, np.stack(grid[:2]), (hy, hx), "nearest").min() < GRID_MIN_CORRELATION:
-        grid = None  # the image hardly repeats at its vectors: strokes of text, not cells
+    if rows is not None and min(math.hypot(*rows[0]), math.hypot(*rows[1])) > reach:
+        rows = None  # rows seen fewer than MIN_REPEATS times
     if grid is None and rows is None:
-        return replace(none, seconds=time.perf_counter() - t0)
+        return None
     # Rows win when the grid only cuts them into arbitrary cells (and they are
     # confident), or when there is no confident grid; rows whose cells repeat
     # along them too (bricks, shingles, staggered or not) are that grid.
     if rows is not None and (grid is None or (_along(ac, (hy, hx), rows[3], grid[0], grid[1])
                                               and rows[2] >= MIN_CONFIDENCE) or grid[2] < min(MIN_CONFIDENCE, rows[2])):
-        t1, t2, conf = _cells_along(gray, (hy, hx), rows, reach, lobe) or rows[:3]
-    else:
-        t1, t2, conf = grid
-    t1, t2 = t1 * f, t2 * f
-    b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
-    lat = None
-    if conf >= MIN_CONFIDENCE:
-        lat = choose_block(b1, b2, W, H)
-        if lat is not None:
-            lat = exact_block(lat, W, H)
-    return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
+        return _cells_along(gray, (hy, hx), rows, reach, lobe) or rows[:3]
+    return grid
 
 
 def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f: int):
@@ -184,11 +194,11 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
             if abs(a[0] * b[1] - a[1] * b[0]) < MIN_SINE * math.hypot(*a) * math.hypot(*b):
                 continue
             a, b = gauss_reduce(a, b)
-            _, P = _lattice_points(a, b, hy, hx, limit=3)
+            _, P = lattice_points(a, b, hy, hx, limit=3)
             P = P[np.hypot(P[:, 0], P[:, 1]) >= lobe]
             if len(P) >= 2:
-                near = float(_sample(ac, np.stack([a, b, a + b, a - b]), (hy, hx)).min())
-                scored.append((float(np.median(_sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b, near))
+                near = float(sample(ac, np.stack([a, b, a + b, a - b]), (hy, hx)).min())
+                scored.append((float(np.median(sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b, near))
     if not scored:
         return None
     # Near the best median, the smallest cell whose own shortest vectors
@@ -199,10 +209,13 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
     good = [s for s in scored if s[0] >= top - 0.2 * abs(top)]
     best_near = max(s[4] for s in good)
     _, _, t1, t2, _ = min((s for s in good if s[4] >= best_near - 0.2 * abs(best_near)), key=lambda s: s[1])
-    t1, t2 = _primitive(ac, (hy, hx), t1, t2, lobe)
-    t1, t2 = _refine(ac, t1, t2, (hy, hx))
+    # (Fractions of a basis of whole-pixel peaks fall between pixels: each
+    # read as the highest correlation within a pixel, as sharp peaks are.)
+    t1, t2 = _primitive(ndimage.maximum_filter(ac, size=3, mode="nearest"), (hy, hx), t1, t2, lobe)
+    t1, t2 = refine(ac, t1, t2, (hy, hx))
+    t1, t2 = polish(ac, t1, t2, (hy, hx), lobe)
     t1, t2 = canonical_basis(t1, t2)
-    return t1, t2, _confidence(ac, t1, t2, (hy, hx), lobe)
+    return t1, t2, confidence(ac, t1, t2, (hy, hx), lobe)
 
 
 def _candidate_peaks(vec: np.ndarray, vals: np.ndarray, length: np.ndarray):
@@ -246,14 +259,14 @@ def _primitive(ac: np.ndarray, center, t1, t2, lobe: float):
     a, b = np.asarray(t1, float), np.asarray(t2, float)
     floor = max(lobe, MIN_VECTOR)
     for _ in range(6):
-        level = 0.85 * float(_sample(ac, np.stack([a, b]), center).min())
+        level = 0.85 * float(sample(ac, np.stack([a, b]), center).min())
         found = None
         for v, keep in ((a, b), (b, a)):
             for k in range(2, 9):
                 h = v / k
                 if math.hypot(*h) < floor:
                     break
-                if float(_sample(ac, np.outer(np.arange(1, k), h), center).min()) >= level:
+                if float(sample(ac, np.outer(np.arange(1, k), h), center).min()) >= level:
                     found = (h, keep)
                     break
             if found:
@@ -286,7 +299,7 @@ def _cell_fraction(ac: np.ndarray, center, a, b, level: float, floor: float):
                     pts.append(min(copies, key=lambda q: math.hypot(*q)))
                 if min(math.hypot(*q) for q in pts) < floor:
                     continue
-                if float(_sample(ac, np.stack(pts), center).min()) >= level:
+                if float(sample(ac, np.stack(pts), center).min()) >= level:
                     return h, (b if i == 1 else a)
     return None
 
@@ -304,13 +317,13 @@ def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
     t1r, t2r, conf, d = rows
     d = np.asarray(d, float)
     gy, gx = np.gradient(ndimage.gaussian_filter(gray, 1.0))
-    ac = _autocorrelation(np.abs(gx * d[0] + gy * d[1]))
+    ac = autocorrelation(np.abs(gx * d[0] + gy * d[1]))
     across = np.asarray(t2r, float) if abs(float(np.asarray(t2r, float) @ d)) < abs(float(np.asarray(t1r, float) @ d)) \
         else np.asarray(t1r, float)
     step = 0.25
     smax = reach
     s = np.arange(0.0, smax + 1.0, step)
-    on_row = ndimage.maximum_filter1d(_sample(ac, s[:, None] * d[None, :], center), size=5, mode="nearest")
+    on_row = ndimage.maximum_filter1d(sample(ac, s[:, None] * d[None, :], center), size=5, mode="nearest")
     periods = np.arange(max(2.0 * lobe, MIN_VECTOR, 0.75 * math.hypot(*across)), smax - 1.0, step)
     if periods.size == 0:
         return None
@@ -327,13 +340,13 @@ def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
     contrast_row = (float(at(on_row, w)) - half) / max(1e-6, 1.0 - half)
     # The next row: its best shift within one period.
     o = np.arange(0.0, w, step)
-    nxt = _sample(ac, across[None, :] + o[:, None] * d[None, :], center)
+    nxt = sample(ac, across[None, :] + o[:, None] * d[None, :], center)
     k = int(np.argmax(nxt))
-    opposite = float(_sample(ac, (across + ((o[k] + 0.5 * w) % w) * d)[None, :], center)[0])
+    opposite = float(sample(ac, (across + ((o[k] + 0.5 * w) % w) * d)[None, :], center)[0])
     contrast_next = (float(nxt[k]) - opposite) / max(1e-6, 1.0 - opposite)
     if min(contrast_row, contrast_next) < CELLS_ALONG_MIN or max(contrast_row, contrast_next) < CELLS_ALONG_CLEAR:
         return None
-    t1, t2 = _refine(ac, w * d, across + float(o[k]) * d, center)
+    t1, t2 = refine(ac, w * d, across + float(o[k]) * d, center)
     if abs(t1[1]) <= math.sin(math.radians(3)) * math.hypot(*t1):
         # Rows along x: t1 along them (a long brick's row is no reduced vector), t2 to the next row.
         t1 = t1 if t1[0] > 0 else -t1
@@ -350,6 +363,11 @@ def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
 CELLS_ALONG_MIN = 0.25
 CELLS_ALONG_CLEAR = 0.45
 
+
+# A lattice found in the outlines is refused when the shades correlate below
+# this at one of its vectors (half the period of a smooth wave: -1 for a sine;
+# cells shaded apart correlate about 0 there).
+ANTI_CORRELATED = -0.3
 
 RIDGE_MIN = 0.5  # rows: the median correlation along their direction
 # A grid's image correlates with itself at its two vectors at least this much.
@@ -376,7 +394,7 @@ def _rows(ac: np.ndarray, center: tuple[int, int]):
     for far in (rmax / 2.0, rmax / 5.0):
         r = np.arange(2.0, far)
         pts = (r[None, :, None] * np.stack([np.cos(th), np.sin(th)], axis=1)[:, None, :]).reshape(-1, 2)
-        along = _sample(ac, pts, center).reshape(len(th), len(r))
+        along = sample(ac, pts, center).reshape(len(th), len(r))
         score = np.median(along, axis=1)
         k = int(np.argmax(score))
         if score[k] >= RIDGE_MIN and np.percentile(along[k], 10) >= 0.3:
@@ -392,7 +410,7 @@ def _rows(ac: np.ndarray, center: tuple[int, int]):
     # highest value within half a pixel (thin joints make thin peaks).
     step = 0.25
     s = np.arange(0.0, rmax + 1.0, step)
-    prof = _sample(ac, s[:, None] * n[None, :], center)
+    prof = sample(ac, s[:, None] * n[None, :], center)
     local = ndimage.maximum_filter1d(prof, size=5, mode="nearest")  # +-0.5 px
     periods = np.arange(MIN_VECTOR, rmax, step)
     if periods.size == 0:
@@ -420,7 +438,7 @@ def _rows(ac: np.ndarray, center: tuple[int, int]):
     # between them (as for a grid), times how well the rows hold along.
     ks = np.arange(1, max(1, int(s[-1] // period)) + 1)
     on = float(local[np.minimum(np.rint(ks * period / step).astype(int), len(local) - 1)].mean())
-    half = float(_sample(ac, ((ks - 0.5) * period)[:, None] * n[None, :], center).mean())
+    half = float(sample(ac, ((ks - 0.5) * period)[:, None] * n[None, :], center).mean())
     conf = float(np.clip((on - half) / max(1e-6, 1.0 - half), 0.0, 1.0)) * min(1.0, float(score[k]) / 0.7)
     t1, t2 = canonical_basis(d * max(period, 8.0), n * period)
     return t1, t2, conf, d
@@ -433,7 +451,7 @@ def _rows_of_grid(ac: np.ndarray, center, grid):
     (t1, t2, confidence, direction) as :func:`_rows`, or None."""
     t1, t2, conf = grid
     for v, w in ((t1, t2), (t2, t1)):
-        end, mid = _sample(ac, np.stack([v, 0.5 * v]), center)
+        end, mid = sample(ac, np.stack([v, 0.5 * v]), center)
         length = math.hypot(*v)
         if length < 8.0 and mid >= 0.8 * end:
             d = np.asarray(v, float) / length
@@ -452,87 +470,8 @@ def _along(ac: np.ndarray, center, d, t1, t2) -> bool:
     d = np.asarray(d, float)
     for v in (np.asarray(t1, float), np.asarray(t2, float)):
         if abs(v[0] * d[1] - v[1] * d[0]) <= 0.18 * math.hypot(*v):  # within about 10 degrees
-            end, mid = _sample(ac, np.stack([v, 0.5 * v]), center)
+            end, mid = sample(ac, np.stack([v, 0.5 * v]), center)
             if mid >= 0.8 * end:
                 return True
     return False
 
-
-def _lattice_points(t1, t2, hy: int, hx: int, limit: int = 12) -> tuple[np.ndarray, np.ndarray]:
-    """Integer pairs (n1, n2) != 0 and their lattice points inside the lag window."""
-    n = np.arange(-limit, limit + 1)
-    N1, N2 = np.meshgrid(n, n)
-    N = np.stack([N1.ravel(), N2.ravel()], axis=1)
-    N = N[(N != 0).any(axis=1)]
-    P = N @ np.stack([t1, t2])
-    inside = (np.abs(P[:, 0]) <= hx - 2) & (np.abs(P[:, 1]) <= hy - 2)
-    return N[inside], P[inside]
-
-
-def _refine(ac: np.ndarray, t1, t2, center) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares fit of (t1, t2) to the sub-pixel peaks found near every
-    lattice point in the window, weighted by how far they are (far peaks pin
-    the vectors down most)."""
-    hy, hx = center
-    for _ in range(2):
-        N, P = _lattice_points(t1, t2, hy, hx)
-        if len(N) < 2:
-            break
-        floor = 0.4 * float(_sample(ac, np.stack([t1, t2]), center).min())
-        rows, obs = [], []
-        for n, p in zip(N, P):
-            x, y = int(round(p[0])) + hx, int(round(p[1])) + hy
-            win = ac[y - 1:y + 2, x - 1:x + 2]
-            if win.shape != (3, 3):
-                continue
-            dy, dx = np.unravel_index(int(np.argmax(win)), (3, 3))
-            y, x = y + dy - 1, x + dx - 1
-            if not (1 <= y < ac.shape[0] - 1 and 1 <= x < ac.shape[1] - 1):
-                continue
-            if ac[y, x] < floor or ac[y, x] < ac[y - 1:y + 2, x - 1:x + 2].max():
-                continue  # weak, or not a local maximum
-            oy, ox = _subpixel(ac, y, x)
-            rows.append(n)
-            obs.append((x - hx + ox, y - hy + oy))
-        if len(rows) < 2:
-            break
-        A = np.asarray(rows, float)
-        Y = np.asarray(obs, float)
-        if np.linalg.matrix_rank(A) < 2:
-            break
-        T, *_ = np.linalg.lstsq(A, Y, rcond=None)
-        t1, t2 = T[0], T[1]
-    return np.asarray(t1, float), np.asarray(t2, float)
-
-
-def _lobe_radius(ac: np.ndarray) -> float:
-    """Radius of the autocorrelation's central lobe: the first radius at which
-    the correlation has dropped below 0.3 in some direction (lags inside it
-    say nothing about a lattice)."""
-    hy, hx = ac.shape[0] // 2, ac.shape[1] // 2
-    ys, xs = np.mgrid[-hy:ac.shape[0] - hy, -hx:ac.shape[1] - hx]
-    r = np.rint(np.hypot(xs, ys)).astype(np.int64).ravel()
-    n = min(hy, hx)
-    low = np.full(n + 1, np.inf)
-    sel = r <= n
-    np.minimum.at(low, r[sel], ac.ravel()[sel])
-    below = np.nonzero(low < 0.3)[0]
-    return float(below[0]) if below.size else float(n)
-
-
-def _confidence(ac: np.ndarray, t1, t2, center, lobe: float = 0.0) -> float:
-    """How much more the image correlates with itself at lattice points than
-    half-way between them, in [0, 1] (points inside the central lobe left out)."""
-    hy, hx = center
-    N, P = _lattice_points(t1, t2, hy, hx, limit=2)
-    P = P[np.hypot(P[:, 0], P[:, 1]) >= lobe]
-    if len(P) < 2:
-        return 0.0
-    on = float(np.median(_sample(ac, P, center)))
-    t1, t2 = np.asarray(t1, float), np.asarray(t2, float)
-    mids = np.concatenate([np.concatenate([P + half, half[None]])
-                           for half in (0.5 * t1, 0.5 * t2, 0.5 * (t1 + t2))])  # half-way points
-    mids = mids[(np.abs(mids[:, 0]) <= hx - 1) & (np.abs(mids[:, 1]) <= hy - 1)
-                & (np.hypot(mids[:, 0], mids[:, 1]) >= lobe)]
-    off = float(np.median(_sample(ac, mids, center))) if len(mids) else 0.0
-    return float(np.clip((on - off) / max(1e-6, 1.0 - off), 0.0, 1.0))
