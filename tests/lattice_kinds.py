@@ -273,14 +273,30 @@ def lattice_case(kind: str, content: str, index: int, side: int = SIDE, few: boo
     that kind and content."""
     rng = _rng(LATTICE_KINDS.index(kind), CONTENTS.index(content), index, int(few))
     t1, t2, frame = random_lattice(kind, rng, side, few)
+    return render(t1, t2, frame, content, rng, _rng(index, 7), side), np.asarray(t1, float), np.asarray(t2, float)
+
+
+def staggered(w: float, h: float, offset: float, angle_deg: float):
+    """(t1, t2, frame) of rows of w x h cells, each row shifted by ``offset``
+    of a cell, turned by ``angle_deg`` (for :func:`render`)."""
+    rot = math.radians(angle_deg)
+    return _turn((w, 0.0), rot), _turn((offset * w, h), rot), ((w, h, offset), rot)
+
+
+def render(t1, t2, frame, content: str, rng: np.random.Generator, cell_rng: np.random.Generator,
+           side: int = SIDE, variation: float | None = None) -> np.ndarray:
+    """The image of a lattice (t1, t2; ``frame`` from :func:`random_lattice`
+    or :func:`staggered`, or None) with that content, degraded, every random
+    choice drawn from ``rng`` (the cells' own from ``cell_rng``)."""
+    frame = frame if frame is not None else (None, 0.0)
     origin = rng.uniform(0, side, 2)
-    ids, tile_ids, fa, fb, F, border = _cells(t1, t2, frame, origin, side, rng)
+    ids, tile_ids, fa, fb, F, border = _cells(np.asarray(t1, float), np.asarray(t2, float), frame, origin, side, rng)
     a, b = reduce(t1, t2)
     short = min(math.hypot(*a), math.hypot(*F[:, 0]), math.hypot(*F[:, 1]))
-    cell_rng = _rng(index, 7)
     jitter = rng.uniform(0, 0.6)
     shift = cell_rng.normal(0, jitter, (100003, 2)) / np.array([math.hypot(*F[:, 0]), math.hypot(*F[:, 1])])
-    variation = rng.uniform(0.0, 0.2)
+    drawn = rng.uniform(0.0, 0.2)  # drawn either way: the same stream of choices
+    variation = drawn if variation is None else variation
     gain = 1.0 + cell_rng.uniform(-variation, variation, (100003, 3))
     ja, jb = (fa + shift[ids, 0]) % 1.0, (fb + shift[ids, 1]) % 1.0
     base = rng.uniform(0.3, 0.6, 3)
@@ -295,7 +311,7 @@ def lattice_case(kind: str, content: str, index: int, side: int = SIDE, few: boo
     else:
         raise ValueError(content)
     img = (base + pattern) * gain[tile_ids if content == "tiles" else ids]
-    return _degrade(rng, img), np.asarray(t1, float), np.asarray(t2, float)
+    return _degrade(rng, img)
 
 
 def stochastic_case(kind: str, index: int, side: int = SIDE) -> np.ndarray:

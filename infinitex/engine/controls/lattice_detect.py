@@ -3,8 +3,8 @@ docs/algorithm.md section 5): the autocorrelation's peaks give a grid (two
 vectors), its ridges give rows (planks, stripes, lines); the confidence says how
 sure; the block of cells comes from :mod:`.lattice_block`. The lattice is
 looked for in the image's shades and in its outlines (cells shaded apart
-repeat only in their outlines), the finer of two answers kept where it holds
-in both, and its vectors polished to where the image agrees with itself best
+repeat only in their outlines), the more confident answer kept, its vectors
+polished to where the image agrees with itself best
 (:mod:`.lattice_correlation`)."""
 from __future__ import annotations
 
@@ -61,17 +61,13 @@ def detect(pixels: np.ndarray) -> Detection:
     none = Detection(None, 0.0, 0.0)
     if min(gray.shape) < 16:
         return replace(none, seconds=time.perf_counter() - t0)
+    # The most confident of what the shades and the outlines show.
     shade, edges = _feature_correlations(gray)
-    center = (shade.shape[0] // 2, shade.shape[1] // 2)
-    found = [(r, ac) for r, ac in ((_lattice_of(shade, gray, f), shade),
-                                   (_lattice_of(edges, gray, f, rows_too=False), edges)) if r is not None]
-    # Outlines repeat twice as often as a smooth wave (the magnitude of a
-    # sine's slope has half its period): a lattice whose shifts turn the
-    # shades over is not the image's.
-    found = [(r, ac) for r, ac in found if sample(shade, np.stack(r[:2]), center, "nearest").min() > ANTI_CORRELATED]
+    found = [r for r in (_lattice_of(shade, gray, f), _lattice_of(edges, gray, f, rows_too=False))
+             if r is not None]
     if not found:
         return replace(none, seconds=time.perf_counter() - t0)
-    t1, t2, conf = _finest(found, center)
+    t1, t2, conf = max(found, key=lambda r: r[2])
     t1, t2 = t1 * f, t2 * f
     b1, b2 = (float(t1[0]), float(t1[1])), (float(t2[0]), float(t2[1]))
     lat = None
@@ -85,36 +81,6 @@ def detect(pixels: np.ndarray) -> Detection:
             lat = exact_block(lat, W, H)
     return Detection(lat, conf, time.perf_counter() - t0, b1, b2)
 
-
-def _finest(found: list, center):
-    """One of the lattices found ((t1, t2, confidence), the autocorrelation
-    it was found in). Where one is a supercell of another (its vectors on the
-    other's lattice, its cell larger), the finer one stands only if its own
-    vectors correlate, in the feature the supercell was found in, about as
-    much (85%) as the supercell's: the primitive cell, not a block of cells,
-    but not outlines that repeat where the shades do not (a diamond plate's,
-    a running bond's). Of what stands, the most confident."""
-    keep = list(found)
-    for fine, _ in found:
-        for coarse, coarse_ac in found:
-            if coarse is fine or _cell_area(fine) >= 0.9 * _cell_area(coarse) \
-                    or not (_on_lattice(coarse[0], fine) and _on_lattice(coarse[1], fine)):
-                continue
-            holds = sample(coarse_ac, np.stack(fine[:2]), center, "nearest").min() \
-                >= 0.85 * sample(coarse_ac, np.stack(coarse[:2]), center, "nearest").min()
-            drop = coarse if holds else fine
-            keep = [x for x in keep if x[0] is not drop]
-    return max(keep or found, key=lambda x: x[0][2])[0]
-
-
-def _cell_area(r) -> float:
-    return abs(float(r[0][0] * r[1][1] - r[0][1] * r[1][0]))
-
-
-def _on_lattice(v, r, tol: float = 0.1) -> bool:
-    """Whether v is (within tol of a cell) a point of the lattice r = (t1, t2, ...)."""
-    c = np.linalg.solve(np.stack([r[0], r[1]], axis=1), np.asarray(v, float))
-    return bool(np.all(np.abs(c - np.rint(c)) <= tol))
 
 def _feature_correlations(gray: np.ndarray):
     """The autocorrelations a lattice is looked for in: of the image's shades,
@@ -136,16 +102,20 @@ def _lattice_of(ac: np.ndarray, gray: np.ndarray, f: int, rows_too: bool = True)
     # A lattice must repeat at least MIN_REPEATS times across the image.
     reach = min(gray.shape) / MIN_REPEATS + 0.5
     grid = _grid(ac, (hy, hx), lobe, reach, f)
+    rows = None
+    if rows_too:
+        rows = _rows(ac, (hy, hx))
+        if rows is None and grid is not None:
+            rows = _rows_of_grid(ac, (hy, hx), grid)
+        if rows is not None and min(math.hypot(*rows[0]), math.hypot(*rows[1])) > reach:
+            rows = None  # rows seen fewer than MIN_REPEATS times
+    elif grid is not None and _rows_of_grid(ac, (hy, hx), grid) is not None:
+        return None
     # (A vector at the largest lag lies on the array's edge: read there.)
     if grid is not None and sample(ac, np.stack(grid[:2]), (hy, hx), "nearest").min() < GRID_MIN_CORRELATION:
         grid = None  # the image hardly repeats at its vectors: strokes of text, not cells
     if not rows_too:
-        return None if grid is None or _rows_of_grid(ac, (hy, hx), grid) is not None else grid
-    rows = _rows(ac, (hy, hx))
-    if rows is None and grid is not None:
-        rows = _rows_of_grid(ac, (hy, hx), grid)
-    if rows is not None and min(math.hypot(*rows[0]), math.hypot(*rows[1])) > reach:
-        rows = None  # rows seen fewer than MIN_REPEATS times
+        return grid
     if grid is None and rows is None:
         return None
     # Rows win when the grid only cuts them into arbitrary cells (and they are
@@ -363,11 +333,6 @@ def _cells_along(gray: np.ndarray, center, rows, reach: float, lobe: float):
 CELLS_ALONG_MIN = 0.25
 CELLS_ALONG_CLEAR = 0.45
 
-
-# A lattice found in the outlines is refused when the shades correlate below
-# this at one of its vectors (half the period of a smooth wave: -1 for a sine;
-# cells shaded apart correlate about 0 there).
-ANTI_CORRELATED = -0.3
 
 RIDGE_MIN = 0.5  # rows: the median correlation along their direction
 # A grid's image correlates with itself at its two vectors at least this much.
