@@ -138,30 +138,36 @@ def refine(ac: np.ndarray, t1, t2, center) -> tuple[np.ndarray, np.ndarray]:
 
 def polish(ac: np.ndarray, t1, t2, center, lobe: float) -> tuple[np.ndarray, np.ndarray]:
     """The basis near (t1, t2) under which the image agrees best with itself:
-    the mean correlation (lightly smoothed, so it varies smoothly with the
-    vectors) at the lattice points n1 t1 + n2 t2, |n1|, |n2| <= 2, maximized
-    from where the peaks put the basis (each peak's own position is only
-    good to about a pixel; together they pin the vectors down to a small
-    fraction of one). Moves of more than 1.5 px are not taken."""
+    the mean correlation at the lattice points n1 t1 + n2 t2, |n1|, |n2| <= 2,
+    maximized from where the peaks put the basis (each peak's own position is
+    only good to about a pixel; together they pin the vectors down to a small
+    fraction of one). The correlation is lightly smoothed and read through a
+    cubic spline: a bilinear reading peaks at whole pixels, and would pull
+    the vectors there. Moves of more than 1.5 px are not taken."""
     from scipy.optimize import minimize
     hy, hx = center
-    smooth = ndimage.gaussian_filter(ac, 0.8)
-    n = np.array([(i, j) for i in range(-2, 3) for j in range(-2, 3) if (i, j) != (0, 0)], float)
+    # The spline of the smoothed correlation, only around the lags read.
     x0 = np.concatenate([t1, t2]).astype(float)
+    n = np.array([(i, j) for i in range(-2, 3) for j in range(-2, 3) if (i, j) != (0, 0)], float)
+    coef = ndimage.spline_filter(ndimage.gaussian_filter(ac, 0.8), order=3)
 
     def points(x):
         P = n @ x.reshape(2, 2)
-        keep = (np.abs(P[:, 0]) <= hx - 2) & (np.abs(P[:, 1]) <= hy - 2) & (np.hypot(P[:, 0], P[:, 1]) >= lobe)
+        keep = (np.abs(P[:, 0]) <= hx - 3) & (np.abs(P[:, 1]) <= hy - 3) & (np.hypot(P[:, 0], P[:, 1]) >= lobe)
         return P[keep]
 
     if len(points(x0)) < 4:
         return np.asarray(t1, float), np.asarray(t2, float)
+
     def cost(x):
         P = points(x)
-        return -float(sample(smooth, P, center).mean()) if len(P) else 0.0
+        if not len(P):
+            return 0.0
+        v = ndimage.map_coordinates(coef, [P[:, 1] + hy, P[:, 0] + hx], order=3, prefilter=False)
+        return -float(v.mean())
 
     res = minimize(cost, x0, method="Nelder-Mead",
-                   options={"xatol": 0.02, "fatol": 1e-5, "initial_simplex": x0 + np.vstack([np.zeros(4), 0.5 * np.eye(4)])})
+                   options={"xatol": 0.01, "fatol": 1e-6, "initial_simplex": x0 + np.vstack([np.zeros(4), 0.5 * np.eye(4)])})
     x = res.x
     if not res.success or np.abs(x - x0).max() > 1.5 or len(points(x)) < len(points(x0)):
         return np.asarray(t1, float), np.asarray(t2, float)

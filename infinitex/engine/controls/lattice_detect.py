@@ -157,6 +157,11 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
     highest = np.argsort(-vals + 1e-6 * length, kind="stable")[:12]
     cand = vec[np.unique(np.concatenate([shortest, highest]))]
     cand = cand[np.argsort(np.hypot(cand[:, 0], cand[:, 1]), kind="stable")]
+    # The candidates are whole-pixel peaks, so their sums and multiples miss
+    # the true lattice points by a pixel or so, where sharp peaks (thin
+    # outlines) read low: bases are scored on the highest correlation within
+    # a pixel.
+    loose = ndimage.maximum_filter(ac, size=3, mode="nearest")
     scored = []
     for i in range(len(cand)):
         for j in range(i + 1, len(cand)):
@@ -167,8 +172,8 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
             _, P = lattice_points(a, b, hy, hx, limit=3)
             P = P[np.hypot(P[:, 0], P[:, 1]) >= lobe]
             if len(P) >= 2:
-                near = float(sample(ac, np.stack([a, b, a + b, a - b]), (hy, hx)).min())
-                scored.append((float(np.median(sample(ac, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b, near))
+                near = float(sample(loose, np.stack([a, b, a + b, a - b]), (hy, hx)).min())
+                scored.append((float(np.median(sample(loose, P, (hy, hx)))), abs(a[0] * b[1] - a[1] * b[0]), a, b, near))
     if not scored:
         return None
     # Near the best median, the smallest cell whose own shortest vectors
@@ -179,12 +184,12 @@ def _grid(ac: np.ndarray, center: tuple[int, int], lobe: float, reach: float, f:
     good = [s for s in scored if s[0] >= top - 0.2 * abs(top)]
     best_near = max(s[4] for s in good)
     _, _, t1, t2, _ = min((s for s in good if s[4] >= best_near - 0.2 * abs(best_near)), key=lambda s: s[1])
-    # (Fractions of a basis of whole-pixel peaks fall between pixels: each
-    # read as the highest correlation within a pixel, as sharp peaks are.)
-    t1, t2 = _primitive(ndimage.maximum_filter(ac, size=3, mode="nearest"), (hy, hx), t1, t2, lobe)
+    t1, t2 = _primitive(ac, (hy, hx), t1, t2, lobe)
     t1, t2 = refine(ac, t1, t2, (hy, hx))
     t1, t2 = polish(ac, t1, t2, (hy, hx), lobe)
     t1, t2 = canonical_basis(t1, t2)
+    if min(math.hypot(*t1), math.hypot(*t2)) < MIN_VECTOR / f:
+        return None  # fitted below the shortest vector a lattice may have
     return t1, t2, confidence(ac, t1, t2, (hy, hx), lobe)
 
 
@@ -204,17 +209,22 @@ def _candidate_peaks(vec: np.ndarray, vals: np.ndarray, length: np.ndarray):
     if not (strong & off).any() and off.any():
         strong[np.argmax(np.where(off, vals, -np.inf))] = True
     vec, vals, length = vec[strong], vals[strong], length[strong]
+    # (Outlines can hold thousands of small peaks: the 256 shortest and the 64
+    # highest are more than the bases are drawn from.)
+    order = np.argsort(length, kind="stable")
+    if order.size > 320:
+        top = np.argsort(-vals, kind="stable")[:64]
+        order = np.concatenate([order[:256], np.setdiff1d(top, order[:256])])
+        order = order[np.argsort(length[order], kind="stable")]
     kept: list[int] = []
-    for i in np.argsort(length, kind="stable"):
-        v = vec[i]
-        multiple = False
-        for j in kept:
-            k = round(float(v @ vec[j]) / float(vec[j] @ vec[j]))
-            if k >= 2 and vals[j] >= 0.85 * vals[i] and math.hypot(*(v - k * vec[j])) <= 1.5:
-                multiple = True
-                break
-        if not multiple:
-            kept.append(int(i))
+    for i in order:
+        if kept:
+            K = vec[kept]
+            k = np.rint((K @ vec[i]) / np.einsum("ij,ij->i", K, K))
+            rest = np.hypot(*(vec[i][None, :] - k[:, None] * K).T)
+            if np.any((k >= 2) & (vals[kept] >= 0.85 * vals[i]) & (rest <= 1.5)):
+                continue  # a multiple of a shorter peak about as strong
+        kept.append(int(i))
     return vec[kept], vals[kept], length[kept]
 
 
@@ -225,28 +235,42 @@ def _primitive(ac: np.ndarray, center, t1, t2, lobe: float):
     hexagonal one) and all its multiples up to the lattice correlate as much as
     the basis itself, that fraction is a lattice vector too (a grid of thin
     lines otherwise comes out as cells of several grid cells, a hexagonal
-    pattern as a cell three times too large)."""
+    pattern as a cell three times too large). A whole-pixel basis's fractions
+    fall between pixels, where a sharp peak reads low: each is read as the
+    highest correlation within half a pixel (:func:`_near`)."""
     a, b = np.asarray(t1, float), np.asarray(t2, float)
     floor = max(lobe, MIN_VECTOR)
     for _ in range(6):
-        level = 0.85 * float(sample(ac, np.stack([a, b]), center).min())
-        found = None
-        for v, keep in ((a, b), (b, a)):
-            for k in range(2, 9):
-                h = v / k
-                if math.hypot(*h) < floor:
-                    break
-                if float(sample(ac, np.outer(np.arange(1, k), h), center).min()) >= level:
-                    found = (h, keep)
-                    break
-            if found:
-                break
-        if found is None:
-            found = _cell_fraction(ac, center, a, b, level, floor)
+        found = _fraction(ac, center, a, b, floor)
         if found is None:
             break
         a, b = gauss_reduce(*found)
     return a, b
+
+
+_HALF_PIXEL = np.array([(0.0, 0.0), (0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)])
+
+
+def _near(ac: np.ndarray, pts: np.ndarray, center) -> np.ndarray:
+    """The correlation at each point, the highest within half a pixel."""
+    pts = np.asarray(pts, float).reshape(-1, 2)
+    return np.max([sample(ac, pts + o, center) for o in _HALF_PIXEL], axis=0)
+
+
+def _fraction(ac: np.ndarray, center, a, b, floor: float):
+    """(h, w): a fraction h of a basis vector (t/k, k up to 8) all of whose
+    multiples correlate at least 85% as much as the basis, or of the cell
+    (:func:`_cell_fraction`), and w the vector that spans the finer lattice
+    with it; None if there is none."""
+    level = 0.85 * float(sample(ac, np.stack([a, b]), center).min())
+    for v, keep in ((a, b), (b, a)):
+        for k in range(2, 9):
+            h = v / k
+            if math.hypot(*h) < floor:
+                break
+            if float(_near(ac, np.outer(np.arange(1, k), h), center).min()) >= level:
+                return h, keep
+    return _cell_fraction(ac, center, a, b, level, floor)
 
 
 def _cell_fraction(ac: np.ndarray, center, a, b, level: float, floor: float):
@@ -269,7 +293,7 @@ def _cell_fraction(ac: np.ndarray, center, a, b, level: float, floor: float):
                     pts.append(min(copies, key=lambda q: math.hypot(*q)))
                 if min(math.hypot(*q) for q in pts) < floor:
                     continue
-                if float(sample(ac, np.stack(pts), center).min()) >= level:
+                if float(_near(ac, np.stack(pts), center).min()) >= level:
                     return h, (b if i == 1 else a)
     return None
 
