@@ -1,7 +1,8 @@
 """Lattice detection on a generated set that cannot be overfit (issue 66).
 
     python -m bench.lattice_kinds [--n 50] [--stochastic 64] [--few 100]
-                                  [--jobs 2] [--json OUT.json] [--dump DIR]
+                                  [--contents shapes,tiles,photo,noise]
+                                  [--jobs N] [--json OUT.json] [--dump DIR]
 
 Images from tests/lattice_kinds.py: N per lattice kind and cell content
 (square, rectangular, hexagonal, oblique, staggered x shapes, tiles, photo,
@@ -18,7 +19,8 @@ of the true lattice (tests/lattice_gen.lattice_error; a supercell is wrong).
 Prints right / wrong / none per kind and content, the false lattices per
 stochastic kind, writes JSON (default bench/results/lattice-kinds.json: the
 summary and every miss) and,
-with --dump, each miss as a PNG named by its case, with what was found.
+with --dump, each miss's image as a PNG named by its case and what became of
+it (the vectors found are in the JSON).
 """
 from __future__ import annotations
 

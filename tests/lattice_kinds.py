@@ -43,7 +43,6 @@ import os
 import numpy as np
 from scipy import ndimage
 
-from lattice_gen import lattice_error  # noqa: F401  (the measure of "right", for the benchmark)
 
 SIDE = 256
 LATTICE_KINDS = ("square", "rectangular", "hexagonal", "oblique", "staggered")
@@ -72,7 +71,8 @@ def _photo(name: str) -> np.ndarray:
 
 
 def reduce(t1, t2) -> tuple[np.ndarray, np.ndarray]:
-    """Lagrange-Gauss reduction (the two shortest vectors of the lattice)."""
+    """Lagrange-Gauss reduction (the two shortest vectors of the lattice);
+    the generator's own, so the truth does not depend on the detector's code."""
     a, b = np.asarray(t1, float), np.asarray(t2, float)
     if a @ a > b @ b:
         a, b = b, a
@@ -92,8 +92,9 @@ def _turn(v, angle: float) -> np.ndarray:
 def random_lattice(kind: str, rng: np.random.Generator, side: int = SIDE, few: bool = False):
     """(t1, t2, frame): a random basis of the kind, turned by any angle, whose
     reduced vectors repeat at least MIN_REPEATS times across the image (``few``:
-    the longest one at most FEW_REPEATS times); ``frame`` is the cell's own
-    axes for staggered rows (along and across, in pixels), else None."""
+    the longest one at most FEW_REPEATS times); ``frame`` is (geometry, angle):
+    the geometry (w, h, offset) of staggered rows, else None, and the angle
+    the basis was turned by."""
     for _ in range(1000):
         longest = side / (rng.uniform(1.5, FEW_REPEATS) if few else MIN_REPEATS)
         L = rng.uniform(MIN_LENGTH, longest)
@@ -137,7 +138,7 @@ def _hash_ids(c1: np.ndarray, c2: np.ndarray, size: int = 100003) -> np.ndarray:
     return (c1.astype(np.int64) * 7919 + c2.astype(np.int64) * 104729) % size
 
 
-def _cells(t1, t2, frame, origin, side: int, rng):
+def _cells(t1, t2, frame, origin, side: int):
     """Per pixel: the id of its cell (a parallelogram of the reduced basis; a
     brick in staggered rows) and of its tile (the lattice's Voronoi cell; the
     brick), the fractional coordinates (fa, fb) in [0, 1) inside the cell, the
@@ -290,7 +291,7 @@ def render(t1, t2, frame, content: str, rng: np.random.Generator, cell_rng: np.r
     choice drawn from ``rng`` (the cells' own from ``cell_rng``)."""
     frame = frame if frame is not None else (None, 0.0)
     origin = rng.uniform(0, side, 2)
-    ids, tile_ids, fa, fb, F, border = _cells(np.asarray(t1, float), np.asarray(t2, float), frame, origin, side, rng)
+    ids, tile_ids, fa, fb, F, border = _cells(np.asarray(t1, float), np.asarray(t2, float), frame, origin, side)
     a, b = reduce(t1, t2)
     short = min(math.hypot(*a), math.hypot(*F[:, 0]), math.hypot(*F[:, 1]))
     jitter = rng.uniform(0, 0.6)

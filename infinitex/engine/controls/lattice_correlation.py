@@ -86,6 +86,8 @@ def subpixel(ac: np.ndarray, y: int, x: int) -> tuple[float, float]:
 
 
 def sample(ac: np.ndarray, pts: np.ndarray, center: tuple[int, int], mode: str = "constant") -> np.ndarray:
+    """The correlation at lags ``pts`` (N, 2: x, y), bilinear; ``center`` is
+    lag 0's (row, column)."""
     return ndimage.map_coordinates(ac, [pts[:, 1] + center[0], pts[:, 0] + center[1]], order=1, mode=mode)
 
 
@@ -102,8 +104,8 @@ def lattice_points(t1, t2, hy: int, hx: int, limit: int = 12) -> tuple[np.ndarra
 
 def refine(ac: np.ndarray, t1, t2, center) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares fit of (t1, t2) to the sub-pixel peaks found near every
-    lattice point in the window, weighted by how far they are (far peaks pin
-    the vectors down most)."""
+    lattice point in the window (far peaks pin the vectors down most: a
+    pixel's error there is a small fraction of a vector)."""
     hy, hx = center
     for _ in range(2):
         N, P = lattice_points(t1, t2, hy, hx)
@@ -146,7 +148,7 @@ def polish(ac: np.ndarray, t1, t2, center, lobe: float) -> tuple[np.ndarray, np.
     the vectors there. Moves of more than 1.5 px are not taken."""
     from scipy.optimize import minimize
     hy, hx = center
-    # The spline of the smoothed correlation, only around the lags read.
+    # The spline coefficients of the smoothed correlation, once.
     x0 = np.concatenate([t1, t2]).astype(float)
     n = np.array([(i, j) for i in range(-2, 3) for j in range(-2, 3) if (i, j) != (0, 0)], float)
     coef = ndimage.spline_filter(ndimage.gaussian_filter(ac, 0.8), order=3)
@@ -169,7 +171,8 @@ def polish(ac: np.ndarray, t1, t2, center, lobe: float) -> tuple[np.ndarray, np.
     res = minimize(cost, x0, method="Nelder-Mead",
                    options={"xatol": 0.01, "fatol": 1e-6, "initial_simplex": x0 + np.vstack([np.zeros(4), 0.5 * np.eye(4)])})
     x = res.x
-    if not res.success or np.abs(x - x0).max() > 1.5 or len(points(x)) < len(points(x0)):
+    moved = max(math.hypot(*(x[:2] - x0[:2])), math.hypot(*(x[2:] - x0[2:])))
+    if not res.success or moved > 1.5 or len(points(x)) < len(points(x0)):
         return np.asarray(t1, float), np.asarray(t2, float)
     return x[:2], x[2:]
 

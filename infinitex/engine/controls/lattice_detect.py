@@ -73,7 +73,7 @@ def detect(pixels: np.ndarray) -> Detection:
     lat = None
     # A lattice repeating fewer than SURE_REPEATS times along a vector (rows:
     # across them; their vector along is as long) is taken only when clearly there.
-    longest = max(math.hypot(*t1), math.hypot(*t2))
+    longest = max(math.hypot(*v) for v in gauss_reduce(t1, t2))  # (a brick's row is no reduced vector)
     needed = MIN_CONFIDENCE if longest <= min(H, W) / SURE_REPEATS + 0.5 else max(MIN_CONFIDENCE, FEW_CONFIDENCE)
     if conf >= needed:
         lat = choose_block(b1, b2, W, H)
@@ -206,14 +206,19 @@ def _candidate_peaks(vec: np.ndarray, vals: np.ndarray, length: np.ndarray):
     strong = vals >= 0.3 * vals.max()
     a = vec[np.argmax(vals)]
     off = np.abs(vec[:, 0] * a[1] - vec[:, 1] * a[0]) >= MIN_SINE * length * math.hypot(*a)
+    forced = None
     if not (strong & off).any() and off.any():
-        strong[np.argmax(np.where(off, vals, -np.inf))] = True
+        forced = int(np.argmax(np.where(off, vals, -np.inf)))
+        strong[forced] = True
+        forced = int(np.count_nonzero(strong[:forced]))  # its place among the strong ones
     vec, vals, length = vec[strong], vals[strong], length[strong]
     # (Outlines can hold thousands of small peaks: the 256 shortest and the 64
     # highest are more than the bases are drawn from.)
     order = np.argsort(length, kind="stable")
     if order.size > 320:
         top = np.argsort(-vals, kind="stable")[:64]
+        if forced is not None:
+            top = np.append(top, forced)
         order = np.concatenate([order[:256], np.setdiff1d(top, order[:256])])
         order = order[np.argsort(length[order], kind="stable")]
     kept: list[int] = []
