@@ -107,6 +107,8 @@ def _lattice_of(ac: np.ndarray, gray: np.ndarray, f: int, rows_too: bool = True)
         rows = _rows(ac, (hy, hx))
         if rows is None and grid is not None:
             rows = _rows_of_grid(ac, (hy, hx), grid)
+            if rows is not None:
+                grid = None  # it only cut these rows
         if rows is not None and min(math.hypot(*rows[0]), math.hypot(*rows[1])) > reach:
             rows = None  # rows seen fewer than MIN_REPEATS times
     elif grid is not None and _rows_of_grid(ac, (hy, hx), grid) is not None:
@@ -453,8 +455,22 @@ def _rows_of_grid(ac: np.ndarray, center, grid):
             period = abs(float(np.asarray(w, float) @ n))
             if period >= MIN_VECTOR:
                 a, b = canonical_basis(d * max(period, 8.0), n * period)
-                return a, b, conf, d
+                # The grid's confidence depends on where its short vector
+                # cuts the rows: unless the rows hold across at least half as
+                # well on their own, their own confidence it is.
+                own = _across(ac, center, n, period)
+                return a, b, (conf if own >= 0.5 * conf else own), d
     return None
+
+
+def _across(ac: np.ndarray, center, n, period: float) -> float:
+    """How much more the image correlates with itself at whole periods across
+    rows (direction n) than half-way between, in [0, 1]."""
+    hy, hx = center
+    ks = np.arange(1, max(1, int(min(hy, hx) // period)) + 1)
+    on = float(sample(ac, (ks * period)[:, None] * n[None, :], center).mean())
+    off = float(sample(ac, ((ks - 0.5) * period)[:, None] * n[None, :], center).mean())
+    return float(np.clip((on - off) / max(1e-6, 1.0 - off), 0.0, 1.0))
 
 
 def _along(ac: np.ndarray, center, d, t1, t2) -> bool:
