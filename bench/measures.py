@@ -127,6 +127,38 @@ def sheared_seams(coords: np.ndarray, m: int) -> float:
     return float(np.mean(fractions))
 
 
+def _column_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Runs of True down each column of b: (column, first row, length)."""
+    p = np.zeros((b.shape[0] + 2, b.shape[1]), np.int8)
+    p[1:-1] = b
+    d = np.diff(p, axis=0).T  # column-major, so runs come sorted by column then row
+    sc, sr = np.nonzero(d == 1)
+    _, er = np.nonzero(d == -1)
+    return sc, sr, er - sr
+
+
+def straight_seam_runs(coords: np.ndarray, m: int, length: int = 12,
+                       origin: tuple[int, int] = (0, 0)) -> tuple[float, float]:
+    """(runs, on_borders): the seams of a coordinate map (neighbors whose
+    coordinates do not continue each other, mod m) that run straight, down one
+    column boundary or along one row boundary for ``length`` px or more, per
+    1000 neighbor pairs; and the fraction of those runs whose line lies on the
+    texel borders of a level 2 or more levels coarser (its canvas position,
+    ``origin`` being the map's top left: 0.25 by chance, more
+    where the pyramid's blocks come down as straight seams)."""
+    c = coords[..., :2].astype(np.int64)
+    cols = ((c[:, 1:] - c[:, :-1] - np.array([1, 0])) % m != 0).any(-1)  # between x and x + 1
+    rows = ((c[1:] - c[:-1] - np.array([0, 1])) % m != 0).any(-1)        # between y and y + 1
+    vc, _, vl = _column_runs(cols)
+    hc, _, hl = _column_runs(rows.T)
+    long_v, long_h = vl >= length, hl >= length
+    pairs = cols.size + rows.size
+    runs = 1000.0 * (vl[long_v].sum() + hl[long_h].sum()) / pairs
+    lines = np.concatenate([origin[0] + vc[long_v] + 1, origin[1] + hc[long_h] + 1])
+    on_borders = float(np.mean(lines % 4 == 0)) if lines.size else 0.0
+    return float(runs), on_borders
+
+
 def usage_peak(coords: np.ndarray, m: int, block: int = 16) -> float:
     """How unevenly the exemplar is used, by blocks of ``block`` px: the most
     used block's share over the mean share (1 = even; a block that recurs
@@ -273,4 +305,5 @@ def all_measures(exemplar, output, coords=None, m=None, toroidal=False, ps: bool
         d["verbatim_mean_px"], d["verbatim_max_px"] = verbatim_regions(coords, m, toroidal)
         d["sheared"] = sheared_seams(coords, m)
         d["usage_peak"] = usage_peak(coords, m)
+        d["straight_runs"], _ = straight_seam_runs(coords, m)
     return d

@@ -18,8 +18,10 @@ measures (bench/measures.py):
 - ``repetition``: highest autocorrelation peak away from the origin (1 = tiled);
 - ``histogram``: mean 1-D Wasserstein distance of the value histograms;
 - ``sheared`` (fraction of neighbor pairs one exemplar pixel off: zipper lines
-  when magnified) and ``usage_peak`` (the most used 16 px block of the
-  exemplar over the mean), from the coordinate map;
+  when magnified), ``usage_peak`` (the most used 16 px block of the
+  exemplar over the mean) and ``straight_runs`` (seams running straight for
+  12 px or more, per 1000 neighbor pairs; see bench.straight_seams), from the
+  coordinate map;
 - ``ps``: Portilla-Simoncelli texture-statistics distance (plenoptic on CPU
   torch, luminance, 4 scales x 4 orientations; relative difference per group
   of statistics, averaged; 0 = the exemplar's statistics).
@@ -253,7 +255,8 @@ def main(argv=None) -> int:
     return 0
 
 
-SUMMARY_MEASURES = ("energy", "ps", "repetition", "copied", "verbatim_mean_px", "histogram", "sheared", "usage_peak")
+SUMMARY_MEASURES = ("energy", "ps", "repetition", "copied", "verbatim_mean_px", "histogram", "sheared", "usage_peak",
+                    "straight_runs")
 
 
 def summarize(results: dict) -> dict:

@@ -248,7 +248,7 @@ def _full(S: np.ndarray) -> np.ndarray:
 # links' first entry; the reader) reading texel q (window-local, clamped) reads
 # q when q's own chart is c, else q's target (window-local, clamped) when q's
 # link serves c, else q; a reader < 0 always reads q. The upsample applies the
-# same rule to the parent texel floor(p/2) with the parent level's links, the
+# same rule to the parent texel q (fixed.parent_step) with the parent level's links, the
 # target read as a level-global position.
 
 def atlas_links(controls: Controls, an: Analysis, level: int, x0: int, y0: int, w: int, h: int) -> np.ndarray | None:
@@ -296,7 +296,12 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         if direct:
             Fx, Fy = ux * Q8, uy * Q8
     else:
-        qx, qy = gx >> 1, gy >> 1
+        ex, ey = fixed.parent_step(gmx, gmy, level, params.seed, controls.dithered_upsampling and n != 1)
+        beyond = _beyond_exemplar(J, h) if direct else None
+        if beyond is not None:  # grown past the exemplar: magnified alone, each texel's children from it
+            ex, ey = np.where(beyond, 0, ex), np.where(beyond, 0, ey)
+        qx, qy = (gx >> 1) + ex, (gy >> 1) + ey
+        dx, dy = (gmx & 1) - 2 * ex, (gmy & 1) - 2 * ey  # the child's place from its parent: {-1, 0, 1, 2}
         links = atlas_links(controls, an, level, origin[0], origin[1], W, H)
         if links is not None:  # the parent texel through the parent level's links, for the pixel's chart
             bx, by = int(qx.min()), int(qy.min())
@@ -306,16 +311,16 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
             qx, qy = np.where(go, pl[..., 2], qx), np.where(go, pl[..., 3], qy)
         px, py = qx - parent_origin[0], qy - parent_origin[1]
         assert px.min() >= 0 and py.min() >= 0 and px.max() < parent.shape[1] and py.max() < parent.shape[0]
-        if direct:  # F_{l-1}[floor(p/2)] + floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1
-            vx, vy = h * (2 * (gmx & 1) - 1), h * (2 * (gmy & 1) - 1)
+        if direct:  # F_{l-1}[q] + floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1
+            vx, vy = h * (2 * dx - 1), h * (2 * dy - 1)
             half = Q8 // 2 if h == 1 else 0
             Fp = _full(parent[py, px].astype(np.int64))
             Fx = Fp[..., 0] + np.floor_divide(J[..., 0] * vx + J[..., 1] * vy, 32) - half
             Fy = Fp[..., 1] + np.floor_divide(J[..., 2] * vx + J[..., 3] * vy, 32) - half
             ux, uy = np.mod(_q8_nearest(Fx), m), np.mod(_q8_nearest(Fy), m)
         else:
-            ux = parent[py, px, 0] + fixed.child_offset(gmx & 1, h)
-            uy = parent[py, px, 1] + fixed.child_offset(gmy & 1, h)
+            ux = parent[py, px, 0] + fixed.child_offset(dx, h)
+            uy = parent[py, px, 1] + fixed.child_offset(dy, h)
     rq = fixed.jitter_q(controls.jitter_at(params, m, level))
     if controls.randomness_exemplar is not None or controls.randomness_canvas is not None:
         E, C = field_values(controls, an, params, level, ux, uy, gx, gy)
@@ -859,7 +864,7 @@ def synthesize(an: Analysis, params: SynthParams, x: int, y: int, w: int, h: int
         wx0, wy0 = ((x0 - p) // a) * a, ((y0 - p) // a) * a
         wx1, wy1 = -((-(x1 + p)) // a) * a, -((-(y1 + p)) // a) * a
         wins[l] = (wx0, wy0, wx1, wy1)
-        x0, y0, x1, y1 = wx0 // 2, wy0 // 2, (wx1 - 1) // 2 + 1, (wy1 - 1) // 2 + 1
+        x0, y0, x1, y1 = (wx0 - 1) // 2, (wy0 - 1) // 2, wx1 // 2 + 1, wy1 // 2 + 1  # Rect.parents
     parent, porigin = None, (0, 0)
     for l in range(0, level + 1):
         wx0, wy0, wx1, wy1 = wins[l]

@@ -98,13 +98,18 @@ def lowbias32(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def hash2(gx: np.ndarray, gy: np.ndarray, level: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """H(p, l, seed) in [-1024, 1023] per axis (divide by 1024 for [-1, 1))."""
+def hash_bits(gx: np.ndarray, gy: np.ndarray, level: int, seed: int) -> np.ndarray:
+    """The 32 hash bits (uint32) of pixels (gx, gy) of a level (common.glsl hash_bits)."""
     with np.errstate(over="ignore"):
         s = lowbias32(np.uint32(seed & 0xFFFFFFFF))
         s = lowbias32(np.uint32(level) ^ s)
         v = lowbias32(np.asarray(gy, dtype=np.int64).astype(np.uint32) ^ s)
-        v = lowbias32(np.asarray(gx, dtype=np.int64).astype(np.uint32) ^ v)
+        return lowbias32(np.asarray(gx, dtype=np.int64).astype(np.uint32) ^ v)
+
+
+def hash2(gx: np.ndarray, gy: np.ndarray, level: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """H(p, l, seed) in [-1024, 1023] per axis (divide by 1024 for [-1, 1)): bits 0-21."""
+    v = hash_bits(gx, gy, level, seed)
     hx = (v & np.uint32(2047)).astype(np.int64) - 1024
     hy = ((v >> np.uint32(11)) & np.uint32(2047)).astype(np.int64) - 1024
     return hx, hy
@@ -146,8 +151,29 @@ def jitter(gx: np.ndarray, gy: np.ndarray, level: int, seed: int, h: int, rq: in
     return ((h * hx * rq + half) >> JITTER_SHIFT), ((h * hy * rq + half) >> JITTER_SHIFT)
 
 
+def parent_step(gmx: np.ndarray, gmy: np.ndarray, level: int, seed: int,
+                dithered: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Which parent texel each pixel g of a level is upsampled from (common.glsl
+    parent_step): floor(g / 2) + the step (ex, ey) returned, 0, or per axis
+    one time in four (x: bits 22 and 23 of the hash of (gmx, gmy) both set, y:
+    bits 24 and 25; g wrapped to the period), the step to the nearest other one
+    (+1 for an odd g, -1 for an even g). The child's place from that parent is D = (g mod 2) - 2 e. Inside a
+    coherent patch both parents predict the same coordinate; at a seam the
+    child takes a side at random, so a coarse level's texel borders do not come
+    down the pyramid as straight lines. ``dithered`` False: the plain rule."""
+    gmx, gmy = np.asarray(gmx, np.int64), np.asarray(gmy, np.int64)
+    if not dithered:
+        return np.zeros_like(gmx), np.zeros_like(gmy)
+    v = hash_bits(gmx, gmy, level, seed)
+    dx = ((v >> np.uint32(22)) & (v >> np.uint32(23)) & np.uint32(1)).astype(np.int64)
+    dy = ((v >> np.uint32(24)) & (v >> np.uint32(25)) & np.uint32(1)).astype(np.int64)
+    return dx * (2 * (gmx & 1) - 1), dy * (2 * (gmy & 1) - 1)
+
+
 def child_offset(d: np.ndarray, h: int) -> np.ndarray:
-    """floor(h * (D - 1/2)) for D in {0, 1} (LH05 stack upsampling)."""
+    """floor(h * (D - 1/2)) for D, the child's place from its parent q:
+    {0, 1} from its own parent (LH05 stack upsampling), {-1, 2} from the nearest
+    other (:func:`parent_step`)."""
     return d * h - ((h + 1) >> 1)
 
 
@@ -179,7 +205,8 @@ def jmul(J: np.ndarray, dx, dy, h: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def child_offset_q8(J: np.ndarray, dx: np.ndarray, dy: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
-    """LH06 anisometric upsampling: h J (D - 1/2) in 1/256 px for D in {0, 1}^2,
+    """LH06 anisometric upsampling: h J (D - 1/2) in 1/256 px for D = p - 2q
+    (each in {0, 1} from its own parent, {-1, 2} from the nearest other),
     floor(J v / 32) with v = h (2D - 1), less half a pixel at h = 1 (so that
     J = I gives child_offset exactly, in 1/256 px)."""
     J = np.asarray(J, np.int64)

@@ -165,7 +165,7 @@ class LocalUpdates:
             pyr.requests.touch(l, changed)
             pyr.looks.job_done(l)
             if changed is not None and l < pyr.an.L:  # only pixels whose value changed reach the next level
-                self.mark(l + 1, [Rect(2 * changed.x0, 2 * changed.y0, 2 * changed.x1, 2 * changed.y1)])
+                self.mark(l + 1, [changed.children()])
             if regions is not None:
                 regions -= 1
                 if regions <= 0:

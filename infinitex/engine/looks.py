@@ -138,7 +138,7 @@ class QuickLooks:
             strips[l] = strips[l + 1].half().pad(1, 1, 1, 1)
         need = {d: rect}
         for l in range(d - 1, l0 - 2, -1):
-            need[l] = self.pyr.padded(l + 1, strips[l + 1]).half()
+            need[l] = self.pyr.padded(l + 1, strips[l + 1]).parents()
         for l, n_l in need.items():
             b = self.pyr.buffers[l]
             if b is None or b.valid is None or not b.valid.contains(n_l):

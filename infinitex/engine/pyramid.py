@@ -211,7 +211,7 @@ class Pyramid:
         cur = rect
         for l in range(level, -1, -1):
             need[l] = cur
-            cur = self.padded(l, self._target(l, cur) if grown else cur).half()
+            cur = self.padded(l, self._target(l, cur) if grown else cur).parents()
         return need
 
     def _target(self, l: int, need: Rect) -> Rect:
@@ -256,7 +256,7 @@ class Pyramid:
             buf = self.buffers[l]
             valid = buf.valid if buf is not None else None
             new_strips = valid is None or bool(t.minus(valid))
-            need = self.padded(l, t).half() if new_strips else None
+            need = self.padded(l, t).parents() if new_strips else None
         return targets[::-1]
 
     def request(self, level: int, rect: Rect) -> int:

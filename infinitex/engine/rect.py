@@ -55,6 +55,17 @@ class Rect:
         """The parent-level pixels whose children cover this rectangle."""
         return Rect(self.x0 // 2, self.y0 // 2, (self.x1 - 1) // 2 + 1, (self.y1 - 1) // 2 + 1)
 
+    def parents(self) -> "Rect":
+        """The parent-level pixels this rectangle is upsampled from: each pixel
+        reads its own parent or, per axis, the nearest other one (common.glsl
+        parent_step), so :meth:`half` grown by a child pixel on each side."""
+        return self.pad(1, 1, 1, 1).half()
+
+    def children(self) -> "Rect":
+        """The pixels of the next finer level that read these parent pixels
+        (the inverse of :meth:`parents`)."""
+        return Rect(2 * self.x0 - 1, 2 * self.y0 - 1, 2 * self.x1 + 1, 2 * self.y1 + 1)
+
     def minus(self, o: "Rect") -> list["Rect"]:
         """self \\ o as at most 4 disjoint rectangles."""
         i = self.intersect(o)

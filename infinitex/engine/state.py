@@ -64,7 +64,7 @@ class StateAccess:
         indirection maps of the level and of its parent (or None), and the shader defines."""
         dtex = self.direction_texture(l, region)
         ltex = self.links_texture(l, region)
-        ptex = self.links_texture(l - 1, region.half()) if ltex is not None and l > 0 else None
+        ptex = self.links_texture(l - 1, region.parents()) if ltex is not None and l > 0 else None
         return dtex, ltex, ptex, {**(dict(DIRECTION=True) if dtex is not None else {}),
                                   **(dict(ATLAS=True) if ltex is not None else {})}
 

@@ -133,7 +133,7 @@ class Strips:
         uni: dict = {}
         if l > 0:
             parent = parent or self.pyr.buffers[l - 1]
-            assert parent is not None and parent.valid is not None and parent.valid.contains(region.half())
+            assert parent is not None and parent.valid is not None and parent.valid.contains(region.parents())
             textures[0] = parent.tex
             uni = dict(parent=0, parent_anchor=parent.anchor, parent_mask=parent.mask)
         uni.update(has_parent=int(l > 0), origin=(region.x0, region.y0), qdims=rp.qdims, bstride=bstride, boff=boff,
@@ -141,8 +141,9 @@ class Strips:
                    rq=fixed.jitter_q(self.pyr.controls.jitter_at(p, an.size, l)),
                    period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
                    cfield=2, has_cfield=int(rp.canvas_field is not None), lattice_shift=rp.lattice_shift or (-1, -1),
+                   dithered=int(self.pyr.controls.dithered_upsampling and p.level_period(l) != 1),  # a constant level stays one
                    **rp.feature_uniforms, **(dict(dfield=11) if rp.direction is not None else {}),
-                   **(dict(links=12, plinks=13, plink_origin=(region.half().x0, region.half().y0))
+                   **(dict(links=12, plinks=13, plink_origin=(region.parents().x0, region.parents().y0))
                       if rp.links is not None else {}))
         for unit, tex in zip((3, 6, 7), rp.features or [self._dummy_i] * 3):
             textures[unit] = tex

@@ -151,7 +151,7 @@ def test_redrawing_only_what_changed_equals_a_full_redraw(session, gpu, zoom, mo
     boxes = []
     render = a.render
     monkeypatch.setattr(a, "render", lambda *args, **kw: boxes.append(kw.get("box")) or render(*args, **kw))
-    field, _ = CanvasField().painted(777.0, -4242.0, 12.0, 0)
+    field, _ = CanvasField().painted(777.0, -4242.0, 12.0, 65535)  # twice the randomness: seen on any level
     controls0 = session.controls
     spread = 0
     try:

@@ -11,6 +11,7 @@ from bench.measures import (
     neighborhood_energy,
     repetition,
     sheared_seams,
+    straight_seam_runs,
     usage_peak,
     verbatim_regions,
 )
@@ -132,6 +133,28 @@ def test_sheared_seams_and_usage_peak_have_known_answers():
     stuck = rng.integers(0, m, (128, 128, 2))
     stuck[:64] = rng.integers(0, 16, (64, 128, 2))  # half the pixels from the first 16 px block
     assert usage_peak(stuck, m) > 8.0 and usage_peak(tiled, m) == 1.0
+
+
+def test_straight_seam_runs_have_known_answers():
+    """A plain tiling has no seams; two patches meeting along one straight
+    column boundary make one run as long as the map is tall, on a coarse
+    border or not as the canvas position says; a seam that steps every 8 rows
+    has no run of 12 px."""
+    m, n = 64, 40
+    yy, xx = np.mgrid[0:n, 0:n]
+    tiled = np.stack([xx % m, yy % m], axis=-1)
+    assert straight_seam_runs(tiled, m) == (0.0, 0.0)
+    cut = tiled.copy()
+    cut[:, 20:, 0] = (xx[:, 20:] + 7) % m  # a seam between columns 19 and 20, all the way down
+    pairs = n * (n - 1) * 2
+    assert straight_seam_runs(cut, m, origin=(0, 0)) == (1000.0 * n / pairs, 1.0)  # canvas x 20: a multiple of 4
+    assert straight_seam_runs(cut, m, origin=(1, 0)) == (1000.0 * n / pairs, 0.0)
+    stairs = tiled.copy()
+    for y in range(n):
+        x0 = 10 + y // 8  # the seam steps one column to the right every 8 rows
+        stairs[y, x0:, 0] = (xx[y, x0:] + 7) % m
+    runs, _ = straight_seam_runs(stairs, m)
+    assert runs == 0.0 and straight_seam_runs(stairs, m, length=8)[0] == 1000.0 * n / pairs
 
 
 def test_copied_windows_have_known_answers():

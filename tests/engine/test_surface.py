@@ -8,7 +8,11 @@ import sys
 import numpy as np
 import pytest
 
+from conftest import periodic_noise
+
+from infinitex.engine.analysis import AnalysisSettings, analyze
 from infinitex.engine.controls.direction import J_ONE
+from infinitex.engine.exemplar import from_array
 from infinitex.engine.params import SynthParams, structure_params
 from infinitex.engine.surface import AtlasDomain, AtlasError, Model, ModelError, load_model
 from infinitex.engine.surface.atlas import GUTTER
@@ -123,8 +127,11 @@ def test_mirrored_charts_keep_det_positive_and_frames_follow_up():
     assert np.all(side[:, 0] > 0) and np.all(side[:, 3] > 0) and np.all(side[:, 1] == 0) and np.all(side[:, 2] == 0)
 
 
-def test_synthesis_is_continuous_across_seams_where_per_chart_synthesis_is_not(analyses):
-    an = analyses["gravel-appearance"]
+def test_synthesis_is_continuous_across_seams_where_per_chart_synthesis_is_not():
+    """Smooth noise: a jump across a chart's seam stands out against its small
+    neighbor differences (on gravel, where neighbors already differ about as
+    much as unrelated pixels, per-chart synthesis scored 1.0-1.07)."""
+    an = analyze(from_array(periodic_noise(128), toroidal=True), AnalysisSettings(model="appearance"))
     model = cube()
     ratios = {}
     params = structure_params(SynthParams.default(an.L), 0)
@@ -135,8 +142,8 @@ def test_synthesis_is_continuous_across_seams_where_per_chart_synthesis_is_not(a
             img = atlas_image(an.levels[an.L].stack, c, atlas, an.toroidal)
             ratios[seams] = seam_error(img, atlas)
     assert ratios[True].samples > 500
-    assert ratios[True].ratio <= 1.2, ratios
-    assert ratios[True].ratio < 0.8 * ratios[False].ratio, ratios
+    assert ratios[True].ratio <= 1.2, ratios  # a seam about as the interior (1.05 on 2026-12-07)
+    assert ratios[True].ratio < 0.7 * ratios[False].ratio, ratios  # per chart: 2.2
 
 
 def test_same_model_and_document_give_the_same_atlas(analyses):

@@ -147,6 +147,14 @@ class Controls:
             r *= LATTICE_FINE_JITTER
         return r
 
+    @property
+    def dithered_upsampling(self) -> bool:
+        """Whether each pixel is upsampled from a parent chosen at random per axis
+        (common.glsl parent_step), so that seams do not run straight along a
+        coarse level's texel borders; not on a lattice, whose seams belong on
+        the borders of its cells."""
+        return self.lattice is None
+
     def lattice_shift(self, m: int, level: int) -> tuple[int, int] | None:
         """(log2 cx, log2 cy) when ``level`` is a lattice level: jitter is
         quantized to whole cells and the lattice similarity sets are used."""

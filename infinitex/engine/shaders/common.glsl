@@ -14,13 +14,35 @@ uint lowbias32(uint x) {
     return x;
 }
 
-// H(p, l, seed) in [-1024, 1023] per axis (1024ths of [-1, 1)).
-ivec2 hash2(ivec2 g, int level, uint seed) {
+// The 32 hash bits of pixel g at a level (engine/fixed.py hash_bits).
+uint hash_bits(ivec2 g, int level, uint seed) {
     uint s = lowbias32(seed);
     s = lowbias32(uint(level) ^ s);
     uint v = lowbias32(uint(g.y) ^ s);
-    v = lowbias32(uint(g.x) ^ v);
+    return lowbias32(uint(g.x) ^ v);
+}
+
+// H(p, l, seed) in [-1024, 1023] per axis (1024ths of [-1, 1)): bits 0-21.
+ivec2 hash2(ivec2 g, int level, uint seed) {
+    uint v = hash_bits(g, level, seed);
     return ivec2(int(v & 2047u) - 1024, int((v >> 11) & 2047u) - 1024);
+}
+
+// Which parent texel pixel g of a level is upsampled from (engine/fixed.py
+// parent_step): floor(g / 2) + the step returned, 0, or per axis, one time in
+// four (x: bits 22 and 23 of the pixel's hash both set, y: bits 24 and 25; gm: g
+// wrapped to the period), the step to the nearest other one (+1 for an odd g,
+// -1 for an even g). Inside a coherent
+// patch either parent predicts the same coordinate; at a seam the child takes
+// a side at random, so a coarse texel's border does not come down the pyramid
+// as a straight line (dithered = 0: the plain rule, on lattices, whose seams
+// belong on cell borders, and on a constant level).
+ivec2 parent_step(ivec2 gm, int level, uint seed, int dithered) {
+    if (dithered == 0)
+        return ivec2(0);
+    uint v = hash_bits(gm, level, seed);
+    ivec2 d = ivec2(int((v >> 22) & (v >> 23) & 1u), int((v >> 24) & (v >> 25) & 1u));
+    return d * (2 * (gm & 1) - 1);
 }
 
 // floor(x / 2^s) without relying on the sign behaviour of >> (|x| < 2^30).

@@ -1,7 +1,10 @@
 // Upsample + jitter (LH05 3.1-3.2) of one padded region of level l into a
 // quadrant-packed scratch buffer:
-//   S_l[p] = (S_{l-1}[floor(p/2)] + floor(h (D - 1/2)) + J_l(p)) mod m,
+//   S_l[p] = (S_{l-1}[q] + floor(h (D - 1/2)) + J_l(p)) mod m,  D = p - 2q,
 //   J_l(p) = floor(h H(p, l, seed) r_l M_l(p) + 1/2),
+// q the parent texel: floor(p/2) as in LH05 (D in {0, 1}), or per axis at random
+// the nearest other one (D in {-1, 2}; common.glsl parent_step): the same
+// coordinate inside a coherent patch, a side taken at random at a seam.
 // M_l(p) the product of the randomness fields over the exemplar (read at the
 // upsampled coordinate, min-mipmapped) and over the canvas (engine/controls/fields.py);
 // the effective r_l M_l(p) is clamped to 1. Fields are 1/32768ths (neutral 32768).
@@ -9,15 +12,15 @@
 // With a period n_l (toroidal output), jitter and child offsets use p mod n_l.
 // On lattice levels (near-regular exemplars) J is quantized to whole cells.
 // DIRECTION (anisometric, LH06 5; engine/controls/direction.py): in 1/256 px,
-//   F_l[p] = F_{l-1}[floor(p/2)] + child_offset_q8(J_l(p), D, h) + jitter_q8(J_l(p), Jit_l(p)),
+//   F_l[p] = F_{l-1}[q] + child_offset_q8(J_l(p), D, h) + jitter_q8(J_l(p), Jit_l(p)),
 // the child offset floor(J_l(p) h (2D - 1) / 32), less 128 at h = 1 (with J = I
 // exactly the integer rule); the jitter is scaled with the texture by a power of
 // two (common.glsl jitter_q8: grown s times, about s times less in exemplar
-// pixels, as much in its own texels; a turn leaves it as it is), and none where
-// the level is grown past the exemplar's pixels
+// pixels, as much in its own texels; a turn leaves it as it is), and none (each
+// child from its own parent, q = floor(p/2)) where the level is grown past the exemplar's pixels
 // (common.glsl beyond_exemplar: magnification adds no detail); the randomness over the exemplar is read at the
 // nearest texel of the upsampled coordinate; a placed feature sets a whole texel.
-// ATLAS (a mesh's texture atlas, LH06 6): the parent texel floor(p/2) is read
+// ATLAS (a mesh's texture atlas, LH06 6): the parent texel q is read
 // through the parent level's indirection map for the pixel's chart (common.glsl).
 
 uniform isampler2D parent;      // level l-1, persistent buffer (toroidal addressing)
@@ -38,8 +41,9 @@ uniform int eshift;             // L - l
 uniform int has_cfield;         // randomness over the canvas
 uniform usampler2D cfield;      // R_S,l over this scratch region (row-major local pixels), uint16
 uniform ivec2 lattice_shift;    // lattice level (LH05 4.5): log2 of the cell (cx, cy); else (-1, -1)
+uniform int dithered;           // the parent chosen at random per axis (common.glsl parent_step)
 #ifdef ATLAS
-uniform isampler2D plinks;      // the parent level's indirection map over region.half()
+uniform isampler2D plinks;      // the parent level's indirection map over region.parents()
 uniform ivec2 plink_origin;     // its level-(l-1) position of texel (0, 0)
 
 ivec2 parent_texel(ivec2 gp) {
@@ -72,10 +76,11 @@ void main() {
 #ifdef DIRECTION
     ivec2 F;
     if (has_parent != 0) {
-        ivec2 gp = (g - (g & 1)) / 2;
-        ivec2 t = (parent_texel(gp) - parent_anchor) & parent_mask;
         ivec4 Jp = texelFetch(dfield, local, 0);
-        ivec2 v = h * (2 * (gm & 1) - 1);
+        // grown past the exemplar: magnified alone, each texel's children from it
+        ivec2 e = beyond_exemplar(Jp, h) ? ivec2(0) : parent_step(gm, level, seed, dithered);
+        ivec2 t = (parent_texel((g - (g & 1)) / 2 + e) - parent_anchor) & parent_mask;
+        ivec2 v = h * (2 * ((gm & 1) - 2 * e) - 1);
         ivec2 off = floor_shift(ivec4(Jp.x * v.x + Jp.y * v.y, Jp.z * v.x + Jp.w * v.y, 0, 0), 5).xy - (h == 1 ? 128 : 0);
         F = full_q8(texelFetch(parent, t, 0)) + off;
     } else {
@@ -84,9 +89,9 @@ void main() {
     u = split_q8(F, m).xy;
 #else
     if (has_parent != 0) {
-        ivec2 gp = (g - (g & 1)) / 2;  // exact division: floor(g / 2) for any sign
-        ivec2 t = (parent_texel(gp) - parent_anchor) & parent_mask;
-        u = texelFetch(parent, t, 0).xy + (gm & 1) * h - ((h + 1) >> 1);
+        ivec2 e = parent_step(gm, level, seed, dithered);  // q = floor(g / 2) + e, D = (g mod 2) - 2 e
+        ivec2 t = (parent_texel((g - (g & 1)) / 2 + e) - parent_anchor) & parent_mask;  // exact division
+        u = texelFetch(parent, t, 0).xy + ((gm & 1) - 2 * e) * h - ((h + 1) >> 1);
     } else {
         u = ivec2(m / 2);
     }
