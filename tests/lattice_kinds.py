@@ -41,6 +41,7 @@ import math
 import os
 
 import numpy as np
+from lattice_scenes import nearest_point  # (tests/ is on the path wherever these are made)
 from scipy import ndimage
 
 
@@ -163,19 +164,7 @@ def _cells(t1, t2, frame, origin, side: int):
     R = np.stack([a, b], axis=1)
     ab = np.einsum("ij,jyx->iyx", np.linalg.inv(R), np.stack([px, py]))
     base = np.floor(ab)
-    best = None
-    for i in (0, 1):
-        for j in (0, 1):
-            n1, n2 = base[0] + i, base[1] + j
-            rx, ry = px - (R[0, 0] * n1 + R[0, 1] * n2), py - (R[1, 0] * n1 + R[1, 1] * n2)
-            dist = rx * rx + ry * ry
-            if best is None:
-                best = [dist, n1, n2, rx, ry]
-            else:
-                m = dist < best[0]
-                for k, val in enumerate((dist, n1, n2, rx, ry)):
-                    best[k] = np.where(m, val, best[k])
-    _, n1, n2, rx, ry = best
+    n1, n2, rx, ry = nearest_point(px, py, R)
     border = np.full(px.shape, np.inf)
     for v in (a, b, a + b, a - b):
         lv = math.hypot(*v)

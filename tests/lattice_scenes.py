@@ -103,6 +103,28 @@ def _staggered(rng, side, angle, w, h, mortar, rounded=False):
     return img, height, [t1, t2]
 
 
+def nearest_point(x: np.ndarray, y: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The lattice point B (k1, k2) (B's columns: the basis) nearest each (x, y)
+    among the four corners of its cell: (k1, k2, dx, dy), (dx, dy) = (x, y)
+    less that point."""
+    inv = np.linalg.inv(B)
+    n1 = inv[0, 0] * x + inv[0, 1] * y
+    n2 = inv[1, 0] * x + inv[1, 1] * y
+    best = None
+    for d1 in (0, 1):
+        for d2 in (0, 1):
+            k1, k2 = np.floor(n1) + d1, np.floor(n2) + d2
+            dx, dy = x - (B[0, 0] * k1 + B[0, 1] * k2), y - (B[1, 0] * k1 + B[1, 1] * k2)
+            dist = dx * dx + dy * dy
+            if best is None:
+                best = [dist, k1, k2, dx, dy]
+            else:
+                closer = dist < best[0]
+                for i, val in enumerate((dist, k1, k2, dx, dy)):
+                    best[i] = np.where(closer, val, best[i])
+    return tuple(best[1:])
+
+
 def _centred(rng, side, angle, a, b, draw):
     """A lattice (a, 0), (a/2, b) (hexagonal when b = a sqrt(3)/2): draw(du, dv,
     cid) gives (colour mix in [0, 1], height) from the offset to the nearest
@@ -110,23 +132,7 @@ def _centred(rng, side, angle, a, b, draw):
     u, v, rot = _frame(side, angle)
     u = u + rng.uniform(0, a)
     v = v + rng.uniform(0, b)
-    B = np.array([[a, a / 2], [0.0, b]])
-    inv = np.linalg.inv(B)
-    n1 = inv[0, 0] * u + inv[0, 1] * v
-    n2 = inv[1, 0] * u + inv[1, 1] * v
-    best = None
-    for d1 in (0, 1):
-        for d2 in (0, 1):
-            k1, k2 = np.floor(n1) + d1, np.floor(n2) + d2
-            du, dv = u - (k1 * a + k2 * a / 2), v - k2 * b
-            dist = np.hypot(du, dv)
-            if best is None:
-                best = [dist, du, dv, k1, k2]
-            else:
-                closer = dist < best[0]
-                for i, val in enumerate((dist, du, dv, k1, k2)):
-                    best[i] = np.where(closer, val, best[i])
-    _, du, dv, k1, k2 = best
+    k1, k2, du, dv = nearest_point(u, v, np.array([[a, a / 2], [0.0, b]]))
     mix, height = draw(du, dv, k1 * 7919 + k2 * 104729)
     t1, t2 = rot @ np.array([a, 0.0]), rot @ np.array([a / 2, b])
     return mix, height, [t1, t2]
