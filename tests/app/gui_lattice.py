@@ -6,7 +6,7 @@
 Opens generated running-bond bricks (their quick preview first, then their
 lattice, found behind it, adopted as one undo step), turns
 it off in the Exemplar panel, auto-detects it again, drags a handle with the
-mouse, undoes it; writes "ok NAME" / "FAIL NAME: why" lines
+mouse, undoes it; the Direction tool offers to turn the lattice off (one step); writes "ok NAME" / "FAIL NAME: why" lines
 to OUT_DIR/report.txt and screenshots to OUT_DIR/found.png (the Exemplar
 panel on opening) and OUT_DIR/lattice.png.
 """
@@ -174,6 +174,20 @@ def main(out: str) -> int:
         check("one click gives staggered rows, one undo step", staggered is not None
               and abs(staggered.t2[0] - 20) <= 1.5 and ed.history.undo_label() == "Offset lattice rows",
               f"{staggered} / {ed.history.undo_label()}")
+
+        # The Direction tool says before any stroke that it does not go with a lattice, and turns it off in one step.
+        ctx.item_click("//**/Direction (D)##tool-direction")
+        ctx.yield_(2)
+        ctx.set_ref(ctx.window_info("//Infinitex/Panels").window)
+        ctx.item_click("Turn the lattice off##direction-lattice-off")
+        ctx.set_ref("//Infinitex")
+        settle(ctx)
+        check("the Direction tool turns the lattice off in one step", ed.tool.name == "direction"
+              and ed.doc.lattice is None and ed.history.undo_label() == "Lattice off",
+              f"{ed.tool.name} / {ed.doc.lattice} / {ed.history.undo_label()}")
+        ctx.key_press(imgui.Key.mod_ctrl | imgui.Key.z)
+        settle(ctx)
+        check("undo brings the lattice back", ed.doc.lattice == staggered, str(ed.doc.lattice))
 
         # What the tool said of this document goes with it: another document opens clean.
         ed.tool.message = "a message about this document's lattice"
