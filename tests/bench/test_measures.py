@@ -155,6 +155,11 @@ def test_straight_seam_runs_have_known_answers():
         stairs[y, x0:, 0] = (xx[y, x0:] + 7) % m
     runs, _ = straight_seam_runs(stairs, m)
     assert runs == 0.0 and straight_seam_runs(stairs, m, length=8)[0] == 1000.0 * n / pairs
+    two = tiled.copy()
+    for y in list(range(0, 15)) + list(range(25, 38)):  # two runs down one boundary (15 and 13 px), apart,
+        two[y, 20:, 0] = (xx[y, 20:] + 7) % m             # and three 20 px runs along rows 15, 25 and 38
+    assert straight_seam_runs(two, m, origin=(0, 0)) == (1000.0 * (15 + 13 + 60) / pairs, 2 / 5)
+    assert straight_seam_runs(two, m, length=14)[0] == 1000.0 * (15 + 60) / pairs
 
 
 def test_copied_windows_have_known_answers():
