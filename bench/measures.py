@@ -127,6 +127,16 @@ def sheared_seams(coords: np.ndarray, m: int) -> float:
     return float(np.mean(fractions))
 
 
+def seam_pairs(coords: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The seams of a coordinate map, neighbors whose coordinates do not
+    continue each other (mod m): (between x and x + 1: (H, W - 1), between y
+    and y + 1: (H - 1, W)), booleans."""
+    c = coords[..., :2].astype(np.int64)
+    cols = ((c[:, 1:] - c[:, :-1] - np.array([1, 0])) % m != 0).any(-1)
+    rows = ((c[1:] - c[:-1] - np.array([0, 1])) % m != 0).any(-1)
+    return cols, rows
+
+
 def _column_runs(b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Runs of True down each column of b: (column, first row, length)."""
     p = np.zeros((b.shape[0] + 2, b.shape[1]), np.int8)
@@ -146,9 +156,7 @@ def straight_seam_runs(coords: np.ndarray, m: int, length: int = 12,
     texel borders of a level 2 or more levels coarser (its canvas position,
     ``origin`` being the map's top left: 0.25 by chance, more
     where the pyramid's blocks come down as straight seams)."""
-    c = coords[..., :2].astype(np.int64)
-    cols = ((c[:, 1:] - c[:, :-1] - np.array([1, 0])) % m != 0).any(-1)  # between x and x + 1
-    rows = ((c[1:] - c[:-1] - np.array([0, 1])) % m != 0).any(-1)        # between y and y + 1
+    cols, rows = seam_pairs(coords, m)
     vc, _, vl = _column_runs(cols)
     hc, _, hl = _column_runs(rows.T)
     long_v, long_h = vl >= length, hl >= length

@@ -30,7 +30,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from bench.measures import straight_seam_runs  # noqa: E402
+from bench.measures import seam_pairs, straight_seam_runs  # noqa: E402
 from infinitex.engine.analysis import analyze  # noqa: E402
 from infinitex.engine.exemplar import load_exemplar  # noqa: E402
 from infinitex.engine.params import DEFAULT_STRUCTURE, STRUCTURE_NAMES, SynthParams, structure_params  # noqa: E402
@@ -45,19 +45,18 @@ def measure(path: str, windows: list[tuple[int, int]], size: int, structure: int
     """Seam density, straight runs (per 1000 pairs) and their share on coarse texel borders, per window."""
     ex = load_exemplar(path)
     an = analyze(ex)
-    rows = []
+    per_window = []
     with Synthesizer(an, structure_params(SynthParams.default(an.L), structure)) as synth:
         for x, y in windows:
-            c = synth.window(Rect.of(x, y, size, size)).astype(np.int64)
-            seams = float(np.mean(np.concatenate([
-                ((c[:, 1:] - c[:, :-1] - [1, 0]) % ex.size != 0).any(-1).ravel(),
-                ((c[1:] - c[:-1] - [0, 1]) % ex.size != 0).any(-1).ravel()])))
+            c = synth.window(Rect.of(x, y, size, size))
+            cols, rows = seam_pairs(c, ex.size)
+            seams = float((cols.sum() + rows.sum()) / (cols.size + rows.size))
             runs, on_borders = straight_seam_runs(c, ex.size, origin=(x, y))
-            rows.append({"seams": seams, "runs": runs, "on_borders": on_borders})
-    runs = [r["runs"] for r in rows]
-    return {"seams": float(np.mean([r["seams"] for r in rows])), "runs": float(np.mean(runs)),
-            "runs_sd": float(np.std(runs)), "on_borders": float(np.mean([r["on_borders"] for r in rows])),
-            "windows": rows}
+            per_window.append({"seams": seams, "runs": runs, "on_borders": on_borders})
+    runs = [r["runs"] for r in per_window]
+    return {"seams": float(np.mean([r["seams"] for r in per_window])), "runs": float(np.mean(runs)),
+            "runs_sd": float(np.std(runs)), "on_borders": float(np.mean([r["on_borders"] for r in per_window])),
+            "windows": per_window}
 
 
 def main(argv=None) -> int:

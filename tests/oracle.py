@@ -296,7 +296,7 @@ def upsample(parent: np.ndarray | None, parent_origin: tuple[int, int], origin: 
         if direct:
             Fx, Fy = ux * Q8, uy * Q8
     else:
-        ex, ey = fixed.parent_step(gmx, gmy, level, params.seed, controls.dithered_upsampling and n != 1)
+        ex, ey = fixed.parent_step(gmx, gmy, level, params.seed, controls.dithered_upsampling)
         beyond = _beyond_exemplar(J, h) if direct else None
         if beyond is not None:  # grown past the exemplar: magnified alone, each texel's children from it
             ex, ey = np.where(beyond, 0, ex), np.where(beyond, 0, ey)

@@ -141,7 +141,7 @@ class Strips:
                    rq=fixed.jitter_q(self.pyr.controls.jitter_at(p, an.size, l)),
                    period=p.level_period(l), efield=1, eshift=an.L - l, has_efield=int(efield is not None),
                    cfield=2, has_cfield=int(rp.canvas_field is not None), lattice_shift=rp.lattice_shift or (-1, -1),
-                   dithered=int(self.pyr.controls.dithered_upsampling and p.level_period(l) != 1),  # a constant level stays one
+                   dithered=int(self.pyr.controls.dithered_upsampling),
                    **rp.feature_uniforms, **(dict(dfield=11) if rp.direction is not None else {}),
                    **(dict(links=12, plinks=13, plink_origin=(region.parents().x0, region.parents().y0))
                       if rp.links is not None else {}))

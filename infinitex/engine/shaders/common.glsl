@@ -36,7 +36,8 @@ ivec2 hash2(ivec2 g, int level, uint seed) {
 // patch either parent predicts the same coordinate; at a seam the child takes
 // a side at random, so a coarse texel's border does not come down the pyramid
 // as a straight line (dithered = 0: the plain rule, on lattices, whose seams
-// belong on cell borders, and on a constant level).
+// belong on cell borders). A level a period makes constant stays so: all its
+// pixels wrap to gm = 0 and take the same step.
 ivec2 parent_step(ivec2 gm, int level, uint seed, int dithered) {
     if (dithered == 0)
         return ivec2(0);

@@ -92,6 +92,22 @@ class Tool:
     def options(self) -> None:
         """Tool options, drawn in the Tools panel."""
 
+    def offer_lattice_off(self, note: str) -> bool:
+        """For a tool that does not go with a lattice, at the top of its options:
+        while the document has one, say so (``note``) before any stroke and
+        offer to turn it off in one undo step. True when it has one (the
+        options stop there)."""
+        ed = self.ed
+        if ed.doc.lattice is None:
+            return False
+        from dataclasses import replace
+
+        from imgui_bundle import imgui
+        imgui.text_wrapped(note + " Turn the lattice off to paint one (Undo brings it back).")
+        if imgui.button(f"Turn the lattice off##{self.name}-lattice-off", (-1, 0)):
+            ed.edit(replace(ed.doc, lattice=None), "Lattice off")
+        return True
+
     def overlay(self, draw_list, p0, w: int, h: int) -> None:
         """Drawn over the canvas (cursor, handles)."""
 

@@ -203,11 +203,7 @@ class DirectionTool(Tool):
 
     def options(self) -> None:
         ed = self.ed
-        if ed.doc.lattice is not None:  # said before the stroke, with the way out in one step
-            imgui.text_wrapped("A direction field does not work on a lattice: its cells would not follow it. "
-                               "Turn the lattice off to paint one (Undo brings it back).")
-            if imgui.button("Turn the lattice off##direction-lattice-off", (-1, 0)):
-                ed.edit(replace(ed.doc, lattice=None), "Lattice off")
+        if self.offer_lattice_off("A direction field does not work on a lattice: its cells would not follow it."):
             return
         for i, (mode, label, says) in enumerate(MODES):
             if mode == "guide" and ed.model_mode:

@@ -183,11 +183,7 @@ class FlowTool(Tool):
 
     def options(self) -> None:
         ed = self.ed
-        if ed.doc.lattice is not None:
-            imgui.text_wrapped("Texture in motion does not work on a lattice yet: a flow would bend its grid. "
-                               "Turn the lattice off to paint one (Undo brings it back).")
-            if imgui.button("Turn the lattice off##flow-lattice-off", (-1, 0)):
-                ed.edit(replace(ed.doc, lattice=None), "Lattice off")
+        if self.offer_lattice_off("Texture in motion does not work on a lattice yet: a flow would bend its grid."):
             return
         for i, (mode, label, says) in enumerate(MODES):
             if i:
